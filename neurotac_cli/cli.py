@@ -1,0 +1,103 @@
+"""The root `neurotac` group: a lazy registry of subcommands, and the one place errors become exit codes."""
+
+import importlib
+import importlib.util
+import os
+import sys
+
+import click
+
+from neurotac_cli import __version__
+from neurotac_cli.errors import NeurotacError
+
+# name -> (module under neurotac_cli.commands, one-line help). Modules are imported only when run,
+# so `neurotac --help` needs neither pyarrow nor torch.
+COMMANDS = {
+    "simulate": ("simulate", "Simulate grasps: camera files, force logs and a manifest."),
+    "import": ("import_", "Read camera files (AEDAT, EVT2/3, DAT, ES, text) into an events table."),
+    "info": ("info", "Describe a table or camera file for a person."),
+    "sync": ("sync", "Align camera events with a force log; cut and label trials."),
+    "frame": ("frame", "Bin each trial's events into two-channel count frames."),
+    "crop": ("crop", "Crop and pool frames, recordings or events to the contact area."),
+    "augment": ("augment", "Rotate, resize, add noise, frame-shift and event-shift frames."),
+    "train": ("train", "Train a force or material model on frames."),
+    "eval": ("eval", "Score a model on frames: predictions, metrics, plots, cross-validation."),
+    "classify": ("classify", "Predict each trial's material with a trained classifier."),
+    "predict": ("predict", "Stream force estimates frame by frame, as frames arrive."),
+    "study": ("study", "Run a grid x folds x seeds study, locally or on a Dask cluster."),
+}
+
+
+def _available(name: str) -> bool:
+    return importlib.util.find_spec(f"neurotac_cli.commands.{COMMANDS[name][0]}") is not None
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx):
+        return [name for name in COMMANDS if _available(name)]
+
+    def get_command(self, ctx, name):
+        if name not in COMMANDS or not _available(name):
+            return None
+        module = importlib.import_module(f"neurotac_cli.commands.{COMMANDS[name][0]}")
+        return getattr(module, "command")
+
+    def format_commands(self, ctx, formatter):
+        rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
+    def invoke(self, ctx):
+        name = ctx.protected_args[0] if ctx.protected_args else "neurotac"
+        try:
+            return super().invoke(ctx)
+        except NeurotacError as error:
+            _fail(f"neurotac {name}: error: {error}")
+        except BrokenPipeError:
+            _quiet_exit()
+        except KeyboardInterrupt:
+            _fail(f"neurotac {name}: interrupted", code=130)
+        except MemoryError:
+            _fail(f"neurotac {name}: error: out of memory (process the input in smaller pieces)")
+
+
+def _fail(message: str, code: int = 1):
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        _redirect_stdout_to_devnull()
+    click.echo(message, err=True)
+    sys.exit(code)
+
+
+def _redirect_stdout_to_devnull():
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+
+
+def _quiet_exit():
+    """The reader of our stdout went away (`| head`): that is success, and nothing to say."""
+    _redirect_stdout_to_devnull()
+    sys.exit(0)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, prog_name="neurotac")
+def cli():
+    """Event-camera tactile sensing: from a camera file and a force log to force estimates and materials.
+
+    Every command reads Arrow tables (IPC stream, Arrow file or Parquet) from stdin or paths and writes
+    an Arrow IPC stream to stdout, or a file with -o, so commands compose in shell pipelines:
+
+    \b
+        neurotac simulate --preset ch4 --seed 1 --synced \\
+          | neurotac frame --window 10ms | neurotac crop --size 115x115 --center auto \\
+          | neurotac train --model ours -o force.model
+
+    Shell completion: eval "$(_NEUROTAC_COMPLETE=bash_source neurotac)" (zsh_source, fish_source likewise).
+    """
+
+
+def main():
+    cli(prog_name="neurotac")

@@ -1,0 +1,335 @@
+"""The table kinds of the data contract: builders, validators and metadata helpers.
+
+Kinds (schema metadata key `neurotac:kind`): events, recordings, frames, predictions, metrics.
+See docs/formats.md for the contract as built.
+"""
+
+import json
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli.errors import SchemaError
+
+KIND = "neurotac:kind"
+SENSOR = "neurotac:sensor"
+WINDOW = "neurotac:window_us"
+SYNC = "neurotac:sync"
+HISTORY = "neurotac:history"
+
+KINDS = ("events", "recordings", "frames", "predictions", "metrics")
+
+EVENT_FIELDS = [("t", pa.int64()), ("x", pa.uint16()), ("y", pa.uint16()), ("p", pa.uint8())]
+EVENT_STRUCT = pa.struct(EVENT_FIELDS)
+FORCE_STRUCT = pa.struct([("t", pa.int64()), ("value", pa.float32())])
+
+# Columns a kind must have, with their types; None = checked separately.
+REQUIRED = {
+    "events": dict(EVENT_FIELDS),
+    "recordings": {"trial": pa.string(), "t0": pa.int64(), "events": pa.list_(EVENT_STRUCT), "force": pa.list_(FORCE_STRUCT)},
+    "frames": {"trial": pa.string(), "frame": pa.int32(), "t": pa.int64(), "counts": None, "force": pa.float32(), "phase": pa.string()},
+    "predictions": {"trial": pa.string()},
+    "metrics": {"scope": pa.string(), "metric": pa.string(), "value": pa.float64()},
+}
+# String columns that describe provenance rather than a label of the grasp.
+NOT_LABELS = {"trial", "phase", "source_trial", "augment", "scope", "metric", "model"}
+
+
+# ---------------------------------------------------------------- metadata
+
+
+def get_meta(schema: pa.Schema, key: str, default=None):
+    raw = (schema.metadata or {}).get(key.encode())
+    if raw is None:
+        return default
+    try:
+        return json.loads(raw)
+    except ValueError:
+        raise SchemaError(f"metadata {key} is not valid JSON (was the file written by another tool?)") from None
+
+
+def set_meta(schema: pa.Schema, **entries) -> pa.Schema:
+    """Return `schema` with `neurotac:<key>` entries set (JSON-encoded); a value of None removes the key."""
+    metadata = dict(schema.metadata or {})
+    for key, value in entries.items():
+        name = f"neurotac:{key}".encode()
+        if value is None:
+            metadata.pop(name, None)
+        else:
+            metadata[name] = json.dumps(value, sort_keys=True, default=_json_default).encode()
+    return schema.with_metadata(metadata)
+
+
+def _json_default(value):
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating,)):
+        return float(value)
+    if isinstance(value, (tuple, set, np.ndarray)):
+        return list(value)
+    return str(value)
+
+
+def kind_of(schema: pa.Schema) -> str | None:
+    return get_meta(schema, KIND)
+
+
+def sensor_of(schema: pa.Schema) -> tuple[int, int] | None:
+    """(width, height) of the coordinate space the table is in, or None when unknown."""
+    sensor = get_meta(schema, SENSOR)
+    if not sensor:
+        return None
+    return int(sensor["width"]), int(sensor["height"])
+
+
+def sensor_meta(width: int, height: int) -> dict:
+    return {"width": int(width), "height": int(height)}
+
+
+def label_columns(schema: pa.Schema) -> list[str]:
+    """The label columns (material, object, size, ...): string columns that are not structural."""
+    kind = kind_of(schema)
+    required = REQUIRED.get(kind, {})
+    return [
+        f.name
+        for f in schema
+        if f.name not in required and f.name not in NOT_LABELS and pa.types.is_string(f.type)
+    ]
+
+
+# ---------------------------------------------------------------- builders
+
+
+def events_schema(width: int | None = None, height: int | None = None) -> pa.Schema:
+    schema = pa.schema(EVENT_FIELDS)
+    entries = {"kind": "events"}
+    if width and height:
+        entries["sensor"] = sensor_meta(width, height)
+    return set_meta(schema, **entries)
+
+
+def events_batch(t, x, y, p, schema: pa.Schema | None = None) -> pa.RecordBatch:
+    schema = schema or events_schema()
+    return pa.RecordBatch.from_arrays(
+        [
+            pa.array(np.asarray(t, dtype=np.int64)),
+            pa.array(np.asarray(x, dtype=np.uint16)),
+            pa.array(np.asarray(y, dtype=np.uint16)),
+            pa.array(np.asarray(p, dtype=np.uint8)),
+        ],
+        schema=schema,
+    )
+
+
+def events_table(t, x, y, p, width=None, height=None) -> pa.Table:
+    return pa.Table.from_batches([events_batch(t, x, y, p, events_schema(width, height))])
+
+
+def events_array(t, x, y, p) -> pa.StructArray:
+    """One trial's events as the struct array a `recordings` row nests."""
+    return pa.StructArray.from_arrays(
+        [
+            pa.array(np.asarray(t, dtype=np.int64)),
+            pa.array(np.asarray(x, dtype=np.uint16)),
+            pa.array(np.asarray(y, dtype=np.uint16)),
+            pa.array(np.asarray(p, dtype=np.uint8)),
+        ],
+        fields=list(EVENT_STRUCT),
+    )
+
+
+def force_array(t, value) -> pa.StructArray:
+    return pa.StructArray.from_arrays(
+        [pa.array(np.asarray(t, dtype=np.int64)), pa.array(np.asarray(value, dtype=np.float32))],
+        fields=list(FORCE_STRUCT),
+    )
+
+
+def recordings_schema(labels=(), width=None, height=None, sync=None) -> pa.Schema:
+    fields = [(name, typ) for name, typ in REQUIRED["recordings"].items()]
+    fields += [(name, pa.string()) for name in labels]
+    entries = {"kind": "recordings"}
+    if width and height:
+        entries["sensor"] = sensor_meta(width, height)
+    if sync is not None:
+        entries["sync"] = sync
+    return set_meta(pa.schema(fields), **entries)
+
+
+def recordings_table(trials: list[dict], width=None, height=None, sync=None) -> pa.Table:
+    """Build a recordings table from dicts with keys trial, t0, events=(t,x,y,p), force=(t,value), labels.
+
+    Event and force times are relative to t0 (µs). `labels` is a dict of strings.
+    """
+    label_names = []
+    for trial in trials:
+        for name in trial.get("labels", {}):
+            if name not in label_names:
+                label_names.append(name)
+    schema = recordings_schema(label_names, width, height, sync)
+    if not trials:
+        return schema.empty_table()
+    events = [events_array(*trial["events"]) for trial in trials]
+    forces = [force_array(*trial["force"]) for trial in trials]
+    columns = {
+        "trial": pa.array([str(trial["trial"]) for trial in trials], pa.string()),
+        "t0": pa.array([int(trial["t0"]) for trial in trials], pa.int64()),
+        "events": _list_of(events, pa.list_(EVENT_STRUCT)),
+        "force": _list_of(forces, pa.list_(FORCE_STRUCT)),
+    }
+    for name in label_names:
+        columns[name] = pa.array([trial.get("labels", {}).get(name) for trial in trials], pa.string())
+    return pa.Table.from_pydict(columns, schema=schema)
+
+
+def _list_of(arrays: list[pa.StructArray], list_type) -> pa.ListArray:
+    offsets = np.zeros(len(arrays) + 1, dtype=np.int32)
+    offsets[1:] = np.cumsum([len(a) for a in arrays])
+    values = pa.concat_arrays(arrays) if arrays else pa.array([], list_type.value_type)
+    return pa.ListArray.from_arrays(pa.array(offsets), values, type=list_type)
+
+
+def counts_type(height: int, width: int, dtype=np.uint16) -> pa.DataType:
+    return pa.fixed_shape_tensor(pa.from_numpy_dtype(np.dtype(dtype)), (2, height, width))
+
+
+def counts_array(counts: np.ndarray) -> pa.ExtensionArray:
+    """(n, 2, H, W) numpy -> Arrow's canonical fixed_shape_tensor array."""
+    counts = np.ascontiguousarray(counts)
+    if counts.ndim != 4 or counts.shape[1] != 2:
+        raise ValueError(f"counts must be (frames, 2, H, W), got {counts.shape}")
+    return pa.FixedShapeTensorArray.from_numpy_ndarray(counts)
+
+
+def counts_numpy(column) -> np.ndarray:
+    """A frames table's `counts` column (array or chunked) -> (n, 2, H, W) numpy, zero-copy when possible."""
+    if isinstance(column, pa.ChunkedArray):
+        typ = column.type
+        if column.num_chunks == 1:
+            column = column.chunk(0)
+        elif column.num_chunks == 0:
+            return np.zeros((0, *typ.shape), dtype=typ.value_type.to_pandas_dtype())
+        else:
+            return np.concatenate([counts_numpy(chunk) for chunk in column.chunks])
+    return column.to_numpy_ndarray()
+
+
+def frames_schema(height, width, labels=(), dtype=np.uint16, window_us=None, sensor=None, extra=()) -> pa.Schema:
+    """`extra` = further (name, type) columns such as source_trial and augment."""
+    fields = [
+        ("trial", pa.string()),
+        ("frame", pa.int32()),
+        ("t", pa.int64()),
+        ("counts", counts_type(height, width, dtype)),
+        ("force", pa.float32()),
+        ("phase", pa.string()),
+    ]
+    fields += list(extra)
+    fields += [(name, pa.string()) for name in labels]
+    entries = {"kind": "frames", "sensor": sensor or sensor_meta(width, height)}
+    if window_us is not None:
+        entries["window_us"] = int(window_us)
+    return set_meta(pa.schema(fields), **entries)
+
+
+def frames_shape(schema: pa.Schema) -> tuple[int, int]:
+    """(height, width) of a frames table's counts."""
+    _, height, width = schema.field("counts").type.shape
+    return int(height), int(width)
+
+
+# ---------------------------------------------------------------- validators
+
+
+def validate(schema: pa.Schema, kind) -> str:
+    """Check a schema's kind and required columns; returns the kind. `kind` may be a tuple of accepted kinds."""
+    accepted = (kind,) if isinstance(kind, str) else tuple(kind)
+    found = kind_of(schema)
+    if found is None:
+        found = _guess_kind(schema)
+        if found is None:
+            raise SchemaError(
+                f"input is not a neurotac table (no {KIND} in its metadata, and its columns "
+                f"{', '.join(schema.names) or 'none'} match no kind); make it with `neurotac import` or `neurotac sync`"
+            )
+    if found not in accepted:
+        raise SchemaError(f"expected a {' or '.join(accepted)} table, got {found!r}{_hint(found, accepted)}")
+    for name, typ in REQUIRED[found].items():
+        if name not in schema.names:
+            raise SchemaError(f"{found} table has no {name!r} column (columns: {', '.join(schema.names)})")
+        actual = schema.field(name).type
+        if typ is not None and not actual.equals(typ) and not _castable(actual, typ):
+            raise SchemaError(f"{found} column {name!r} has type {actual}, expected {typ}")
+    if found == "frames":
+        counts = schema.field("counts").type
+        if not isinstance(counts, pa.FixedShapeTensorType) or len(counts.shape) != 3 or counts.shape[0] != 2:
+            raise SchemaError(f"frames column 'counts' must be fixed_shape_tensor[2, H, W], got {counts}")
+    return found
+
+
+def _guess_kind(schema: pa.Schema) -> str | None:
+    """Tables from other tools (DuckDB, Polars) lose our metadata: recognise them by their columns."""
+    names = set(schema.names)
+    for kind in ("recordings", "frames", "events", "metrics"):
+        if set(REQUIRED[kind]) <= names:
+            return kind
+    return None
+
+
+def _castable(actual: pa.DataType, expected: pa.DataType) -> bool:
+    return (pa.types.is_integer(actual) and pa.types.is_integer(expected)) or (
+        pa.types.is_floating(actual) and pa.types.is_floating(expected)
+    ) or (pa.types.is_large_string(actual) and pa.types.is_string(expected))
+
+
+def _hint(found: str, accepted: tuple) -> str:
+    if "frames" in accepted and found in ("events", "recordings"):
+        return "; run `neurotac frame --window 10ms` first"
+    if "recordings" in accepted and found == "events":
+        return "; run `neurotac sync` first"
+    return ""
+
+
+def conform(batch, kind: str):
+    """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars)."""
+    for name, typ in REQUIRED[kind].items():
+        if typ is None:
+            continue
+        index = batch.schema.get_field_index(name)
+        column = batch.column(index)
+        if not column.type.equals(typ):
+            try:
+                column = column.cast(typ, safe=True)
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
+                raise SchemaError(f"{kind} column {name!r} cannot be read as {typ}: {error}") from None
+            batch = batch.set_column(index, pa.field(name, typ), column)
+    return batch
+
+
+def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):
+    """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked)."""
+    place = f" in {where}" if where else ""
+    if sensor is not None and len(x):
+        width, height = sensor
+        if x.max(initial=0) >= width or y.max(initial=0) >= height:
+            bad = int(np.count_nonzero((x >= width) | (y >= height)))
+            raise SchemaError(
+                f"{bad} events{place} lie outside the {width}x{height} sensor "
+                f"(largest x={int(x.max())}, y={int(y.max())}); check the sensor size (--sensor WxH)"
+            )
+    if len(p) and p.max(initial=0) > 1:
+        raise SchemaError(f"polarity{place} must be 0 (OFF) or 1 (ON), found {int(p.max())}")
+    if sorted_time and len(t) > 1:
+        steps = np.diff(t)
+        if steps.min() < 0:
+            first = int(np.argmax(steps < 0)) + 1
+            raise SchemaError(
+                f"event time goes backwards{place} at row {first} ({int(t[first - 1])} -> {int(t[first])} µs); "
+                "sort the events by time"
+            )
+
+
+def check_force(values: np.ndarray, where: str = ""):
+    if len(values) and np.isnan(values).any():
+        place = f" in {where}" if where else ""
+        raise SchemaError(f"{int(np.isnan(values).sum())} force values{place} are NaN; clean the force log first")

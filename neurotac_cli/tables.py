@@ -1,0 +1,360 @@
+"""The only code that touches stdin, stdout and -o: sniff, read, write, metadata, history.
+
+Reading: paths in order (`-` or none = stdin) are one table. Each source is sniffed from its first
+bytes: IPC stream (0xFFFFFFFF), Arrow file (ARROW1) or Parquet (PAR1). Concatenated IPC streams on
+one source (`cat a.arrows b.arrows |`) read as one table.
+
+Writing: an IPC stream on stdout, or -o PATH by suffix, through a temporary file renamed when
+complete. Every write appends one entry to `neurotac:history`.
+"""
+
+import io
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+from typing import Callable, Iterable, Iterator
+
+import pyarrow as pa
+import pyarrow.ipc as ipc
+import pyarrow.parquet as pq
+
+from neurotac_cli import __version__, schema as sch
+from neurotac_cli.errors import InputError, NeurotacError, SchemaError
+
+STREAM_MAGIC = b"\xff\xff\xff\xff"
+FILE_MAGIC = b"ARROW1"
+PARQUET_MAGIC = b"PAR1"
+SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream"}
+TRUNCATED = "input ended mid-table; did the command before it fail?"
+
+
+class _Prepend(io.RawIOBase):
+    """Put sniffed bytes back in front of a stream. `readinto` delegates to the source's `readinto1`,
+    so batches flow as soon as they arrive (a buffered `readinto` would wait for a full buffer)."""
+
+    def __init__(self, head: bytes, source):
+        self._head = memoryview(head)
+        self._source = source
+        self._read = getattr(source, "readinto1", None) or source.readinto
+
+    def readable(self):
+        return True
+
+    def readinto(self, buffer):
+        if len(self._head):
+            n = min(len(buffer), len(self._head))
+            buffer[:n] = self._head[:n]
+            self._head = self._head[n:]
+            return n
+        return self._read(buffer)
+
+
+def _read_exactly(source, n: int) -> bytes:
+    chunks, got = [], 0
+    while got < n:
+        chunk = source.read(n - got)
+        if not chunk:
+            break
+        chunks.append(chunk)
+        got += len(chunk)
+    return b"".join(chunks)
+
+
+def sniff(head: bytes) -> str | None:
+    if head.startswith(STREAM_MAGIC):
+        return "stream"
+    if head.startswith(FILE_MAGIC):
+        return "file"
+    if head.startswith(PARQUET_MAGIC):
+        return "parquet"
+    return None
+
+
+def _stdin():
+    if sys.stdin is None:
+        raise InputError("no input: give a path or pipe a table into stdin")
+    stream = getattr(sys.stdin, "buffer", sys.stdin)
+    try:
+        interactive = stream.isatty()
+    except (AttributeError, ValueError):
+        interactive = False
+    if interactive:
+        raise InputError("no input: give a path, or pipe a table into stdin (e.g. `neurotac import rec.aedat | ...`)")
+    return stream
+
+
+def open_binary(path: str):
+    """Open a path (or `-` for stdin) for reading bytes, with user-facing errors."""
+    if path in (None, "-"):
+        return _stdin()
+    if os.path.isdir(path):
+        raise InputError(f"{path} is a directory, not a file")
+    try:
+        return open(path, "rb")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except PermissionError:
+        raise InputError(f"{path}: permission denied") from None
+    except OSError as error:
+        raise InputError(f"{path}: cannot open ({error.strerror})") from None
+
+
+def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBatch]]]:
+    """Yield (schema, batches) for each table in one source (several for concatenated IPC streams)."""
+    name = "stdin" if path in (None, "-") else path
+    source = open_binary(path)
+    head = _read_exactly(source, 8)
+    fmt = sniff(head)
+    if fmt is None:
+        if not head:
+            raise InputError(f"{name} is empty; did the command before it fail?")
+        raise InputError(
+            f"{name} is not an Arrow or Parquet table (for camera files use `neurotac import`; "
+            "tables are Arrow IPC streams, Arrow files or Parquet)"
+        )
+    try:
+        if fmt == "stream":
+            stream = _Prepend(head, source)
+            first = True
+            while True:
+                if not first:
+                    more = _read_exactly(stream, 8)
+                    if not more:
+                        return
+                    if sniff(more) != "stream":
+                        raise InputError(f"{name}: bytes after the end of an Arrow stream are not another stream")
+                    stream = _Prepend(more, stream)
+                first = False
+                reader = ipc.open_stream(stream)
+                yield reader.schema, _guard(iter(reader), name)
+        else:
+            data = pa.BufferReader(head + source.read()) if path in (None, "-") else None
+            if fmt == "file":
+                reader = ipc.open_file(data if data is not None else pa.memory_map(path))
+                yield reader.schema, _guard((reader.get_batch(i) for i in range(reader.num_record_batches)), name)
+            else:
+                parquet = pq.ParquetFile(data if data is not None else path)
+                schema = parquet.schema_arrow
+                yield schema, _guard(parquet.iter_batches(batch_size=65536), name, schema)
+    except NeurotacError:
+        raise
+    except (pa.ArrowInvalid, pa.ArrowIOError, OSError, pa.ArrowNotImplementedError) as error:
+        raise InputError(f"{name}: {_describe(error)}") from None
+    finally:
+        if path not in (None, "-"):
+            source.close()
+
+
+def _describe(error: Exception) -> str:
+    text = str(error).splitlines()[0] if str(error) else type(error).__name__
+    if "Expected to" in text or "end of stream" in text.lower() or "truncated" in text.lower() or "EOF" in text:
+        return TRUNCATED
+    if "Parquet magic bytes not found" in text or "footer" in text.lower():
+        return "Parquet file is cut short or damaged (its footer is missing)"
+    return f"cannot read table ({text})"
+
+
+def _guard(batches: Iterable[pa.RecordBatch], name: str, schema: pa.Schema | None = None) -> Iterator[pa.RecordBatch]:
+    try:
+        for batch in batches:
+            if schema is not None and batch.schema.metadata != schema.metadata:
+                batch = pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+            yield batch
+    except (pa.ArrowInvalid, pa.ArrowIOError, OSError, pa.ArrowNotImplementedError) as error:
+        raise InputError(f"{name}: {_describe(error)}") from None
+
+
+@dataclass
+class Input:
+    """The tables on the command line, read lazily as one: schema (with merged metadata) and batches."""
+
+    schema: pa.Schema
+    batches: Iterator[pa.RecordBatch]
+    kind: str | None
+
+    def read_all(self) -> pa.Table:
+        return pa.Table.from_batches(list(self.batches), schema=self.schema)
+
+
+def open_input(paths, kind=None, allow_empty=False) -> Input:
+    """Open the inputs as one table. `kind` (str or tuple) is checked at the door.
+
+    Several paths are opened up front, so their kinds, sensors and histories are checked before
+    any batch flows; tables concatenated on one pipe are checked as they arrive.
+    """
+    paths = list(paths) or ["-"]
+    opened = []
+    for path in paths:
+        tables = _source_batches(path)
+        try:
+            opened.append((next(tables), tables))
+        except StopIteration:
+            raise InputError(f"{path}: no table in it") from None
+    schema = opened[0][0][0]
+    found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
+    if found and sch.kind_of(schema) is None:
+        schema = sch.set_meta(schema, kind=found)
+    for (other, _), _ in opened[1:]:
+        _check_compatible(schema, other, found)
+    if len(opened) > 1:
+        histories = [sch.get_meta(other, sch.HISTORY, []) for (other, _), _ in opened]
+        if any(h != histories[0] for h in histories[1:]):
+            schema = sch.set_meta(schema, history=[{"command": "concat", "args": {"inputs": histories}, "version": __version__}])
+
+    def batches():
+        count = 0
+        for (_, first), rest in opened:
+            for batch in _conformed(first, schema, found):
+                count += batch.num_rows
+                yield batch
+            for other, more in rest:
+                _check_compatible(schema, other, found)
+                for batch in _conformed(more, schema, found):
+                    count += batch.num_rows
+                    yield batch
+        if count == 0 and not allow_empty:
+            raise InputError(f"input {found or 'table'} is empty (no rows); did the command before it fail?")
+
+    return Input(schema=schema, batches=batches(), kind=found)
+
+
+def _conformed(batches, schema: pa.Schema, kind: str | None):
+    for batch in batches:
+        if kind in sch.REQUIRED:
+            batch = sch.conform(batch, kind)
+        if not batch.schema.equals(schema, check_metadata=False):
+            batch = _align(batch, schema)
+        yield pa.RecordBatch.from_arrays(batch.columns, schema=_conformed_schema(schema, batch))
+
+
+def _conformed_schema(schema: pa.Schema, batch: pa.RecordBatch) -> pa.Schema:
+    if batch.schema.equals(schema, check_metadata=False):
+        return schema
+    return batch.schema.with_metadata(schema.metadata)
+
+
+def _align(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
+    if set(batch.schema.names) != set(schema.names):
+        raise SchemaError(
+            f"input tables have different columns ({', '.join(schema.names)} vs {', '.join(batch.schema.names)})"
+        )
+    try:
+        return pa.RecordBatch.from_arrays([batch.column(name).cast(schema.field(name).type) for name in schema.names], schema=schema)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
+        raise SchemaError(f"input tables have different column types ({error})") from None
+
+
+def _check_compatible(first: pa.Schema, other: pa.Schema, kind):
+    other_kind = sch.kind_of(other) or sch._guess_kind(other)
+    if kind and other_kind != kind:
+        raise SchemaError(f"cannot read a {other_kind} table after a {kind} table as one input")
+    a, b = sch.sensor_of(first), sch.sensor_of(other)
+    if a and b and a != b:
+        raise SchemaError(f"input tables have different sensor sizes ({a[0]}x{a[1]} vs {b[0]}x{b[1]}); crop them alike first")
+    wa, wb = sch.get_meta(first, sch.WINDOW), sch.get_meta(other, sch.WINDOW)
+    if wa and wb and wa != wb:
+        raise SchemaError(f"input frames have different windows ({wa} µs vs {wb} µs); frame them alike")
+
+
+def read(paths, kind=None, allow_empty=False) -> pa.Table:
+    """Read all inputs into one table (validated as `kind`)."""
+    return open_input(paths, kind, allow_empty).read_all()
+
+
+# ---------------------------------------------------------------- writing
+
+
+def history_entry(command: str, args: dict) -> dict:
+    return {"command": command, "args": dict(args), "version": __version__}
+
+
+def with_step(schema: pa.Schema, step) -> pa.Schema:
+    """Append the history entry `step = (command, args)` to the schema's metadata."""
+    if step is None:
+        return schema
+    command, args = step
+    history = list(sch.get_meta(schema, sch.HISTORY, []))
+    history.append(history_entry(command, args))
+    return sch.set_meta(schema, history=history)
+
+
+def refuse_terminal():
+    stream = getattr(sys.stdout, "buffer", sys.stdout)
+    try:
+        interactive = stream.isatty()
+    except (AttributeError, ValueError):
+        interactive = False
+    if interactive:
+        raise NeurotacError(
+            "refusing to write a binary Arrow table to a terminal (pipe it into another command, "
+            "e.g. `| neurotac info -`, or write a file with -o out.parquet)"
+        )
+
+
+def output_format(path: str) -> str:
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in SUFFIXES:
+        raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)")
+    return SUFFIXES[suffix]
+
+
+def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
+    """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
+
+    `step = (command, args)` is appended to the history. With an iterable, batches are written
+    as they come, so memory does not grow with the input.
+    """
+    if isinstance(data, pa.Table):
+        schema = data.schema
+        batches: Iterable[pa.RecordBatch] = data.to_batches()
+    else:
+        if schema is None:
+            raise ValueError("write() needs a schema for a batch iterable")
+        batches = data
+    schema = with_step(schema, step)
+    if output in (None, "-"):
+        refuse_terminal()
+        sink = getattr(sys.stdout, "buffer", sys.stdout)
+        writer = ipc.new_stream(sink, schema)
+        for batch in batches:
+            writer.write_batch(_with_schema(batch, schema))
+        writer.close()
+        sink.flush()
+        return
+    fmt = output_format(output)
+    directory = os.path.dirname(os.path.abspath(output))
+    if not os.path.isdir(directory):
+        raise NeurotacError(f"cannot write {output}: folder {directory} does not exist")
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
+    os.close(handle)
+    try:
+        if fmt == "parquet":
+            writer = pq.ParquetWriter(temporary, schema, compression="zstd")
+            for batch in batches:
+                writer.write_batch(_with_schema(batch, schema))
+            writer.close()
+        else:
+            with pa.OSFile(temporary, "wb") as sink:
+                writer = (ipc.new_file if fmt == "file" else ipc.new_stream)(sink, schema)
+                for batch in batches:
+                    writer.write_batch(_with_schema(batch, schema))
+                writer.close()
+        os.replace(temporary, output)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
+
+def _with_schema(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
+    if batch.schema.equals(schema, check_metadata=True):
+        return batch
+    try:
+        return pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+    except (pa.ArrowInvalid, TypeError):
+        raise SchemaError(f"internal: batch columns {batch.schema.names} do not match {schema.names}") from None
+
+
+def map_batches(batches: Iterable[pa.RecordBatch], function: Callable) -> Iterator[pa.RecordBatch]:
+    for batch in batches:
+        yield function(batch)

@@ -1,0 +1,37 @@
+"""Durations and sizes as written on the command line: `10ms`, `500us`, `1.5s`, `115x115`."""
+
+import re
+
+from neurotac_cli.errors import NeurotacError
+
+_UNIT_US = {"us": 1, "µs": 1, "ms": 1_000, "s": 1_000_000, "min": 60_000_000}
+_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(us|µs|ms|s|min)\s*$")
+
+
+def parse_duration_us(text: str) -> int:
+    """`10ms` -> 10000. A bare number is refused: peer tools disagree on its unit."""
+    match = _DURATION.match(str(text))
+    if not match:
+        raise NeurotacError(
+            f"cannot read duration {text!r} (a duration carries its unit; write e.g. 10ms, 500us or 1.5s)"
+        )
+    value = float(match.group(1)) * _UNIT_US[match.group(2)]
+    if abs(value - round(value)) > 1e-6:
+        raise NeurotacError(f"duration {text!r} is not a whole number of microseconds (use a finer unit)")
+    return int(round(value))
+
+
+def format_duration_us(us: int) -> str:
+    """10000 -> '10ms': the shortest exact spelling."""
+    for unit, factor in (("s", 1_000_000), ("ms", 1_000)):
+        if us and us % factor == 0:
+            return f"{us // factor}{unit}"
+    return f"{us}us"
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """`115x115` -> (width, height)."""
+    match = re.match(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$", str(text))
+    if not match or int(match.group(1)) == 0 or int(match.group(2)) == 0:
+        raise NeurotacError(f"cannot read size {text!r} (write WIDTHxHEIGHT, e.g. 240x180)")
+    return int(match.group(1)), int(match.group(2))
