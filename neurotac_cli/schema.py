@@ -290,6 +290,15 @@ def _hint(found: str, accepted: tuple) -> str:
     return ""
 
 
+def conform_schema(schema: pa.Schema, kind: str) -> pa.Schema:
+    """The schema `conform` gives batches of this schema: the contract's types, the same metadata."""
+    for name, typ in REQUIRED[kind].items():
+        if typ is not None and name in schema.names and not schema.field(name).type.equals(typ):
+            index = schema.get_field_index(name)
+            schema = schema.set(index, pa.field(name, typ))
+    return schema
+
+
 def conform(batch, kind: str):
     """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars)."""
     for name, typ in REQUIRED[kind].items():

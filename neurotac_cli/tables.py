@@ -195,6 +195,8 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
     found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
     if found and sch.kind_of(schema) is None:
         schema = sch.set_meta(schema, kind=found)
+    if found in sch.REQUIRED:
+        schema = sch.conform_schema(schema, found)
     for (other, _), _ in opened[1:]:
         _check_compatible(schema, other, found)
     if len(opened) > 1:

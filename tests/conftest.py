@@ -20,3 +20,7 @@ def real_file(name: str) -> pathlib.Path:
     if not path.is_file():
         pytest.skip(f"real recording {name} not found in {REAL_DATA} (set NEUROTAC_REAL_DATA)")
     return path
+
+
+# Subprocess tests run the `neurotac` installed beside this interpreter, whatever PATH says.
+os.environ["PATH"] = str(pathlib.Path(__import__("sys").executable).parent) + os.pathsep + os.environ.get("PATH", "")

@@ -1,0 +1,29 @@
+"""The root command: help, version, exits."""
+
+import subprocess
+
+from click.testing import CliRunner
+
+from neurotac_cli import __version__
+from neurotac_cli.cli import COMMANDS, cli
+
+
+def test_version():
+    result = CliRunner().invoke(cli, ["--version"])
+    assert result.exit_code == 0 and __version__ in result.output
+
+
+def test_help_lists_the_commands():
+    result = CliRunner().invoke(cli, ["--help"])
+    assert result.exit_code == 0
+    assert "Commands" in result.output or not COMMANDS
+
+
+def test_unknown_command_is_a_usage_error():
+    result = CliRunner().invoke(cli, ["no-such-command"])
+    assert result.exit_code == 2
+
+
+def test_installed_console_script_runs():
+    done = subprocess.run(["neurotac", "--version"], capture_output=True, text=True)
+    assert done.returncode == 0 and __version__ in done.stdout

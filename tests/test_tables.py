@@ -1,0 +1,191 @@
+"""The table layer: sniffing, streams, concatenation, atomic writes, history, errors at the door."""
+
+import io
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from neurotac_cli import schema, tables
+from neurotac_cli.errors import InputError, NeurotacError, SchemaError
+
+
+def events(n=100, width=240, height=180, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(0, 1_000_000, n))
+    return schema.events_table(t, rng.integers(0, width, n), rng.integers(0, height, n), rng.integers(0, 2, n), width, height)
+
+
+def write_to(path, table, step=("test", {})):
+    tables.write(str(path), table, step=step)
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".arrow", ".arrows", ".feather"])
+def test_every_format_round_trips_with_metadata(tmp_path, suffix):
+    table = events()
+    path = write_to(tmp_path / f"e{suffix}", table)
+    back = tables.read([str(path)], kind="events")
+    assert back.equals(table)
+    assert schema.sensor_of(back.schema) == (240, 180)
+    assert schema.get_meta(back.schema, schema.HISTORY)[-1]["command"] == "test"
+
+
+def test_several_paths_are_one_table_in_order(tmp_path):
+    a, b = events(50, seed=1), events(70, seed=2)
+    pa_, pb = write_to(tmp_path / "a.parquet", a), write_to(tmp_path / "b.arrows", b)
+    back = tables.read([str(pa_), str(pb)], kind="events")
+    assert back.num_rows == 120
+    assert back.column("t").to_pylist() == a.column("t").to_pylist() + b.column("t").to_pylist()
+
+
+def test_concatenated_streams_on_one_source_read_as_one_table(tmp_path):
+    a, b = events(50, seed=1), events(70, seed=2)
+    write_to(tmp_path / "a.arrows", a)
+    write_to(tmp_path / "b.arrows", b)
+    joined = tmp_path / "ab.arrows"
+    joined.write_bytes((tmp_path / "a.arrows").read_bytes() + (tmp_path / "b.arrows").read_bytes())
+    assert tables.read([str(joined)], kind="events").num_rows == 120
+
+
+def test_mismatched_sensors_are_refused(tmp_path):
+    a = write_to(tmp_path / "a.arrows", events(10))
+    b = write_to(tmp_path / "b.arrows", events(10, width=346, height=260))
+    with pytest.raises(SchemaError, match="different sensor sizes"):
+        tables.read([str(a), str(b)], kind="events")
+
+
+def test_history_grows_by_one_entry_per_write(tmp_path):
+    first = write_to(tmp_path / "a.arrows", events(), ("one", {"x": 1}))
+    table = tables.read([str(first)])
+    second = write_to(tmp_path / "b.arrows", table, ("two", {"window": 10000}))
+    history = schema.get_meta(tables.read([str(second)]).schema, schema.HISTORY)
+    assert [entry["command"] for entry in history] == ["one", "two"]
+    assert history[1]["args"] == {"window": 10000}
+
+
+def test_same_input_same_bytes(tmp_path):
+    a = write_to(tmp_path / "a.parquet", events())
+    b = write_to(tmp_path / "b.parquet", events())
+    assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize("cut", [9, 100, 400, -30])
+def test_a_stream_cut_short_is_one_clear_error(tmp_path, cut):
+    path = write_to(tmp_path / "a.arrows", events(2000))
+    data = path.read_bytes()
+    (tmp_path / "cut.arrows").write_bytes(data[:cut])
+    with pytest.raises(InputError, match="ended mid-table|empty"):
+        tables.read([str(tmp_path / "cut.arrows")], kind="events")
+
+
+def test_a_parquet_file_cut_short_is_one_clear_error(tmp_path):
+    path = write_to(tmp_path / "a.parquet", events(2000))
+    (tmp_path / "cut.parquet").write_bytes(path.read_bytes()[:-100])
+    with pytest.raises(InputError, match="cut short|damaged"):
+        tables.read([str(tmp_path / "cut.parquet")], kind="events")
+
+
+def test_not_a_table_directory_missing_and_empty(tmp_path):
+    (tmp_path / "x.csv").write_text("t,x,y,p\n1,2,3,1\n")
+    (tmp_path / "empty.arrows").write_bytes(b"")
+    with pytest.raises(InputError, match="not an Arrow or Parquet table"):
+        tables.read([str(tmp_path / "x.csv")])
+    with pytest.raises(InputError, match="is a directory"):
+        tables.read([str(tmp_path)])
+    with pytest.raises(InputError, match="no such file"):
+        tables.read([str(tmp_path / "missing.parquet")])
+    with pytest.raises(InputError, match="empty"):
+        tables.read([str(tmp_path / "empty.arrows")])
+
+
+def test_a_table_with_no_rows_is_refused_unless_allowed(tmp_path):
+    path = write_to(tmp_path / "e.arrows", events(0))
+    with pytest.raises(InputError, match="empty"):
+        tables.read([str(path)], kind="events")
+    assert tables.read([str(path)], kind="events", allow_empty=True).num_rows == 0
+
+
+def test_wrong_kind_and_mistyped_columns_are_refused(tmp_path):
+    path = write_to(tmp_path / "e.arrows", events())
+    with pytest.raises(SchemaError, match="expected a frames table, got 'events'.*neurotac frame"):
+        tables.read([str(path)], kind="frames")
+    bad = pa.table({"t": pa.array(["a"]), "x": pa.array([1], pa.uint16()), "y": pa.array([1], pa.uint16()), "p": pa.array([1], pa.uint8())})
+    pq.write_table(bad, tmp_path / "bad.parquet")
+    with pytest.raises(SchemaError, match="column 't'"):
+        tables.read([str(tmp_path / "bad.parquet")], kind="events")
+    missing = pa.table({"a": [1]})
+    pq.write_table(missing, tmp_path / "missing.parquet")
+    with pytest.raises(SchemaError, match="not a neurotac table"):
+        tables.read([str(tmp_path / "missing.parquet")], kind="events")
+
+
+def test_tables_from_other_tools_are_recognised_and_cast(tmp_path):
+    plain = pa.table({"t": pa.array([1, 2], pa.int32()), "x": pa.array([1, 2], pa.int64()), "y": pa.array([1, 2], pa.int64()), "p": pa.array([0, 1], pa.int64())})
+    pq.write_table(plain, tmp_path / "plain.parquet")
+    back = tables.read([str(tmp_path / "plain.parquet")], kind="events")
+    assert back.schema.field("x").type == pa.uint16() and back.num_rows == 2
+
+
+def test_failed_write_leaves_no_file(tmp_path):
+    def batches():
+        yield events(10).to_batches()[0]
+        raise NeurotacError("upstream failed")
+
+    target = tmp_path / "out.parquet"
+    with pytest.raises(NeurotacError):
+        tables.write(str(target), batches(), schema=events(1).schema)
+    assert not target.exists()
+    assert os.listdir(tmp_path) == []
+
+
+def test_unknown_output_suffix_is_refused(tmp_path):
+    with pytest.raises(NeurotacError, match="suffix"):
+        tables.write(str(tmp_path / "out.csv"), events())
+
+
+def test_counts_round_trip_as_a_canonical_tensor(tmp_path):
+    counts = np.arange(3 * 2 * 4 * 5, dtype=np.uint16).reshape(3, 2, 4, 5)
+    frames_schema = schema.frames_schema(4, 5, labels=["material"], window_us=10_000)
+    table = pa.Table.from_pydict(
+        {
+            "trial": ["a"] * 3,
+            "frame": pa.array([0, 1, 2], pa.int32()),
+            "t": pa.array([0, 10_000, 20_000], pa.int64()),
+            "counts": schema.counts_array(counts),
+            "force": pa.array([0.0, 1.0, None], pa.float32()),
+            "phase": ["grasping", "holding", None],
+            "material": ["foam"] * 3,
+        },
+        schema=frames_schema,
+    )
+    path = write_to(tmp_path / "f.parquet", table)
+    back = tables.read([str(path)], kind="frames")
+    assert np.array_equal(schema.counts_numpy(back.column("counts")), counts)
+    assert schema.label_columns(back.schema) == ["material"]
+    assert schema.frames_shape(back.schema) == (4, 5)
+
+
+def test_batches_flow_through_a_pipe_before_the_input_ends(tmp_path):
+    """A reader sees the first batch while the writer is still running (no buffering to end of input)."""
+    code = (
+        "import sys, time, numpy as np, pyarrow as pa, pyarrow.ipc as ipc\n"
+        "from neurotac_cli import schema\n"
+        "b = schema.events_table([1],[1],[1],[1]).to_batches()[0]\n"
+        "w = ipc.new_stream(sys.stdout.buffer, b.schema); w.write_batch(b); sys.stdout.buffer.flush()\n"
+        "time.sleep(5); w.write_batch(b); w.close()\n"
+    )
+    reader = (
+        "import time, sys\nfrom neurotac_cli import tables\n"
+        "start = time.time(); source = tables.open_input(['-'], kind='events')\n"
+        "next(source.batches); print(round(time.time() - start, 1))\n"
+    )
+    writer = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE)
+    done = subprocess.run([sys.executable, "-c", reader], stdin=writer.stdout, capture_output=True, text=True, timeout=30)
+    writer.kill()
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout) < 4.0
