@@ -66,3 +66,35 @@ def seed_option(function):
     return click.option(
         "--seed", type=int, default=0, show_default=True, help="Seed of every random draw: same seed, same bytes."
     )(function)
+
+
+def study_options(function):
+    """`--jobs`, `--scheduler`, `--cache`: how a command runs many independent tasks (folds, grid
+    points, seeds) through `neurotac_cli.study.run_tasks`. Adds the parameters `jobs`, `scheduler`, `cache`."""
+    function = click.option(
+        "--cache",
+        type=click.Path(file_okay=False),
+        default=None,
+        envvar="NEUROTAC_CACHE",
+        help="Keep each finished task's result in this folder, so a re-run of an interrupted study "
+        "runs only the tasks still missing [env NEUROTAC_CACHE].",
+    )(function)
+    function = click.option(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        envvar="NEUROTAC_SCHEDULER",
+        help="Run the tasks on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 (see docs/studies.md; "
+        "SLURM/PBS through dask-jobqueue) [env NEUROTAC_SCHEDULER].",
+    )(function)
+    function = click.option(
+        "--jobs",
+        "-j",
+        type=int,
+        default=1,
+        show_default=True,
+        envvar="NEUROTAC_JOBS",
+        help="Run this many tasks at once in local processes (0: one per CPU). Results do not depend on it "
+        "[env NEUROTAC_JOBS].",
+    )(function)
+    return function

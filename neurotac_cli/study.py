@@ -1,0 +1,503 @@
+"""Studies: many independent tasks (grid points x folds x seeds), run in-process, on a local process
+pool, or on a Dask distributed cluster, with results cached so an interrupted study resumes.
+
+`run_tasks(function, tasks)` calls `function(**task)` for every task and returns the results in task
+order. Whatever runs them, the results are the same: a task carries everything it depends on (its
+seed included), so no result can depend on which worker ran it or in what order. Each result is
+written to the cache as soon as it arrives, under a hash of the function and the task, so a re-run
+of the same study only runs what is missing.
+
+`parse_grid(["layers=1..5", "units=5,10,...,40"])` expands the `--grid` grammar into grid points.
+
+Core code: no click, nothing on stdout, no exits. Progress goes to stderr.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import itertools
+import json
+import math
+import os
+import pathlib
+import pickle
+import re
+import sys
+import tempfile
+import time
+from typing import Callable
+
+from neurotac_cli.errors import NeurotacError
+
+# Bumped when the cache file layout changes, so old entries are never misread.
+CACHE_FORMAT = 1
+
+
+class StudyError(NeurotacError):
+    """A study that cannot run: a grid that does not parse, a scheduler that cannot be reached, a task
+    that keeps killing its worker."""
+
+
+# --------------------------------------------------------------------------------------------------
+# Running tasks
+
+
+def run_tasks(
+    function: Callable,
+    tasks: list[dict],
+    *,
+    jobs: int = 1,
+    scheduler=None,
+    cache_dir=None,
+    retries: int = 2,
+    label: str = "tasks",
+    progress=None,
+) -> list:
+    """Run `function(**task)` for every task; return the results in task order.
+
+    `function` must be a module-level (picklable) function. `jobs` > 1 runs tasks on a local process
+    pool (`jobs` <= 0: one process per CPU); `scheduler` (a Dask scheduler address such as
+    `tcp://10.0.0.5:8786`, or a `dask.distributed.Client`) runs them on a Dask cluster. `cache_dir`
+    keeps one file per finished task, keyed by a hash of the function's name and the task, so a re-run
+    skips what finished. `retries`: how many times a task whose worker died (or, on Dask, that raised)
+    is run again before the study fails. `progress`: True/False to force the stderr progress line on
+    or off; None shows it when stderr is a terminal or $NEUROTAC_PROGRESS is set.
+    """
+    tasks = list(tasks)
+    if scheduler and jobs not in (None, 0, 1):
+        raise StudyError(
+            f"--jobs {jobs} and --scheduler {scheduler} both given (the Dask cluster decides how many "
+            "tasks run at once; pass one of them)"
+        )
+    keys = [task_key(function, task) for task in tasks]
+    cache = _Cache(cache_dir) if cache_dir else None
+
+    results: dict[str, object] = {}
+    if cache is not None:
+        for key in dict.fromkeys(keys):
+            found, value = cache.get(key)
+            if found:
+                results[key] = value
+    # Identical tasks run once: the same inputs give the same result.
+    pending = {key: task for key, task in zip(keys, tasks) if key not in results}
+
+    meter = Progress(len(dict.fromkeys(keys)), cached=len(results), label=label, enabled=progress)
+
+    def finished(key, value):
+        results[key] = value
+        if cache is not None:
+            cache.put(key, value)
+        meter.advance()
+
+    meter.show()
+    try:
+        if pending:
+            if scheduler:
+                _run_dask(function, pending, scheduler, retries, label, finished)
+            elif jobs is not None and jobs != 1:
+                workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
+                _run_pool(function, pending, workers, retries, finished)
+            else:
+                for key, task in pending.items():
+                    finished(key, function(**task))
+    finally:
+        meter.close()
+    return [results[key] for key in keys]
+
+
+def _call(function, task: dict):
+    """Runs on a worker. Tasks travel as one dict so no task name can clash with the pool's own
+    keywords (Dask's `key`, `workers`, `priority`...)."""
+    return function(**task)
+
+
+def _run_pool(function, pending: dict, workers: int, retries: int, finished):
+    """A local process pool. A worker that dies breaks the whole pool (BrokenProcessPool): keep what
+    finished, start a new pool and resubmit the rest; a task lost with `retries` + 1 broken pools fails."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    remaining = dict(pending)
+    losses = {key: 0 for key in remaining}
+    while remaining:
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=_mp_context())
+        broken = False
+        try:
+            futures = {pool.submit(_call, function, task): key for key, task in remaining.items()}
+            waiting = set(futures)
+            while waiting:
+                done, waiting = wait(waiting, return_when=FIRST_COMPLETED)
+                for future in done:
+                    key = futures[future]
+                    try:
+                        value = future.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        continue
+                    del remaining[key]
+                    finished(key, value)
+                if broken:
+                    break
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown(wait=not broken, cancel_futures=True)
+        if broken:
+            for key in remaining:
+                losses[key] += 1
+            lost = [key for key in remaining if losses[key] > retries]
+            if lost:
+                raise StudyError(
+                    f"{len(lost)} task(s) lost their worker {retries + 1} times (a worker process died: out of "
+                    "memory, or killed); free memory or run fewer at once with a smaller --jobs"
+                )
+
+
+def _mp_context():
+    """Fork is fast but unsafe once torch has started threads; forkserver gives fresh workers that
+    still import neurotac_cli from the same environment."""
+    import multiprocessing
+
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    return multiprocessing.get_context(method)
+
+
+def _run_dask(function, pending: dict, scheduler, retries: int, label: str, finished):
+    """A Dask cluster. The scheduler reruns tasks of a worker that died by itself (up to its
+    `distributed.scheduler.allowed-failures`); `retries` reruns tasks that raised."""
+    try:
+        from distributed import Client, as_completed
+        from distributed.scheduler import KilledWorker
+    except ImportError as error:
+        raise StudyError(
+            f"--scheduler needs Dask distributed ({error}); install it with `pip install 'neurotac[dask]'`"
+        ) from None
+
+    own_client = not isinstance(scheduler, Client)
+    if own_client:
+        try:
+            client = Client(scheduler, timeout="20s", set_as_default=False)
+        except (OSError, TimeoutError) as error:
+            raise StudyError(
+                f"cannot reach the Dask scheduler at {scheduler} ({error}); start one with `dask scheduler` "
+                "and workers with `dask worker ADDRESS`, or drop --scheduler to run here"
+            ) from None
+    else:
+        client = scheduler
+    prefix = re.sub(r"[^A-Za-z0-9_.]+", "-", label).strip("-") or "tasks"
+    futures = {}
+    try:
+        for key, task in pending.items():
+            future = client.submit(_call, function, task, key=f"{prefix}-{key}", pure=False, retries=retries)
+            futures[future] = key
+        for future in as_completed(list(futures), loop=client.loop):
+            try:
+                value = future.result()
+            except KilledWorker as error:
+                raise StudyError(
+                    f"a task killed every worker that ran it ({error}); it may need more memory than a worker "
+                    "has: start workers with a larger --memory-limit"
+                ) from None
+            finished(futures[future], value)
+            future.release()
+    finally:
+        for future in futures:
+            if not future.done():
+                future.cancel()
+        if own_client:
+            client.close()
+
+
+# --------------------------------------------------------------------------------------------------
+# Task identity and the cache
+
+
+def task_key(function: Callable, task: dict) -> str:
+    """A hash of the function's qualified name, the neurotac version and the task's content: the
+    name of the task's cache entry. Tables and arrays in a task are hashed by content."""
+    from neurotac_cli import __version__
+
+    name = f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"
+    identity = {"function": name, "version": __version__, "format": CACHE_FORMAT, "task": _canonical(task)}
+    text = json.dumps(identity, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def data_digest(data) -> str:
+    """A content hash of a table, array, bytes or file path (by the file's bytes): use it in a task in
+    place of the data itself, so the task stays small and its cache key still changes with the data."""
+    hasher = hashlib.sha256()
+    if isinstance(data, (str, os.PathLike)) and os.path.isfile(data):
+        with open(data, "rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                hasher.update(block)
+    else:
+        hasher.update(json.dumps(_canonical(data), sort_keys=True).encode())
+    return hasher.hexdigest()[:32]
+
+
+def task_seed(seed: int, *parts) -> int:
+    """A seed for one task derived from the study's seed and the task's coordinates (fold, repeat,
+    grid point): independent of the order tasks run in and of which worker runs them."""
+    text = json.dumps([seed, _canonical(list(parts))], sort_keys=True)
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "little")
+
+
+def _canonical(value):
+    """`value` as JSON-able data that is equal exactly when the values are."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return {"float": value.hex()}
+    if isinstance(value, dict):
+        return {"dict": sorted(([str(k), _canonical(v)] for k, v in value.items()))}
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    if isinstance(value, (set, frozenset)):
+        return {"set": sorted(json.dumps(_canonical(v), sort_keys=True) for v in value)}
+    if isinstance(value, os.PathLike):
+        return {"path": os.fspath(value)}
+    if isinstance(value, bytes):
+        return {"bytes": hashlib.sha256(value).hexdigest()}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {"dataclass": type(value).__qualname__, "fields": _canonical(dataclasses.asdict(value))}
+    module = type(value).__module__.split(".")[0]
+    if module == "numpy":
+        import numpy as np
+
+        if isinstance(value, np.generic):
+            return _canonical(value.item())
+        if isinstance(value, np.ndarray):
+            array = np.ascontiguousarray(value)
+            digest = hashlib.sha256(array.view(np.uint8).reshape(-1) if array.size else b"").hexdigest()
+            return {"ndarray": [str(array.dtype), list(array.shape), digest]}
+    if module == "pyarrow":
+        return {"arrow": _arrow_digest(value)}
+    if callable(value) and hasattr(value, "__qualname__"):
+        return {"callable": f"{value.__module__}.{value.__qualname__}"}
+    raise TypeError(
+        f"a task value of type {type(value).__name__} cannot be hashed for the study cache; "
+        "pass plain values, paths, arrays or Arrow tables (or their data_digest)"
+    )
+
+
+def _arrow_digest(value) -> str:
+    import pyarrow as pa
+
+    if isinstance(value, pa.RecordBatch):
+        value = pa.Table.from_batches([value])
+    if isinstance(value, pa.Table):
+        sink = io.BytesIO()
+        with pa.ipc.new_stream(sink, value.schema) as writer:
+            writer.write_table(value.combine_chunks())
+        return hashlib.sha256(sink.getvalue()).hexdigest()
+    if isinstance(value, pa.Schema):
+        return hashlib.sha256(value.serialize().to_pybytes()).hexdigest()
+    raise TypeError(f"cannot hash a {type(value).__name__} for the study cache")
+
+
+class _Cache:
+    """One pickle per finished task, written to a temporary name and renamed into place, so an
+    interruption leaves either the whole result or nothing."""
+
+    def __init__(self, folder):
+        self.folder = pathlib.Path(folder)
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise StudyError(f"cannot create the study cache folder {folder} ({error.strerror}; pick another --cache)") from None
+
+    def path(self, key: str) -> pathlib.Path:
+        return self.folder / key[:2] / f"{key}.pkl"
+
+    def get(self, key: str):
+        try:
+            with open(self.path(key), "rb") as handle:
+                return True, pickle.load(handle)
+        except FileNotFoundError:
+            return False, None
+        except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
+            return False, None  # unreadable entry: run the task again
+
+    def put(self, key: str, value) -> None:
+        target = self.path(key)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle = tempfile.NamedTemporaryFile(dir=target.parent, prefix=f".{key}.", suffix=".tmp", delete=False)
+        try:
+            with handle:
+                pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
+                handle.flush()
+                os.fsync(handle.fileno())
+            os.replace(handle.name, target)
+        except BaseException:
+            pathlib.Path(handle.name).unlink(missing_ok=True)
+            raise
+
+    def keys(self) -> set[str]:
+        return {path.stem for path in self.folder.glob("*/*.pkl")}
+
+
+def cached_keys(cache_dir) -> set[str]:
+    """The task keys that have a result in `cache_dir` (for tests and `neurotac info`-like reports)."""
+    return _Cache(cache_dir).keys() if pathlib.Path(cache_dir).is_dir() else set()
+
+
+# --------------------------------------------------------------------------------------------------
+# Progress
+
+
+class Progress:
+    """`label: 12/40 done (3 cached), 0:34 elapsed, ~1:20 left` on stderr: rewritten in place on a
+    terminal, one line at most every 10 s otherwise."""
+
+    def __init__(self, total: int, *, cached: int = 0, label: str = "tasks", enabled=None, stream=None):
+        self.stream = stream or sys.stderr
+        if enabled is None:
+            enabled = bool(os.environ.get("NEUROTAC_PROGRESS")) or _isatty(self.stream)
+        self.enabled = enabled and total > 0
+        self.terminal = _isatty(self.stream)
+        self.total, self.cached, self.done = total, cached, cached
+        self.label = label
+        self.start = time.monotonic()
+        self.last_shown = -math.inf
+        self.shown_done = None
+
+    def advance(self):
+        self.done += 1
+        self.show()
+
+    def show(self, final: bool = False):
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        interval = 0.2 if self.terminal else 10.0
+        if not final and self.done < self.total and now - self.last_shown < interval:
+            return
+        if final and not self.terminal and self.shown_done == self.done:
+            return
+        self.last_shown, self.shown_done = now, self.done
+        line = self.line(now)
+        end = "" if self.terminal and not final else "\n"
+        prefix = "\r\033[K" if self.terminal else ""
+        self.stream.write(f"{prefix}{line}{end}")
+        self.stream.flush()
+
+    def line(self, now: float) -> str:
+        elapsed = now - self.start
+        ran = self.done - self.cached
+        text = f"{self.label}: {self.done}/{self.total} done"
+        if self.cached:
+            text += f" ({self.cached} cached)"
+        text += f", {_clock(elapsed)} elapsed"
+        if self.done < self.total:
+            text += f", ~{_clock(elapsed / ran * (self.total - self.done))} left" if ran else ", time left unknown"
+        return text
+
+    def close(self):
+        if self.enabled and self.last_shown > -math.inf:
+            self.show(final=True)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, seconds = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{seconds:02d}" if hours else f"{minutes}:{seconds:02d}"
+
+
+# --------------------------------------------------------------------------------------------------
+# The --grid grammar
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_RANGE = re.compile(rf"^({_NUMBER})\.\.({_NUMBER})(?::({_NUMBER}))?$")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]*$")
+
+
+def parse_grid(specs) -> list[dict]:
+    """Expand `--grid` specs into grid points: the product of every name's values, the last name
+    varying fastest.
+
+    \b
+    Each spec is `NAME=VALUES` (several may share one string, separated by spaces). VALUES is a comma
+    list of numbers or words; `A..B` is the integers A to B inclusive, `A..B:STEP` steps by STEP, and
+    `A,B,...,Z` continues the step B-A up to Z:
+        parse_grid(["layers=1..3", "units=5,10,...,20"])  ->  12 points
+        parse_grid(["model=lstm,cnnlstm seed=0..9"])       ->  20 points
+    No spec gives one point with no parameters ([{}]).
+    """
+    axes: dict[str, list] = {}
+    for spec in specs or ():
+        for item in str(spec).split():
+            name, sep, text = item.partition("=")
+            name = name.strip()
+            if not sep or not _NAME.match(name):
+                raise StudyError(f"grid spec {item!r} is not NAME=VALUES (write e.g. --grid layers=1..5)")
+            if name in axes:
+                raise StudyError(f"grid name {name!r} is given twice (give all its values at once: {name}=1,2,3)")
+            axes[name] = _grid_values(name, text)
+    names = list(axes)
+    return [dict(zip(names, point)) for point in itertools.product(*axes.values())]
+
+
+def _grid_values(name: str, text: str) -> list:
+    parts = [part.strip() for part in text.split(",")]
+    if not text.strip() or any(part == "" for part in parts):
+        raise StudyError(f"grid {name}={text!r} has an empty value (write e.g. {name}=5,10,40)")
+    values: list = []
+    index = 0
+    while index < len(parts):
+        part = parts[index]
+        if part == "...":
+            if len(values) < 2 or index + 1 >= len(parts):
+                raise StudyError(
+                    f"grid {name}={text}: `...` needs two values before it and one after (e.g. {name}=5,10,...,40)"
+                )
+            first, second, last = values[-2], values[-1], _scalar(parts[index + 1])
+            if not all(isinstance(v, (int, float)) for v in (first, second, last)):
+                raise StudyError(f"grid {name}={text}: `...` continues numbers only")
+            values.extend(_arange(second, last, second - first, name, text)[1:])
+            index += 2
+            continue
+        match = _RANGE.match(part)
+        if match:
+            start, stop = _scalar(match.group(1)), _scalar(match.group(2))
+            step = _scalar(match.group(3)) if match.group(3) else 1
+            values.extend(_arange(start, stop, step, name, text))
+        else:
+            values.append(_scalar(part))
+        index += 1
+    return values
+
+
+def _arange(start, stop, step, name, text) -> list:
+    if step == 0 or (stop - start) * step < 0:
+        raise StudyError(f"grid {name}={text}: the range {start}..{stop} with step {step} never reaches its end")
+    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    if count > 100_000:
+        raise StudyError(f"grid {name}={text} has {count} values (more than 100000; use a larger step)")
+    if all(isinstance(v, int) for v in (start, stop, step)):
+        return [start + i * step for i in range(count)]
+    return [round(start + i * step, 12) for i in range(count)]
+
+
+def _scalar(text: str):
+    """`5` -> 5, `0.5` -> 0.5, `1e-3` -> 0.001, anything else stays a string."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
