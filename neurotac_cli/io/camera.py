@@ -1,0 +1,280 @@
+"""Camera files in: sniff the format, decode in chunks, hand out `events` record batches.
+
+Every format module exposes `open_<format>(path, head, sensor) -> Decoded`: the sensor the file
+declares (or None), a function that yields (t, x, y, p) numpy chunks from the start of the data
+(callable again for a second pass), and extra metadata (AEDAT4 triggers). This module turns them
+into Arrow batches with the `events` schema, checks coordinates against the sensor, and turns every
+low-level decoding failure into one `FormatError` line.
+"""
+
+import os
+import shutil
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import FormatError, InputError, NeurotacError
+
+CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
+
+FORMATS = ("aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
+FORMAT_NAMES = {
+    "aedat2": "AEDAT 2.0 (jAER)",
+    "aedat4": "AEDAT 4.0",
+    "evt2": "Prophesee EVT 2.0 raw",
+    "evt3": "Prophesee EVT 3.0 raw",
+    "dat": "Prophesee DAT",
+    "es": "Event Stream",
+    "csv": "CSV text (t,x,y,p)",
+    "text": "whitespace text (t x y p, seconds)",
+}
+
+
+@dataclass
+class Decoded:
+    """What a format module found: the declared sensor, a chunk source, and extra metadata."""
+
+    sensor: tuple[int, int] | None
+    chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
+    meta: dict = field(default_factory=dict)
+
+
+def is_table(path) -> bool:
+    """True when `path` holds an Arrow IPC stream, Arrow file or Parquet table (stdin counts as a table)."""
+    if path in (None, "-"):
+        return True
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(8)
+    except OSError:
+        return False
+    return head.startswith((b"\xff\xff\xff\xff", b"ARROW1", b"PAR1"))
+
+
+def detect_format(path, head: bytes) -> str:
+    """The camera format of a file from its first bytes (and, for Prophesee raw files, its header)."""
+    name = os.path.basename(str(path))
+    if head.startswith(b"#!AER-DAT2") or head.startswith(b"#!AER-DAT1"):
+        if head.startswith(b"#!AER-DAT1"):
+            raise FormatError(f"{name}: AEDAT 1.0 is not supported (convert it to AEDAT 2.0 or 4.0 with jAER or dv)")
+        return "aedat2"
+    if head.startswith(b"#!AER-DAT3"):
+        raise FormatError(f"{name}: AEDAT 3.1 is not supported (convert it to AEDAT 4.0 with dv-runtime's converter)")
+    if head.startswith(b"#!AER-DAT4"):
+        return "aedat4"
+    if head.startswith(b"Event Stream"):
+        return "es"
+    if head.startswith(b"%"):
+        header = _percent_header(head)
+        if "evt" in header or "format" in header:
+            version = (header.get("evt") or header.get("format", "")).upper().replace("EVT", "").strip()
+            if version.startswith("3"):
+                return "evt3"
+            if version.startswith("2"):
+                return "evt2"
+            raise FormatError(f"{name}: Prophesee raw format {version!r} is not supported (EVT 2.0 and 3.0 are)")
+        if "version" in header or any("data file containing" in key for key in header) or name.lower().endswith(".dat"):
+            return "dat"
+        raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2 or --format evt3)")
+    if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
+        raise FormatError(f"{name} is already a table, not a camera file (use it directly, or `neurotac info {name}`)")
+    if _looks_like_text(head):
+        first = _first_data_line(head)
+        return "csv" if "," in first else "text"
+    raise FormatError(
+        f"{name}: unknown camera format (known: AEDAT 2.0/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
+        "Event Stream .es, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
+    )
+
+
+def _percent_header(head: bytes) -> dict:
+    """Prophesee `% key value` header lines as a dict (keys lowercased)."""
+    header = {}
+    for line in head.split(b"\n"):
+        if not line.startswith(b"%"):
+            break
+        text = line[1:].decode("latin-1").strip()
+        key, _, value = text.partition(" ")
+        header[key.lower()] = value.strip()
+        header[text.lower()] = ""
+    return header
+
+
+def _looks_like_text(head: bytes) -> bool:
+    if not head:
+        return False
+    sample = head[:4096]
+    try:
+        text = sample.decode("ascii")
+    except UnicodeDecodeError:
+        return False
+    return all(c.isprintable() or c in "\r\n\t" for c in text)
+
+
+def _first_data_line(head: bytes) -> str:
+    for line in head.decode("ascii", "replace").splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return line
+    return ""
+
+
+def _decoder(fmt: str):
+    if fmt == "aedat2":
+        from neurotac_cli.io.aedat2 import open_aedat2 as opener
+    elif fmt == "aedat4":
+        from neurotac_cli.io.aedat4 import open_aedat4 as opener
+    elif fmt == "evt2":
+        from neurotac_cli.io.prophesee import open_evt2 as opener
+    elif fmt == "evt3":
+        from neurotac_cli.io.prophesee import open_evt3 as opener
+    elif fmt == "dat":
+        from neurotac_cli.io.prophesee import open_dat as opener
+    elif fmt == "es":
+        from neurotac_cli.io.eventstream import open_es as opener
+    elif fmt in ("csv", "text"):
+        from neurotac_cli.io.text import open_text as opener
+    else:
+        raise FormatError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
+    return opener
+
+
+def _local_path(path) -> tuple[str, Callable[[], None]]:
+    """A readable file path for `path`; stdin (`-`) is copied to a temporary file first."""
+    if path not in (None, "-"):
+        if os.path.isdir(path):
+            raise InputError(f"{path} is a directory, not a file (give the camera files inside it)")
+        if not os.path.exists(path):
+            raise InputError(f"{path}: no such file")
+        if not os.access(path, os.R_OK):
+            raise InputError(f"{path}: permission denied")
+        return str(path), lambda: None
+    source = getattr(sys.stdin, "buffer", sys.stdin)
+    if source is None or (hasattr(source, "isatty") and source.isatty()):
+        raise InputError("no input: give a camera file, or pipe one into stdin")
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
+    with os.fdopen(handle, "wb") as sink:
+        shutil.copyfileobj(source, sink, CHUNK_BYTES)
+    return temporary, lambda: os.path.exists(temporary) and os.unlink(temporary)
+
+
+def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
+    """Decode a camera or text file into an `events` schema and an iterator of record batches.
+
+    `sensor=(W, H)` supplies the size where the file does not say and overrides it where it does.
+    `fmt` forces a format (one of FORMATS) instead of sniffing. Decoding happens lazily, chunk by
+    chunk, as the batches are consumed; every decoding problem is raised as one `FormatError`.
+    """
+    local, cleanup = _local_path(path)
+    name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+    try:
+        if os.path.getsize(local) == 0:
+            raise InputError(f"{name} is empty (0 bytes); is it the right file?")
+        with open(local, "rb") as handle:
+            head = handle.read(1 << 16)
+        fmt = fmt or detect_format(name, head)
+        if sensor is not None:
+            sensor = (int(sensor[0]), int(sensor[1]))
+        decoded = _guarded_call(name, fmt, lambda: _decoder(fmt)(local, head, sensor))
+    except BaseException:
+        cleanup()
+        raise
+    declared = sensor or decoded.sensor
+    source = "option" if sensor else ("file" if decoded.sensor else "events")
+    if declared is None:
+        declared = _extent(name, fmt, decoded)
+    schema = sch.events_schema(*declared)
+    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoded.meta.pop("source", {})}}
+    entries.update(decoded.meta)
+    schema = sch.set_meta(schema, **entries)
+    return schema, _batches(name, fmt, decoded, declared, schema, cleanup)
+
+
+def read_events_table(path, sensor=None, fmt: str | None = None) -> pa.Table:
+    """The whole events table of a camera or text file (see `read_events`)."""
+    schema, batches = read_events(path, sensor, fmt)
+    return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def _extent(name: str, fmt: str, decoded: Decoded) -> tuple[int, int]:
+    """The sensor of a file that does not say: the smallest one holding every event (a first pass)."""
+    width = height = 0
+    for t, x, y, p in _guarded(name, fmt, decoded.chunks()):
+        if len(x):
+            width = max(width, int(x.max()) + 1)
+            height = max(height, int(y.max()) + 1)
+    return max(width, 1), max(height, 1)
+
+
+def _batches(name, fmt, decoded: Decoded, sensor, schema, cleanup) -> Iterator[pa.RecordBatch]:
+    width, height = sensor
+    try:
+        for t, x, y, p in _guarded(name, fmt, decoded.chunks()):
+            if not len(t):
+                continue
+            if int(x.max()) >= width or int(y.max()) >= height:
+                bad = int(np.count_nonzero((x >= width) | (y >= height)))
+                raise FormatError(
+                    f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
+                    f"y={int(y.max())}); the file is damaged, or give the right size with --sensor WxH"
+                )
+            yield pa.RecordBatch.from_arrays(
+                [
+                    pa.array(np.asarray(t, dtype=np.int64)),
+                    pa.array(np.asarray(x, dtype=np.uint16)),
+                    pa.array(np.asarray(y, dtype=np.uint16)),
+                    pa.array(np.asarray(p, dtype=np.uint8)),
+                ],
+                schema=schema,
+            )
+    finally:
+        cleanup()
+
+
+def _guarded_call(name, fmt, function):
+    try:
+        return function()
+    except NeurotacError:
+        raise
+    except (ValueError, IndexError, OverflowError, KeyError, OSError, RuntimeError, UnicodeError, TypeError) as error:
+        raise FormatError(f"{name}: not a valid {FORMAT_NAMES.get(fmt, fmt)} file ({_short(error)})") from None
+
+
+def _guarded(name, fmt, chunks):
+    iterator = iter(chunks)
+    while True:
+        try:
+            chunk = next(iterator)
+        except StopIteration:
+            return
+        except NeurotacError:
+            raise
+        except (ValueError, IndexError, OverflowError, KeyError, OSError, RuntimeError, UnicodeError, TypeError) as error:
+            raise FormatError(f"{name}: not a valid {FORMAT_NAMES.get(fmt, fmt)} file ({_short(error)})") from None
+        yield chunk
+
+
+def _short(error: Exception) -> str:
+    text = str(error).strip().splitlines()
+    return text[0][:200] if text else type(error).__name__
+
+
+def read_chunks(path: str, offset: int, record: int, chunk_bytes: int = CHUNK_BYTES) -> Iterator[bytes]:
+    """The bytes of `path` from `offset`, in chunks of whole `record`-byte records (a cut last record is dropped)."""
+    size = max(record, (chunk_bytes // record) * record)
+    with open(path, "rb") as handle:
+        handle.seek(offset)
+        rest = b""
+        while True:
+            block = handle.read(size)
+            if not block:
+                return
+            data = rest + block
+            usable = len(data) - len(data) % record
+            rest = data[usable:]
+            if usable:
+                yield data[:usable]
