@@ -33,6 +33,8 @@ from neurotac_cli.errors import NeurotacError
 
 # Bumped when the cache file layout changes, so old entries are never misread.
 CACHE_FORMAT = 1
+# How long to wait for a Dask scheduler to answer before saying it cannot be reached.
+CONNECT_TIMEOUT = "20s"
 
 
 class StudyError(NeurotacError):
@@ -178,7 +180,7 @@ def _run_dask(function, pending: dict, scheduler, retries: int, label: str, fini
     own_client = not isinstance(scheduler, Client)
     if own_client:
         try:
-            client = Client(scheduler, timeout="20s", set_as_default=False)
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
         except (OSError, TimeoutError) as error:
             raise StudyError(
                 f"cannot reach the Dask scheduler at {scheduler} ({error}); start one with `dask scheduler` "

@@ -1,0 +1,254 @@
+"""Studies: the same results in-process, on a local pool and on a real Dask cluster; a dead worker's
+tasks are retried; an interrupted study resumes with only the missing tasks; the --grid grammar."""
+
+import os
+import pathlib
+import signal
+
+import click
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from neurotac_cli.errors import NeurotacError
+from neurotac_cli.options import study_options
+from neurotac_cli.study import cached_keys, data_digest, parse_grid, run_tasks, task_key, task_seed
+
+TRIALS = 6
+
+
+# -- task functions: module level, so workers in other processes can import them -------------------
+
+
+def loo_fold(layers: int, units: int, fold: int, seed: int) -> dict:
+    """A tiny random-feature regression: `layers` random tanh layers of `units` units, a ridge read-out
+    fitted on every trial but `fold`, scored on trial `fold`. Cheap, seeded only by its arguments."""
+    data = np.random.default_rng(1234)
+    inputs = data.normal(size=(TRIALS, 20, 3))
+    targets = np.sin(inputs.sum(axis=2))
+    rng = np.random.default_rng(seed)
+    features = inputs
+    for _ in range(layers):
+        features = np.tanh(features @ rng.normal(size=(features.shape[-1], units)))
+    train = [trial for trial in range(TRIALS) if trial != fold]
+    x = features[train].reshape(-1, units)
+    y = targets[train].reshape(-1)
+    weights = np.linalg.solve(x.T @ x + 1e-3 * np.eye(units), x.T @ y)
+    error = features[fold] @ weights - targets[fold]
+    return {"layers": layers, "units": units, "fold": fold, "mse": float(np.mean(error**2))}
+
+
+def square(x: int, calls: str = "", stop_at: int = -1, die_at: int = -1) -> int:
+    """Notes each call in the folder `calls`; at task `stop_at` the study is interrupted (while the
+    file `calls/stop` exists); at task `die_at` the worker process is killed, once."""
+    folder = pathlib.Path(calls) if calls else None
+    if folder is not None:
+        if x == stop_at and (folder / "stop").exists():
+            raise KeyboardInterrupt
+        if x == die_at and not (folder / "died").exists():
+            (folder / "died").touch()
+            os.kill(os.getpid(), signal.SIGKILL)
+        (folder / f"{x}.{os.getpid()}.{len(list(folder.glob(f'{x}.*')))}").touch()
+    return x * x
+
+
+def calls_per_task(folder) -> dict[int, int]:
+    counts: dict[int, int] = {}
+    for path in pathlib.Path(folder).glob("*.*.*"):
+        task = int(path.name.split(".")[0])
+        counts[task] = counts.get(task, 0) + 1
+    return counts
+
+
+def study_tasks(grid):
+    return [{**point, "fold": fold, "seed": task_seed(7, point, fold)} for point in grid for fold in range(TRIALS)]
+
+
+# -- a real Dask cluster, shared by the tests of this module --------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=50
+    ) as local:
+        yield local
+
+
+# -- the same results whatever runs the tasks ----------------------------------------------------
+
+
+def test_grid_by_leave_one_out_study_gives_identical_results_in_process_on_a_pool_and_on_dask(cluster):
+    tasks = study_tasks(parse_grid(["layers=1..2", "units=4,8"]))
+    assert len(tasks) == 4 * TRIALS
+    here = run_tasks(loo_fold, tasks)
+    pooled = run_tasks(loo_fold, tasks, jobs=2)
+    dask = run_tasks(loo_fold, tasks, scheduler=cluster.scheduler_address)
+    assert here == pooled == dask
+    assert [(r["layers"], r["units"], r["fold"]) for r in dask] == [(t["layers"], t["units"], t["fold"]) for t in tasks]
+
+
+def test_a_command_with_study_options_runs_through_the_scheduler(cluster, tmp_path):
+    @click.command()
+    @study_options
+    def tiny(jobs, scheduler, cache):
+        results = run_tasks(square, [{"x": x} for x in range(5)], jobs=jobs, scheduler=scheduler, cache_dir=cache)
+        click.echo(" ".join(map(str, results)))
+
+    runner = CliRunner()
+    via_dask = runner.invoke(tiny, ["--scheduler", cluster.scheduler_address, "--cache", str(tmp_path / "c")])
+    via_env = runner.invoke(tiny, [], env={"NEUROTAC_JOBS": "2"})
+    assert via_dask.exit_code == 0, via_dask.output
+    assert via_dask.output == via_env.output == "0 1 4 9 16\n"
+    assert len(cached_keys(tmp_path / "c")) == 5
+
+
+# -- a worker that dies ----------------------------------------------------------------------------
+
+
+def test_killing_a_dask_worker_mid_study_still_completes_it(cluster, tmp_path):
+    tasks = [{"x": x, "calls": str(tmp_path), "die_at": 3} for x in range(8)]
+    results = run_tasks(square, tasks, scheduler=cluster.scheduler_address, label="kill")
+    assert results == [x * x for x in range(8)]
+    assert (tmp_path / "died").exists()
+    assert calls_per_task(tmp_path)[3] == 1  # the killed attempt never finished; the retry did
+
+
+def test_killing_a_local_pool_worker_mid_study_still_completes_it(tmp_path):
+    tasks = [{"x": x, "calls": str(tmp_path), "die_at": 2} for x in range(6)]
+    assert run_tasks(square, tasks, jobs=2) == [x * x for x in range(6)]
+    assert (tmp_path / "died").exists()
+
+
+def test_a_task_that_always_kills_its_worker_fails_the_study_with_a_message(tmp_path):
+    with pytest.raises(NeurotacError, match="lost their worker 2 times"):
+        run_tasks(_always_dies, [{"x": 0}, {"x": 1}], jobs=2, retries=1)
+
+
+def _always_dies(x):
+    if x == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return x
+
+
+# -- interruption and resume -----------------------------------------------------------------------
+
+
+def test_a_rerun_after_an_interruption_runs_only_the_missing_tasks(tmp_path):
+    calls, cache = tmp_path / "calls", tmp_path / "cache"
+    calls.mkdir()
+    (calls / "stop").touch()
+    tasks = [{"x": x, "calls": str(calls), "stop_at": 6} for x in range(10)]
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(square, tasks, cache_dir=cache)
+    assert sorted(calls_per_task(calls)) == list(range(6))
+    assert len(cached_keys(cache)) == 6
+    assert not list(cache.glob("*/.*.tmp"))  # nothing half-written
+
+    (calls / "stop").unlink()
+    assert run_tasks(square, tasks, cache_dir=cache) == [x * x for x in range(10)]
+    assert calls_per_task(calls) == {x: 1 for x in range(10)}
+
+
+def test_a_cache_filled_in_process_is_reused_by_a_dask_run(cluster, tmp_path):
+    calls, cache = tmp_path / "calls", tmp_path / "cache"
+    calls.mkdir()
+    tasks = [{"x": x, "calls": str(calls)} for x in range(8)]
+    run_tasks(square, tasks[:5], cache_dir=cache)
+    assert run_tasks(square, tasks, scheduler=cluster.scheduler_address, cache_dir=cache) == [x * x for x in range(8)]
+    assert calls_per_task(calls) == {x: 1 for x in range(8)}
+
+
+def test_an_unreadable_cache_entry_is_run_again(tmp_path):
+    tasks = [{"x": 3}]
+    run_tasks(square, tasks, cache_dir=tmp_path)
+    (entry,) = tmp_path.glob("*/*.pkl")
+    entry.write_bytes(b"garbage")
+    assert run_tasks(square, tasks, cache_dir=tmp_path) == [9]
+
+
+def test_identical_tasks_run_once(tmp_path):
+    tasks = [{"x": 2, "calls": str(tmp_path)}] * 3
+    assert run_tasks(square, tasks) == [4, 4, 4]
+    assert calls_per_task(tmp_path) == {2: 1}
+
+
+# -- task identity ---------------------------------------------------------------------------------
+
+
+def test_task_key_follows_content_not_identity():
+    first = {"data": np.arange(5.0), "fold": 1, "config": {"a": 1, "b": [1, 2]}}
+    same = {"config": {"b": (1, 2), "a": 1}, "fold": 1, "data": np.arange(5.0)}
+    changed = {"data": np.arange(5.0) + 1e-9, "fold": 1, "config": {"a": 1, "b": [1, 2]}}
+    assert task_key(square, first) == task_key(square, same)
+    assert task_key(square, first) != task_key(square, changed)
+    assert task_key(square, first) != task_key(loo_fold, first)
+    assert task_key(square, {"x": 1}) != task_key(square, {"x": 1.0})
+
+
+def test_data_digest_of_a_table_changes_with_its_content():
+    pa = pytest.importorskip("pyarrow")
+    table = pa.table({"t": [1, 2, 3]})
+    assert data_digest(table) == data_digest(pa.table({"t": [1, 2, 3]}))
+    assert data_digest(table) != data_digest(pa.table({"t": [1, 2, 4]}))
+
+
+def test_task_seed_depends_on_the_coordinates_only():
+    assert task_seed(1, {"units": 5}, 3) == task_seed(1, {"units": 5}, 3)
+    assert len({task_seed(1, {"units": 5}, fold) for fold in range(48)}) == 48
+
+
+def test_progress_goes_to_stderr_with_done_total(capsys):
+    run_tasks(square, [{"x": x} for x in range(3)], progress=True, label="demo")
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "demo: 3/3 done" in captured.err
+
+
+def test_jobs_and_scheduler_together_are_refused():
+    with pytest.raises(NeurotacError, match="both given"):
+        run_tasks(square, [{"x": 1}], jobs=2, scheduler="tcp://127.0.0.1:1")
+
+
+def test_an_unreachable_scheduler_is_a_user_error(monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr("neurotac_cli.study.CONNECT_TIMEOUT", "1s")
+    with pytest.raises(NeurotacError, match="cannot reach the Dask scheduler"):
+        run_tasks(square, [{"x": 1}], scheduler="tcp://127.0.0.1:9")
+
+
+# -- the --grid grammar ----------------------------------------------------------------------------
+
+
+def test_grid_ranges_lists_and_ellipses():
+    assert parse_grid(["layers=1..3"]) == [{"layers": 1}, {"layers": 2}, {"layers": 3}]
+    assert [p["units"] for p in parse_grid(["units=5,10,...,40"])] == [5, 10, 15, 20, 25, 30, 35, 40]
+    assert [p["s"] for p in parse_grid(["s=0..10:5"])] == [0, 5, 10]
+    assert [p["lr"] for p in parse_grid(["lr=1e-3,0.01"])] == [0.001, 0.01]
+    assert parse_grid(["model=lstm,convlstm seed=0..1"]) == [
+        {"model": "lstm", "seed": 0},
+        {"model": "lstm", "seed": 1},
+        {"model": "convlstm", "seed": 0},
+        {"model": "convlstm", "seed": 1},
+    ]
+    assert parse_grid([]) == [{}]
+
+
+@pytest.mark.parametrize(
+    "spec", ["layers", "=1", "layers=", "layers=1,,2", "units=5,...", "a=1 a=2", "k=5..1", "k=1..5:0", "w=a,b,...,c"]
+)
+def test_bad_grid_specs_say_what_to_write(spec):
+    with pytest.raises(NeurotacError, match="grid"):
+        parse_grid([spec])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.integers(-5, 5), st.integers(0, 4)), min_size=1, max_size=3))
+def test_grid_size_is_the_product_of_the_axis_sizes(axes):
+    specs = [f"a{i}={start}..{start + length}" for i, (start, length) in enumerate(axes)]
+    points = parse_grid(specs)
+    assert len(points) == int(np.prod([length + 1 for _, length in axes]))
+    assert len({tuple(sorted(p.items())) for p in points}) == len(points)
