@@ -56,6 +56,7 @@ def run_tasks(
     retries: int = 2,
     label: str = "tasks",
     progress=None,
+    shared: dict | None = None,
 ) -> list:
     """Run `function(**task)` for every task; return the results in task order.
 
@@ -66,6 +67,11 @@ def run_tasks(
     skips what finished. `retries`: how many times a task whose worker died (or, on Dask, that raised)
     is run again before the study fails. `progress`: True/False to force the stderr progress line on
     or off; None shows it when stderr is a terminal or $NEUROTAC_PROGRESS is set.
+
+    `shared`: keyword arguments common to every task (the frames table of a whole study), sent once
+    to each worker rather than once per task, and hashed once into every task's cache key:
+    `run_tasks(fit_fold, [{"fold": 0, "seed": 1}, ...], shared={"frames": frames})` calls
+    `fit_fold(frames=frames, fold=0, seed=1)`.
     """
     tasks = list(tasks)
     if scheduler and jobs not in (None, 0, 1):
@@ -73,7 +79,9 @@ def run_tasks(
             f"--jobs {jobs} and --scheduler {scheduler} both given (the Dask cluster decides how many "
             "tasks run at once; pass one of them)"
         )
-    keys = [task_key(function, task) for task in tasks]
+    shared = dict(shared or {})
+    common = {"shared": data_digest(shared)} if shared else {}
+    keys = [task_key(function, {**task, **common}) for task in tasks]
     cache = _Cache(cache_dir) if cache_dir else None
 
     results: dict[str, object] = {}
@@ -97,25 +105,38 @@ def run_tasks(
     try:
         if pending:
             if scheduler:
-                _run_dask(function, pending, scheduler, retries, label, finished)
+                _run_dask(function, pending, shared, scheduler, retries, label, finished)
             elif jobs is not None and jobs != 1:
                 workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
-                _run_pool(function, pending, workers, retries, finished)
+                _run_pool(function, pending, shared, workers, retries, finished)
             else:
                 for key, task in pending.items():
-                    finished(key, function(**task))
+                    finished(key, _call(function, task, shared))
     finally:
         meter.close()
     return [results[key] for key in keys]
 
 
-def _call(function, task: dict):
+# The `shared` arguments of the study a pool worker process serves, set once when it starts.
+_WORKER_SHARED: dict = {}
+
+
+def _set_worker_shared(shared: dict):
+    global _WORKER_SHARED
+    _WORKER_SHARED = shared
+
+
+def _call(function, task: dict, shared: dict | None = None):
     """Runs on a worker. Tasks travel as one dict so no task name can clash with the pool's own
     keywords (Dask's `key`, `workers`, `priority`...)."""
-    return function(**task)
+    shared = _WORKER_SHARED if shared is None else shared
+    clash = shared.keys() & task.keys()
+    if clash:
+        raise TypeError(f"task arguments {sorted(clash)} are also given in shared=")
+    return function(**shared, **task)
 
 
-def _run_pool(function, pending: dict, workers: int, retries: int, finished):
+def _run_pool(function, pending: dict, shared: dict, workers: int, retries: int, finished):
     """A local process pool. A worker that dies breaks the whole pool (BrokenProcessPool): keep what
     finished, start a new pool and resubmit the rest; a task lost with `retries` + 1 broken pools fails."""
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -124,7 +145,12 @@ def _run_pool(function, pending: dict, workers: int, retries: int, finished):
     remaining = dict(pending)
     losses = {key: 0 for key in remaining}
     while remaining:
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=_mp_context())
+        pool = ProcessPoolExecutor(
+            max_workers=min(workers, len(remaining)),
+            mp_context=_mp_context(),
+            initializer=_set_worker_shared,
+            initargs=(shared,),
+        )
         broken = False
         try:
             futures = {pool.submit(_call, function, task): key for key, task in remaining.items()}
@@ -166,7 +192,7 @@ def _mp_context():
     return multiprocessing.get_context(method)
 
 
-def _run_dask(function, pending: dict, scheduler, retries: int, label: str, finished):
+def _run_dask(function, pending: dict, shared: dict, scheduler, retries: int, label: str, finished):
     """A Dask cluster. The scheduler reruns tasks of a worker that died by itself (up to its
     `distributed.scheduler.allowed-failures`); `retries` reruns tasks that raised."""
     try:
@@ -191,8 +217,12 @@ def _run_dask(function, pending: dict, scheduler, retries: int, label: str, fini
     prefix = re.sub(r"[^A-Za-z0-9_.]+", "-", label).strip("-") or "tasks"
     futures = {}
     try:
+        # Shared data goes to every worker once; the tasks refer to it by its futures.
+        shared_futures = client.scatter(shared, broadcast=True, hash=True) if shared else {}
         for key, task in pending.items():
-            future = client.submit(_call, function, task, key=f"{prefix}-{key}", pure=False, retries=retries)
+            future = client.submit(
+                _call, function, task, shared_futures, key=f"{prefix}-{key}", pure=False, retries=retries
+            )
             futures[future] = key
         for future in as_completed(list(futures), loop=client.loop):
             try:

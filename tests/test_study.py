@@ -62,6 +62,10 @@ def calls_per_task(folder) -> dict[int, int]:
     return counts
 
 
+def weighted_sum(table, weight: float) -> float:
+    return float(sum(table.column("v").to_pylist()) * weight)
+
+
 def study_tasks(grid):
     return [{**point, "fold": fold, "seed": task_seed(7, point, fold)} for point in grid for fold in range(TRIALS)]
 
@@ -104,6 +108,20 @@ def test_a_command_with_study_options_runs_through_the_scheduler(cluster, tmp_pa
     assert via_dask.exit_code == 0, via_dask.output
     assert via_dask.output == via_env.output == "0 1 4 9 16\n"
     assert len(cached_keys(tmp_path / "c")) == 5
+
+
+def test_shared_data_reaches_every_backend_and_enters_the_cache_key(cluster, tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    table = pa.table({"v": [1.0, 2.0, 3.0]})
+    tasks = [{"weight": w} for w in (1.0, 2.0, 0.5)]
+    expected = [6.0, 12.0, 3.0]
+    for options in ({}, {"jobs": 2}, {"scheduler": cluster.scheduler_address}):
+        assert run_tasks(weighted_sum, tasks, shared={"table": table}, **options) == expected
+    run_tasks(weighted_sum, tasks, shared={"table": table}, cache_dir=tmp_path)
+    assert len(cached_keys(tmp_path)) == 3
+    other = pa.table({"v": [1.0, 1.0, 1.0]})
+    assert run_tasks(weighted_sum, tasks, shared={"table": other}, cache_dir=tmp_path) == [3.0, 6.0, 1.5]
+    assert len(cached_keys(tmp_path)) == 6
 
 
 # -- a worker that dies ----------------------------------------------------------------------------
