@@ -1,0 +1,362 @@
+"""Building, training and running models on frames tables."""
+
+import dataclasses
+import importlib
+
+import numpy as np
+import pyarrow as pa
+import torch
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import data as shaping
+from neurotac_cli.model.fit import FitConfig, fit
+
+FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours")
+MATERIAL_MODELS = ("material-dnn", "material-force", "material-ours")
+CHANNELS = ["off", "on"]
+EVAL_BATCH = 16
+
+
+def _module(name: str):
+    if name in MATERIAL_MODELS:
+        return importlib.import_module("neurotac_cli.model.material")
+    if name in FORCE_MODELS:
+        return importlib.import_module(f"neurotac_cli.model.{name}")
+    raise ModelError(f"unknown model {name!r} (force: {', '.join(FORCE_MODELS)}; material: {', '.join(MATERIAL_MODELS)})")
+
+
+def _default_config(name: str):
+    module = _module(name)
+    return module.PRESETS[name] if name in MATERIAL_MODELS else module.Config()
+
+
+def make_spec(name: str, **options) -> dict:
+    """A model spec: {"model": name, architecture fields..., fit fields...}; None values take defaults."""
+    config = _default_config(name)
+    arch_fields = {f.name for f in dataclasses.fields(config)}
+    fit_fields = {f.name for f in dataclasses.fields(FitConfig)}
+    spec = {"model": name}
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key not in arch_fields and key not in fit_fields:
+            raise ModelError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
+        spec[key] = value
+    return spec
+
+
+def split_spec(spec: dict):
+    name = spec["model"]
+    config = _default_config(name)
+    arch = {k: v for k, v in spec.items() if k in {f.name for f in dataclasses.fields(config)}}
+    fitted = {k: v for k, v in spec.items() if k in {f.name for f in dataclasses.fields(FitConfig)}}
+    return name, dataclasses.replace(config, **arch), FitConfig(**fitted)
+
+
+class Model:
+    """A trained model: the network, its config, and the input it expects."""
+
+    def __init__(self, name, config, net, input_spec: dict, classes=None, training=None):
+        self.name, self.config, self.net = name, config, net
+        self.input_spec, self.classes, self.training = input_spec, classes, training or {}
+        self.task = net.task
+        net.eval()
+
+    @property
+    def force_scale(self) -> float:
+        return float(self.input_spec["normalisation"]["force_scale"])
+
+    def header(self) -> dict:
+        return {
+            "format": "neurotac-model",
+            "format_version": 1,
+            "model": self.name,
+            "task": self.task,
+            "architecture": dataclasses.asdict(self.config),
+            "input": self.input_spec,
+            "classes": self.classes,
+            "training": self.training,
+        }
+
+    def init_state(self, batch: int = 1):
+        return self.net.init_state(batch)
+
+    def step(self, counts: np.ndarray, t_us: np.ndarray, state=None):
+        """Force (N) for frames (B, T, 2, H, W) at times (B, T) µs, continuing from `state`."""
+        with torch.no_grad():
+            out, state = self.net(torch.as_tensor(counts, dtype=torch.float32), torch.as_tensor(t_us / 1e6), state)
+        return out.numpy().astype(np.float32) * self.force_scale, state
+
+    def proba(self, data: shaping.Sequences) -> np.ndarray:
+        from neurotac_cli.model import material
+
+        with torch.no_grad():
+            logits = self.net(torch.as_tensor(material.features(data, self.config)))
+        return torch.softmax(logits, dim=-1).numpy()
+
+
+# ---------------------------------------------------------------- input spec
+
+
+def input_spec_of(schema: pa.Schema, accumulated: bool) -> dict:
+    height, width = sch.frames_shape(schema)
+    sensor = sch.get_meta(schema, sch.SENSOR)
+    return {
+        "window_us": sch.get_meta(schema, sch.WINDOW),
+        "height": height,
+        "width": width,
+        "sensor": sensor,
+        "channels": CHANNELS,
+        "accumulated": accumulated,
+    }
+
+
+def check_input(model: Model, schema: pa.Schema):
+    """Refuse frames that differ from the training frames in window, crop or channels."""
+    spec = model.input_spec
+    here = input_spec_of(schema, shaping.already_accumulated(schema))
+
+    def describe(s):
+        window = f"{s['window_us'] / 1000:g} ms" if s.get("window_us") else "an unknown window"
+        kind = "accumulated " if s.get("accumulated") else ""
+        return f"{s['width']}x{s['height']} {kind}frames of {window}"
+
+    problems = []
+    if (spec["height"], spec["width"]) != (here["height"], here["width"]):
+        problems.append("crop")
+    if spec.get("window_us") and here.get("window_us") and spec["window_us"] != here["window_us"]:
+        problems.append("window")
+    if bool(spec.get("accumulated")) != bool(here["accumulated"]):
+        problems.append("accumulation")
+    if problems:
+        raise ModelError(
+            f"model {model.name!r} was trained on {describe(spec)}, this input has {describe(here)} "
+            f"(different {' and '.join(problems)}); prepare the frames the same way as the training data "
+            f"(e.g. `neurotac frame --window {int((spec.get('window_us') or 10000) / 1000)}ms | neurotac crop --size {spec['width']}x{spec['height']}`)"
+        )
+
+
+# ---------------------------------------------------------------- training
+
+
+def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, val_where=None, per="object",
+          seed: int = 0, progress=None, label: str = "material") -> Model:
+    """Train the model of `spec` on a frames table, validation chosen as asked (never leaking copies)."""
+    sch.validate(table.schema, "frames")
+    name, config, fit_config = split_spec(spec)
+    data = shaping.sequences(table)
+    rng = np.random.default_rng(seed)
+    where = shaping.parse_where(val_where) if isinstance(val_where, str) else val_where
+    in_val = shaping.choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
+    train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
+    accumulated = shaping.already_accumulated(table.schema)
+    input_spec = input_spec_of(table.schema, accumulated)
+    torch.manual_seed(seed)
+    generator = torch.Generator().manual_seed(seed)
+    if progress:
+        progress(f"{name}: {len(train_set)} training trials, {len(val_set)} validation trials")
+    training = {
+        "spec": spec,
+        "fit": dataclasses.asdict(fit_config),
+        "seed": seed,
+        "trials": {"train": train_set.trials, "validation": val_set.trials},
+        "data_history": sch.get_meta(table.schema, sch.HISTORY, []),
+    }
+    if name in MATERIAL_MODELS:
+        return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
+    if hasattr(config, "accumulate") and accumulated:
+        config = dataclasses.replace(config, accumulate=False)
+    return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress)
+
+
+def _seconds(data):
+    return [t / 1e6 for t in data.t]
+
+
+def _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress):
+    forces = np.concatenate(train_set.force)
+    if np.isnan(forces).all():
+        raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
+    force_scale = float(max(np.nanmax(np.abs(forces)), 1e-6))
+    net = _module(name).Net(config, train_set.shape)
+    net.calibrate(train_set.counts, _seconds(train_set))
+    if not getattr(net, "trained_by_gradient", True):
+        curve = net.fit(train_set.counts, _seconds(train_set), [f / force_scale for f in train_set.force], rng, progress)
+    else:
+        tensors = _force_tensors(train_set, force_scale)
+        val_tensors = _force_tensors(val_set, force_scale) if len(val_set) else None
+
+        def batch_loss(indices):
+            out, _ = net(tensors["counts"][indices], tensors["t"][indices])
+            return _masked_mse(out, tensors["force"][indices], tensors["mask"][indices])
+
+        def val_loss():
+            if val_tensors is None:
+                return None
+            out, _ = net(val_tensors["counts"], val_tensors["t"])
+            return float(_masked_mse(out, val_tensors["force"], val_tensors["mask"]))
+
+        curve = fit(net, batch_loss, len(train_set), val_loss, fit_config, generator, progress, label=name)
+    input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))
+    training["curve"] = curve
+    return Model(name, config, net, input_spec, None, training)
+
+
+def _force_tensors(data, force_scale):
+    length = data.max_length()
+    force = shaping.padded(data.force, length, fill=np.nan)
+    mask = ~np.isnan(force)
+    return {
+        "counts": torch.as_tensor(shaping.padded(data.counts, length)),
+        "t": torch.as_tensor(shaping.padded(_seconds(data), length, dtype=np.float64)),
+        "force": torch.as_tensor(np.nan_to_num(force) / force_scale, dtype=torch.float32),
+        "mask": torch.as_tensor(mask, dtype=torch.float32),
+    }
+
+
+def _masked_mse(out, target, mask):
+    return ((out - target) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+
+
+def _small_buffers(net) -> dict:
+    """Normalisation constants (small buffers) for the readable header; the file's tensors are authoritative."""
+    return {name: buf.flatten().tolist() for name, buf in net.named_buffers()
+            if buf.numel() <= 64 and ("scale" in name or "mean" in name or "std" in name)}
+
+
+def _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label):
+    from neurotac_cli.model import material
+
+    if label not in train_set.labels:
+        raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")
+    classes = sorted({v for v in train_set.labels[label] if v is not None})
+    if len(classes) < 2:
+        raise ModelError(f"the training trials hold {len(classes)} {label} class(es); a classifier needs at least two")
+    if config.inputs == "force" and np.isnan(np.concatenate(train_set.force)).all():
+        raise ModelError("material-force needs the measured force in the frames (column force is empty)")
+    index = {c: i for i, c in enumerate(classes)}
+
+    def encode(data):
+        unknown = sorted({v for v in data.labels[label] if v not in index})
+        if unknown:
+            raise ModelError(f"validation {label} {unknown[0]!r} does not occur in training; choose validation trials per class")
+        return torch.as_tensor([index[v] for v in data.labels[label]])
+
+    x = torch.as_tensor(material.features(train_set, config))
+    y = encode(train_set)
+    net = material.Net(config, len(classes))
+    net.calibrate(x.numpy())
+    val_x = torch.as_tensor(material.features(val_set, config)) if len(val_set) else None
+    val_y = encode(val_set) if len(val_set) else None
+    loss = torch.nn.CrossEntropyLoss()
+    curve = fit(net, lambda idx: loss(net(x[idx]), y[idx]), len(x),
+                lambda: None if val_x is None else float(loss(net(val_x), val_y)), fit_config, generator, progress, label=name)
+    training["curve"] = curve
+    training["label"] = label
+    input_spec = dict(input_spec, normalisation={"feature_mean": net.feature_mean.tolist(), "feature_std": net.feature_std.tolist()})
+    return Model(name, config, net, input_spec, classes, training)
+
+
+# ---------------------------------------------------------------- running
+
+
+def _predictions_schema(table_schema: pa.Schema, fields, model: Model):
+    labels = sch.label_columns(table_schema)
+    schema = pa.schema(list(fields) + [(name, pa.string()) for name in labels])
+    entries = {"kind": "predictions", "model": {"name": model.name, "task": model.task},
+               "history": sch.get_meta(table_schema, sch.HISTORY, [])}
+    window = sch.get_meta(table_schema, sch.WINDOW)
+    if window:
+        entries["window_us"] = window
+    return sch.set_meta(schema, **entries), labels
+
+
+FORCE_FIELDS = [("trial", pa.string()), ("frame", pa.int32()), ("t", pa.int64()), ("phase", pa.string()),
+                ("force", pa.float32()), ("force_pred", pa.float32())]
+
+
+def predict_table(model: Model, table: pa.Table) -> pa.Table:
+    """Force estimates for every frame of a frames table (trials batched, each run from its start)."""
+    if model.task != "force":
+        raise ModelError(f"model {model.name!r} classifies materials; use `neurotac classify` or `neurotac eval`")
+    check_input(model, table.schema)
+    data = shaping.sequences(table)
+    outputs = []
+    for start in range(0, len(data), EVAL_BATCH):
+        part = data.subset(range(start, min(start + EVAL_BATCH, len(data))))
+        length = part.max_length()
+        force, _ = model.step(shaping.padded(part.counts, length), shaping.padded(part.t, length, dtype=np.int64))
+        outputs += [force[i, : len(c)] for i, c in enumerate(part.counts)]
+    schema, labels = _predictions_schema(table.schema, FORCE_FIELDS, model)
+    columns = {
+        "trial": np.repeat(np.asarray(data.trials, dtype=object), [len(c) for c in data.counts]),
+        "frame": np.concatenate(data.frame),
+        "t": np.concatenate(data.t),
+        "phase": np.concatenate(data.phase),
+        "force": np.concatenate(data.force),
+        "force_pred": np.concatenate(outputs),
+    }
+    for name in labels:
+        columns[name] = np.repeat(np.asarray(data.labels[name], dtype=object), [len(c) for c in data.counts])
+    arrays = [pa.array(columns[f.name].tolist() if f.type == pa.string() else columns[f.name], type=f.type,
+                       from_pandas=True) for f in schema]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def stream(model: Model, schema: pa.Schema, batches):
+    """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame.
+
+    Returns (predictions schema, iterator of record batches).
+    """
+    if model.task != "force":
+        raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    check_input(model, schema)
+    out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
+    states = {}
+
+    def run():
+        for batch in batches:
+            if batch.num_rows == 0:
+                continue
+            trials = batch.column("trial").to_pylist()
+            counts = sch.counts_numpy(batch.column("counts"))
+            t = batch.column("t").to_numpy().astype(np.int64)
+            prediction = np.empty(batch.num_rows, dtype=np.float32)
+            edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
+            for begin, end in zip(edges[:-1], edges[1:]):
+                trial = trials[begin]
+                force, states[trial] = model.step(counts[None, begin:end], t[None, begin:end], states.get(trial))
+                prediction[begin:end] = force[0]
+            columns = {
+                "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
+                "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()),
+                "force_pred": pa.array(prediction),
+            }
+            for name in labels:
+                columns[name] = batch.column(name)
+            yield pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
+
+    return out_schema, run()
+
+
+def classify_table(model: Model, table: pa.Table) -> pa.Table:
+    """One row per trial: the true class where known, the predicted class and every class's probability."""
+    if model.task != "material":
+        raise ModelError(f"model {model.name!r} estimates force; use `neurotac eval` or `neurotac predict`")
+    check_input(model, table.schema)
+    data = shaping.sequences(table)
+    proba = model.proba(data)
+    label = model.training.get("label", "material")
+    fields = [("trial", pa.string())]
+    columns = [pa.array(data.trials, pa.string())]
+    if label in data.labels:
+        fields.append((label, pa.string()))
+        columns.append(pa.array(data.labels[label], pa.string()))
+    fields.append((f"{label}_pred", pa.string()))
+    columns.append(pa.array([model.classes[i] for i in proba.argmax(axis=1)], pa.string()))
+    for i, name in enumerate(model.classes):
+        fields.append((f"prob_{name}", pa.float32()))
+        columns.append(pa.array(proba[:, i].astype(np.float32)))
+    schema = sch.set_meta(pa.schema(fields), kind="predictions", model={"name": model.name, "task": "material", "label": label})
+    return pa.Table.from_arrays(columns, schema=schema)

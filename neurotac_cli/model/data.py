@@ -1,0 +1,199 @@
+"""Data shaping: frames tables -> per-trial sequences, splits that never leak, padded tensors.
+
+A trial is one learning sample. Augmented copies carry `source_trial` (the original's id); every
+split here works on source groups, so a trial and its copies always fall on the same side.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import ModelError
+
+
+@dataclass
+class Sequences:
+    """Frames grouped by trial, in order of first appearance, each trial sorted by frame."""
+
+    trials: list
+    counts: list  # (T, 2, H, W) arrays, raw counts
+    t: list  # (T,) int64 µs from the trial's t0
+    frame: list  # (T,) int32
+    force: list  # (T,) float32, NaN where unknown
+    phase: list  # (T,) object (str or None)
+    labels: dict = field(default_factory=dict)  # label -> list of one value per trial
+    source: list = field(default_factory=list)  # source trial per trial (itself for originals)
+    augmented: list = field(default_factory=list)  # bool per trial
+
+    def __len__(self):
+        return len(self.trials)
+
+    def subset(self, indices) -> "Sequences":
+        indices = list(indices)
+        pick = lambda values: [values[i] for i in indices]  # noqa: E731
+        return Sequences(
+            trials=pick(self.trials), counts=pick(self.counts), t=pick(self.t), frame=pick(self.frame),
+            force=pick(self.force), phase=pick(self.phase),
+            labels={name: pick(values) for name, values in self.labels.items()},
+            source=pick(self.source), augmented=pick(self.augmented),
+        )
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(self.counts[0].shape[1:]) if self.counts else (2, 0, 0)
+
+    def max_length(self) -> int:
+        return max((len(c) for c in self.counts), default=0)
+
+
+def sequences(table: pa.Table) -> Sequences:
+    """Group a frames table into per-trial sequences (vectorised: one sort, one split)."""
+    if table.num_rows == 0:
+        raise ModelError("the frames table is empty (no rows); did the command before it fail?")
+    encoded = pc.dictionary_encode(table.column("trial")).combine_chunks()
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
+    names = encoded.dictionary.to_pylist()
+    frame = table.column("frame").to_numpy().astype(np.int64)
+    order = np.lexsort((frame, codes))
+    codes = codes[order]
+    bounds = np.flatnonzero(np.diff(codes)) + 1
+    starts = np.concatenate([[0], bounds])
+    counts = sch.counts_numpy(table.column("counts"))[order]
+    t = table.column("t").to_numpy().astype(np.int64)[order]
+    force = table.column("force").cast(pa.float32()).fill_null(np.nan).to_numpy(zero_copy_only=False)[order]
+    phase = np.asarray(table.column("phase").to_pylist(), dtype=object)[order]
+    frames = frame[order].astype(np.int32)
+    split = lambda values: np.split(values, bounds)  # noqa: E731
+    trials = [names[c] for c in codes[starts]]
+    label_names = sch.label_columns(table.schema)
+    labels = {name: _first_per_trial(table.column(name), order, starts) for name in label_names}
+    if "source_trial" in table.schema.names:
+        source = [s if s else trial for s, trial in zip(_first_per_trial(table.column("source_trial"), order, starts), trials)]
+    else:
+        source = list(trials)
+    if "augment" in table.schema.names:
+        augmented = [bool(a) for a in _first_per_trial(table.column("augment"), order, starts)]
+    else:
+        augmented = [s != trial for s, trial in zip(source, trials)]
+    return Sequences(
+        trials=trials, counts=split(counts), t=split(t), frame=split(frames), force=split(force),
+        phase=split(phase), labels=labels, source=source, augmented=augmented,
+    )
+
+
+def _first_per_trial(column, order, starts) -> list:
+    values = np.asarray(column.to_pylist(), dtype=object)[order]
+    return [None if v is None else str(v) for v in values[starts]]
+
+
+# ---------------------------------------------------------------- splits
+
+
+def parse_where(text: str) -> tuple[str, str]:
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise ModelError(f"expected LABEL=VALUE such as object=bolt15, got {text!r}")
+    return name.strip(), value.strip()
+
+
+def rows_where(data: Sequences, where: tuple[str, str]) -> np.ndarray:
+    name, value = where
+    if name not in data.labels:
+        raise ModelError(
+            f"no label column {name!r} in the frames (labels: {', '.join(data.labels) or 'none'}); "
+            "choose one of them"
+        )
+    return np.array([v == value for v in data.labels[name]], dtype=bool)
+
+
+def check_no_leak(data: Sequences, in_val: np.ndarray, what: str = "validation"):
+    """Refuse a split where a trial and any augmented copy (same source_trial) fall on both sides."""
+    sources = np.asarray(data.source, dtype=object)
+    held = set(sources[in_val])
+    kept = set(sources[~in_val])
+    both = sorted(held & kept)
+    if both:
+        raise ModelError(
+            f"trial {both[0]!r} and its augmented copies fall on both sides of the {what} split "
+            f"({len(both)} source trials leak); choose {what} trials by source trial (all copies on one side), "
+            "e.g. with --val-fraction or --val-where"
+        )
+
+
+def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None, per="object",
+                      rng: np.random.Generator | None = None) -> np.ndarray:
+    """A boolean mask of validation trials: by ids, by a label value, or a fraction drawn per `per` label.
+
+    Validation always holds whole source groups; explicit choices that split a group are refused.
+    """
+    n = len(data)
+    if trials:
+        wanted = set(trials)
+        unknown = wanted - set(data.trials) - set(data.source)
+        if unknown:
+            raise ModelError(f"validation trial {sorted(unknown)[0]!r} is not in the frames; check --val-trials")
+        mask = np.array([t in wanted for t in data.trials], dtype=bool)
+        check_no_leak(data, mask)
+    elif where is not None:
+        mask = rows_where(data, where)
+        check_no_leak(data, mask)
+    elif fraction:
+        mask = _fraction_per_group(data, fraction, per, rng or np.random.default_rng(0))
+    else:
+        mask = np.zeros(n, dtype=bool)
+    if mask.all():
+        raise ModelError("every trial would be in validation, leaving none to train on; choose fewer validation trials")
+    return mask
+
+
+def _fraction_per_group(data: Sequences, fraction: float, per: str, rng) -> np.ndarray:
+    """Draw round(fraction * n) source groups (at least one) per value of the `per` label (thesis 4.5.3)."""
+    sources = np.asarray(data.source, dtype=object)
+    groups = data.labels.get(per) or ["all"] * len(data)
+    chosen = set()
+    for value in sorted(set(groups), key=str):
+        candidates = sorted({s for s, g in zip(sources, groups) if g == value})
+        if len(candidates) < 2:
+            continue
+        take = max(1, int(round(fraction * len(candidates))))
+        take = min(take, len(candidates) - 1)
+        chosen.update(rng.choice(candidates, size=take, replace=False).tolist())
+    return np.array([s in chosen for s in sources], dtype=bool)
+
+
+# ---------------------------------------------------------------- tensors
+
+
+def padded(arrays: list, length: int | None = None, fill=0.0, dtype=np.float32) -> np.ndarray:
+    """Stack variable-length arrays (T_i, ...) into (N, T, ...) padded at the end."""
+    length = length or max(len(a) for a in arrays)
+    out = np.full((len(arrays), length, *arrays[0].shape[1:]), fill, dtype=dtype)
+    for i, a in enumerate(arrays):
+        out[i, : len(a)] = a[:length]
+    return out
+
+
+def resample(curve: np.ndarray, points: int) -> np.ndarray:
+    """A curve (T, ...) resampled to `points` samples by linear interpolation over its length."""
+    curve = np.asarray(curve, dtype=np.float64)
+    if len(curve) == 0:
+        return np.zeros((points, *curve.shape[1:]))
+    if len(curve) == 1:
+        return np.repeat(curve, points, axis=0)
+    where = np.linspace(0, len(curve) - 1, points)
+    left = np.floor(where).astype(int)
+    right = np.minimum(left + 1, len(curve) - 1)
+    share = (where - left).reshape(-1, *([1] * (curve.ndim - 1)))
+    return curve[left] * (1 - share) + curve[right] * share
+
+
+def already_accumulated(schema: pa.Schema) -> bool:
+    """True when a step of the table's history accumulated counts since the trial start (crop --accumulate)."""
+    for step in sch.get_meta(schema, sch.HISTORY, []) or []:
+        args = step.get("args", {}) if isinstance(step, dict) else {}
+        if args.get("accumulate"):
+            return True
+    return False

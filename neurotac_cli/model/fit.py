@@ -1,0 +1,64 @@
+"""The training protocol (thesis 4.5.3): Adam (lr 1e-3, betas 0.9/0.999), minibatches, early stopping
+after `patience` epochs without validation improvement, restoring the best weights."""
+
+import copy
+import math
+import time
+from dataclasses import dataclass
+
+import torch
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    lr: float = 1e-3
+    beta1: float = 0.9
+    beta2: float = 0.999
+    batch_size: int = 8
+    epochs: int = 500
+    patience: int = 20
+    weight_decay: float = 0.0
+
+
+def fit(net, batch_loss, n_train: int, val_loss, config: FitConfig, generator: torch.Generator, progress=None, label="train"):
+    """Train `net` in place; return the training curve (one dict per epoch).
+
+    `batch_loss(indices)` is the loss on those training samples (net in train mode); `val_loss()`
+    the validation loss (no grad, eval mode) or None when there is no validation set, in which case
+    early stopping watches the training loss.
+    """
+    optimiser = torch.optim.Adam(net.parameters(), lr=config.lr, betas=(config.beta1, config.beta2),
+                                 weight_decay=config.weight_decay)
+    best, best_state, since, curve = math.inf, copy.deepcopy(net.state_dict()), 0, []
+    started = time.monotonic()
+    for epoch in range(1, config.epochs + 1):
+        net.train()
+        order = torch.randperm(n_train, generator=generator)
+        total, seen = 0.0, 0
+        for start in range(0, n_train, config.batch_size):
+            indices = order[start : start + config.batch_size]
+            optimiser.zero_grad()
+            loss = batch_loss(indices)
+            loss.backward()
+            optimiser.step()
+            total += float(loss.detach()) * len(indices)
+            seen += len(indices)
+        train = total / max(seen, 1)
+        net.eval()
+        with torch.no_grad():
+            val = val_loss()
+        watched = train if val is None else val
+        curve.append({"epoch": epoch, "train_loss": train, "val_loss": math.nan if val is None else float(val)})
+        if watched < best - 1e-9:
+            best, best_state, since = watched, copy.deepcopy(net.state_dict()), 0
+        else:
+            since += 1
+        if progress:
+            val_text = "" if val is None else f" val {val:.4g}"
+            progress(f"{label}: epoch {epoch} loss {train:.4g}{val_text} best {best:.4g} "
+                     f"({since}/{config.patience} without improvement, {time.monotonic() - started:.0f}s)")
+        if since >= config.patience:
+            break
+    net.load_state_dict(best_state)
+    net.eval()
+    return curve

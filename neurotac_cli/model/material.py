@@ -1,0 +1,100 @@
+"""Material classifiers, one prediction per trial (thesis 3.5).
+
+- `material-dnn` (the thesis): the accumulated ON and OFF counts of the trial, resampled to `points`
+  samples each (the thesis's 2 x 30 input), into `layers` (k) x `units` (n) sigmoid layers and a
+  softmax. Thesis best: k=2, n=30.
+- `material-force` (the thesis's piezoresistive comparison): the same network on the measured force
+  trace alone.
+- `material-ours`: shape-normalised accumulation curves (each divided by its final total), per-frame
+  event rates and active areas, the totals and the ON/OFF balance, into a ReLU network with dropout.
+  The split of a trial's events between polarities and their timing carry the stiffness; the
+  totals mostly carry the force, which the shape-normalised curves factor out.
+
+Inputs are standardised with constants fitted on training trials (buffers saved in the model file).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from neurotac_cli.model.data import Sequences, resample
+
+
+@dataclass(frozen=True)
+class Config:
+    inputs: str = "events"  # events | force | rich
+    layers: int = 2
+    units: int = 30
+    activation: str = "sigmoid"
+    points: int = 30
+    dropout: float = 0.0
+
+
+PRESETS = {
+    "material-dnn": Config(),
+    "material-force": Config(inputs="force"),
+    "material-ours": Config(inputs="rich", layers=2, units=64, activation="relu", dropout=0.3),
+}
+
+
+def features(data: Sequences, config: Config) -> np.ndarray:
+    """(n_trials, n_features) inputs of the classifier."""
+    return np.stack([_trial_features(c, f, config) for c, f in zip(data.counts, data.force)]).astype(np.float32)
+
+
+def feature_count(config: Config) -> int:
+    return {"events": 2 * config.points, "force": config.points, "rich": 6 * config.points + 3}[config.inputs]
+
+
+def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np.ndarray:
+    points = config.points
+    if config.inputs == "force":
+        return resample(np.nan_to_num(force.astype(np.float64)), points)
+    sums = counts.reshape(len(counts), 2, -1).sum(axis=2).astype(np.float64)
+    acc = np.cumsum(sums, axis=0)
+    if config.inputs == "events":
+        return resample(acc, points).T.reshape(-1)
+    totals = acc[-1] if len(acc) else np.zeros(2)
+    shape = acc / np.maximum(totals, 1.0)
+    active = (counts.reshape(len(counts), 2, -1) > 0).sum(axis=2).astype(np.float64)
+    parts = [
+        resample(shape, points).T.reshape(-1),
+        np.log1p(resample(sums, points)).T.reshape(-1),
+        np.log1p(resample(active, points)).T.reshape(-1),
+        np.log1p(totals),
+        [np.log((totals[1] + 1.0) / (totals[0] + 1.0))],
+    ]
+    return np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
+
+
+class Net(nn.Module):
+    task = "material"
+
+    def __init__(self, config: Config, classes: int):
+        super().__init__()
+        self.config = config
+        width = feature_count(config)
+        self.register_buffer("feature_mean", torch.zeros(width))
+        self.register_buffer("feature_std", torch.ones(width))
+        activation = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}[config.activation]
+        layers = []
+        for _ in range(config.layers):
+            layers += [nn.Linear(width, config.units), activation()]
+            if config.dropout:
+                layers.append(nn.Dropout(config.dropout))
+            width = config.units
+        layers.append(nn.Linear(width, classes))
+        self.mlp = nn.Sequential(*layers)
+
+    def calibrate(self, x: np.ndarray):
+        x = torch.as_tensor(x)
+        self.feature_mean.copy_(x.mean(dim=0))
+        self.feature_std.copy_(x.std(dim=0, unbiased=False).clamp_min(1e-6))
+
+    def forward(self, x):
+        return self.mlp((x - self.feature_mean) / self.feature_std)
+
+    def prepare_for(self, tensors):
+        pass

@@ -1,0 +1,109 @@
+"""Our force model: size-robust event statistics per frame into a small GRU.
+
+Why: the ConvLSTM learns pixel patterns of the object sizes it saw, so an unseen size is a new
+image; and it costs four 3x3 convolutions over the full frame per layer and frame. The contact
+force is better described by a few physical quantities that change smoothly with object size:
+
+- per channel, the frame's event count and the number of active pixels (log scale);
+- per channel, the counts accumulated since the trial start (the chapter-3 input);
+- a per-pixel *deformation map*, the running sum of OFF minus ON events (OFF fires as force grows,
+  ON as it falls): its positive mass, its negative mass, the area where it is positive, and its
+  radial extent (the second moment around its centroid), i.e. the contact patch's size;
+- a coarse `grid` x `grid` layout of the deformation map and of the frame's events, as shares of
+  their totals (so they do not scale with object size).
+
+The features are standardised with constants fitted on training trials, then a GRU of `hidden`
+units and a linear head give the force. State per trial: the deformation map, the accumulated
+counts and the GRU state, so streaming costs O(H x W) per frame plus a tiny GRU step.
+"""
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from neurotac_cli.model.base import ForceNet
+
+
+@dataclass(frozen=True)
+class Config:
+    hidden: int = 32
+    layers: int = 1
+    grid: int = 4
+    dropout: float = 0.0
+
+
+class Net(ForceNet):
+    def __init__(self, config: Config, shape):
+        super().__init__()
+        self.config = config
+        _, height, width = shape
+        self.shape = (height, width)
+        width_features = 10 + 4 * config.grid * config.grid
+        self.register_buffer("feature_mean", torch.zeros(width_features))
+        self.register_buffer("feature_std", torch.ones(width_features))
+        self.register_buffer("x_coord", torch.arange(width, dtype=torch.float32).view(1, 1, 1, width) / max(width, 1))
+        self.register_buffer("y_coord", torch.arange(height, dtype=torch.float32).view(1, 1, height, 1) / max(height, 1))
+        self.gru = nn.GRU(width_features, config.hidden, num_layers=config.layers, batch_first=True,
+                          dropout=config.dropout if config.layers > 1 else 0.0)
+        for name, weight in self.gru.named_parameters():
+            if name.startswith("weight_hh"):
+                nn.init.orthogonal_(weight)
+        self.head = nn.Linear(config.hidden, 1)
+
+    def init_state(self, batch: int):
+        return {
+            "deformation": torch.zeros(batch, *self.shape),
+            "acc": torch.zeros(batch, 2),
+            "h": torch.zeros(self.config.layers, batch, self.config.hidden),
+        }
+
+    def features(self, counts, state):
+        batch, length = counts.shape[:2]
+        counts = counts.float()
+        sums = counts.sum(dim=(-1, -2))  # (B, T, 2)
+        active = (counts > 0).sum(dim=(-1, -2)).float()
+        acc = torch.cumsum(sums, dim=1) + state["acc"].unsqueeze(1)
+        deformation = torch.cumsum(counts[:, :, 0] - counts[:, :, 1], dim=1) + state["deformation"].unsqueeze(1)
+        positive, negative = deformation.clamp_min(0), (-deformation).clamp_min(0)
+        mass = positive.sum(dim=(-1, -2))
+        area = (deformation > 0.5).sum(dim=(-1, -2)).float()
+        safe = mass.clamp_min(1e-6).unsqueeze(-1).unsqueeze(-1)
+        weights = positive / safe
+        cx = (weights * self.x_coord).sum(dim=(-1, -2), keepdim=True)
+        cy = (weights * self.y_coord).sum(dim=(-1, -2), keepdim=True)
+        extent = torch.sqrt((weights * ((self.x_coord - cx) ** 2 + (self.y_coord - cy) ** 2)).sum(dim=(-1, -2)) + 1e-8)
+        parts = [
+            torch.log1p(sums), torch.log1p(active), torch.log1p(acc),
+            torch.log1p(mass).unsqueeze(-1), torch.log1p(negative.sum(dim=(-1, -2))).unsqueeze(-1),
+            torch.log1p(area).unsqueeze(-1), extent.unsqueeze(-1),
+        ]
+        grid = self.config.grid
+        if grid:
+            flat = lambda x: x.reshape(batch * length, -1, *self.shape)  # noqa: E731
+            layout = torch.cat([flat(positive), flat(negative), flat(counts)], dim=1)
+            pooled = F.adaptive_avg_pool2d(layout, grid).reshape(batch, length, 4, grid * grid)
+            pooled = pooled / pooled.sum(dim=-1, keepdim=True).clamp_min(1e-6)
+            parts.append(pooled.reshape(batch, length, -1))
+        new = {"deformation": deformation[:, -1], "acc": acc[:, -1]}
+        return torch.cat(parts, dim=-1), new
+
+    def forward(self, counts, t_s, state=None):
+        batch = counts.shape[0]
+        state = state or self.init_state(batch)
+        features, new = self.features(counts, state)
+        x = (features - self.feature_mean) / self.feature_std
+        out, h = self.gru(x, state["h"])
+        new["h"] = h
+        return self.head(out).squeeze(-1), new
+
+    def calibrate(self, counts, t_s):
+        rows = []
+        with torch.no_grad():
+            for c in counts:
+                features, _ = self.features(torch.as_tensor(c[None], dtype=torch.float32), self.init_state(1))
+                rows.append(features[0])
+        rows = torch.cat(rows)
+        self.feature_mean.copy_(rows.mean(dim=0))
+        self.feature_std.copy_(rows.std(dim=0).clamp_min(1e-3))

@@ -1,0 +1,89 @@
+"""Model files: safetensors weights with a JSON header (DESIGN.md §4). No pickle: loading reads
+arrays and JSON, builds the network from the header's config, and never executes code from the file."""
+
+import dataclasses
+import json
+import os
+import tempfile
+
+from neurotac_cli.errors import ModelError
+
+HEADER_KEY = "neurotac"
+
+
+def save(model, path: str):
+    """Write `model` to `path` atomically (temporary file beside it, then rename)."""
+    from safetensors.torch import save_file
+
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise ModelError(f"cannot write {path}: folder {directory} does not exist")
+    tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
+    header = json.dumps(model.header(), sort_keys=True, default=_json_default)
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
+    os.close(handle)
+    try:
+        save_file(tensors, temporary, metadata={HEADER_KEY: header})
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
+
+def _json_default(value):
+    import numpy as np
+
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    if isinstance(value, (np.ndarray, tuple, set)):
+        return list(value)
+    return str(value)
+
+
+def read_header(path: str) -> dict:
+    from safetensors import safe_open
+
+    if not os.path.isfile(path):
+        raise ModelError(f"{path}: no such model file (train one with `neurotac train --model NAME -o {path}`)")
+    try:
+        with safe_open(path, framework="pt") as handle:
+            metadata = handle.metadata() or {}
+    except Exception as error:  # safetensors raises its own error types for foreign bytes
+        raise ModelError(f"{path} is not a neurotac model file ({str(error).splitlines()[0]}); give a file written by `neurotac train`") from None
+    if HEADER_KEY not in metadata:
+        raise ModelError(f"{path} is a safetensors file without a neurotac header; give a file written by `neurotac train`")
+    try:
+        header = json.loads(metadata[HEADER_KEY])
+    except ValueError:
+        raise ModelError(f"{path}: the model header is not valid JSON (file damaged?)") from None
+    if header.get("format") != "neurotac-model":
+        raise ModelError(f"{path}: not a neurotac model header")
+    return header
+
+
+def load(path: str):
+    """Read a model file written by `save`."""
+    from safetensors.torch import load_file
+
+    from neurotac_cli.model.core import Model, _module
+
+    header = read_header(path)
+    name = header["model"]
+    module = _module(name)
+    config_type = module.Config
+    known = {f.name for f in dataclasses.fields(config_type)}
+    config = config_type(**{k: v for k, v in header["architecture"].items() if k in known})
+    spec = header["input"]
+    if header["task"] == "material":
+        net = module.Net(config, len(header["classes"]))
+    else:
+        net = module.Net(config, (2, spec["height"], spec["width"]))
+    tensors = load_file(path)
+    net.prepare_for(tensors)
+    try:
+        net.load_state_dict(tensors, strict=True)
+    except RuntimeError as error:
+        raise ModelError(f"{path}: weights do not match the header's architecture ({str(error).splitlines()[0]})") from None
+    return Model(name, config, net, spec, header.get("classes"), header.get("training"))
