@@ -1,0 +1,529 @@
+"""Chapter-5 augmentations of event frames (thesis 5.3): rotation, resize, background noise, frame
+shifting (FS) and temporal event shifting (TES), applied to whole trials.
+
+A trial is one (frames, 2, H, W) array of counts in frame order. Every transform is a small frozen
+dataclass holding its settings (checked when it is built), called with a trial's counts and an
+explicit `np.random.Generator`; it returns the new counts, the label of what it did and what it
+counted. `augment_frames` applies transforms to every trial of a `frames` table and writes the
+copies beside the originals with unique trial ids and `source_trial` / `augment` columns.
+
+Conventions (docs/design.md, "augment"):
+- Shifts move content J frames later for J > 0 and earlier for J < 0; labels stay in place. What is
+  pushed past the first or last frame leaves the sequence and is counted.
+- Rotation and resize sample the input bilinearly about the trial's contact centre (the
+  count-weighted centroid of all its frames, both channels), zeros outside the frame. Integer
+  counts stay integer by seeded systematic rounding, which keeps each pixel unbiased and each
+  frame/channel total exact where a total is asked for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import zlib
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError, SchemaError
+
+COMBINES = ("independent", "hybrid")
+# Hybrid copies compose methods in this order: geometry first, then timing, and the sensor's
+# background noise last (it belongs to the camera, not to the grasp, so it is neither rotated nor shifted).
+ORDER = ("rotate", "resize", "fs", "tes", "noise")
+
+
+# ---------------------------------------------------------------- spatial: rotation and resize
+
+
+def contact_centre(counts: np.ndarray) -> tuple[float, float]:
+    """(y, x) of the count-weighted centroid of all frames and both channels of a trial.
+
+    A trial without events has its centre in the middle of the frame.
+    """
+    image = counts.sum(axis=(0, 1), dtype=np.float64)
+    height, width = image.shape
+    total = image.sum()
+    if total <= 0:
+        return (height - 1) / 2, (width - 1) / 2
+    y = float(image.sum(axis=1) @ np.arange(height)) / total
+    x = float(image.sum(axis=0) @ np.arange(width)) / total
+    return y, x
+
+
+def sampling_operator(shape: tuple[int, int], matrix: np.ndarray, centre: tuple[float, float]):
+    """Bilinear sampling as a sparse (P, P) matrix, P = H*W: output pixel q reads the input at
+    `centre + matrix @ (q - centre)` in (y, x), with zeros outside the frame.
+
+    Applying it to all frames and channels of a trial is one sparse-dense product. Source
+    coordinates within 1e-9 of a pixel are snapped to it, so a transform that maps pixels onto
+    pixels copies their values exactly.
+    """
+    from scipy import sparse
+
+    height, width = shape
+    cy, cx = centre
+    yy, xx = np.mgrid[0:height, 0:width]
+    dy = yy.ravel() - cy
+    dx = xx.ravel() - cx
+    sy = _snap(cy + matrix[0, 0] * dy + matrix[0, 1] * dx)
+    sx = _snap(cx + matrix[1, 0] * dy + matrix[1, 1] * dx)
+    y0 = np.floor(sy)
+    x0 = np.floor(sx)
+    fy = sy - y0
+    fx = sx - x0
+    y0 = y0.astype(np.int64)
+    x0 = x0.astype(np.int64)
+    target = np.arange(height * width)
+    rows, cols, weights = [], [], []
+    for oy, ox, weight in (
+        (0, 0, (1 - fy) * (1 - fx)),
+        (0, 1, (1 - fy) * fx),
+        (1, 0, fy * (1 - fx)),
+        (1, 1, fy * fx),
+    ):
+        ys, xs = y0 + oy, x0 + ox
+        keep = (weight > 0) & (ys >= 0) & (ys < height) & (xs >= 0) & (xs < width)
+        rows.append(target[keep])
+        cols.append(ys[keep] * width + xs[keep])
+        weights.append(weight[keep])
+    size = height * width
+    return sparse.csr_matrix(
+        (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size)
+    )
+
+
+def _snap(coordinates: np.ndarray) -> np.ndarray:
+    nearest = np.rint(coordinates)
+    close = np.abs(coordinates - nearest) < 1e-9
+    coordinates[close] = nearest[close]
+    return coordinates
+
+
+def rotation_matrix(degrees: float) -> np.ndarray:
+    """The backward map of thesis eq. 5.2 in (y, x): output offset -> input offset.
+
+    Eq. 5.2 rotates (x, y) by the standard matrix; in image coordinates (y down) a positive angle
+    turns the picture clockwise on screen.
+    """
+    phi = np.deg2rad(degrees)
+    cos, sin = np.cos(phi), np.sin(phi)
+    # Output offset (y', x') reads the input at R(-phi) applied to it: y = cos y' - sin x', x = sin y' + cos x'.
+    return np.array([[cos, -sin], [sin, cos]])
+
+
+def systematic_round(values: np.ndarray, rng: np.random.Generator, totals: np.ndarray | None = None) -> np.ndarray:
+    """Round each row of non-negative `values` (groups, P) to integers, seeded.
+
+    Row by row: r_i = floor(S_i + u) - floor(S_{i-1} + u), S the running sum, u ~ U[0, 1) per row.
+    Every r_i is floor(v_i) or ceil(v_i) with mean v_i (unbiased), the row total is the total
+    rounded the same way, and with `totals` (integers, one per row) the row sums to exactly that
+    total. Integer-valued input comes back unchanged.
+    """
+    running = np.cumsum(values, axis=1, dtype=np.float64)
+    if totals is not None:
+        totals = np.asarray(totals, dtype=np.float64)[:, None]
+        running = np.minimum(running, totals)
+        running[:, -1:] = totals
+    # Keep u clear of 1 so that S + u never rounds up to the next integer in float64.
+    offset = rng.random((values.shape[0], 1)) * (1 - 2.0**-20)
+    steps = np.floor(running + offset)
+    steps -= np.floor(offset)
+    return np.diff(steps, axis=1, prepend=0.0)
+
+
+def warp(counts: np.ndarray, matrix: np.ndarray, rng: np.random.Generator, preserve_total: bool = False):
+    """Resample every frame and channel of a trial through `matrix` about its contact centre.
+
+    Returns (new counts of the same dtype, events lost past the frame edges, events added by
+    rescaling). Integer counts are rounded with `systematic_round`; with `preserve_total` each
+    frame and channel is rescaled to its own original total first (exact for integers).
+    """
+    frames, channels, height, width = counts.shape
+    flat = counts.reshape(frames * channels, height * width)
+    operator = sampling_operator((height, width), matrix, contact_centre(counts))
+    values = np.asarray((operator @ flat.T.astype(np.float64)).T)
+    before = flat.sum(axis=1, dtype=np.float64)
+    targets = None
+    if preserve_total:
+        after = values.sum(axis=1)
+        scale = np.divide(before, after, out=np.zeros_like(before), where=after > 0)
+        values *= scale[:, None]
+        targets = np.where(after > 0, before, 0.0)
+    if np.issubdtype(counts.dtype, np.integer):
+        values = systematic_round(values, rng, targets)
+    result = values.reshape(counts.shape)
+    change = float(result.sum() - before.sum())
+    lost = max(0.0, -change)
+    gained = max(0.0, change)
+    return _as_dtype(result, counts.dtype), lost, gained
+
+
+# ---------------------------------------------------------------- temporal: FS and TES
+
+
+def frame_shift(counts: np.ndarray, shift: int) -> np.ndarray:
+    """Thesis eq. 5.3 with DESIGN.md's sign: content moves `shift` frames later (earlier if < 0);
+    the vacated frames are zero; frames pushed past either end are dropped."""
+    shifted = np.zeros_like(counts)
+    frames = len(counts)
+    if abs(shift) >= frames:
+        return shifted
+    if shift >= 0:
+        shifted[shift:] = counts[: frames - shift]
+    else:
+        shifted[:shift] = counts[-shift:]
+    return shifted
+
+
+def events_to_move(counts: np.ndarray, zeta: float) -> np.ndarray:
+    """round(zeta * n) for the n events of each frame and channel: (frames, 2) int64.
+
+    round() is Python's: halves go to the even integer (0.5 * 3 events -> 2, 0.5 * 5 -> 2).
+    """
+    totals = counts.sum(axis=(2, 3), dtype=np.int64)
+    return np.rint(zeta * totals).astype(np.int64)
+
+
+def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw `take[g]` of the events of each group g without replacement (multivariate hypergeometric).
+
+    `counts` is (groups, P) of non-negative integers. All groups are drawn at once: every event gets
+    a uniform key, events are sorted by (group, key), and the first `take[g]` of each group are
+    kept, so every subset of the right size is equally likely. Returns the drawn counts, (groups, P).
+    """
+    groups, pixels = counts.shape
+    drawn = np.zeros((groups, pixels), dtype=np.int64)
+    group_of_pixel, pixel = np.nonzero(counts)
+    if len(pixel) == 0:
+        return drawn
+    per_pixel = counts[group_of_pixel, pixel].astype(np.int64)
+    event_entry = np.repeat(np.arange(len(pixel)), per_pixel)
+    event_group = group_of_pixel[event_entry]
+    keys = event_group + rng.random(len(event_entry))
+    order = np.argsort(keys)
+    group_sizes = np.bincount(group_of_pixel, weights=per_pixel, minlength=groups).astype(np.int64)
+    group_start = np.concatenate([[0], np.cumsum(group_sizes)[:-1]])
+    # `order` keeps groups contiguous and in order, so position - start is the rank within the group.
+    rank = np.arange(len(order)) - group_start[event_group]
+    chosen_entries = event_entry[order[rank < np.asarray(take)[event_group]]]
+    chosen = np.bincount(chosen_entries, minlength=len(pixel))
+    drawn[group_of_pixel, pixel] = chosen
+    return drawn
+
+
+def temporal_event_shift(counts: np.ndarray, shift: int, zeta: float, rng: np.random.Generator):
+    """Thesis eqs. 5.4-5.6: X'_t = X_t - Z_t + Z_{t-J}, Z_t drawn from X_t without replacement with
+    exactly round(zeta * n) events per frame and channel, moved to the same pixel `shift` frames
+    later (earlier if < 0).
+
+    Returns (new counts, events moved, events pushed past the first or last frame, which leave the
+    sequence, as frames do under FS).
+    """
+    frames, channels, height, width = counts.shape
+    if np.issubdtype(counts.dtype, np.floating) and not np.array_equal(counts, np.floor(counts)):
+        raise SchemaError("TES moves events, so it needs whole-number counts; apply it before any normalisation")
+    whole = counts.astype(np.int64)
+    take = events_to_move(whole, zeta)
+    drawn = draw_events(whole.reshape(frames * channels, -1), take.ravel(), rng).reshape(whole.shape)
+    arrived = frame_shift(drawn, shift)
+    moved = int(take.sum())
+    lost = moved - int(arrived.sum())
+    return _as_dtype(whole - drawn + arrived, counts.dtype), moved, lost
+
+
+# ---------------------------------------------------------------- noise
+
+
+def noise_pool(noise: pa.Table, like: pa.Schema) -> list[np.ndarray]:
+    """The background-noise trials of a frames table, as (frames, 2, H, W) arrays in frame order,
+    after checking that they were framed with the same window and frame size as `like`."""
+    shape, noise_shape = sch.frames_shape(like), sch.frames_shape(noise.schema)
+    if shape != noise_shape:
+        raise SchemaError(
+            f"noise frames are {noise_shape[1]}x{noise_shape[0]} but the frames to augment are {shape[1]}x{shape[0]} "
+            "(frame and crop the still recording exactly as the data: same --window, --size and --pool)"
+        )
+    window, noise_window = sch.get_meta(like, sch.WINDOW), sch.get_meta(noise.schema, sch.WINDOW)
+    if window != noise_window:
+        raise SchemaError(
+            f"noise frames have a {_window(noise_window)} window but the frames to augment have {_window(window)} "
+            "(frame the still recording with the same --window)"
+        )
+    if noise.num_rows == 0:
+        raise SchemaError("the noise table has no frames (frame a still recording with `neurotac frame`)")
+    counts = sch.counts_numpy(noise["counts"])
+    trials, order = _trial_order(noise)
+    return [counts[rows] for rows in np.split(order, np.flatnonzero(np.diff(trials[order])) + 1)]
+
+
+def _window(window_us) -> str:
+    return "unknown" if window_us is None else f"{window_us} µs"
+
+
+def add_noise(counts: np.ndarray, pool: list[np.ndarray], rng: np.random.Generator):
+    """Add background-noise frames: a noise trial drawn at random, read from a random start frame for
+    as many frames as the trial has (wrapping round to its first frame if it is shorter).
+
+    Returns (new counts, noise events added, (noise trial index, start frame)).
+    """
+    which = int(rng.integers(len(pool)))
+    source = pool[which]
+    start = int(rng.integers(len(source)))
+    noise = source[(start + np.arange(len(counts))) % len(source)]
+    if np.issubdtype(counts.dtype, np.integer):
+        if not np.issubdtype(noise.dtype, np.integer) and not np.array_equal(noise, np.floor(noise)):
+            raise SchemaError("noise counts are fractional but the frames hold whole counts; frame both alike")
+        total = counts.astype(np.int64) + noise.astype(np.int64)
+    else:
+        total = counts.astype(np.float64) + noise
+    return _as_dtype(total, counts.dtype), float(noise.sum(dtype=np.float64)), (which, start)
+
+
+# ---------------------------------------------------------------- the methods
+
+
+@dataclasses.dataclass(frozen=True)
+class Rotate:
+    """Rotate every frame of a trial by one angle about its contact centre; a range draws the angle per trial."""
+
+    low: float
+    high: float | None = None
+    preserve_total: bool = False
+    name = "rotate"
+
+    def __post_init__(self):
+        if self.high is not None and self.high < self.low:
+            raise NeurotacError(f"rotation range {self.low:g}..{self.high:g} is empty (give the smaller angle first)")
+
+    def __call__(self, counts, rng):
+        angle = self.low if self.high is None else float(rng.uniform(self.low, self.high))
+        label = f"rotate({_number(angle)})"
+        if angle % 360 == 0:
+            return counts.copy(), label, {}
+        result, lost, gained = warp(counts, rotation_matrix(angle), rng, self.preserve_total)
+        return result, label, {"events_lost": lost, "events_added": gained}
+
+
+@dataclasses.dataclass(frozen=True)
+class Resize:
+    """Scale every frame about the contact centre by beta (> 1 larger), bilinear, zero margin."""
+
+    beta: float
+    preserve_total: bool = False
+    name = "resize"
+
+    def __post_init__(self):
+        if not self.beta > 0:
+            raise NeurotacError(f"resize factor must be positive, got {self.beta:g} (the thesis uses 1.25 and 0.83)")
+
+    def __call__(self, counts, rng):
+        label = f"resize({_number(self.beta)})"
+        if self.beta == 1:
+            return counts.copy(), label, {}
+        result, lost, gained = warp(counts, np.eye(2) / self.beta, rng, self.preserve_total)
+        return result, label, {"events_lost": lost, "events_added": gained}
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameShift:
+    """FS: move all frames `shift` frames later (earlier if negative), zero fill, labels stay."""
+
+    shift: int
+    name = "fs"
+
+    def __call__(self, counts, rng):
+        result = frame_shift(counts, self.shift)
+        lost = float(counts.sum(dtype=np.float64) - result.sum(dtype=np.float64))
+        return result, f"fs({self.shift})", {"events_lost": lost}
+
+
+@dataclasses.dataclass(frozen=True)
+class EventShift:
+    """TES: move round(zeta * n) random events of each frame and channel `shift` frames later."""
+
+    shift: int
+    zeta: float
+    name = "tes"
+
+    def __post_init__(self):
+        if not 0 <= self.zeta <= 1:
+            raise NeurotacError(f"TES fraction must lie in [0, 1], got {self.zeta:g} (the thesis uses 0.25, 0.5, 0.75)")
+
+    def __call__(self, counts, rng):
+        result, moved, lost = temporal_event_shift(counts, self.shift, self.zeta, rng)
+        return result, f"tes({self.shift},{_number(self.zeta)})", {"events_moved": moved, "events_lost": lost}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Noise:
+    """Add background-noise frames from a still recording, drawn at random per trial."""
+
+    pool: tuple
+    name = "noise"
+
+    def __post_init__(self):
+        if not self.pool or any(len(trial) == 0 for trial in self.pool):
+            raise NeurotacError("the noise table has no frames (frame a still recording with `neurotac frame`)")
+
+    def __call__(self, counts, rng):
+        result, added, _ = add_noise(counts, list(self.pool), rng)
+        return result, "noise", {"events_added": added}
+
+
+def _number(value: float) -> str:
+    return f"{round(float(value), 2):g}"
+
+
+# ---------------------------------------------------------------- frames tables
+
+
+def augment_frames(
+    frames: pa.Table,
+    methods: list,
+    copies: int = 1,
+    combine: str = "independent",
+    keep_original: bool = True,
+    seed: int = 0,
+) -> tuple[pa.Table, dict]:
+    """Augment every trial of a `frames` table; returns (table, counts of what was done per method).
+
+    independent: each method makes `copies` copies of every trial from the original.
+    hybrid: `copies` copies per trial, each with all methods composed in the order of ORDER.
+    Every copy keeps the rows' labels, force, phase, frame and t, and gets the id
+    `<trial>~<what was done>#<copy>`, `source_trial` (the original trial) and `augment` (what was done).
+    The draws of a trial's copy depend only on (seed, trial id, method, copy number).
+    """
+    if combine not in COMBINES:
+        raise NeurotacError(f"unknown combination {combine!r} (use independent or hybrid)")
+    if not methods:
+        raise NeurotacError("no augmentation asked for (give --rotate, --resize, --noise, --fs or --tes)")
+    if copies < 1:
+        raise NeurotacError(f"--copies must be at least 1, got {copies}")
+    if seed < 0:
+        raise NeurotacError(f"--seed must be zero or positive, got {seed}")
+    methods = sorted(methods, key=lambda method: ORDER.index(method.name))
+    counts = sch.counts_numpy(frames["counts"])
+    trials, order = _trial_order(frames)
+    bounds = np.flatnonzero(np.diff(trials[order])) + 1
+    frame_numbers = frames["frame"].to_numpy()
+    trial_ids = frames["trial"].to_numpy(zero_copy_only=False)
+    source_ids = _column_or(frames, "source_trial", trial_ids)
+    done_before = _column_or(frames, "augment", np.full(frames.num_rows, "", dtype=object))
+    if any(method.name in ("fs", "tes") for method in methods):
+        _check_consecutive(frame_numbers, order, bounds, trial_ids)
+
+    plans = [[method] for method in methods] if combine == "independent" else [methods]
+    stats = {}
+    rows, pieces, new_ids, new_sources, new_augment = [], [], [], [], []
+    seen = set(trial_ids.tolist())
+    for trial_rows in np.split(order, bounds):
+        trial = trial_ids[trial_rows[0]]
+        trial_counts = counts[trial_rows]
+        if keep_original:
+            rows.append(trial_rows)
+            pieces.append(trial_counts)
+            new_ids.append(trial_ids[trial_rows])
+            new_sources.append(source_ids[trial_rows])
+            new_augment.append(done_before[trial_rows])
+        for plan in plans:
+            for copy in range(1, copies + 1):
+                result, labels = trial_counts, []
+                for method in plan:
+                    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_key(trial, method.name, copy, combine)))
+                    entry = stats.setdefault(method.name, {"copies": 0, "events_in": 0})
+                    entry["copies"] += 1
+                    entry["events_in"] += float(result.sum(dtype=np.float64))
+                    result, label, counted = method(result, rng)
+                    labels.append(label)
+                    for name, value in counted.items():
+                        entry[name] = entry.get(name, 0) + value
+                done = f"{'+'.join(labels)}#{copy}"
+                new_id = f"{trial}~{done}"
+                if new_id in seen:
+                    raise NeurotacError(
+                        f"augmented trial id {new_id!r} is already taken (the input holds that copy already; "
+                        "augment the original trials, or use another method or --copies)"
+                    )
+                seen.add(new_id)
+                count = len(trial_rows)
+                earlier = done_before[trial_rows[0]]
+                rows.append(trial_rows)
+                pieces.append(result)
+                new_ids.append(np.full(count, new_id, dtype=object))
+                new_sources.append(np.full(count, source_ids[trial_rows[0]], dtype=object))
+                new_augment.append(np.full(count, f"{earlier}+{done}" if earlier else done, dtype=object))
+    for entry in stats.values():
+        for name, value in entry.items():
+            entry[name] = int(round(value))
+    table = _assemble(frames, rows, pieces, new_ids, new_sources, new_augment, counts.dtype)
+    return table, stats
+
+
+def _key(trial: str, method: str, copy: int, combine: str) -> tuple[int, int, int]:
+    return (zlib.crc32(trial.encode()), zlib.crc32(f"{combine}:{method}".encode()), copy)
+
+
+def _trial_order(frames: pa.Table) -> tuple[np.ndarray, np.ndarray]:
+    """(trial index per row in order of first appearance, rows sorted by trial then frame)."""
+    encoded = frames["trial"].combine_chunks().dictionary_encode()
+    indices = encoded.indices.to_numpy(zero_copy_only=False)
+    first_seen = np.full(len(encoded.dictionary), len(indices), dtype=np.int64)
+    np.minimum.at(first_seen, indices, np.arange(len(indices)))
+    rank = np.argsort(np.argsort(first_seen))
+    trials = rank[indices]
+    order = np.lexsort((frames["frame"].to_numpy(), trials))
+    return trials, order
+
+
+def _column_or(frames: pa.Table, name: str, default: np.ndarray) -> np.ndarray:
+    if name not in frames.column_names:
+        return np.asarray(default, dtype=object)
+    values = frames[name].to_numpy(zero_copy_only=False).astype(object)
+    missing = np.array([value is None for value in values])
+    values[missing] = np.asarray(default, dtype=object)[missing]
+    return values
+
+
+def _check_consecutive(frame_numbers, order, bounds, trial_ids):
+    steps = np.diff(frame_numbers[order])
+    inside = np.ones(len(steps), dtype=bool)
+    inside[bounds - 1] = False
+    bad = np.flatnonzero(inside & (steps != 1))
+    if len(bad):
+        row = order[bad[0]]
+        raise SchemaError(
+            f"frames of trial {trial_ids[row]!r} are not consecutive (frame {frame_numbers[row]} is followed by "
+            f"{frame_numbers[order[bad[0] + 1]]}); shift whole trials, before selecting frames"
+        )
+
+
+def _assemble(frames, rows, pieces, new_ids, new_sources, new_augment, dtype) -> pa.Table:
+    taken = frames.take(pa.array(np.concatenate(rows)))
+    counts = sch.counts_array(np.concatenate(pieces).astype(dtype, copy=False))
+    columns = {
+        "counts": counts,
+        "trial": pa.array(np.concatenate(new_ids), pa.string()),
+        "source_trial": pa.array(np.concatenate(new_sources), pa.string()),
+        "augment": pa.array(np.concatenate(new_augment), pa.string()),
+    }
+    for name, column in columns.items():
+        index = taken.schema.get_field_index(name)
+        if index < 0:
+            taken = taken.append_column(pa.field(name, column.type), column)
+        else:
+            taken = taken.set_column(index, pa.field(name, column.type), column)
+    return taken.replace_schema_metadata(frames.schema.metadata)
+
+
+def _as_dtype(values: np.ndarray, dtype) -> np.ndarray:
+    dtype = np.dtype(dtype)
+    if np.issubdtype(dtype, np.integer):
+        top = np.iinfo(dtype).max
+        if values.size and values.max() > top:
+            raise SchemaError(
+                f"augmented counts reach {int(values.max())}, more than {dtype} holds ({top}); "
+                "frame with a shorter window or pool less"
+            )
+        return np.rint(values).astype(dtype) if np.issubdtype(values.dtype, np.floating) else values.astype(dtype)
+    return values.astype(dtype)
