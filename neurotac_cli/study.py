@@ -205,9 +205,17 @@ def _run_dask(function, pending: dict, shared: dict, scheduler, retries: int, la
 
     own_client = not isinstance(scheduler, Client)
     if own_client:
+        # A path is a scheduler file (`dask scheduler --scheduler-file PATH`), the usual hand-over on
+        # SLURM/PBS where the scheduler's address is not known before its job starts.
+        where = {"scheduler_file": str(scheduler)} if os.path.isfile(str(scheduler)) else {"address": scheduler}
+        if "address" in where and not re.match(r"^([a-z]+://)?[^\s/:]+(:\d+)$|^[a-z]+://", str(scheduler)):
+            raise StudyError(
+                f"--scheduler {scheduler!r} is neither an address like tcp://HOST:8786 nor a scheduler file "
+                "(give the address `dask scheduler` printed, or the path of its --scheduler-file)"
+            )
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
-        except (OSError, TimeoutError) as error:
+            client = Client(**where, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as error:
             raise StudyError(
                 f"cannot reach the Dask scheduler at {scheduler} ({error}); start one with `dask scheduler` "
                 "and workers with `dask worker ADDRESS`, or drop --scheduler to run here"

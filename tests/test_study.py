@@ -231,6 +231,18 @@ def test_jobs_and_scheduler_together_are_refused():
         run_tasks(square, [{"x": 1}], jobs=2, scheduler="tcp://127.0.0.1:1")
 
 
+def test_a_scheduler_file_works_as_an_address(cluster, tmp_path):
+    import json
+
+    (tmp_path / "scheduler.json").write_text(json.dumps({"address": cluster.scheduler_address}))
+    assert run_tasks(square, [{"x": 4}], scheduler=str(tmp_path / "scheduler.json")) == [16]
+
+
+def test_a_malformed_scheduler_address_says_what_to_give():
+    with pytest.raises(NeurotacError, match="neither an address"):
+        run_tasks(square, [{"x": 1}], scheduler="my-cluster")
+
+
 def test_an_unreachable_scheduler_is_a_user_error(monkeypatch):
     pytest.importorskip("distributed")
     monkeypatch.setattr("neurotac_cli.study.CONNECT_TIMEOUT", "1s")
