@@ -79,15 +79,22 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
         )
     offset = len(header)
 
+    from neurotac_cli.io import kernels
+
     def chunks():
         for block in read_chunks(path, offset, RECORD):
-            yield decode_davis(block, height)
+            t, x, y, p, largest = kernels.decode_davis(np.frombuffer(block, dtype=np.uint8), height)
+            if largest >= height:
+                raise FormatError(
+                    f"DVS event row {largest} lies outside the sensor's {height} rows (damaged file, or wrong --sensor)"
+                )
+            yield t, x, y, p
 
     return Decoded(sensor=declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {})
 
 
-def decode_davis(block: bytes, height: int):
-    """Whole 8-byte records -> (t, x, y, p) of the DVS events, y flipped to image rows."""
+def decode_davis_numpy(block: bytes, height: int):
+    """The same as kernels.decode_davis, in numpy (kept as the readable statement of the layout): whole 8-byte records -> (t, x, y, p) of the DVS events, y flipped to image rows."""
     words = np.frombuffer(block, dtype=">u4").reshape(-1, 2)
     address = words[:, 0]
     keep = (address & (APS_OR_IMU | SPECIAL)) == 0

@@ -1,0 +1,83 @@
+"""AEDAT 4.0 (iniVation dv): decoded by the `aedat` library (Rust; LZ4/zstd packets, flatbuffers).
+
+The first events stream is read (x, y, polarity with t in µs, usually Unix time). External trigger
+events (the `triggers` stream: signal and generator edges and pulses, timestamp resets) go into the
+schema metadata `neurotac:triggers` as [{"t": µs, "type": ...}], which `sync --method trigger` uses;
+frame and exposure triggers of the APS are left out, as are frames and IMU samples.
+"""
+
+import numpy as np
+
+from neurotac_cli.errors import FormatError
+from neurotac_cli.io.camera import Decoded
+
+TRIGGER_TYPES = {
+    0: "timestamp_reset",
+    1: "rising",
+    2: "falling",
+    3: "pulse",
+    4: "generator_rising",
+    5: "generator_falling",
+}
+BATCH_EVENTS = 1 << 20
+
+
+def _packets(path: str):
+    """The `aedat` decoder's packets, with its failures (a Rust panic included) as FormatError."""
+    import aedat
+
+    try:
+        decoder = aedat.Decoder(path)
+        streams = decoder.id_to_stream()
+        yield streams
+        for packet in decoder:
+            yield packet
+    except (KeyboardInterrupt, SystemExit, GeneratorExit, FormatError):
+        raise
+    except BaseException as error:  # pyo3's PanicException derives from BaseException
+        text = str(error).strip().splitlines()
+        raise FormatError(f"not a valid AEDAT 4.0 file ({text[0][:160] if text else type(error).__name__})") from None
+
+
+def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
+    packets = _packets(path)
+    streams = next(packets)
+    event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
+    if not event_ids:
+        raise FormatError("the AEDAT 4.0 file has no events stream")
+    events_id = event_ids[0]
+    declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
+    meta = {}
+    if any(s.get("type") == "triggers" for s in streams.values()):
+        triggers = []
+        for packet in packets:
+            if "triggers" in packet:
+                found = packet["triggers"]
+                keep = np.isin(found["source"], list(TRIGGER_TYPES))
+                triggers += [
+                    {"t": int(t), "type": TRIGGER_TYPES[int(s)]} for t, s in zip(found["t"][keep], found["source"][keep])
+                ]
+        meta["triggers"] = triggers
+    else:
+        packets.close()
+
+    def chunks():
+        pending, count = [], 0
+        for packet in _packets(path):
+            if packet.get("stream_id") != events_id or "events" not in packet:
+                continue
+            events = packet["events"]
+            pending.append(events)
+            count += len(events)
+            if count >= BATCH_EVENTS:
+                yield _columns(pending)
+                pending, count = [], 0
+        if pending:
+            yield _columns(pending)
+
+    return Decoded(sensor=declared, chunks=chunks, meta=meta)
+
+
+def _columns(pending):
+    events = np.concatenate(pending) if len(pending) > 1 else pending[0]
+    return events["t"].astype(np.int64), events["x"], events["y"], events["on"].astype(np.uint8)

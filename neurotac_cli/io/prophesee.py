@@ -1,0 +1,139 @@
+"""Prophesee files: EVT 2.0 and EVT 3.0 `.raw` words, and `.dat` records, decoded with numpy.
+
+The word streams are decoded a chunk at a time by the compiled kernels of `io/kernels.py`, with the
+decoder state (time high, time low, row, vector base) carried across chunks.
+
+Times follow Prophesee's own decoder (OpenEB): EVT 3.0 time = time-high base + the last time low,
+where a TIME_HIGH resets the low part; a TIME_LOW that steps back without a new TIME_HIGH is kept
+as written (time is then not monotonic). A TIME_HIGH that falls back by nearly its full range is a
+wrap and adds 2^24 µs (EVT 3.0) or 2^34 µs (EVT 2.0). Events before the first TIME_HIGH have no time
+base and are skipped, as OpenEB does.
+"""
+
+import re
+
+import numpy as np
+
+from neurotac_cli.errors import FormatError
+from neurotac_cli.io.camera import Decoded, read_chunks
+
+# plugin / sensor names in Prophesee headers -> (width, height)
+SENSORS = [
+    ("gen41", (1280, 720)),
+    ("imx636", (1280, 720)),
+    ("imx646", (1280, 720)),
+    ("imx8", (1280, 720)),
+    ("genx320", (320, 320)),
+    ("gen31", (640, 480)),
+    ("gen3", (640, 480)),
+    ("gen4", (1280, 720)),
+]
+
+
+def header_of(path: str, head: bytes) -> tuple[int, dict]:
+    """Length in bytes of the `%` header, and its `key value` lines (keys lowercased)."""
+    data = head
+    offset, fields = 0, {}
+    while offset < len(data) and data[offset : offset + 1] == b"%":
+        end = data.find(b"\n", offset)
+        if end < 0:
+            with open(path, "rb") as handle:
+                data = handle.read()
+            end = data.find(b"\n", offset)
+            if end < 0:
+                return len(data), fields
+        text = data[offset + 1 : end].decode("latin-1").strip()
+        key, _, value = text.partition(" ")
+        fields.setdefault(key.lower(), value.strip())
+        offset = end + 1
+        if text.lower() == "end":
+            break
+    return offset, fields
+
+
+def sensor_of_header(fields: dict) -> tuple[int, int] | None:
+    geometry = fields.get("geometry", "")
+    match = re.match(r"(\d+)\s*x\s*(\d+)", geometry)
+    if match:
+        return int(match.group(1)), int(match.group(2))
+    if "width" in fields and "height" in fields:
+        try:
+            return int(fields["width"]), int(fields["height"])
+        except ValueError:
+            pass
+    match = re.search(r"width=(\d+);height=(\d+)", fields.get("format", ""))
+    if match:
+        return int(match.group(1)), int(match.group(2))
+    text = (fields.get("plugin_name", "") + " " + fields.get("sensor_generation", "")).lower()
+    for fragment, size in SENSORS:
+        if fragment in text:
+            return size
+    return None
+
+
+def _meta(fields: dict) -> dict:
+    keep = {k: fields[k] for k in ("plugin_name", "serial_number", "date") if k in fields}
+    return {"source": {"camera": keep.get("plugin_name")}} if keep.get("plugin_name") else {}
+
+
+# ---------------------------------------------------------------- EVT 2.0 and 3.0
+
+
+def open_evt2(path: str, head: bytes, sensor) -> Decoded:
+    return _open_words(path, head, word_bytes=4)
+
+
+def open_evt3(path: str, head: bytes, sensor) -> Decoded:
+    return _open_words(path, head, word_bytes=2)
+
+
+def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
+    from neurotac_cli.io import kernels
+
+    offset, fields = header_of(path, head)
+    decode, fresh, dtype = (
+        (kernels.decode_evt2, kernels.evt2_state, "<u4") if word_bytes == 4 else (kernels.decode_evt3, kernels.evt3_state, "<u2")
+    )
+
+    def chunks():
+        state = fresh()
+        for block in read_chunks(path, offset, word_bytes):
+            yield decode(np.frombuffer(block, dtype=dtype), state)
+
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
+
+
+# ---------------------------------------------------------------- DAT
+
+def open_dat(path: str, head: bytes, sensor) -> Decoded:
+    offset, fields = header_of(path, head)
+    with open(path, "rb") as handle:
+        handle.seek(offset)
+        kind_size = handle.read(2)
+    if len(kind_size) < 2:
+        return Decoded(sensor=sensor_of_header(fields), chunks=lambda: iter(()), meta=_meta(fields))
+    event_type, event_size = kind_size[0], kind_size[1]
+    if event_size != 8:
+        raise FormatError(f"DAT events of {event_size} bytes are not supported (CD events are 8 bytes)")
+    if event_type not in (0x00, 0x0C):
+        raise FormatError(f"DAT event type 0x{event_type:02x} is not a CD event type (0x00 or 0x0c)")
+
+    def chunks():
+        state = {"last": None, "loop": 0}
+        for block in read_chunks(path, offset + 2, 8):
+            records = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
+            t = records[:, 0].astype(np.int64)
+            # 32-bit timestamps wrap after 71 minutes: a fall by more than half the range is a wrap
+            previous = np.concatenate(([state["last"] if state["last"] is not None else t[0]], t[:-1])) if len(t) else t
+            loops = np.cumsum(previous - t > (1 << 31)) + state["loop"]
+            if len(t):
+                state["last"], state["loop"] = int(t[-1]), int(loops[-1])
+            data = records[:, 1]
+            yield (
+                t + (loops << 32),
+                (data & 0x3FFF).astype(np.uint16),
+                ((data >> 14) & 0x3FFF).astype(np.uint16),
+                ((data >> 28) & 0x1).astype(np.uint8),
+            )
+
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
