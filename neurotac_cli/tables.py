@@ -41,6 +41,20 @@ class _Prepend(io.RawIOBase):
     def readable(self):
         return True
 
+    def read(self, size=-1):
+        """Fill the request unless the input ends: pyarrow takes a short read for the end of the stream,
+        and a pipe returns whatever has arrived so far."""
+        if size is None or size < 0:
+            return self.readall()
+        buffer = bytearray(size)
+        view, got = memoryview(buffer), 0
+        while got < size:
+            n = self.readinto(view[got:])
+            if not n:
+                break
+            got += n
+        return bytes(buffer[:got])
+
     def readinto(self, buffer):
         if len(self._head):
             n = min(len(buffer), len(self._head))
