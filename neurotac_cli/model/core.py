@@ -84,8 +84,11 @@ class Model:
 
     def step(self, counts: np.ndarray, t_us: np.ndarray, state=None):
         """Force (N) for frames (B, T, 2, H, W) at times (B, T) µs, continuing from `state`."""
+        counts = np.asarray(counts, dtype=np.float32)
+        if not counts.flags.writeable:
+            counts = counts.copy()
         with torch.no_grad():
-            out, state = self.net(torch.as_tensor(counts, dtype=torch.float32), torch.as_tensor(t_us / 1e6), state)
+            out, state = self.net(torch.from_numpy(counts), torch.as_tensor(t_us / 1e6), state)
         return out.numpy().astype(np.float32) * self.force_scale, state
 
     def proba(self, data: shaping.Sequences) -> np.ndarray:

@@ -1,0 +1,126 @@
+import sys
+
+import click
+
+from neurotac_cli.options import input_paths, seed_option
+
+FORCE = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours")
+MATERIAL = ("material-dnn", "material-force", "material-ours")
+
+# (option, parameter, type, help); None defaults take each model's thesis value.
+HYPERPARAMETERS = [
+    ("--layers", "layers", int, "Hidden layers: tdnn k (thesis 4), lstm (6), cnnlstm conv layers (4), convlstm (4), ours GRU layers (1), material-dnn k (2)."),
+    ("--units", "units", int, "Units per layer: tdnn n (thesis 40), lstm (32), cnnlstm LSTM units (32), material-dnn n (30)."),
+    ("--delays", "delays", int, "tdnn: previous frames fed with the current one (thesis 3)."),
+    ("--filters", "filters", int, "cnnlstm, convlstm: filters per convolutional layer (thesis 3)."),
+    ("--kernel", "kernel", int, "cnnlstm, convlstm: square kernel size (thesis 3, i.e. 3x3)."),
+    ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); ours, material-ours."),
+    ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
+    ("--hidden", "hidden", int, "ours: GRU units (default 32)."),
+    ("--grid", "grid", int, "ours: side of the coarse spatial layout grid (default 4; 0 = none)."),
+    ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
+    ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
+    ("--points", "points", int, "material models: samples each accumulation curve is resampled to (thesis 30)."),
+    ("--lr", "lr", float, "Adam learning rate (thesis 0.001)."),
+    ("--beta1", "beta1", float, "Adam beta1 (thesis 0.9)."),
+    ("--beta2", "beta2", float, "Adam beta2 (thesis 0.999)."),
+    ("--batch-size", "batch_size", int, "Trials per minibatch (default 8)."),
+    ("--epochs", "epochs", int, "Most epochs (default 500); early stopping usually ends sooner."),
+    ("--patience", "patience", int, "Stop after this many epochs without validation improvement, restoring the best weights (thesis 20)."),
+    ("--weight-decay", "weight_decay", float, "Adam weight decay (default 0)."),
+]
+
+
+def hyperparameter_options(function):
+    for option, name, kind, text in reversed(HYPERPARAMETERS):
+        function = click.option(option, name, type=kind, default=None, help=text)(function)
+    return function
+
+
+def hyperparameters(values: dict) -> dict:
+    return {name: values.get(name) for _, name, _, _ in HYPERPARAMETERS}
+
+
+def validation_options(function):
+    function = click.option("--val-per", default="object", show_default=True,
+                            help="With --val-fraction: draw validation trials per value of this label (thesis: per object size).")(function)
+    function = click.option("--val-where", default=None, metavar="LABEL=VALUE",
+                            help="Validate on the trials with this label value, e.g. object=bolt15.")(function)
+    function = click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=None,
+                            help="Validate on this fraction of source trials, drawn per --val-per value (default 0.1 when no other choice is given).")(function)
+    function = click.option("--val-trials", default=None, metavar="ID,ID,...",
+                            help="Validate on these trials (comma-separated ids).")(function)
+    return function
+
+
+def progress_printer():
+    """Progress on stderr: every message on a terminal (overwriting epoch lines), every 10th epoch otherwise."""
+    interactive = sys.stderr.isatty()
+
+    def show(message: str):
+        if " epoch " in message:
+            epoch = int(message.split(" epoch ")[1].split()[0])
+            if interactive:
+                click.echo("\r" + message[:150].ljust(150), err=True, nl=False)
+                return
+            if epoch % 10 and "(0/" not in message:
+                return
+        elif interactive:
+            click.echo("", err=True)
+        click.echo(message, err=True)
+
+    return show
+
+
+@click.command()
+@input_paths
+@click.option("--model", "model_name", type=click.Choice(FORCE + MATERIAL), required=True,
+              help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), ours; "
+              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-ours.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
+@hyperparameter_options
+@validation_options
+@click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
+@click.option("--curve", type=click.Path(dir_okay=False), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Draw the training curve to this PNG.")
+@click.option("--threads", type=int, default=2, show_default=True, help="CPU threads for torch.")
+@seed_option
+def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, label, curve, plot, threads, seed, **options):
+    """Train a force or material model on frames; write one model file.
+
+    Validation trials (for early stopping) are chosen by id, by label value, or as a fraction per
+    object; a trial and its augmented copies always stay on one side (a split that separates them is
+    refused). Normalisation is fitted on the training trials only.
+
+    \b
+        neurotac simulate --preset ch4 --seed 1 --synced | neurotac frame --window 10ms \\
+          | neurotac crop --size 115x115 --center auto | neurotac train --model ours -o force.model
+    """
+    import torch
+
+    from neurotac_cli import model as models
+    from neurotac_cli import tables
+
+    torch.set_num_threads(max(1, threads))
+    table = tables.read(paths, kind="frames")
+    spec = models.make_spec(model_name, **hyperparameters(options))
+    if val_trials is None and val_where is None and val_fraction is None:
+        val_fraction = 0.1
+    trials = [t.strip() for t in val_trials.split(",") if t.strip()] if val_trials else None
+    model = models.train(table, spec, val_trials=trials, val_fraction=val_fraction, val_where=val_where,
+                         per=val_per, seed=seed, progress=progress_printer(), label=label)
+    models.save(model, output)
+    history = model.training.get("curve", [])
+    if history:
+        best = min(history, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"])
+        click.echo(f"{model_name}: {len(history)} epochs, best epoch {best['epoch']} "
+                   f"(train {best['train_loss']:.4g}, validation {best['val_loss']:.4g}); wrote {output}", err=True)
+    if curve:
+        from neurotac_cli.metrics import metrics_table
+
+        rows = [(f"epoch:{row['epoch']}", key, row[key]) for row in history for key in ("train_loss", "val_loss")]
+        tables.write(curve, metrics_table(rows, model_name), step=("train", {"model": model_name, "curve": True}))
+    if plot:
+        from neurotac_cli.model.plots import curve_figure
+
+        curve_figure(history, plot, title=f"{model_name} training curve")

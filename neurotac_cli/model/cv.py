@@ -1,0 +1,92 @@
+"""Cross-validation: folds over source trials, one training per fold (and per repeat seed).
+
+Folds hold whole source groups: a test trial's augmented copies never train its fold's model, and
+only original trials are scored. Each fold is one task of `neurotac_cli.study.run_tasks`, so folds
+and repeats run in parallel or on a Dask cluster, and cached folds are not run again.
+"""
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import data as shaping
+
+
+def folds(data: shaping.Sequences, cv: str, rng: np.random.Generator) -> list:
+    """Test trials (originals only) of each fold for `loo`, `kfold:K`, `group:LABEL` or `group:LABEL=VALUE`."""
+    originals = [i for i in range(len(data)) if not data.augmented[i]]
+    if not originals:
+        raise ModelError("no original (non-augmented) trials to test on; keep the originals beside the augmented copies")
+    sources = [data.source[i] for i in originals]
+    kind, _, argument = cv.partition(":")
+    if kind == "loo":
+        groups = [[data.trials[i]] for i in originals]
+    elif kind == "kfold":
+        try:
+            k = int(argument)
+        except ValueError:
+            raise ModelError(f"--cv kfold:K needs a whole number K, got {argument!r}") from None
+        unique = sorted(set(sources))
+        if not 2 <= k <= len(unique):
+            raise ModelError(f"--cv kfold:{k} needs 2 <= K <= {len(unique)} (the number of source trials)")
+        order = rng.permutation(len(unique))
+        fold_of = {unique[j]: n % k for n, j in enumerate(order)}
+        groups = [[data.trials[i] for i, s in zip(originals, sources) if fold_of[s] == f] for f in range(k)]
+    elif kind == "group":
+        label, _, value = argument.partition("=")
+        if label not in data.labels:
+            raise ModelError(f"--cv group:{label}: no label column {label!r} (labels: {', '.join(data.labels) or 'none'})")
+        values = [data.labels[label][i] for i in originals]
+        wanted = [value] if value else sorted({v for v in values if v is not None})
+        if value and value not in values:
+            raise ModelError(f"--cv group:{label}={value}: no trial has {label}={value} (values: {', '.join(sorted(set(map(str, values))))})")
+        groups = [[data.trials[i] for i, v in zip(originals, values) if v == w] for w in wanted]
+    else:
+        raise ModelError(f"--cv must be loo, kfold:K, group:LABEL or group:LABEL=VALUE, got {cv!r}")
+    return [g for g in groups if g]
+
+
+def _sources(table: pa.Table) -> pa.Array:
+    trial = table.column("trial")
+    if "source_trial" not in table.schema.names:
+        return trial
+    source = table.column("source_trial")
+    return pc.if_else(pc.or_(pc.is_null(source), pc.equal(source, "")), trial, source)
+
+
+def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fraction: float, per: str,
+             label: str = "material"):
+    """Train on every trial outside the fold's source groups, predict the fold's test trials.
+
+    Module-level and picklable (a task of `run_tasks`). Returns a predictions table.
+    """
+    from neurotac_cli import model as models
+
+    test_set = pa.array(test_trials, pa.string())
+    is_test = pc.is_in(frames.column("trial"), value_set=test_set)
+    sources = _sources(frames)
+    test_sources = pa.array(sorted(set(sources.filter(is_test).to_pylist())), pa.string())
+    train_table = frames.filter(pc.invert(pc.is_in(sources, value_set=test_sources)))
+    test_table = frames.filter(is_test)
+    if train_table.num_rows == 0:
+        raise ModelError("a fold leaves no training trials; use more folds or a different --cv")
+    model = models.train(train_table, spec, val_fraction=val_fraction, per=per, seed=seed, label=label)
+    if model.task == "material":
+        return models.classify_table(model, test_table)
+    return models.predict_table(model, test_table)
+
+
+def fold_tasks(data: shaping.Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
+               per: str, label: str = "material"):
+    """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
+    rng = np.random.default_rng(seed)
+    groups = folds(data, cv, rng)
+    tasks = []
+    for repeat in range(repeats):
+        for fold, test_trials in enumerate(groups):
+            tasks.append({
+                "spec": spec, "test_trials": test_trials, "seed": int(seed * 100003 + repeat * 1009 + fold),
+                "val_fraction": val_fraction, "per": per, "label": label,
+            })
+    return groups, tasks

@@ -1,0 +1,114 @@
+"""Scoring a model on frames, and cross-validation through `neurotac_cli.study.run_tasks`."""
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import metrics
+from neurotac_cli.model import cv as cross
+from neurotac_cli.model import data as shaping
+from neurotac_cli.model.core import classify_table, predict_table
+
+
+def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material") -> list:
+    """Metric rows of a predictions table (force or material)."""
+    names = predictions.schema.names
+    if "force_pred" in names:
+        return metrics.force_rows(
+            predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
+            predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
+            nonzero=nonzero, per_trial=per_trial,
+        )
+    if label not in names:
+        return []
+    true = predictions.column(label).to_pylist()
+    pred = predictions.column(f"{label}_pred").to_pylist()
+    classes = classes or [n[len("prob_"):] for n in names if n.startswith("prob_")]
+    return metrics.classification_rows(true, pred, classes)
+
+
+def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
+    """(predictions, metric rows) of a trained model on a frames table."""
+    if model.task == "material":
+        predictions = classify_table(model, table)
+        return predictions, score(predictions, classes=model.classes, label=model.training.get("label", "material"))
+    predictions = predict_table(model, table)
+    return predictions, score(predictions, nonzero=nonzero, per_trial=per_trial)
+
+
+def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, val_fraction=0.1, per="object",
+                   label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None, cache=None, progress=None):
+    """Out-of-fold predictions (columns `repeat`, `fold` added) and metric rows: pooled over all
+    out-of-fold predictions, per fold (scope `fold:R/F`), and mean / σ over folds."""
+    from neurotac_cli.study import run_tasks
+
+    data = shaping.sequences(table)
+    groups, tasks = cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)
+    if progress:
+        progress(f"cross-validation {cv}: {len(groups)} folds x {repeats} repeats = {len(tasks)} trainings of {spec['model']}")
+    results = run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
+                        label=f"{spec['model']} folds", shared={"frames": table})
+    parts, per_fold = [], []
+    for index, predictions in enumerate(results):
+        repeat, fold = divmod(index, len(groups))
+        rows = score(predictions, nonzero=nonzero, per_trial=False, label=label)
+        per_fold.append(rows)
+        n = predictions.num_rows
+        parts.append(predictions.append_column("repeat", pa.array(np.full(n, repeat, np.int32)))
+                     .append_column("fold", pa.array(np.full(n, fold, np.int32))))
+    schema = parts[0].schema
+    merged = pa.concat_tables([p.select(p.schema.names) for p in parts], promote_options="default")
+    merged = merged.replace_schema_metadata(schema.metadata)
+    rows = score(merged, nonzero=nonzero, per_trial=per_trial, label=label)
+    for index, fold_rows in enumerate(per_fold):
+        repeat, fold = divmod(index, len(groups))
+        rows += [(f"fold:{repeat}/{fold}", metric, value) for scope, metric, value in fold_rows if scope == "all"]
+    rows += metrics.fold_summary(per_fold)
+    return merged, rows
+
+
+ORDER = ("mse", "rmse", "mae", "rmse_pct_range", "mse_sd", "mae_sd", "r2", "dtw", "bhattacharyya", "n")
+
+
+def summary(rows: list, title: str = "") -> str:
+    """A readable table of the overall and per-phase figures (and fold mean ± σ when present)."""
+    by_scope = {}
+    for scope, metric, value in rows:
+        by_scope.setdefault(scope, {})[metric] = value
+    lines = [title] if title else []
+    if "accuracy" in by_scope.get("all", {}):
+        figures = by_scope["all"]
+        lines.append(f"accuracy {100 * figures['accuracy']:.1f}% over {int(figures.get('n', 0))} trials")
+        if "accuracy_fold_mean" in figures:
+            lines.append(f"accuracy per fold {100 * figures['accuracy_fold_mean']:.1f}% ± {100 * figures['accuracy_fold_sd']:.1f}%")
+        classes = [s[len("class:"):] for s in by_scope if s.startswith("class:")]
+        for name in classes:
+            recall = by_scope[f"class:{name}"].get("recall")
+            if recall is not None:
+                lines.append(f"  recall {name:<12} {100 * recall:.1f}%")
+        matrix_classes = [s[len("confusion:"):] for s in by_scope if s.startswith("confusion:")]
+        if matrix_classes:
+            width = max(8, *(len(c) + 1 for c in matrix_classes))
+            lines.append("confusion (rows true, columns predicted):")
+            lines.append(" " * width + "".join(f"{c:>{width}}" for c in matrix_classes))
+            for a in matrix_classes:
+                lines.append(f"{a:<{width}}" + "".join(f"{int(by_scope[f'confusion:{a}'].get(f'pred:{b}', 0)):>{width}}" for b in matrix_classes))
+        return "\n".join(lines)
+    scopes = ["all"] + [s for s in by_scope if s.startswith("phase:")]
+    metrics_here = [m for m in ORDER if any(m in by_scope.get(s, {}) for s in scopes)]
+    header = f"{'scope':<18}" + "".join(f"{m:>15}" for m in metrics_here)
+    lines.append(header)
+    for scope in scopes:
+        figures = by_scope.get(scope, {})
+        cells = []
+        for m in metrics_here:
+            value = figures.get(m)
+            if value is None or not np.isfinite(value):
+                cells.append(f"{'-':>15}")
+            elif f"{m}_fold_mean" in figures:
+                cells.append(f"{figures[f'{m}_fold_mean']:>8.4g}±{figures[f'{m}_fold_sd']:<6.3g}")
+            else:
+                cells.append(f"{value:>15.4g}" if m != "n" else f"{int(value):>15d}")
+        lines.append(f"{scope:<18}" + "".join(cells))
+    if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
+        lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
+    return "\n".join(lines)
