@@ -2,7 +2,8 @@
 
 DAVIS address layout (jAER's DavisChip): bit 31 set = APS sample or IMU word, skipped; bit 10 set =
 special event (external input), skipped; otherwise y = (a >> 22) & 0x1FF, x = (a >> 12) & 0x3FF,
-p = (a >> 11) & 1 (1 = ON). jAER's y axis points up, so the image row is H - 1 - y. A truncated
+p = (a >> 11) & 1 (1 = ON). Timestamps are read unsigned, so they increase over the whole 71 minutes
+a 32-bit µs clock holds. jAER's y axis points up, so the image row is H - 1 - y. A truncated
 trailing record (a recording cut mid-write) is dropped.
 """
 
@@ -99,7 +100,7 @@ def decode_davis_numpy(block: bytes, height: int):
     address = words[:, 0]
     keep = (address & (APS_OR_IMU | SPECIAL)) == 0
     address = address[keep]
-    t = words[keep, 1].astype(">i4").astype(np.int64)
+    t = words[keep, 1].astype(np.int64)
     y = (address >> 22) & 0x1FF
     if len(y) and int(y.max()) >= height:
         raise FormatError(f"DVS event row {int(y.max())} lies outside the sensor's {height} rows (damaged file, or wrong --sensor)")

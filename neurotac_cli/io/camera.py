@@ -235,11 +235,17 @@ def _batches(name, fmt, decoded: Decoded, sensor, schema, cleanup) -> Iterator[p
         cleanup()
 
 
+def _named(name: str, error: NeurotacError) -> NeurotacError:
+    """The error with the file's name in front, once."""
+    text = str(error)
+    return error if text.startswith(name) else type(error)(f"{name}: {text}")
+
+
 def _guarded_call(name, fmt, function):
     try:
         return function()
-    except NeurotacError:
-        raise
+    except NeurotacError as error:
+        raise _named(name, error) from None
     except (ValueError, IndexError, OverflowError, KeyError, OSError, RuntimeError, UnicodeError, TypeError) as error:
         raise FormatError(f"{name}: not a valid {FORMAT_NAMES.get(fmt, fmt)} file ({_short(error)})") from None
 
@@ -251,8 +257,8 @@ def _guarded(name, fmt, chunks):
             chunk = next(iterator)
         except StopIteration:
             return
-        except NeurotacError:
-            raise
+        except NeurotacError as error:
+            raise _named(name, error) from None
         except (ValueError, IndexError, OverflowError, KeyError, OSError, RuntimeError, UnicodeError, TypeError) as error:
             raise FormatError(f"{name}: not a valid {FORMAT_NAMES.get(fmt, fmt)} file ({_short(error)})") from None
         yield chunk
@@ -278,3 +284,35 @@ def read_chunks(path: str, offset: int, record: int, chunk_bytes: int = CHUNK_BY
             rest = data[usable:]
             if usable:
                 yield data[:usable]
+
+
+def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
+    """Several camera files, in order, as one events table (schema + lazily decoded batches).
+
+    Every file must have the same sensor size (or `sensor` is given); the metadata `neurotac:source`
+    names each file. A table given as a camera file is refused with a hint.
+    """
+    paths = list(paths)
+    if not paths:
+        raise InputError("no camera file given (e.g. `neurotac import recording.aedat -o events.parquet`)")
+    opened = []
+    for path in paths:
+        if path not in (None, "-") and os.path.isfile(path) and is_table(path) and fmt is None:
+            raise InputError(f"{path} is already a table, not a camera file (pass it to the next command directly)")
+        opened.append(read_events(path, sensor, fmt))
+    schema = opened[0][0]
+    sizes = {sch.sensor_of(s) for s, _ in opened}
+    if len(sizes) > 1:
+        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, (sch.sensor_of(s) for s, _ in opened)))
+        raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
+    if len(opened) > 1:
+        sources = [sch.get_meta(s, "neurotac:source") for s, _ in opened]
+        triggers = [t for s, _ in opened for t in (sch.get_meta(s, "neurotac:triggers") or [])]
+        schema = sch.set_meta(schema, source=sources, triggers=triggers if any(sch.get_meta(s, "neurotac:triggers") is not None for s, _ in opened) else None)
+
+    def batches():
+        for other, part in opened:
+            for batch in part:
+                yield pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+
+    return schema, batches()

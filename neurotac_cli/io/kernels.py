@@ -134,7 +134,7 @@ def decode_evt2(words, state):
 @njit(cache=True, nogil=True)
 def decode_davis(data, height):
     """AEDAT 2.0 DAVIS records (big-endian uint8 bytes, 8 per record) -> (t, x, row, p) of the DVS
-    events; APS/IMU (bit 31) and special (bit 10) words skipped; y flipped. Returns the largest
+    events; APS/IMU (bit 31) and special (bit 10) words skipped; y flipped; timestamps unsigned. Returns the largest
     jAER y seen, so the caller can report a row outside the sensor."""
     n = data.shape[0] // 8
     count = 0
@@ -152,8 +152,6 @@ def decode_davis(data, height):
         if (data[j] & 0x80) == 0 and (data[j + 2] & 0x04) == 0:
             address = (np.int64(data[j]) << 24) | (np.int64(data[j + 1]) << 16) | (np.int64(data[j + 2]) << 8) | np.int64(data[j + 3])
             stamp = (np.int64(data[j + 4]) << 24) | (np.int64(data[j + 5]) << 16) | (np.int64(data[j + 6]) << 8) | np.int64(data[j + 7])
-            if stamp >= (1 << 31):
-                stamp -= 1 << 32
             row = (address >> 22) & 0x1FF
             if row > largest:
                 largest = row

@@ -1,0 +1,39 @@
+"""`neurotac import`: camera files in, one events table out."""
+
+import click
+
+from neurotac_cli.options import Size, output_option
+
+FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"]
+
+
+@click.command("import")
+@click.argument("paths", nargs=-1, required=True, metavar="FILE...")
+@output_option
+@click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the file does not say (DAT, text), or to override it.")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(FORMAT_CHOICES),
+    default=None,
+    help="Read the files as this format instead of telling it from their first bytes.",
+)
+def command(paths, output, sensor, fmt):
+    """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
+
+    Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
+    APS/IMU words skipped), AEDAT 4.0 (external triggers kept in metadata), Prophesee EVT 2.0 and
+    EVT 3.0 .raw and .dat, Event Stream .es, CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
+    whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them. Several
+    files are read in order as one table; `-` reads a file from stdin.
+
+    \b
+        neurotac import recording.aedat -o events.parquet
+        neurotac import events.txt --sensor 240x180 | neurotac info -
+    """
+    from neurotac_cli import tables
+    from neurotac_cli.io import import_files
+
+    schema, batches = import_files(paths, sensor=sensor, fmt=fmt)
+    args = {"files": list(paths), "sensor": f"{sensor[0]}x{sensor[1]}" if sensor else None, "format": fmt}
+    tables.write(output, batches, schema=schema, step=("import", args))

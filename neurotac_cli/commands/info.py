@@ -1,0 +1,28 @@
+"""`neurotac info`: what a table or camera file holds, for a person."""
+
+import click
+
+from neurotac_cli.options import Size
+
+
+@click.command()
+@click.argument("paths", nargs=-1, metavar="FILE|-")
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON (for scripts) instead of text.")
+@click.option("--sensor", type=Size(), default=None, help="For camera files that do not say their sensor size (DAT, text).")
+def command(paths, as_json, sensor):
+    """Describe a table or camera file: kind, rows, trials, sensor, time span, event rate, ON share,
+    labels per trial, frames per trial and window, and the history of commands that made it.
+
+    Works on every table kind and, directly, on camera files (decoded, not written). Several tables
+    are described as one, as every command reads them.
+
+    \b
+        neurotac import recording.aedat | neurotac info -
+        neurotac info frames.parquet --json | jq .frames_per_trial
+    """
+    import json
+
+    from neurotac_cli.describe import describe_paths, format_text
+
+    info = describe_paths(paths, sensor=sensor)
+    click.echo(json.dumps(info, indent=2, sort_keys=True, ensure_ascii=False) if as_json else format_text(info), nl=not as_json or True)

@@ -1,0 +1,359 @@
+"""What a table holds, for a person: one core function that returns a dict, and a text formatter.
+
+`describe(schema, batches)` reads the batches once (memory does not grow with an events table) and
+works on every kind: events, recordings, frames, predictions, metrics, and tables of no known kind.
+The description never names the container (stream, Arrow file, Parquet), so the same table
+describes the same wherever it is stored.
+"""
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from neurotac_cli import schema as sch
+
+TRIALS_SHOWN = 20
+
+
+def describe(schema: pa.Schema, batches, camera: dict | None = None) -> dict:
+    """A dict describing the table `schema` + `batches`. `camera` = {"format": ...} for a camera file
+    decoded on the fly (not imported yet)."""
+    kind = sch.kind_of(schema) or sch._guess_kind(schema)
+    sensor = sch.sensor_of(schema)
+    info = {"kind": kind or "unknown", "rows": 0}
+    if camera:
+        info["camera_file"] = camera
+    if sensor:
+        info["sensor"] = {"width": sensor[0], "height": sensor[1]}
+    source = sch.get_meta(schema, "neurotac:source")
+    if source:
+        info["source"] = source
+    triggers = sch.get_meta(schema, "neurotac:triggers")
+    if triggers is not None:
+        info["triggers"] = {"count": len(triggers), "types": sorted({t.get("type", "?") for t in triggers})}
+    window = sch.get_meta(schema, sch.WINDOW)
+    if window is not None:
+        info["window_us"] = int(window)
+    sync = sch.get_meta(schema, sch.SYNC)
+    if sync is not None:
+        info["sync"] = sync
+    summary = {"events": _Events, "recordings": _Recordings, "frames": _Frames}.get(kind, _Rows)(schema)
+    for batch in batches:
+        info["rows"] += batch.num_rows
+        summary.add(batch)
+    info.update(summary.result())
+    info["columns"] = {field.name: str(field.type) for field in schema}
+    info["history"] = sch.get_meta(schema, sch.HISTORY, [])
+    return info
+
+
+class _Events:
+    """Streaming statistics of an events table: time span, backward steps, ON share."""
+
+    def __init__(self, schema):
+        self.low = self.high = self.last = None
+        self.count = self.on = self.backward = 0
+
+    def add(self, batch):
+        if not batch.num_rows:
+            return
+        t = batch.column("t").to_numpy()
+        p = batch.column("p").to_numpy()
+        self.count += len(t)
+        self.on += int(np.count_nonzero(p))
+        self.backward += int(np.count_nonzero(np.diff(t) < 0)) + int(self.last is not None and t[0] < self.last)
+        self.last = int(t[-1])
+        low, high = int(t.min()), int(t.max())
+        self.low = low if self.low is None else min(self.low, low)
+        self.high = high if self.high is None else max(self.high, high)
+
+    def result(self):
+        if not self.count:
+            return {"trials": 0, "events": 0}
+        return {"trials": 1, "events": self.count, **_time_stats(self.low, self.high, self.count, self.on), "backward_steps": self.backward}
+
+
+def _time_stats(low, high, events, on) -> dict:
+    span = int(high - low)
+    stats = {"t_first_us": int(low), "t_last_us": int(high), "span_us": span}
+    stats["event_rate_per_s"] = float(events / (span / 1e6)) if span > 0 else None
+    stats["on_share"] = float(on / events) if events else None
+    return stats
+
+
+class _Recordings:
+    """Per-trial events, force samples and labels of a recordings table."""
+
+    def __init__(self, schema):
+        self.labels = sch.label_columns(schema)
+        self.trials = []
+        self.on = 0
+        self.events = 0
+
+    def add(self, batch):
+        names = batch.schema.names
+        ids = batch.column("trial").to_pylist()
+        t0 = batch.column("t0").to_numpy(zero_copy_only=False)
+        events = batch.column("events")
+        counts = pc.list_value_length(events).fill_null(0).to_numpy(zero_copy_only=False)
+        flat = pc.list_flatten(events)
+        p = pc.struct_field(flat, "p").to_numpy(zero_copy_only=False) if len(flat) else np.zeros(0)
+        t = pc.struct_field(flat, "t").to_numpy(zero_copy_only=False) if len(flat) else np.zeros(0, np.int64)
+        self.on += int(np.count_nonzero(p))
+        self.events += int(len(p))
+        ends = np.cumsum(counts)
+        starts = ends - counts
+        force = batch.column("force") if "force" in names else None
+        force_counts = pc.list_value_length(force).fill_null(0).to_numpy(zero_copy_only=False) if force is not None else None
+        force_values = pc.struct_field(pc.list_flatten(force), "value").to_numpy(zero_copy_only=False) if force is not None and len(pc.list_flatten(force)) else np.zeros(0)
+        force_ends = np.cumsum(force_counts) if force_counts is not None else None
+        label_values = {name: batch.column(name).to_pylist() for name in self.labels}
+        for i, trial in enumerate(ids):
+            segment = t[starts[i] : ends[i]]
+            row = {"trial": trial, "t0_us": int(t0[i]), "events": int(counts[i])}
+            if len(segment):
+                row["span_us"] = int(segment.max() - segment.min())
+                row["on_share"] = float(np.count_nonzero(p[starts[i] : ends[i]]) / len(segment))
+            if force_counts is not None:
+                values = force_values[force_ends[i] - force_counts[i] : force_ends[i]]
+                row["force_samples"] = int(force_counts[i])
+                if len(values):
+                    row["force_max_n"] = float(np.nanmax(values))
+            row["labels"] = {name: label_values[name][i] for name in self.labels}
+            self.trials.append(row)
+
+    def result(self):
+        return {
+            "trials": len(self.trials),
+            "events": self.events,
+            "on_share": float(self.on / self.events) if self.events else None,
+            "labels": _label_values(self.trials),
+            "per_trial": self.trials,
+        }
+
+
+class _Frames:
+    """Frames per trial, ON share of the counts, phases and labels of a frames table."""
+
+    def __init__(self, schema):
+        self.labels = sch.label_columns(schema)
+        self.shape = list(schema.field("counts").type.shape) if "counts" in schema.names and hasattr(schema.field("counts").type, "shape") else None
+        self.trials = {}
+        self.on = self.off = 0.0
+        self.phases = {}
+        self.force = [None, None]
+
+    def add(self, batch):
+        if not batch.num_rows:
+            return
+        ids = batch.column("trial").to_pylist()
+        counts = sch.counts_numpy(batch.column("counts")) if self.shape else None
+        if counts is not None:
+            sums = counts.reshape(len(counts), 2, -1).sum(axis=2, dtype=np.float64)
+            self.off += float(sums[:, 0].sum())
+            self.on += float(sums[:, 1].sum())
+        if "phase" in batch.schema.names:
+            for phase, n in zip(*np.unique(np.array(batch.column("phase").fill_null("none").to_pylist(), dtype=object).astype(str), return_counts=True)):
+                self.phases[phase] = self.phases.get(phase, 0) + int(n)
+        if "force" in batch.schema.names:
+            force = batch.column("force").to_numpy(zero_copy_only=False).astype(np.float64)
+            force = force[~np.isnan(force)]
+            if len(force):
+                low, high = float(force.min()), float(force.max())
+                self.force = [low if self.force[0] is None else min(low, self.force[0]), high if self.force[1] is None else max(high, self.force[1])]
+        label_values = {name: batch.column(name).to_pylist() for name in self.labels}
+        for i, trial in enumerate(ids):
+            row = self.trials.get(trial)
+            if row is None:
+                row = self.trials[trial] = {"trial": trial, "frames": 0, "labels": {name: label_values[name][i] for name in self.labels}}
+            row["frames"] += 1
+
+    def result(self):
+        frames = [row["frames"] for row in self.trials.values()]
+        total = self.on + self.off
+        out = {
+            "trials": len(self.trials),
+            "frame_shape": self.shape,
+            "frames_per_trial": {"min": min(frames), "max": max(frames), "mean": float(np.mean(frames))} if frames else None,
+            "on_share": float(self.on / total) if total else None,
+            "phases": dict(sorted(self.phases.items())),
+            "force_range_n": self.force if self.force[0] is not None else None,
+            "labels": _label_values(list(self.trials.values())),
+            "per_trial": list(self.trials.values()),
+        }
+        return out
+
+
+class _Rows:
+    """Predictions, metrics and tables of no known kind: trials and labels where there are, and metric values."""
+
+    def __init__(self, schema):
+        self.kind = sch.kind_of(schema)
+        self.has_trial = "trial" in schema.names
+        self.trials = set()
+        self.metrics = []
+
+    def add(self, batch):
+        if self.has_trial:
+            self.trials.update(batch.column("trial").to_pylist())
+        if self.kind == "metrics" and len(self.metrics) < 200:
+            self.metrics += batch.slice(0, 200 - len(self.metrics)).to_pylist()
+
+    def result(self):
+        out = {}
+        if self.has_trial:
+            out["trials"] = len(self.trials)
+        if self.kind == "metrics":
+            out["metrics"] = self.metrics
+        return out
+
+
+def _label_values(rows) -> dict:
+    values = {}
+    for row in rows:
+        for name, value in row.get("labels", {}).items():
+            values.setdefault(name, set()).add(value)
+    return {name: sorted(v for v in found if v is not None) for name, found in values.items()}
+
+
+# ---------------------------------------------------------------- text
+
+
+def format_text(info: dict) -> str:
+    """The description as aligned `name  value` lines for a terminal."""
+    lines = []
+
+    def add(name, value):
+        lines.append(f"{name:<14}{value}")
+
+    kind = info["kind"]
+    if "camera_file" in info:
+        add("file", f"camera file ({info['camera_file'].get('format_name', info['camera_file'].get('format'))}), decoded; not imported yet")
+    add("kind", kind)
+    add("rows", f"{info['rows']:,}")
+    if "trials" in info:
+        add("trials", f"{info['trials']:,}")
+    if "sensor" in info:
+        sensor = info["sensor"]
+        origin = info.get("source", {}).get("sensor_from") if isinstance(info.get("source"), dict) else None
+        note = {"file": " (from the file)", "option": " (from --sensor)", "events": " (extent of the events; the file does not say)"}.get(origin, "")
+        add("sensor", f"{sensor['width']}x{sensor['height']}{note}")
+    source = info.get("source")
+    if isinstance(source, dict):
+        text = f"{source.get('format', '?')} {source.get('file', '')}".strip()
+        if source.get("camera"):
+            text += f" ({source['camera']})"
+        add("source", text)
+    if kind == "recordings":
+        add("events", f"{info['events']:,}")
+    if info.get("span_us") is not None:
+        add("time", f"{_us(info['t_first_us'])} .. {_us(info['t_last_us'])} ({_duration(info['span_us'])})")
+    if info.get("event_rate_per_s") is not None:
+        add("event rate", f"{_rate(info['event_rate_per_s'])} events/s")
+    if info.get("on_share") is not None:
+        add("ON share", f"{info['on_share']:.3f}")
+    if info.get("backward_steps"):
+        add("time order", f"{info['backward_steps']:,} backward steps (kept as the camera wrote them)")
+    if "window_us" in info:
+        add("window", _duration(info["window_us"]))
+    if info.get("frame_shape"):
+        add("frame shape", "x".join(str(n) for n in info["frame_shape"]) + " (channels x rows x columns)")
+    if info.get("frames_per_trial"):
+        f = info["frames_per_trial"]
+        add("frames/trial", f"{f['min']}..{f['max']} (mean {f['mean']:.1f})")
+    if info.get("phases"):
+        add("phases", ", ".join(f"{k} {v:,}" for k, v in info["phases"].items()))
+    if info.get("force_range_n"):
+        low, high = info["force_range_n"]
+        add("force", f"{low:.3f} .. {high:.3f} N")
+    if "triggers" in info:
+        t = info["triggers"]
+        add("triggers", f"{t['count']:,}" + (f" ({', '.join(t['types'])})" if t["types"] else ""))
+    if info.get("sync"):
+        add("sync", _compact(info["sync"]))
+    for name, values in (info.get("labels") or {}).items():
+        add(f"label {name}", ", ".join(map(str, values)) if values else "(none)")
+    if info.get("per_trial"):
+        lines.append("")
+        lines.append("per trial:")
+        for row in info["per_trial"][:TRIALS_SHOWN]:
+            parts = [str(row["trial"])]
+            if "frames" in row:
+                parts.append(f"{row['frames']} frames")
+            if "events" in row:
+                parts.append(f"{row['events']:,} events")
+            if "span_us" in row:
+                parts.append(_duration(row["span_us"]))
+            if "force_max_n" in row:
+                parts.append(f"force max {row['force_max_n']:.3f} N")
+            parts += [f"{k}={v}" for k, v in row.get("labels", {}).items() if v is not None]
+            lines.append("  " + "  ".join(parts))
+        if len(info["per_trial"]) > TRIALS_SHOWN:
+            lines.append(f"  ... and {len(info['per_trial']) - TRIALS_SHOWN} more (see --json)")
+    if info.get("metrics"):
+        lines.append("")
+        lines.append("metrics:")
+        for row in info["metrics"][:50]:
+            value = row.get("value")
+            text = f"{value:.6g}" if isinstance(value, float) else str(value)
+            lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
+    lines.append("")
+    lines.append("columns:      " + ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))
+    history = info.get("history") or []
+    lines.append("history:" if history else "history:      (none)")
+    for step in history:
+        args = " ".join(f"--{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
+        lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
+    return "\n".join(lines) + "\n"
+
+
+def _compact(value) -> str:
+    import json
+
+    text = value if isinstance(value, str) else json.dumps(value, sort_keys=True, separators=(",", ":"))
+    return text if len(text) <= 100 else text[:97] + "..."
+
+
+def _us(value: int) -> str:
+    return f"{value:,} µs"
+
+
+def _duration(us) -> str:
+    us = int(us)
+    if abs(us) >= 1_000_000:
+        return f"{us / 1e6:.3f} s"
+    if abs(us) >= 1_000:
+        return f"{us / 1e3:.3f} ms"
+    return f"{us} µs"
+
+
+def _rate(rate: float) -> str:
+    if rate >= 1e6:
+        return f"{rate / 1e6:.2f} M"
+    if rate >= 1e3:
+        return f"{rate / 1e3:.1f} k"
+    return f"{rate:.1f}"
+
+
+def describe_paths(paths, sensor=None) -> dict:
+    """Describe tables (read as one, as every command does) or one camera file (decoded on the fly)."""
+    from neurotac_cli import tables
+    from neurotac_cli.errors import InputError
+    from neurotac_cli.io import camera
+
+    paths = list(paths) or ["-"]
+    is_tables = [camera.is_table(path) or not _exists(path) for path in paths]
+    if all(is_tables):
+        opened = tables.open_input(paths, allow_empty=True)
+        return describe(opened.schema, opened.batches)
+    if len(paths) > 1:
+        raise InputError("describe one camera file at a time, or import them into one table first")
+    schema, batches = camera.read_events(paths[0], sensor)
+    fmt = (sch.get_meta(schema, "neurotac:source") or {}).get("format")
+    return describe(schema, batches, camera={"format": fmt, "format_name": camera.FORMAT_NAMES.get(fmt, fmt)})
+
+
+def _exists(path) -> bool:
+    import os
+
+    return os.path.isfile(path)

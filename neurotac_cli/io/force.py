@@ -1,0 +1,150 @@
+"""Force logs: CSV or Parquet, one time column and one force column, read into µs and newtons.
+
+By default the first column is time and the second force. Units come from the header's suffix:
+time `t_ms`, `time_us`, `t_s` (also `_ns`, `_min`); force `force_N`, `force_mN`, `force_kN`, `fz_g`
+(grams-force). A header without a unit suffix is an error for time (peer tools disagree on it) and
+newtons for force (noted in the log's `notes`). Options override the columns and the time unit.
+
+A log may hold several trials: a `trial` column groups them, or, without one, each point where
+time steps back starts a new trial (a micro-controller that restarts its clock at each LED-off).
+"""
+
+import os
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli.errors import FormatError, InputError
+
+TIME_UNITS_US = {"ns": 1e-3, "us": 1.0, "µs": 1.0, "ms": 1e3, "s": 1e6, "min": 6e7}
+FORCE_UNITS_N = {"n": 1.0, "mn": 1e-3, "kn": 1e3, "g": 9.80665e-3, "kg": 9.80665, "lbf": 4.4482216}
+
+
+@dataclass
+class ForceLog:
+    """One trial's force samples: time in µs from the log's zero, force in newtons."""
+
+    t: np.ndarray
+    value: np.ndarray
+    trial: str | None = None
+    notes: list = field(default_factory=list)
+
+    @property
+    def period_us(self) -> float:
+        return float(np.median(np.diff(self.t))) if len(self.t) > 1 else 0.0
+
+
+def _suffix(name: str) -> str | None:
+    match = re.search(r"[_\[\( ]([A-Za-zµ]+)\]?\)?$", name.strip())
+    return match.group(1) if match else None
+
+
+def time_unit_of(name: str) -> str | None:
+    suffix = _suffix(name)
+    if suffix is None:
+        return None
+    for unit in TIME_UNITS_US:
+        if suffix.lower() == unit.lower():
+            return unit
+    return None
+
+
+def force_unit_of(name: str) -> str | None:
+    suffix = _suffix(name)
+    if suffix is None:
+        return None
+    return suffix.lower() if suffix.lower() in FORCE_UNITS_N else None
+
+
+def _read_table(path: str) -> pa.Table:
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: no such force log")
+    with open(path, "rb") as handle:
+        head = handle.read(4)
+    try:
+        if head == b"PAR1":
+            import pyarrow.parquet as pq
+
+            return pq.read_table(path)
+        import pyarrow.csv as csv
+
+        return csv.read_csv(path, parse_options=csv.ParseOptions(delimiter=_delimiter(path)))
+    except (pa.ArrowInvalid, OSError) as error:
+        raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV or Parquet with a header such as t_ms,force_N)") from None
+
+
+def _delimiter(path: str) -> str:
+    with open(path, "r", errors="replace") as handle:
+        line = handle.readline()
+    for delimiter in (",", ";", "\t"):
+        if delimiter in line:
+            return delimiter
+    return ","
+
+
+def _column(table: pa.Table, chosen, default_index: int, what: str, path: str) -> str:
+    names = table.column_names
+    if chosen is None:
+        usable = [name for name in names if name.lower() != "trial"]
+        if len(usable) <= default_index:
+            raise FormatError(f"{path}: a force log needs a time and a force column, found {', '.join(names) or 'none'}")
+        return usable[default_index]
+    if chosen in names:
+        return chosen
+    if str(chosen).isdigit() and int(chosen) < len(names):
+        return names[int(chosen)]
+    raise InputError(f"{path}: no {what} column {chosen!r} (columns: {', '.join(names)})")
+
+
+def read_force_log(path: str, time_column=None, force_column=None, time_unit=None, force_unit=None) -> list[ForceLog]:
+    """Read a force log into one ForceLog per trial (see the module doc for columns and units)."""
+    table = _read_table(path)
+    time_name = _column(table, time_column, 0, "time", path)
+    force_name = _column(table, force_column, 1, "force", path)
+    notes = []
+    unit = time_unit or time_unit_of(time_name)
+    if unit is None:
+        raise InputError(
+            f"{path}: cannot tell the unit of time column {time_name!r} (name it like t_ms, time_us or t_s, "
+            "or give --force-time-unit ms)"
+        )
+    if unit not in TIME_UNITS_US:
+        raise InputError(f"unknown time unit {unit!r} (use one of {', '.join(TIME_UNITS_US)})")
+    funit = (force_unit or force_unit_of(force_name) or "n").lower()
+    if funit not in FORCE_UNITS_N:
+        raise InputError(f"unknown force unit {funit!r} (use one of N, mN, kN, g, kg, lbf)")
+    if force_unit is None and force_unit_of(force_name) is None:
+        notes.append(f"force column {force_name!r} has no unit suffix: read as newtons")
+    try:
+        times = table.column(time_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
+        values = table.column(force_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        raise FormatError(f"{path}: time column {time_name!r} and force column {force_name!r} must be numbers") from None
+    if np.isnan(times).any():
+        raise FormatError(f"{path}: {int(np.isnan(times).sum())} empty or non-numeric times in column {time_name!r}")
+    if np.isnan(values).any():
+        raise FormatError(f"{path}: {int(np.isnan(values).sum())} force values are NaN or empty; clean the force log first")
+    t_us = np.round(times * TIME_UNITS_US[unit]).astype(np.int64)
+    newtons = values * FORCE_UNITS_N[funit]
+    if "trial" in table.column_names:
+        names = [str(v) for v in table.column("trial").to_pylist()]
+        groups = []
+        for name in dict.fromkeys(names):
+            rows = np.flatnonzero(np.asarray(names, dtype=object) == name)
+            groups.append((name, rows))
+    else:
+        cuts = np.flatnonzero(np.diff(t_us) < 0) + 1
+        bounds = np.concatenate([[0], cuts, [len(t_us)]])
+        groups = [(None, np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    logs = []
+    for name, rows in groups:
+        t = t_us[rows]
+        if len(t) > 1 and np.diff(t).min() <= 0:
+            bad = int(np.argmax(np.diff(t) <= 0)) + 1
+            raise FormatError(f"{path}: force time does not increase at sample {bad} of trial {name or len(logs) + 1}")
+        logs.append(ForceLog(t=t, value=newtons[rows], trial=name, notes=list(notes)))
+    if not logs or not len(logs[0].t):
+        raise FormatError(f"{path}: the force log has no samples")
+    return logs
