@@ -1,0 +1,115 @@
+"""`neurotac simulate`: grasps from a physical model, written as a rig writes them."""
+
+import sys
+
+import click
+
+from neurotac_cli.options import Duration, KeyValue, output_option, seed_option
+
+
+def _progress_printer():
+    """A progress line on stderr when stderr is a terminal; otherwise nothing."""
+    try:
+        interactive = sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        interactive = False
+    if not interactive:
+        return None
+
+    def show(done, total):
+        end = "\n" if done >= total else ""
+        click.echo(f"\rsimulate: step {done}/{total} ({100 * done // max(1, total)}%)", err=True, nl=False)
+        if end:
+            click.echo("", err=True)
+
+    return show
+
+
+@click.command()
+@click.option("--preset", type=click.Choice(["ch3", "ch4", "ch5"]), default="ch4", show_default=True,
+              help="Experiment design of the thesis: ch3 (48 hex prisms of 4 materials, FlexiForce), "
+                   "ch4 (35 bolts of 8/12/16 mm, Nano17), ch5 (60 bolts of 12/15/18 mm, 0-25 N, two gripper forces).")
+@click.option("--trials", type=click.IntRange(min=1), default=None,
+              help="Simulate only this many grasps, spread over the preset's groups in turn (a small, fast data set).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Write the rig's files to this folder: <trial>.aedat (AEDAT 2.0), <trial>_force.csv, "
+                   "manifest.csv and still.aedat.")
+@click.option("--synced", is_flag=True,
+              help="Write a `recordings` table (trials cut at the true LED-off instant) to stdout or -o.")
+@output_option
+@seed_option
+@click.option("--objects", "groups", default=None, metavar="MAT:OBJ:N,...",
+              help="Trial groups instead of the preset's, e.g. steel:bolt8:5,foam:hex:5,rubber:sphere10:3 "
+                   "(objects: hex, hex:SIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label).")
+@click.option("--force-range", default=None, metavar="LOW..HIGH",
+              help="Peak force of each grasp drawn uniformly in this range, in newtons, e.g. 0.5..3.7.")
+@click.option("--hold", type=Duration(), default=None, help="Holding phase length, with its unit: 700ms.")
+@click.option("--force-sensor", type=click.Choice(["nano17", "flexiforce"]), default=None,
+              help="Force sensor model: fast F/T cell or slow, hysteretic piezoresistive sensor.")
+@click.option("--background-rate", type=float, default=None, help="Background activity per pixel, in Hz (0.1).")
+@click.option("--sensor", "sensor_size", default=None, metavar="WxH", help="Sensor size in pixels (240x180).")
+@click.option("--set", "settings", type=KeyValue(), multiple=True,
+              help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
+                   "(the full list with units and sources: docs/simulator.md).")
+def command(preset, trials, out_dir, synced, output, seed, groups, force_range, hold, force_sensor,
+            background_rate, sensor_size, settings):
+    """Simulate grasps on the neuromorphic tactile sensor: camera files, force logs and a manifest.
+
+    A physical model (contact mechanics of the object on the silicone membrane, optics, a DVS pixel
+    model, force sensors) writes what the thesis's rig wrote: one AEDAT 2.0 file per grasp on the
+    camera's own clock, starting with an LED blink whose switch-off is a spike of OFF events, and a
+    500 Hz force log whose time 0 is that switch-off. The same seed writes the same bytes.
+
+    \b
+        neurotac simulate --preset ch4 --seed 1 --out sim/
+        neurotac simulate --preset ch3 --trials 8 --synced | neurotac frame --window 7ms
+    """
+    from neurotac_cli import tables
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.sim.config import parse_value, preset_config
+    from neurotac_cli.units import parse_size
+
+    if not out_dir and not synced:
+        raise NeurotacError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
+    if output and not synced:
+        raise NeurotacError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
+    overrides = {name: parse_value(name, value) for name, value in settings}
+    if groups:
+        overrides["groups"] = parse_value("groups", groups)
+    if force_range:
+        overrides["force_min_n"], overrides["force_max_n"] = _force_range(force_range)
+    if hold is not None:
+        overrides["hold_us"] = hold
+    if force_sensor:
+        overrides["force_sensor"] = force_sensor
+    if background_rate is not None:
+        overrides["background_rate_hz"] = background_rate
+    if sensor_size:
+        overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
+    config = preset_config(preset, **overrides)
+    if synced and output in (None, "-"):
+        tables.refuse_terminal()  # before minutes of work, not after
+
+    from neurotac_cli.sim.run import recordings, simulate, write_dataset
+
+    simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer())
+    if out_dir:
+        write_dataset(simulation, out_dir)
+    if synced:
+        args = {"preset": preset, "trials": trials, "seed": seed, **{k: _plain(v) for k, v in overrides.items()}}
+        tables.write(output, recordings(simulation), step=("simulate", args))
+
+
+def _force_range(text):
+    from neurotac_cli.errors import NeurotacError
+
+    parts = str(text).replace("N", "").split("..")
+    try:
+        low, high = (float(part) for part in parts)
+    except ValueError:
+        raise NeurotacError(f"cannot read force range {text!r} (write LOW..HIGH in newtons, e.g. 0.5..3.7)") from None
+    return low, high
+
+
+def _plain(value):
+    return list(value) if isinstance(value, tuple) else value

@@ -1,0 +1,238 @@
+"""Parameters of the grasp simulator, the thesis's three experiment designs as presets, and materials.
+
+Every field of `SimConfig` can be overridden from the command line (`--set NAME=VALUE`); fields ending
+in `_us` are durations (µs). Sources of the defaults are given in docs/simulator.md.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from neurotac_cli.errors import NeurotacError
+
+
+@dataclass(frozen=True)
+class Material:
+    """An object material: Young's modulus (Pa), Poisson's ratio, and stress relaxation under a held squeeze."""
+
+    name: str
+    youngs_pa: float
+    poisson: float
+    relaxation: float  # share of the force lost during a long hold at fixed gripper position
+    relaxation_us: int  # time constant of that relaxation
+
+
+# Handbook ranges (docs/simulator.md): flexible PU foam 0.1-1 MPa, soft silicone rubber 1-5 MPa
+# (shore 30-60A), natural/nitrile rubber 2-10 MPa, steel 200 GPa.
+MATERIALS = {
+    "foam": Material("foam", 0.3e6, 0.25, 0.22, 250_000),
+    "silicone": Material("silicone", 1.2e6, 0.48, 0.08, 200_000),
+    "rubber": Material("rubber", 6.0e6, 0.49, 0.05, 200_000),
+    "steel": Material("steel", 200e9, 0.30, 0.0, 200_000),
+}
+
+
+@dataclass(frozen=True)
+class ObjectShape:
+    """The face the object presses into the membrane: `hex` (flat hexagon, `size_mm` across flats,
+    flat-punch contact) or `sphere` (rounded, radius `size_mm / 2`, Hertz contact)."""
+
+    name: str  # label written to the manifest: hex, bolt8, sphere10, ...
+    face: str  # "hex" or "sphere"
+    size_mm: float  # across flats (hex) or diameter (sphere)
+    length_mm: float  # object length along the squeeze (its compliance column)
+    size_label: str
+
+
+def parse_object(text: str) -> ObjectShape:
+    """`hex`, `hex:6.5`, `bolt12`, `sphere10` -> ObjectShape. Bolts are pressed by their hexagonal head."""
+    text = text.strip()
+    if text == "hex" or text.startswith("hex:"):
+        size = float(text.split(":")[1]) if ":" in text else 6.5
+        return ObjectShape("hex", "hex", size, 35.5, "7.5x6.5x35.5" if ":" not in text else f"{size:g}")
+    for prefix, face, length in (("bolt", "hex", 30.0), ("sphere", "sphere", 0.0)):
+        if text.startswith(prefix):
+            try:
+                size = float(text[len(prefix):])
+            except ValueError:
+                break
+            if size <= 0:
+                break
+            return ObjectShape(text, face, size, length or size, f"{size:g}")
+    raise NeurotacError(f"unknown object {text!r} (use hex, hex:SIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    # ------------------------------------------------------------ the experiment design
+    preset: str = "ch4"
+    # trial groups: "material:object:count[:label=value...]" entries
+    groups: tuple = ()
+    force_min_n: float = 1.8  # peak force of a grasp is drawn uniformly in [force_min_n, force_max_n]
+    force_max_n: float = 3.12
+    contact_delay_us: tuple = (8_000, 25_000)  # LED-off to first touch, uniform range
+    grasp_us: int = 120_000  # LED-off to the end of loading (the grasping phase)
+    hold_us: int = 190_000  # holding phase
+    release_us: int = 60_000  # releasing phase: the gripper opens
+    tail_us: int = 20_000  # recording after the releasing phase
+    duration_jitter: float = 0.08  # grasp-to-grasp spread of the phase durations (relative s.d.)
+    gripper_speed_mm_s: float = 150.0  # closing speed once in contact
+    servo_settle_us: int = 30_000  # the shortest loading or unloading ramp of the servo
+    force_sensor: str = "nano17"  # nano17 | flexiforce
+    force_period_us: int = 2_000  # 500 Hz force log
+    force_lag_us: int = 0  # 0 = the sensor's own default (nano17 1 ms, flexiforce 25 ms)
+    force_noise_n: float = -1.0  # < 0 = the sensor's own default
+    # ------------------------------------------------------------ contact mechanics
+    membrane_youngs_pa: float = 1.0e6  # silicone membrane (thesis ch. 3: 4.0 x 2.0 x 0.2 cm)
+    membrane_poisson: float = 0.48
+    membrane_thickness_mm: float = 2.0
+    saturation_force_n: float = 4.0  # membrane compaction: effective force = Fs tanh(F / Fs)
+    creep: float = 0.15  # share of the membrane's deformation that follows with a delay (creep)
+    creep_us: int = 120_000  # creep time constant
+    tilt_deg: float = 1.0  # s.d. of the misalignment of the object face to the membrane
+    edge_factor_max: float = 2.5  # flat-punch edge pressure concentration, capped by edge rounding
+    pressure_scale_pa: float = 25e3  # pressure at which the membrane darkens to 63% of the object's contrast
+    # ------------------------------------------------------------ optics
+    pixel_pitch_mm: float = 0.2  # 0.04 mm^2 per pixel on the membrane (thesis 3.6)
+    sensor_width: int = 240
+    sensor_height: int = 180
+    object_contrast: float = 0.85  # a black object on the lit membrane: 1 - I_contact / I_membrane
+    vignetting: float = 0.3  # brightness lost at the corners
+    texture: float = 0.03  # fixed-pattern brightness variation of the membrane (relative s.d.)
+    dark_level: float = 0.01  # dark current, relative to the lit membrane
+    position_jitter_px: float = 6.0  # s.d. of where the object lands on the membrane
+    settle_px: float = 0.6  # rigid motion of the object when it settles after loading (px)
+    settle_hz: float = 25.0
+    settle_us: int = 40_000
+    vibration_px: float = 0.08  # rigid vibration during the hold (px)
+    vibration_hz: float = 30.0
+    force_vibration: float = 0.02  # force ripple during the hold, share of the peak force
+    drift_px: float = 0.3  # slow drift of the object during the hold (px)
+    # ------------------------------------------------------------ LED
+    led_gain: float = 1.0  # LED on: the field brightens by this share
+    led_on_us: tuple = (15_000, 25_000)  # LED on-time, uniform range
+    preroll_us: tuple = (30_000, 80_000)  # recording before LED-on, uniform range
+    camera_offset_us: tuple = (2_000_000, 60_000_000)  # camera clock at the first recorded instant
+    # ------------------------------------------------------------ pixels (DVS)
+    on_threshold: float = 0.30  # log-intensity contrast threshold, ON
+    off_threshold: float = 0.22  # OFF (lower: ON noise is suppressed by a higher ON threshold, thesis 3.3)
+    threshold_mismatch: float = 0.03  # per-pixel relative s.d. of the thresholds
+    refractory_us: int = 300
+    cutoff_hz: float = 400.0  # photoreceptor bandwidth at the lit membrane (scales with intensity)
+    background_rate_hz: float = 0.1  # background activity per pixel
+    background_on_share: float = 0.8  # most background events are ON (leak)
+    hot_pixels: int = 3
+    hot_rate_hz: float = 40.0
+    step_us: int = 250  # simulation step; events are timed to the µs inside it
+    still_us: int = 2_000_000  # length of the still-scene (noise only) recording
+
+
+def _groups(*entries):
+    return tuple(entries)
+
+
+PRESETS = {
+    # Thesis 3.6: 48 grasps of hexagonal prisms (0.75 x 0.65 x 3.55 cm) of four materials, 0-3.7 N,
+    # hold 700 ms, FlexiForce A201, 144 frames of 7 ms: grasping 1-22, holding 23-122, releasing 123-144.
+    "ch3": dict(
+        groups=_groups("foam:hex:11", "rubber:hex:9", "silicone:hex:14", "steel:hex:14"),
+        force_min_n=0.8, force_max_n=3.7, contact_delay_us=(5_000, 20_000), grasp_us=154_000,
+        hold_us=700_000, release_us=154_000, tail_us=10_000, duration_jitter=0.0,
+        force_sensor="flexiforce", saturation_force_n=4.5,
+    ),
+    # Thesis 4.5: 35 grasps of steel bolts of 8, 12 and 16 mm, up to 3.12 N, at most 410 ms, Nano17.
+    "ch4": dict(
+        groups=_groups("steel:bolt8:12", "steel:bolt12:12", "steel:bolt16:11"),
+        force_min_n=1.6, force_max_n=3.12, grasp_us=110_000, hold_us=180_000, release_us=60_000,
+        tail_us=15_000, duration_jitter=0.08, force_sensor="nano17", saturation_force_n=4.5,
+    ),
+    # Thesis 5.4: 60 grasps of bolts of 12, 15, 18 mm (20 each), 0-25 N, at most 360 ms, two gripper
+    # settings, a thicker membrane (8 mm, shore 50A), Nano17; frames: first 5 / 6-30 / last 5 of 36.
+    "ch5": dict(
+        groups=_groups(
+            "steel:bolt12:10:gripper_force=low", "steel:bolt12:10:gripper_force=high",
+            "steel:bolt15:10:gripper_force=low", "steel:bolt15:10:gripper_force=high",
+            "steel:bolt18:10:gripper_force=low", "steel:bolt18:10:gripper_force=high",
+        ),
+        force_min_n=8.0, force_max_n=25.0, contact_delay_us=(3_000, 10_000), grasp_us=50_000,
+        hold_us=250_000, release_us=50_000, tail_us=5_000, duration_jitter=0.04,
+        force_sensor="nano17", membrane_youngs_pa=2.0e6, membrane_thickness_mm=8.0,
+        saturation_force_n=30.0, pressure_scale_pa=120e3, servo_settle_us=25_000,
+        gripper_speed_mm_s=250.0,
+    ),
+}
+
+# ch5's two gripper settings: the share of [force_min_n, force_max_n] each one's peak force falls in.
+GRIPPER_FORCE_BANDS = {"low": (0.0, 0.4), "high": (0.6, 1.0)}
+
+
+def field_names() -> list[str]:
+    return [f.name for f in dataclasses.fields(SimConfig)]
+
+
+def preset_config(name: str, **overrides) -> SimConfig:
+    if name not in PRESETS:
+        raise NeurotacError(f"unknown preset {name!r} (choose one of {', '.join(PRESETS)})")
+    values = dict(PRESETS[name], preset=name)
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    unknown = set(values) - set(field_names())
+    if unknown:
+        raise NeurotacError(f"unknown simulator parameter(s) {', '.join(sorted(unknown))} (see docs/simulator.md for the list)")
+    config = SimConfig(**values)
+    validate(config)
+    return config
+
+
+def parse_value(name: str, text: str):
+    """A `--set NAME=VALUE` value, typed by the field it sets: durations for *_us, ranges as A..B."""
+    from neurotac_cli.units import parse_duration_us
+
+    fields = {f.name: f for f in dataclasses.fields(SimConfig)}
+    if name not in fields:
+        raise NeurotacError(f"unknown simulator parameter {name!r} (see docs/simulator.md for the list)")
+    default = fields[name].default
+    if isinstance(default, tuple) and name != "groups":
+        parts = str(text).split("..")
+        if len(parts) != 2:
+            raise NeurotacError(f"{name} is a range: write LOW..HIGH, e.g. {name}=10ms..20ms")
+        return tuple(_scalar(name, part, default[0], parse_duration_us) for part in parts)
+    if name == "groups":
+        return tuple(part for part in str(text).split(",") if part)
+    return _scalar(name, text, default, parse_duration_us)
+
+
+def _scalar(name, text, default, parse_duration_us):
+    text = str(text).strip()
+    if name.endswith("_us"):
+        return parse_duration_us(text)
+    if isinstance(default, str):
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise NeurotacError(f"{name}={text!r} is not a number") from None
+    return int(value) if isinstance(default, int) and value.is_integer() else value
+
+
+def validate(config: SimConfig):
+    problems = []
+    if config.force_sensor not in ("nano17", "flexiforce"):
+        problems.append(f"force_sensor={config.force_sensor!r} (use nano17 or flexiforce)")
+    if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:
+        problems.append("force range (need 0 <= force_min_n <= force_max_n, force_max_n > 0)")
+    for name in ("on_threshold", "off_threshold", "pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm",
+                 "saturation_force_n", "pressure_scale_pa", "cutoff_hz", "gripper_speed_mm_s"):
+        if getattr(config, name) <= 0:
+            problems.append(f"{name} must be > 0")
+    for name in ("step_us", "force_period_us", "grasp_us"):
+        if getattr(config, name) <= 0:
+            problems.append(f"{name} must be > 0")
+    for name in ("background_rate_hz", "hot_rate_hz", "threshold_mismatch", "creep", "led_gain", "refractory_us",
+                 "hold_us", "release_us", "tail_us", "hot_pixels"):
+        if getattr(config, name) < 0:
+            problems.append(f"{name} must be >= 0")
+    if not 0 <= config.background_on_share <= 1 or not 0 <= config.object_contrast < 1 or not 0 <= config.creep < 1:
+        problems.append("background_on_share in [0, 1], object_contrast and creep in [0, 1)")
+    if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
+        problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
+    if problems:
+        raise NeurotacError("bad simulator parameters: " + "; ".join(problems))

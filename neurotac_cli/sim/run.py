@@ -1,0 +1,179 @@
+"""Simulate a data set of grasps: what a rig writes (camera files, force logs, manifest) or a recordings table.
+
+    simulate(config, seed, trials=None, progress=None) -> Simulation
+    write_dataset(simulation, folder)          AEDAT 2.0 files, force CSVs, manifest.csv, still.aedat
+    recordings(simulation) -> pa.Table         the synced `recordings` table (true sync instant)
+"""
+
+import csv
+import io
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from neurotac_cli.sim import dvs, force_sensor
+from neurotac_cli.sim.config import SimConfig
+from neurotac_cli.sim.grasp import Grasp, plan_grasps, rigid_motion_px, true_force
+
+SENSOR_STEP_US = 250  # the force sensors' dynamics are integrated on this grid, then logged every force_period_us
+
+
+@dataclass
+class Trial:
+    grasp: Grasp
+    t: np.ndarray  # camera clock, µs
+    x: np.ndarray
+    y: np.ndarray
+    p: np.ndarray
+    force_t_us: np.ndarray  # micro-controller clock, µs from LED-off
+    force_n: np.ndarray  # the sensor's reading
+    true_force_n: np.ndarray  # the true contact force at force_t_us
+
+
+@dataclass
+class Simulation:
+    config: SimConfig
+    seed: int
+    trials: list
+    still: tuple  # (t, x, y, p) of the still-scene recording
+
+
+def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progress=None) -> Simulation:
+    """Every grasp of the design (or the first `trials`, spread over its groups), same seed same result."""
+    streams = np.random.SeedSequence(seed).spawn(4)
+    camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
+    grasps = plan_grasps(config, np.random.default_rng(streams[1]), trials)
+    noise_rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(streams[2].generate_state(1)[0]).spawn(len(grasps) + 1)]
+    step = config.step_us
+    end = max(g.end_us for g in grasps) if grasps else 0
+    steps = int(np.ceil(end / step)) + 1
+    times = np.arange(steps) * float(step)
+    forces = np.stack([true_force(config, g, times) for g in grasps]) if grasps else np.zeros((0, steps))
+    motions = np.stack([rigid_motion_px(config, g, times) for g in grasps]) if grasps else np.zeros((0, steps, 2))
+    # The LED blink: whole-array events in closed form, one blink per grasp, each on its own clock.
+    blinks = []
+    for g, rng in zip(grasps, noise_rngs):
+        on = g.camera_start_us + g.preroll_us
+        blinks.append(dvs.led_events(config, camera, on, on + g.led_on_us, rng))
+    residual = np.stack([b[1] for b in blinks]) if blinks else None
+    contacts = dvs.simulate_contacts(config, camera, grasps, forces, motions, residual, progress) if grasps else []
+    result = []
+    for i, g in enumerate(grasps):
+        rng = noise_rngs[i]
+        t0 = g.led_off_camera_us
+        first, last = g.camera_start_us, t0 + g.end_us
+        ct, cx, cy, cp = contacts[i]
+        keep = ct <= g.end_us
+        led_t, led_x, led_y, led_p = blinks[i][0]
+        nt, nx, ny, np_ = dvs.noise_events(config, camera, first, last, rng)
+        t = np.concatenate([led_t, ct[keep] + t0, nt])
+        x = np.concatenate([led_x, cx[keep], nx])
+        y = np.concatenate([led_y, cy[keep], ny])
+        p = np.concatenate([led_p, cp[keep], np_])
+        inside = (t >= first) & (t <= last)
+        order = np.argsort(t[inside], kind="stable")
+        sel = np.flatnonzero(inside)[order]
+        force_t, measured, truth = _force_log(config, g, rng)
+        result.append(Trial(g, t[sel], x[sel].astype(np.uint16), y[sel].astype(np.uint16), p[sel].astype(np.uint8),
+                            force_t, measured, truth))
+    still_rng = noise_rngs[-1]
+    start = int(still_rng.uniform(*config.camera_offset_us))
+    still = dvs.noise_events(config, camera, start, start + config.still_us, still_rng)
+    order = np.argsort(still[0], kind="stable")
+    still = tuple(a[order] for a in still)
+    return Simulation(config, seed, result, (still[0], still[1].astype(np.uint16), still[2].astype(np.uint16), still[3].astype(np.uint8)))
+
+
+def _force_log(config, grasp, rng):
+    """The force log: 500 Hz on the micro-controller clock from LED-off, through the sensor model."""
+    fine = np.arange(0, grasp.end_us + SENSOR_STEP_US, SENSOR_STEP_US, dtype=float)
+    truth = true_force(config, grasp, fine)
+    moving = ((fine >= grasp.contact_us) & (fine <= grasp.loaded_us)) | ((fine >= grasp.release_us) & (fine <= grasp.released_us))
+    reading = force_sensor.measure(config, truth, SENSOR_STEP_US, moving.astype(float), rng)
+    log_t = np.arange(0, grasp.end_us + 1, config.force_period_us, dtype=np.int64)
+    index = np.minimum(np.round(log_t / SENSOR_STEP_US).astype(int), fine.size - 1)
+    return log_t, reading[index].astype(np.float32), truth[index].astype(np.float32)
+
+
+# ---------------------------------------------------------------- outputs
+
+
+def manifest_rows(simulation: Simulation) -> list[dict]:
+    rows = []
+    for trial in simulation.trials:
+        g = trial.grasp
+        rows.append({
+            "trial": g.trial,
+            "events": f"{g.trial}.aedat",
+            "force": f"{g.trial}_force.csv",
+            **g.labels,
+            "true_t0_us": g.led_off_camera_us,
+            "true_peak_force_n": f"{g.peak_force_n:.3f}",
+            "true_contact_ms": f"{g.contact_us / 1000:.3f}",
+            "true_loaded_ms": f"{g.loaded_us / 1000:.3f}",
+            "true_release_ms": f"{g.release_us / 1000:.3f}",
+            "true_released_ms": f"{g.released_us / 1000:.3f}",
+            "true_duration_ms": f"{g.end_us / 1000:.3f}",
+        })
+    return rows
+
+
+def force_csv(trial: Trial) -> str:
+    lines = ["t_ms,force_N"]
+    lines += [f"{t / 1000:g},{v:.4f}" for t, v in zip(trial.force_t_us.tolist(), trial.force_n.tolist())]
+    return "\n".join(lines) + "\n"
+
+
+def write_dataset(simulation: Simulation, folder: str) -> list[str]:
+    """Write every trial's camera file and force log, the still recording and manifest.csv; returns the paths."""
+    from neurotac_cli.io.writers import write_aedat2
+
+    config = simulation.config
+    os.makedirs(folder, exist_ok=True)
+    written = []
+    for trial in simulation.trials:
+        path = os.path.join(folder, f"{trial.grasp.trial}.aedat")
+        write_aedat2(path, trial.t, trial.x, trial.y, trial.p, config.sensor_width, config.sensor_height)
+        force_path = os.path.join(folder, f"{trial.grasp.trial}_force.csv")
+        _write_text(force_path, force_csv(trial))
+        written += [path, force_path]
+    still = os.path.join(folder, "still.aedat")
+    write_aedat2(still, *simulation.still, config.sensor_width, config.sensor_height)
+    rows = manifest_rows(simulation)
+    names = []
+    for row in rows:
+        names += [k for k in row if k not in names]
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=names, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    manifest = os.path.join(folder, "manifest.csv")
+    _write_text(manifest, buffer.getvalue())
+    return written + [still, manifest]
+
+
+def _write_text(path, text):
+    with open(path, "w", encoding="utf-8", newline="") as sink:
+        sink.write(text)
+
+
+def recordings(simulation: Simulation):
+    """The `recordings` table: each trial's events and measured force relative to the true LED-off instant."""
+    from neurotac_cli import schema
+
+    config = simulation.config
+    rows = []
+    for trial in simulation.trials:
+        g = trial.grasp
+        t0 = g.led_off_camera_us
+        rows.append({
+            "trial": g.trial,
+            "t0": t0,
+            "events": (trial.t - t0, trial.x, trial.y, trial.p),
+            "force": (trial.force_t_us, trial.force_n),
+            "labels": dict(g.labels),
+        })
+    sync = {"method": "simulated", "note": "t0 is the true LED-off instant", "offsets": {r["trial"]: r["t0"] for r in rows}}
+    table = schema.recordings_table(rows, config.sensor_width, config.sensor_height, sync=sync)
+    return table
