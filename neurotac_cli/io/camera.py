@@ -269,9 +269,9 @@ def _short(error: Exception) -> str:
     return text[0][:200] if text else type(error).__name__
 
 
-def read_chunks(path: str, offset: int, record: int, chunk_bytes: int = CHUNK_BYTES) -> Iterator[bytes]:
+def read_chunks(path: str, offset: int, record: int) -> Iterator[bytes]:
     """The bytes of `path` from `offset`, in chunks of whole `record`-byte records (a cut last record is dropped)."""
-    size = max(record, (chunk_bytes // record) * record)
+    size = max(record, (CHUNK_BYTES // record) * record)
     with open(path, "rb") as handle:
         handle.seek(offset)
         rest = b""

@@ -14,7 +14,8 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.camera import CHUNK_BYTES, Decoded
+from neurotac_cli.io import camera
+from neurotac_cli.io.camera import Decoded
 
 TIME_NAMES = {"t": None, "t_us": 1, "timestamp": 1, "ts": 1, "time": None, "t_ms": 1_000, "t_s": 1_000_000}
 POLARITY_NAMES = ("p", "polarity", "pol")
@@ -53,7 +54,7 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     types.update({"x": pa.int64(), "y": pa.int64(), polarity_name: pa.int64()})
 
     def chunks():
-        read = pacsv.ReadOptions(skip_rows=data_line - 1, column_names=names, block_size=min(CHUNK_BYTES, 1 << 22))
+        read = pacsv.ReadOptions(skip_rows=data_line - 1, column_names=names, block_size=max(1 << 12, min(camera.CHUNK_BYTES, 1 << 22)))
         parse = pacsv.ParseOptions(delimiter=delimiter)
         convert = pacsv.ConvertOptions(column_types=types, include_columns=[time_name, "x", "y", polarity_name])
         try:

@@ -1,0 +1,262 @@
+"""Every real recording decodes to exactly the events (t, x, y, p, same order) and sensor size that
+independent reference readers give (../shared/data/real/README.md documents the edge cases)."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from neurotac_cli import schema as sch
+from neurotac_cli.io import camera, read_events, read_events_table
+from tests.conftest import real_file
+
+warnings.filterwarnings("ignore", category=DeprecationWarning)
+
+
+def columns(table):
+    return tuple(table.column(name).to_numpy() for name in ("t", "x", "y", "p"))
+
+
+def assert_same(table, t, x, y, p):
+    ours = columns(table)
+    assert len(ours[0]) == len(t)
+    for name, mine, theirs in zip("txyp", ours, (t, x, y, p)):
+        assert np.array_equal(mine.astype(np.int64), np.asarray(theirs).astype(np.int64)), f"column {name} differs"
+
+
+def faery_events(path):
+    faery = pytest.importorskip("faery")
+    chunks = list(faery.events_stream_from_file(str(path)))
+    events = np.concatenate(chunks)
+    return events["t"].astype(np.int64), events["x"], events["y"], events["on"].astype(np.uint8)
+
+
+def expelliarmus_events(path, encoding):
+    wizard = pytest.importorskip("expelliarmus").Wizard(encoding=encoding)
+    events = wizard.read(str(path))
+    return events["t"], events["x"], events["y"], events["p"]
+
+
+# ---------------------------------------------------------------- AEDAT 2.0
+
+
+def davis_reference(path, height):
+    """tonic's AEDAT 2.0 reader for header and raw records, decoded with the README's DAVIS layout."""
+    tio = pytest.importorskip("tonic.io")
+    header = tio.read_aedat_header_from_file(str(path))
+    version, start = header[0], header[1]
+    raw = tio.get_aer_events_from_file(str(path), version, start)
+    address = raw["address"].astype(np.int64)
+    dvs = ((address >> 31) & 1 == 0) & ((address >> 10) & 1 == 0)
+    address = address[dvs]
+    return (
+        raw["timeStamp"][dvs].astype(np.int64),
+        (address >> 12) & 0x3FF,
+        height - 1 - ((address >> 22) & 0x1FF),
+        (address >> 11) & 1,
+    )
+
+
+def test_davis240c_aedat2_matches_the_reference_decode_with_y_flipped():
+    path = real_file("davis240c_rotdisk.aedat")
+    table = read_events_table(path)
+    assert table.num_rows == 374_296
+    assert sch.sensor_of(table.schema) == (240, 180)
+    assert_same(table, *davis_reference(path, 180))
+    span = table["t"].to_numpy()
+    assert 3.1e6 < span.max() - span.min() < 3.2e6
+
+
+def test_aedat2_numpy_statement_of_the_layout_agrees_with_the_compiled_decoder():
+    from neurotac_cli.io.aedat2 import decode_davis_numpy, header_length
+
+    data = real_file("davis240c_rotdisk.aedat").read_bytes()
+    start = header_length(data)
+    body = data[start : start + (len(data) - start) // 8 * 8]
+    assert_same(read_events_table(real_file("davis240c_rotdisk.aedat")), *decode_davis_numpy(body, 180))
+
+
+def test_header_only_aedat2_is_an_empty_table_with_its_sensor():
+    table = read_events_table(real_file("header_only_tonic.aedat"))
+    assert table.num_rows == 0
+    assert sch.sensor_of(table.schema) == (346, 260)
+    assert sch.kind_of(table.schema) == "events"
+
+
+def test_aedat2_truncated_trailing_record_is_tolerated(tmp_path):
+    data = real_file("davis240c_rotdisk.aedat").read_bytes()
+    cut = tmp_path / "cut.aedat"
+    cut.write_bytes(data[:-3])
+    whole = read_events_table(real_file("davis240c_rotdisk.aedat"))
+    table = read_events_table(cut)
+    assert table.num_rows in (whole.num_rows, whole.num_rows - 1)
+    assert table.equals(whole.slice(0, table.num_rows))
+
+
+def test_aedat2_reads_the_simulator_writer_exactly(tmp_path):
+    writers = pytest.importorskip("neurotac_cli.io.writers")
+    rng = np.random.default_rng(3)
+    n = 5000
+    t = np.sort(rng.integers(1_000_000, 3_000_000_000, n))
+    x, y, p = rng.integers(0, 240, n), rng.integers(0, 180, n), rng.integers(0, 2, n)
+    path = tmp_path / "sim.aedat"
+    writers.write_aedat2(path, t, x, y, p)
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (240, 180)
+    assert_same(table, t, x, y, p)
+
+
+# ---------------------------------------------------------------- AEDAT 4.0
+
+
+@pytest.mark.parametrize("name, sensor", [("davis346_aestream.aedat4", (346, 260)), ("dvxplorer_tonic.aedat4", (320, 240))])
+def test_aedat4_matches_faery(name, sensor):
+    path = real_file(name)
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == sensor
+    assert_same(table, *faery_events(path))
+    assert isinstance(sch.get_meta(table.schema, "neurotac:triggers"), list)
+
+
+def test_aedat4_event_counts_match_the_readme():
+    assert read_events_table(real_file("davis346_aestream.aedat4")).num_rows == 117_667
+    assert read_events_table(real_file("dvxplorer_tonic.aedat4")).num_rows == 111_954
+
+
+# ---------------------------------------------------------------- Prophesee
+
+
+def test_evt2_matches_faery_and_expelliarmus():
+    path = real_file("prophesee_vga_faery.evt2.raw")
+    table = read_events_table(path)
+    assert table.num_rows == 521_252
+    assert sch.sensor_of(table.schema) == (640, 480)
+    assert_same(table, *faery_events(path))
+    assert_same(table, *expelliarmus_events(path, "evt2"))
+
+
+def evt3_reference(path):
+    """Prophesee's EVT 3.0 decoding (OpenEB's sample decoder), one word at a time: TIME_HIGH sets the
+    base and resets the low part, TIME_LOW sets the low part as written, vectors advance x."""
+    data = path.read_bytes()
+    start = 0
+    while data[start : start + 1] == b"%":
+        start = data.index(b"\n", start) + 1
+    words = np.frombuffer(data[start : start + (len(data) - start) // 2 * 2], dtype="<u2").tolist()
+    out = [], [], [], []
+    base = None
+    time = y = base_x = vector_p = 0
+    for word in words:
+        kind, payload = word >> 12, word & 0xFFF
+        if kind == 0x8:
+            base = payload << 12
+            time = base
+        elif kind == 0x6 and base is not None:
+            time = base + payload
+        elif kind == 0x0:
+            y = payload & 0x7FF
+        elif kind == 0x2 and base is not None:
+            for column, value in zip(out, (time, payload & 0x7FF, y, payload >> 11)):
+                column.append(value)
+        elif kind == 0x3:
+            base_x, vector_p = payload & 0x7FF, payload >> 11
+        elif kind in (0x4, 0x5):
+            width = 12 if kind == 0x4 else 8
+            if base is not None:
+                for bit in range(width):
+                    if payload >> bit & 1:
+                        for column, value in zip(out, (time, base_x + bit, y, vector_p)):
+                            column.append(value)
+            base_x += width
+    return [np.array(column) for column in out]
+
+
+def test_evt3_matches_prophesee_decoding_and_keeps_backward_time_low_steps():
+    path = real_file("prophesee_hd_expelliarmus.evt3.raw")
+    table = read_events_table(path)
+    assert table.num_rows == 219_596
+    assert sch.sensor_of(table.schema) == (1280, 720)
+    assert_same(table, *evt3_reference(path))
+    # faery and expelliarmus agree on x, y, p; on t they force monotonic time or add a 4096 µs roll
+    ft, fx, fy, fp = faery_events(path)
+    t, x, y, p = columns(table)
+    assert np.array_equal(x, fx) and np.array_equal(y, fy) and np.array_equal(p, fp)
+    ex = expelliarmus_events(path, "evt3")
+    assert np.array_equal(x, ex[1]) and np.array_equal(y, ex[2]) and np.array_equal(p, ex[3])
+    late = ft - t
+    assert late.min() == 0 and late.max() == 11  # faery holds the larger time after a backward step
+
+
+def test_evt3_file_has_nine_backward_time_low_words():
+    data = real_file("prophesee_hd_expelliarmus.evt3.raw").read_bytes()
+    start = 0
+    while data[start : start + 1] == b"%":
+        start = data.index(b"\n", start) + 1
+    words = np.frombuffer(data[start : start + (len(data) - start) // 2 * 2], dtype="<u2").astype(np.int64)
+    kind = words >> 12
+    timing = words[(kind == 0x6) | (kind == 0x8)]
+    low = (timing >> 12) == 0x6
+    backward = low[1:] & low[:-1] & ((timing[1:] & 0xFFF) < (timing[:-1] & 0xFFF))
+    assert int(backward.sum()) == 9
+
+
+def test_dat_matches_expelliarmus_and_takes_its_sensor_from_the_events_or_the_option():
+    path = real_file("atis_ncars_loris.dat")
+    table = read_events_table(path)
+    assert table.num_rows == 4_407
+    assert_same(table, *expelliarmus_events(path, "dat"))
+    assert sch.sensor_of(table.schema) == (54, 61)
+    assert sch.get_meta(table.schema, "neurotac:source")["sensor_from"] == "events"
+    assert sch.sensor_of(read_events_table(path, sensor=(304, 240)).schema) == (304, 240)
+
+
+def test_es_matches_faery_with_the_bottom_left_origin_flipped():
+    path = real_file("atis_ncars_loris.es")
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (54, 239)
+    assert_same(table, *faery_events(path))
+    # the same events as the .dat: times, x and polarity equal; rows mirrored by the conversion
+    dat = read_events_table(real_file("atis_ncars_loris.dat"))
+    for name in ("t", "x", "p"):
+        assert np.array_equal(table[name].to_numpy(), dat[name].to_numpy())
+
+
+# ---------------------------------------------------------------- chunking
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "davis240c_rotdisk.aedat",
+        "prophesee_vga_faery.evt2.raw",
+        "prophesee_hd_expelliarmus.evt3.raw",
+        "atis_ncars_loris.dat",
+        "atis_ncars_loris.es",
+    ],
+)
+def test_small_chunks_give_the_same_events_as_one_chunk(name, monkeypatch):
+    path = real_file(name)
+    whole = read_events_table(path)
+    monkeypatch.setattr(camera, "CHUNK_BYTES", 4099)
+    schema, batches = read_events(path)
+    parts = list(batches)
+    assert len(parts) > 3
+    import pyarrow as pa
+
+    assert pa.Table.from_batches(parts, schema=schema).equals(whole)
+
+
+def test_formats_are_told_from_their_first_bytes(real_data):
+    expected = {
+        "davis240c_rotdisk.aedat": "aedat2",
+        "header_only_tonic.aedat": "aedat2",
+        "davis346_aestream.aedat4": "aedat4",
+        "dvxplorer_tonic.aedat4": "aedat4",
+        "prophesee_vga_faery.evt2.raw": "evt2",
+        "prophesee_hd_expelliarmus.evt3.raw": "evt3",
+        "atis_ncars_loris.dat": "dat",
+        "atis_ncars_loris.es": "es",
+    }
+    for name, fmt in expected.items():
+        head = (real_data / name).read_bytes()[: 1 << 16]
+        assert camera.detect_format(name, head) == fmt
