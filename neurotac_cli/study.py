@@ -14,6 +14,7 @@ Core code: no click, nothing on stdout, no exits. Progress goes to stderr.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import io
@@ -133,7 +134,39 @@ def _call(function, task: dict, shared: dict | None = None):
     clash = shared.keys() & task.keys()
     if clash:
         raise TypeError(f"task arguments {sorted(clash)} are also given in shared=")
-    return function(**shared, **task)
+    with _one_thread():
+        return function(**shared, **task)
+
+
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _one_thread():
+    """Every task runs its torch/BLAS arithmetic on one thread, wherever it runs: a torch training
+    run gives different last digits on 1 and 2 threads (measured), and Dask workers start with
+    OMP_NUM_THREADS=1, so this is what makes in-process, pool and cluster results identical. Use
+    --jobs or a cluster, not threads, for speed."""
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        before = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            yield
+        finally:
+            torch.set_num_threads(before)
+        return
+    # torch not loaded yet: it reads these when the task imports it (and then keeps one thread).
+    saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
+    os.environ.update({name: "1" for name in _THREAD_VARIABLES})
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def _run_pool(function, pending: dict, shared: dict, workers: int, retries: int, finished):

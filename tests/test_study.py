@@ -282,3 +282,25 @@ def test_grid_size_is_the_product_of_the_axis_sizes(axes):
     points = parse_grid(specs)
     assert len(points) == int(np.prod([length + 1 for _, length in axes]))
     assert len({tuple(sorted(p.items())) for p in points}) == len(points)
+
+
+# -- arithmetic that does not depend on where a task ran --------------------------------------------
+
+
+def torch_sums(seed: int) -> tuple:
+    """Sums and a dot product of 2M floats: torch splits such reductions by thread, so their last
+    digits differ between 1 and 2 threads (as a training run's do)."""
+    import torch
+
+    generator = torch.Generator().manual_seed(seed)
+    x, w = torch.randn(2_000_000, generator=generator), torch.randn(2_000_000, generator=generator)
+    return x.sum().item(), (x @ w).item()
+
+
+def test_torch_results_are_identical_in_process_and_on_dask(cluster):
+    torch = pytest.importorskip("torch")
+    torch.set_num_threads(2)
+    tasks = [{"seed": seed} for seed in range(3)]
+    assert [torch_sums(**task) for task in tasks] != run_tasks(torch_sums, tasks)  # the pin matters
+    assert run_tasks(torch_sums, tasks) == run_tasks(torch_sums, tasks, scheduler=cluster.scheduler_address)
+    assert torch.get_num_threads() == 2  # the caller's setting is given back
