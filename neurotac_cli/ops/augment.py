@@ -112,24 +112,35 @@ def rotation_matrix(degrees: float) -> np.ndarray:
     return np.array([[cos, -sin], [sin, cos]])
 
 
-def systematic_round(values: np.ndarray, rng: np.random.Generator, totals: np.ndarray | None = None) -> np.ndarray:
-    """Round each row of non-negative `values` (groups, P) to integers, seeded.
+def systematic_round(values: np.ndarray, rng: np.random.Generator, totals: np.ndarray | None = None, axis: int = 1) -> np.ndarray:
+    """Round non-negative `values` to integers, seeded, group by group along `axis` (a group is
+    one row of a (groups, P) array with axis=1, one column of a (P, groups) array with axis=0).
 
-    Row by row: r_i = floor(S_i + u) - floor(S_{i-1} + u), S the running sum, u ~ U[0, 1) per row.
-    Every r_i is floor(v_i) or ceil(v_i) with mean v_i (unbiased), the row total is the total
-    rounded the same way, and with `totals` (integers, one per row) the row sums to exactly that
-    total. Integer-valued input comes back unchanged.
+    Per group: r_i = floor(S_i + u) - floor(S_{i-1} + u), S the running sum, u ~ U[0, 1) per group.
+    Every r_i is floor(v_i) or ceil(v_i) with mean v_i (unbiased), the group total is its float
+    total rounded the same way, and with `totals` (integers, one per group) the group sums to
+    exactly that total. Integer-valued input comes back unchanged.
     """
-    running = np.cumsum(values, axis=1, dtype=np.float64)
+    groups = values.shape[1 - axis]
+    shape = (1, groups) if axis == 0 else (groups, 1)
+    running = np.cumsum(values, axis=axis, dtype=np.float64)  # a new array: `values` is left alone
+    last = (slice(-1, None), slice(None)) if axis == 0 else (slice(None), slice(-1, None))
     if totals is not None:
-        totals = np.asarray(totals, dtype=np.float64)[:, None]
-        running = np.minimum(running, totals)
-        running[:, -1:] = totals
+        totals = np.asarray(totals, dtype=np.float64).reshape(shape)
+        np.minimum(running, totals, out=running)
+        running[last] = totals
     # Keep u clear of 1 so that S + u never rounds up to the next integer in float64.
-    offset = rng.random((values.shape[0], 1)) * (1 - 2.0**-20)
-    steps = np.floor(running + offset)
-    steps -= np.floor(offset)
-    return np.diff(steps, axis=1, prepend=0.0)
+    offset = rng.random(shape) * (1 - 2.0**-20)
+    running += offset
+    np.floor(running, out=running)
+    steps = np.empty_like(running)
+    if axis == 0:
+        steps[0] = running[0]
+        np.subtract(running[1:], running[:-1], out=steps[1:])
+    else:
+        steps[:, 0] = running[:, 0]
+        np.subtract(running[:, 1:], running[:, :-1], out=steps[:, 1:])
+    return steps
 
 
 def warp(counts: np.ndarray, matrix: np.ndarray, rng: np.random.Generator, preserve_total: bool = False):
@@ -140,23 +151,23 @@ def warp(counts: np.ndarray, matrix: np.ndarray, rng: np.random.Generator, prese
     frame and channel is rescaled to its own original total first (exact for integers).
     """
     frames, channels, height, width = counts.shape
-    flat = counts.reshape(frames * channels, height * width)
     operator = sampling_operator((height, width), matrix, contact_centre(counts))
-    values = np.asarray((operator @ flat.T.astype(np.float64)).T)
-    before = flat.sum(axis=1, dtype=np.float64)
+    # (P, groups) layout: one sparse product for all frames and channels, running sums down columns.
+    pixels_by_group = np.ascontiguousarray(counts.reshape(frames * channels, height * width).T, dtype=np.float64)
+    values = operator @ pixels_by_group
+    before = pixels_by_group.sum(axis=0)
     targets = None
     if preserve_total:
-        after = values.sum(axis=1)
+        after = values.sum(axis=0)
         scale = np.divide(before, after, out=np.zeros_like(before), where=after > 0)
-        values *= scale[:, None]
+        values *= scale
         targets = np.where(after > 0, before, 0.0)
     if np.issubdtype(counts.dtype, np.integer):
-        values = systematic_round(values, rng, targets)
-    result = values.reshape(counts.shape)
-    change = float(result.sum() - before.sum())
-    lost = max(0.0, -change)
-    gained = max(0.0, change)
-    return _as_dtype(result, counts.dtype), lost, gained
+        values = systematic_round(values, rng, targets, axis=0)
+    change = float(values.sum() - before.sum())
+    result = np.empty(counts.shape, dtype=counts.dtype)
+    result.reshape(frames * channels, height * width)[:] = _as_dtype(values, counts.dtype).T
+    return result, max(0.0, -change), max(0.0, change)
 
 
 # ---------------------------------------------------------------- temporal: FS and TES
@@ -188,28 +199,27 @@ def events_to_move(counts: np.ndarray, zeta: float) -> np.ndarray:
 def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Draw `take[g]` of the events of each group g without replacement (multivariate hypergeometric).
 
-    `counts` is (groups, P) of non-negative integers. All groups are drawn at once: every event gets
-    a uniform key, events are sorted by (group, key), and the first `take[g]` of each group are
-    kept, so every subset of the right size is equally likely. Returns the drawn counts, (groups, P).
+    `counts` is (groups, P) of non-negative integers. All groups are drawn at once: the events of
+    all groups are shuffled together, stably sorted back into their groups (a radix sort on the
+    group number), and the first `take[g]` of each group are kept, so every subset of the right
+    size is equally likely. Returns the drawn counts, (groups, P) int64.
     """
     groups, pixels = counts.shape
-    drawn = np.zeros((groups, pixels), dtype=np.int64)
-    group_of_pixel, pixel = np.nonzero(counts)
-    if len(pixel) == 0:
-        return drawn
-    per_pixel = counts[group_of_pixel, pixel].astype(np.int64)
-    event_entry = np.repeat(np.arange(len(pixel)), per_pixel)
-    event_group = group_of_pixel[event_entry]
-    keys = event_group + rng.random(len(event_entry))
-    order = np.argsort(keys)
-    group_sizes = np.bincount(group_of_pixel, weights=per_pixel, minlength=groups).astype(np.int64)
-    group_start = np.concatenate([[0], np.cumsum(group_sizes)[:-1]])
-    # `order` keeps groups contiguous and in order, so position - start is the rank within the group.
-    rank = np.arange(len(order)) - group_start[event_group]
-    chosen_entries = event_entry[order[rank < np.asarray(take)[event_group]]]
-    chosen = np.bincount(chosen_entries, minlength=len(pixel))
-    drawn[group_of_pixel, pixel] = chosen
-    return drawn
+    flat = counts.ravel()
+    entries = np.flatnonzero(flat)
+    event_pixel = np.repeat(entries, flat[entries].astype(np.int64))
+    if len(event_pixel) == 0:
+        return np.zeros((groups, pixels), dtype=np.int64)
+    event_group = event_pixel // pixels
+    shuffled = rng.permutation(len(event_pixel))
+    group_key = event_group[shuffled]
+    if groups <= np.iinfo(np.uint16).max:
+        group_key = group_key.astype(np.uint16)  # numpy sorts 16-bit keys stably by radix, in linear time
+    in_groups = shuffled[np.argsort(group_key, kind="stable")]
+    sizes = np.bincount(event_group, minlength=groups)
+    rank = np.arange(len(event_pixel)) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    chosen = event_pixel[in_groups[rank < np.repeat(np.asarray(take, dtype=np.int64), sizes)]]
+    return np.bincount(chosen, minlength=groups * pixels).reshape(groups, pixels)
 
 
 def temporal_event_shift(counts: np.ndarray, shift: int, zeta: float, rng: np.random.Generator):
@@ -415,14 +425,18 @@ def augment_frames(
 
     plans = [[method] for method in methods] if combine == "independent" else [methods]
     stats = {}
-    rows, pieces, new_ids, new_sources, new_augment = [], [], [], [], []
+    rows, new_ids, new_sources, new_augment = [], [], [], []
+    per_row = int(keep_original) + len(plans) * copies
+    out_counts = np.empty((per_row * len(counts), *counts.shape[1:]), dtype=counts.dtype)
+    filled = 0
     seen = set(trial_ids.tolist())
     for trial_rows in np.split(order, bounds):
         trial = trial_ids[trial_rows[0]]
         trial_counts = counts[trial_rows]
         if keep_original:
             rows.append(trial_rows)
-            pieces.append(trial_counts)
+            out_counts[filled : filled + len(trial_rows)] = trial_counts
+            filled += len(trial_rows)
             new_ids.append(trial_ids[trial_rows])
             new_sources.append(source_ids[trial_rows])
             new_augment.append(done_before[trial_rows])
@@ -449,14 +463,15 @@ def augment_frames(
                 count = len(trial_rows)
                 earlier = done_before[trial_rows[0]]
                 rows.append(trial_rows)
-                pieces.append(result)
+                out_counts[filled : filled + count] = result
+                filled += count
                 new_ids.append(np.full(count, new_id, dtype=object))
                 new_sources.append(np.full(count, source_ids[trial_rows[0]], dtype=object))
                 new_augment.append(np.full(count, f"{earlier}+{done}" if earlier else done, dtype=object))
     for entry in stats.values():
         for name, value in entry.items():
             entry[name] = int(round(value))
-    table = _assemble(frames, rows, pieces, new_ids, new_sources, new_augment, counts.dtype)
+    table = _assemble(frames, rows, out_counts, new_ids, new_sources, new_augment)
     return table, stats
 
 
@@ -498,11 +513,11 @@ def _check_consecutive(frame_numbers, order, bounds, trial_ids):
         )
 
 
-def _assemble(frames, rows, pieces, new_ids, new_sources, new_augment, dtype) -> pa.Table:
-    taken = frames.take(pa.array(np.concatenate(rows)))
-    counts = sch.counts_array(np.concatenate(pieces).astype(dtype, copy=False))
+def _assemble(frames, rows, counts, new_ids, new_sources, new_augment) -> pa.Table:
+    counts_field = frames.schema.get_field_index("counts")
+    taken = frames.remove_column(counts_field).take(pa.array(np.concatenate(rows)))
+    taken = taken.add_column(counts_field, "counts", sch.counts_array(counts))
     columns = {
-        "counts": counts,
         "trial": pa.array(np.concatenate(new_ids), pa.string()),
         "source_trial": pa.array(np.concatenate(new_sources), pa.string()),
         "augment": pa.array(np.concatenate(new_augment), pa.string()),
@@ -525,5 +540,5 @@ def _as_dtype(values: np.ndarray, dtype) -> np.ndarray:
                 f"augmented counts reach {int(values.max())}, more than {dtype} holds ({top}); "
                 "frame with a shorter window or pool less"
             )
-        return np.rint(values).astype(dtype) if np.issubdtype(values.dtype, np.floating) else values.astype(dtype)
+        return values.astype(dtype)  # callers hand over whole numbers (rounded or integer arithmetic)
     return values.astype(dtype)
