@@ -105,7 +105,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         else:
             args["report"] = "streamed: counts of dropped events are written to stderr"
     tables.write(output, batches, step=("frame", args), schema=schema)
-    for line in report.warnings() + report.notes:
+    for line in report.warnings(lead_in_expected=source.kind == "recordings") + report.notes:
         click.echo(f"neurotac frame: warning: {line}", err=True)
     if source.kind == "events" and report.dropped and not report.warnings():
         click.echo(

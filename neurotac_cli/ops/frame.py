@@ -190,10 +190,14 @@ class FramingReport:
             out["scale"] = self.scale
         return out
 
-    def warnings(self, threshold: float = 0.01) -> list[str]:
-        """Lines for stderr: drops above `threshold` of the events, and any saturation."""
+    def warnings(self, threshold: float = 0.01, lead_in_expected: bool = False) -> list[str]:
+        """Lines for stderr: drops above `threshold` of the events, and any saturation.
+
+        `lead_in_expected`: events before t0 of synced trials are their LED blink and lead-in, not
+        part of the trial by design: counted in history, not warned about."""
         lines = []
-        if self.events and self.dropped > threshold * self.events:
+        unexpected = self.after_end + self.late + (0 if lead_in_expected else self.before_start)
+        if self.events and unexpected > threshold * self.events:
             lines.append(
                 f"{self.dropped} of {self.events} events ({100 * self.dropped / self.events:.1f}%) lie outside the frames "
                 f"(before start {self.before_start}, after end {self.after_end}, out of time order {self.late})"

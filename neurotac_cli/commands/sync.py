@@ -1,0 +1,93 @@
+import click
+
+from neurotac_cli.options import Duration, KeyValue, Size, output_option
+
+
+class Region(click.ParamType):
+    name = "X,Y,W,H"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            parts = tuple(int(v) for v in str(value).split(","))
+        except ValueError:
+            parts = ()
+        if len(parts) != 4 or min(parts) < 0 or parts[2] == 0 or parts[3] == 0:
+            self.fail(f"expected X,Y,W,H in pixels, e.g. 0,0,60,40, got {value!r}", param, ctx)
+        return parts
+
+
+@click.command()
+@click.argument("events", required=False, type=click.Path(dir_okay=False, allow_dash=True))
+@output_option
+@click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV or Parquet): time and force columns, e.g. t_ms,force_N.")
+@click.option("--trial", default=None, help="Trial id (default: the events file's name); a session's trials are numbered after it.")
+@click.option("--label", "labels", type=KeyValue(), multiple=True, help="A label of the trial, NAME=VALUE (repeatable): --label material=foam.")
+@click.option("--manifest", type=click.Path(dir_okay=False), help="CSV with one row per recording: trial,events,force,<labels> (paths relative to it); true_* columns are ignored.")
+@click.option("--method", type=click.Choice(["led", "trigger", "offset", "xcorr"]), default="led", show_default=True,
+              help="led: LED-off spike of OFF events; trigger: AEDAT4 external triggers; offset: a known offset; xcorr: event rate vs |dF/dt|.")
+@click.option("--offset", type=Duration(), default=None, help="With --method offset: the camera time of the force log's zero, e.g. 1523.4ms.")
+@click.option("--region", type=Region(), default=None, help="Look for the LED (or the activity, for xcorr) only in this box X,Y,W,H.")
+@click.option("--latency", type=Duration(), default=None, help="The camera's delay: led, from LED switch-off to the OFF spike's onset [default: 170us]; xcorr, of the event "
+              "rate behind the force [default: 1.6ms] (both measured on the simulated DAVIS240C rig).")
+@click.option("--min-score", type=float, default=10.0, show_default=True, help="LED method: the z-score a spike needs over its surroundings.")
+@click.option("--min-coverage", type=float, default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
+@click.option("--trigger-type", default=None, help="Trigger method: only triggers of this type (rising, falling, pulse, ...); default any.")
+@click.option("--median", "median_window", type=Duration(), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
+@click.option("--force-time-column", default=None, help="Force log: the time column (name or 0-based index) [default: first].")
+@click.option("--force-column", default=None, help="Force log: the force column (name or index) [default: second].")
+@click.option("--force-time-unit", type=click.Choice(["ns", "us", "ms", "s", "min"]), default=None, help="Force log: time unit, overriding the header's suffix.")
+@click.option("--force-unit", type=click.Choice(["N", "mN", "kN", "g", "kg", "lbf"], case_sensitive=False), default=None,
+              help="Force log: force unit, overriding the header's suffix [default: N].")
+@click.option("--sensor", type=Size(), default=None, help="Sensor WxH for files that do not declare it.")
+def command(events, output, force_path, trial, labels, manifest, method, offset, region, latency, min_score, min_coverage,
+            trigger_type, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
+    """Align camera events with a force log; cut and label trials (a recordings table).
+
+    The LED is switched off before each grasp and the force log starts then (thesis 3.6.1): the
+    switch-off is a spike of OFF events. Each trial's instant goes into its t0 column, and the
+    method, score and details per trial into the neurotac:sync metadata. A long session with
+    several LED blinks is cut at each blink and matched to the force log's trials (a `trial`
+    column, or time restarting at 0).
+
+    \b
+        neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
+        neurotac sync --manifest sim/manifest.csv -o recordings.parquet
+        neurotac import rec.aedat4 | neurotac sync --force f.csv --method trigger
+    """
+    import os
+
+    from neurotac_cli import tables
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.ops import sync as sy
+
+    force_options = sy.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
+    spec = sy.SyncMethod(
+        method=method, offset_us=offset, region=region,
+        latency_us=sy.LED_LATENCY_US if latency is None else latency,
+        response_us=sy.XCORR_RESPONSE_US if latency is None else latency, min_z=min_score, min_coverage=min_coverage,
+        trigger_type=trigger_type, median_us=median_window,
+    )
+    label_map = dict(labels)
+    if manifest:
+        if events or force_path:
+            raise NeurotacError("give either --manifest or an events file with --force, not both")
+        sources = sy.manifest_sources(manifest, force_options, sensor, label_map)
+        origin = {"manifest": os.path.basename(manifest)}
+    else:
+        if not force_path:
+            raise NeurotacError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
+        if events in (None, "-"):
+            table = tables.read(["-"], kind="events")
+            name = trial or "trial"
+        else:
+            table = sy.read_camera(events, sensor)
+            name = trial or os.path.splitext(os.path.basename(events))[0]
+        sources = [sy.Source(trial=name, events=table, force=force_options.read(force_path), labels=label_map)]
+        origin = {"events": os.path.basename(events or "-"), "force": os.path.basename(force_path), "trial": name}
+    recordings = sy.sync_sources(sources, spec)
+    args = dict(spec.args(), **origin)
+    if label_map:
+        args["labels"] = label_map
+    tables.write(output, recordings, step=("sync", args))

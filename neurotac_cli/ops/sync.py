@@ -1,0 +1,442 @@
+"""Find the shared instant of camera and force logger; cut and label trials (thesis 3.6.1).
+
+Methods (each returns the sync instants t0 on the camera clock, one per force-log trial):
+
+- `led`: the LED is switched off before each grasp and the force log starts at that instant. The
+  switch-off is a spike of OFF events over much of the field. OFF events are counted in 1 ms bins;
+  each bin is compared with the running median of the 50 ms around it (robust to background noise
+  and to the slower OFF bursts of contact), as a Poisson z-score; a spike must also cover a share of
+  the pixels (contact is local, the LED lights the whole membrane). The instant is the spike's onset
+  (the 0.5% quantile of its OFF event times) less the camera's response latency `latency_us` (the
+  photoreceptor needs time to cross its OFF threshold: ~170 µs for the simulated DAVIS240C behind the
+  membrane; measure it once on a real rig, or use `trigger`).
+- `trigger`: external trigger events of an AEDAT 4.0 file (schema metadata `neurotac:triggers`).
+- `offset`: a known clock offset: the force log's zero is camera time `offset_us`.
+- `xcorr`: no LED: the camera's event rate is cross-correlated with |dF/dt| of the force log, both
+  in 250 µs bins smoothed over 1 ms (bins ten times above their surroundings, such as a blink, are
+  set to the surroundings' level so a blink cannot dominate). The lag of the highest Pearson
+  correlation, refined by a parabola, less the camera's response delay `response_us` (the event
+  rate follows the force ~1.6 ms late on the simulated rig: membrane creep and photoreceptor), is
+  the instant. Confidence = the correlation at the peak and its margin over the best lag 20 ms or
+  more away.
+
+A long session (several force-log trials in one camera file) is cut into trials: trial i holds the
+events up to the end of its force log (or the next instant, if sooner); the events after that are
+the next trial's lead-in, as in a file of one grasp (the first trial holds all that came before).
+Force is conditioned as in the thesis: a median filter (window `median_us`), in newtons.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError, SyncError
+from neurotac_cli.io.force import ForceLog
+
+METHODS = ("led", "trigger", "offset", "xcorr")
+LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
+XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
+XCORR_BIN_US = 250
+XCORR_SMOOTH_US = 1_000
+
+
+@dataclass(frozen=True)
+class SyncMethod:
+    """How to find the sync instant. Validated when built."""
+
+    method: str = "led"
+    offset_us: int | None = None
+    region: tuple | None = None  # (x, y, w, h) where the LED is seen
+    latency_us: int = LED_LATENCY_US
+    response_us: int = XCORR_RESPONSE_US
+    min_z: float = 10.0
+    min_coverage: float = 0.05
+    trigger_type: str | None = None
+    median_us: int = 10_000
+    bin_us: int = 1_000
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise NeurotacError(f"unknown sync method {self.method!r} (use one of {', '.join(METHODS)})")
+        if self.method == "offset" and self.offset_us is None:
+            raise NeurotacError("--method offset needs --offset DURATION (the camera time of the force log's zero)")
+        if self.region is not None and (len(self.region) != 4 or self.region[2] <= 0 or self.region[3] <= 0):
+            raise NeurotacError(f"region must be X,Y,W,H with positive W and H, got {self.region!r}")
+        if self.median_us < 0:
+            raise NeurotacError("the median filter window cannot be negative")
+
+    def args(self) -> dict:
+        out = {"method": self.method, "median_us": self.median_us}
+        if self.method == "offset":
+            out["offset_us"] = self.offset_us
+        if self.method == "led":
+            out.update(latency_us=self.latency_us, min_z=self.min_z, min_coverage=self.min_coverage)
+        if self.method == "xcorr":
+            out["response_us"] = self.response_us
+        if self.method == "trigger":
+            out["trigger_type"] = self.trigger_type
+        if self.region is not None:
+            out["region"] = list(self.region)
+        return out
+
+
+@dataclass
+class Instant:
+    t0: int
+    score: float | None = None
+    details: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------- force conditioning
+
+
+def condition_force(log: ForceLog, median_us: int) -> np.ndarray:
+    """Median-filter the force (window `median_us`, as an odd number of samples; 0 = none)."""
+    values = np.asarray(log.value, dtype=np.float64)
+    if median_us <= 0 or len(values) < 3 or log.period_us <= 0:
+        return values
+    size = int(round(median_us / log.period_us))
+    size = max(1, size if size % 2 else size + 1)
+    if size <= 1:
+        return values
+    from scipy.ndimage import median_filter
+
+    return median_filter(values, size=size, mode="nearest")
+
+
+# ---------------------------------------------------------------- led
+
+
+def _in_region(x, y, region):
+    if region is None:
+        return np.ones(len(x), dtype=bool)
+    rx, ry, rw, rh = region
+    return (x >= rx) & (x < rx + rw) & (y >= ry) & (y < ry + rh)
+
+
+def find_led_spikes(t, x, y, p, method: SyncMethod, count: int, sensor=None) -> list[Instant]:
+    """The `count` strongest LED-off spikes, in time order; SyncError when fewer stand out."""
+    off = (p == 0) & _in_region(x, y, method.region)
+    times, off_x, off_y = t[off], x[off], y[off]
+    if len(times) > 1 and np.any(np.diff(times) < 0):
+        order = np.argsort(times, kind="stable")
+        times, off_x, off_y = times[order], off_x[order], off_y[order]
+    if len(times) == 0:
+        raise SyncError("no OFF events (in the region) to find an LED-off spike in (check --region, or use --method xcorr)")
+    bin_us = method.bin_us
+    origin = int(times.min())
+    index = (times - origin) // bin_us
+    counts = np.bincount(index).astype(np.float64)
+    from scipy.ndimage import median_filter
+
+    background = median_filter(counts, size=51, mode="nearest")
+    pair = counts + np.concatenate([counts[1:], [0.0]])  # a spike spreads over up to ~1.5 ms
+    excess = pair - 2 * background
+    z = excess / np.sqrt(2 * background + 1)
+    if sensor is not None:
+        width, height = sensor
+        pixels = width * height if method.region is None else method.region[2] * method.region[3]
+    else:
+        pixels = int((x.max() + 1) * (y.max() + 1)) if len(x) else 1
+    # candidates: local maxima of z, strongest first, at least 50 ms apart
+    order = np.argsort(-z, kind="stable")
+    chosen, rejected = [], []
+    taken = np.zeros(len(z), dtype=bool)
+    gap = max(1, 50_000 // bin_us)
+    for i in order[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
+        if taken[i] or z[i] <= 0:
+            continue
+        lo, hi = origin + i * bin_us, origin + (i + 2) * bin_us
+        a, b = np.searchsorted(times, [lo, hi])
+        pix = np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])
+        coverage = len(pix) / max(pixels, 1)
+        taken[max(0, i - gap): i + gap + 1] = True
+        if z[i] >= method.min_z and coverage >= method.min_coverage:
+            # the spike may start in the bin before the best pair: take its neighbours too
+            c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
+            spike = times[c:d]
+            onset = int(spike[min(len(spike) - 1, int(0.005 * len(spike)))])
+            chosen.append(
+                Instant(
+                    t0=onset - method.latency_us,
+                    score=float(round(z[i], 1)),
+                    details={"onset_us": onset, "coverage": round(coverage, 3), "spike_events": int(len(spike))},
+                )
+            )
+            if len(chosen) == count:
+                break
+        else:
+            rejected.append((float(z[i]), coverage, lo))
+    if len(chosen) < count:
+        best = max(rejected, default=None)
+        found = f"found {len(chosen)} of {count}; " if count > 1 else ""
+        detail = (
+            f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
+            if best
+            else "no OFF burst at all"
+        )
+        raise SyncError(
+            f"no LED-off spike stands out ({found}{detail}; a spike needs z >= {method.min_z:g} over "
+            f">= {100 * method.min_coverage:g}% of the pixels); check the LED is in view, give --region, "
+            "or use --method xcorr, trigger or offset"
+        )
+    return sorted(chosen, key=lambda instant: instant.t0)
+
+
+# ---------------------------------------------------------------- trigger, offset
+
+
+def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Instant]:
+    triggers = sch.get_meta(schema, "neurotac:triggers", None)
+    if not triggers:
+        raise SyncError(
+            "the recording has no external trigger events (only AEDAT 4.0 files carry them, kept by `neurotac import`); "
+            "use --method led, xcorr or offset"
+        )
+    kinds = sorted({str(item.get("type")) for item in triggers})
+    chosen = [item for item in triggers if method.trigger_type in (None, item.get("type"))]
+    if not chosen:
+        raise SyncError(f"no trigger of type {method.trigger_type!r} (the file has {', '.join(kinds)}); choose one with --trigger-type")
+    if count > 1 and len(chosen) != count:
+        raise SyncError(
+            f"{len(chosen)} triggers but {count} trials in the force log; pick a trigger type with --trigger-type "
+            f"(the file has {', '.join(kinds)})"
+        )
+    return [Instant(t0=int(item["t"]), details={"type": item.get("type"), "triggers": len(chosen)}) for item in chosen[:count]]
+
+
+# ---------------------------------------------------------------- xcorr
+
+
+def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
+    """Align the camera's event rate with |dF/dt| (see the module doc)."""
+    from scipy.ndimage import gaussian_filter1d, median_filter
+
+    bin_us = XCORR_BIN_US
+    keep = _in_region(x, y, method.region)
+    times = t[keep]
+    if len(times) < 100 or len(force_t) < 10:
+        raise SyncError("too few events or force samples to cross-correlate (need activity during the grasp)")
+    origin = int(times.min())
+    rate = np.bincount((times - origin) // bin_us).astype(np.float64)
+    # blinks and flicker: bins far above their surroundings are set to the surroundings' level
+    local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
+    rate = np.where(rate > 10 * (local + 3), local, rate)
+    grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
+    slope = np.abs(np.gradient(np.interp(grid, force_t, force_v)))
+    rate = gaussian_filter1d(rate, XCORR_SMOOTH_US / bin_us)
+    slope = gaussian_filter1d(slope, XCORR_SMOOTH_US / bin_us)
+    if slope.std() == 0 or rate.std() == 0:
+        raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
+    a = (rate - rate.mean()) / rate.std()
+    b = (slope - slope.mean()) / slope.std()
+    corr = _pearson_by_lag(a, b)
+    lags = np.arange(-len(b) + 1, len(a))
+    overlap = np.minimum(len(a), lags + len(b)) - np.maximum(0, lags)
+    valid = overlap >= (3 * len(b)) // 4  # most of the force trace lies inside the recording
+    corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
+    best = int(np.argmax(corr))
+    peak = float(corr[best])
+    if not np.isfinite(peak):
+        raise SyncError("the recording is shorter than the force log: nothing to cross-correlate")
+    shift = 0.0
+    if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
+        left, right = corr[best - 1], corr[best + 1]
+        denominator = left - 2 * peak + right
+        if denominator < 0:
+            shift = 0.5 * (left - right) / denominator
+    far = np.abs(lags - lags[best]) >= 20_000 // bin_us
+    second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
+    # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
+    t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
+    return Instant(
+        t0=int(round(t0)),
+        score=round(peak, 3),
+        details={"correlation": round(peak, 3), "margin": round(peak - second, 3), "response_us": method.response_us},
+    )
+
+
+def _pearson_by_lag(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation of a[L + j] with b[j] over their overlap, for every lag L (FFT sums)."""
+    from scipy.signal import correlate
+
+    n_a, n_b = len(a), len(b)
+    lags = np.arange(-n_b + 1, n_a)
+    lo_a, hi_a = np.maximum(0, lags), np.minimum(n_a, lags + n_b)
+    lo_b, hi_b = lo_a - lags, hi_a - lags
+    n = (hi_a - lo_a).astype(np.float64)
+    cum_a = np.concatenate([[0.0], np.cumsum(a)])
+    cum_aa = np.concatenate([[0.0], np.cumsum(a * a)])
+    cum_b = np.concatenate([[0.0], np.cumsum(b)])
+    cum_bb = np.concatenate([[0.0], np.cumsum(b * b)])
+    s_a, s_aa = cum_a[hi_a] - cum_a[lo_a], cum_aa[hi_a] - cum_aa[lo_a]
+    s_b, s_bb = cum_b[hi_b] - cum_b[lo_b], cum_bb[hi_b] - cum_bb[lo_b]
+    s_ab = correlate(a, b, mode="full", method="fft")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = s_ab - s_a * s_b / n
+        var = (s_aa - s_a * s_a / n) * (s_bb - s_b * s_b / n)
+        return np.where(var > 1e-12, cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
+
+
+# ---------------------------------------------------------------- trials
+
+
+@dataclass
+class Source:
+    """One camera recording with its force log and labels (one manifest row, or the command line)."""
+
+    trial: str
+    events: pa.Table
+    force: list  # list[ForceLog]
+    labels: dict = field(default_factory=dict)
+
+
+def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
+    """Sync one recording: (trials for schema.recordings_table, sync info per trial)."""
+    table = source.events
+    t = _column(table, "t", np.int64)
+    x = _column(table, "x", np.uint16)
+    y = _column(table, "y", np.uint16)
+    p = _column(table, "p", np.uint8)
+    logs = source.force
+    count = len(logs)
+    if method.method == "led":
+        instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
+    elif method.method == "trigger":
+        instants = find_triggers(table.schema, method, count)
+    elif method.method == "offset":
+        if count > 1:
+            raise SyncError(f"--method offset gives one instant, but the force log holds {count} trials; use --method led or trigger")
+        instants = [Instant(t0=int(method.offset_us), details={"offset_us": int(method.offset_us)})]
+    else:
+        if count > 1:
+            raise SyncError(f"--method xcorr aligns one force trace, but the force log holds {count} trials; split the log")
+        conditioned = condition_force(logs[0], method.median_us)
+        instants = [xcorr_instant(t, x, y, logs[0].t, conditioned, method)]
+    order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
+    if order is not None:
+        t, x, y, p = t[order], x[order], y[order], p[order]
+    # trial i ends where its force log ends (or at the next instant, if sooner); what follows, up
+    # to the next instant, is the next trial's lead-in (its LED blink), as in one-grasp files
+    bounds = []
+    for instant, following, log in zip(instants, instants[1:], logs):
+        end = instant.t0 + int(log.t[-1]) + max(int(log.period_us), 1)
+        bounds.append(min(end, following.t0))
+    cuts = [0] + [int(np.searchsorted(t, bound)) for bound in bounds] + [len(t)]
+    trials, info = [], {}
+    for i, (instant, log) in enumerate(zip(instants, logs)):
+        name = source.trial if count == 1 else (log.trial or f"{source.trial}-{i + 1:02d}")
+        a, b = cuts[i], cuts[i + 1]
+        values = condition_force(log, method.median_us)
+        trials.append(
+            {
+                "trial": name,
+                "t0": instant.t0,
+                "events": (t[a:b] - instant.t0, x[a:b], y[a:b], p[a:b]),
+                "force": (log.t, values.astype(np.float32)),
+                "labels": dict(source.labels),
+            }
+        )
+        entry = {"t0": instant.t0, "score": instant.score}
+        entry.update(instant.details)
+        if log.notes:
+            entry["notes"] = log.notes
+        info[name] = entry
+    return trials, info
+
+
+def _column(table: pa.Table, name: str, dtype) -> np.ndarray:
+    return table.column(name).to_numpy().astype(dtype, copy=False)
+
+
+def sync_sources(sources, method: SyncMethod) -> pa.Table:
+    """Sync every source (an iterable, read one at a time) into one recordings table."""
+    trials, info, sensor = [], {}, None
+    for source in sources:
+        found = sch.sensor_of(source.events.schema)
+        if sensor is None:
+            sensor = found
+        elif found is not None and found != sensor:
+            raise NeurotacError(
+                f"recording of trial {source.trial} is {found[0]}x{found[1]}, the others {sensor[0]}x{sensor[1]}; "
+                "sync recordings of one sensor together"
+            )
+        made, details = sync_source(source, method)
+        for trial in made:
+            if trial["trial"] in info:
+                raise NeurotacError(f"trial {trial['trial']!r} appears twice; give each trial its own name")
+        trials += made
+        info.update(details)
+    sync = dict(method.args())
+    sync["trials"] = info
+    width, height = sensor if sensor else (None, None)
+    return sch.recordings_table(trials, width, height, sync=sync)
+
+
+# ---------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True)
+class ForceOptions:
+    time_column: str | None = None
+    force_column: str | None = None
+    time_unit: str | None = None
+    force_unit: str | None = None
+
+    def read(self, path: str) -> list:
+        from neurotac_cli.io.force import read_force_log
+
+        return read_force_log(path, self.time_column, self.force_column, self.time_unit, self.force_unit)
+
+
+def read_camera(path: str, sensor=None) -> pa.Table:
+    """A camera file in any format `import` reads, or an events table, as one events table."""
+    from neurotac_cli import tables
+    from neurotac_cli.io import is_table, read_events_table
+
+    if is_table(path):
+        table = tables.read([path], kind="events")
+        if sensor is not None:
+            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+        return table
+    return read_events_table(path, sensor=sensor)
+
+
+MANIFEST_REQUIRED = ("trial", "events", "force")
+
+
+def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels: dict | None = None):
+    """Sources from a manifest CSV: one row per recording with columns trial, events, force (paths
+    relative to the manifest's folder) and label columns. Columns named `true_*` (ground truth of
+    simulated data) are neither used nor copied. Files are read one row at a time."""
+    import csv
+    import os
+
+    if not os.path.isfile(path):
+        raise NeurotacError(f"{path}: no such manifest")
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows:
+        raise NeurotacError(f"{path}: the manifest has no rows")
+    missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]
+    if missing:
+        raise NeurotacError(
+            f"{path}: the manifest has no {', '.join(missing)} column (columns: {', '.join(rows[0])}; "
+            "expected trial,events,force,<labels>...)"
+        )
+    folder = os.path.dirname(os.path.abspath(path))
+    label_names = [name for name in rows[0] if name not in MANIFEST_REQUIRED and not name.startswith("true_") and name]
+    for number, row in enumerate(rows, start=2):
+        if not row["events"] or not row["force"] or not row["trial"]:
+            raise NeurotacError(f"{path}: line {number} lacks a trial, events or force entry")
+        row_labels = dict(labels or {})
+        row_labels.update({name: row[name] for name in label_names if row.get(name) not in (None, "")})
+        yield Source(
+            trial=row["trial"],
+            events=read_camera(os.path.join(folder, row["events"]), sensor),
+            force=force_options.read(os.path.join(folder, row["force"])),
+            labels=row_labels,
+        )
