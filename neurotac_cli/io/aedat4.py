@@ -6,6 +6,8 @@ schema metadata `neurotac:triggers` as [{"t": µs, "type": ...}], which `sync --
 frame and exposure triggers of the APS are left out, as are frames and IMU samples.
 """
 
+import struct
+
 import numpy as np
 
 from neurotac_cli.errors import FormatError
@@ -22,10 +24,42 @@ TRIGGER_TYPES = {
 BATCH_EVENTS = 1 << 20
 
 
+def check_header(path: str):
+    """Check the IOHeader flatbuffer's info string before `aedat` sees it: invalid UTF-8 in it makes
+    that library abort the whole process (pyo3 cannot build the string), which no `except` can catch."""
+    with open(path, "rb") as handle:
+        head = handle.read(14 + 4)
+        if len(head) < 18 or not head.startswith(b"#!AER-DAT4.0"):
+            raise FormatError("the AEDAT 4.0 header is cut short")
+        size = struct.unpack_from("<I", head, 14)[0]
+        if size > 1 << 24:
+            raise FormatError(f"the AEDAT 4.0 header claims {size} bytes (damaged file)")
+        buffer = handle.read(size)
+    if len(buffer) < size or size < 8:
+        raise FormatError("the AEDAT 4.0 header is cut short")
+    try:
+        table = struct.unpack_from("<I", buffer, 0)[0]
+        vtable = table - struct.unpack_from("<i", buffer, table)[0]
+        vtable_size = struct.unpack_from("<H", buffer, vtable)[0]
+        if vtable_size >= 4 + 3 * 2:
+            field = struct.unpack_from("<H", buffer, vtable + 4 + 2 * 2)[0]
+            if field:
+                start = table + field
+                string = start + struct.unpack_from("<I", buffer, start)[0]
+                length = struct.unpack_from("<I", buffer, string)[0]
+                text = buffer[string + 4 : string + 4 + length]
+                if len(text) < length:
+                    raise FormatError("the AEDAT 4.0 header's description is cut short")
+                text.decode("utf-8")
+    except (struct.error, UnicodeDecodeError) as error:
+        raise FormatError(f"the AEDAT 4.0 header is damaged ({error})") from None
+
+
 def _packets(path: str):
     """The `aedat` decoder's packets, with its failures (a Rust panic included) as FormatError."""
     import aedat
 
+    check_header(path)
     try:
         decoder = aedat.Decoder(path)
         streams = decoder.id_to_stream()

@@ -1,0 +1,105 @@
+"""Text events: CSV with a t,x,y,p header and whitespace `t x y p` with seconds; bad rows by line number."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import FormatError
+from neurotac_cli.io import read_events_table
+
+
+def write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def events_of(table):
+    return [tuple(row.values()) for row in table.to_pylist()]
+
+
+def test_csv_with_header_in_microseconds(tmp_path):
+    table = read_events_table(write(tmp_path, "a.csv", "t,x,y,p\n10,1,2,1\n20,3,4,0\n"))
+    assert events_of(table) == [(10, 1, 2, 1), (20, 3, 4, 0)]
+    assert sch.sensor_of(table.schema) == (4, 5)
+
+
+@pytest.mark.parametrize("header, factor", [("t_ms", 1000), ("t_s", 1_000_000), ("t_us", 1), ("timestamp", 1)])
+def test_csv_time_unit_comes_from_the_header(tmp_path, header, factor):
+    table = read_events_table(write(tmp_path, "a.csv", f"{header},x,y,p\n1,1,2,1\n2,3,4,0\n"))
+    assert table["t"].to_pylist() == [factor, 2 * factor]
+
+
+def test_csv_columns_in_any_order_and_polarity_minus_one(tmp_path):
+    table = read_events_table(write(tmp_path, "a.csv", "x,y,polarity,t\n1,2,-1,5\n3,4,1,6\n"))
+    assert events_of(table) == [(5, 1, 2, 0), (6, 3, 4, 1)]
+
+
+def test_whitespace_text_is_seconds_with_optional_comments(tmp_path):
+    text = "# events of a public dataset\n0.000010 1 2 1\n1.5 3 4 0\n"
+    table = read_events_table(write(tmp_path, "events.txt", text), sensor=(240, 180))
+    assert events_of(table) == [(10, 1, 2, 1), (1_500_000, 3, 4, 0)]
+    assert sch.sensor_of(table.schema) == (240, 180)
+    assert sch.get_meta(table.schema, "neurotac:source")["sensor_from"] == "option"
+
+
+def test_tab_separated_text(tmp_path):
+    table = read_events_table(write(tmp_path, "events.txt", "0.1\t1\t2\t1\n0.2\t3\t4\t0\n"))
+    assert table["t"].to_pylist() == [100_000, 200_000]
+
+
+@pytest.mark.parametrize(
+    "text, line",
+    [
+        ("t,x,y,p\n10,1,2,1\n20,3,x,0\n", 3),
+        ("t,x,y,p\n10,1,2,1\n20,3,4\n", 3),
+        ("t,x,y,p\n10,1,2,1\n11,1,2,1\n12,1,2,7\n", 4),
+        ("# c\n0.1 1 2 1\n0.2 1 2 1\nnan 1 2 1\n", 4),
+        ("t,x,y,p\n10,1,2,1\n10.5,1,2,1\n", 3),
+        ("t,x,y,p\n10,-1,2,1\n", 2),
+    ],
+)
+def test_a_bad_row_is_reported_with_its_line_number(tmp_path, text, line):
+    with pytest.raises(FormatError, match=rf"line {line}\b"):
+        read_events_table(write(tmp_path, "bad.csv", text))
+
+
+def test_csv_without_header_is_refused_with_a_hint(tmp_path):
+    with pytest.raises(FormatError, match="header"):
+        read_events_table(write(tmp_path, "a.csv", "10,1,2,1\n"))
+
+
+def test_header_only_csv_is_an_empty_table(tmp_path):
+    table = read_events_table(write(tmp_path, "a.csv", "t,x,y,p\n"))
+    assert table.num_rows == 0
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    rows=st.lists(
+        st.tuples(st.integers(0, 2**40), st.integers(0, 2000), st.integers(0, 2000), st.integers(0, 1)), min_size=1, max_size=50
+    )
+)
+def test_csv_round_trips_any_events(tmp_path_factory, rows):
+    path = tmp_path_factory.mktemp("csv") / "e.csv"
+    path.write_text("t,x,y,p\n" + "".join(f"{t},{x},{y},{p}\n" for t, x, y, p in rows))
+    table = read_events_table(path)
+    assert events_of(table) == rows
+
+
+def test_large_text_is_read_in_several_batches(tmp_path, monkeypatch):
+    from neurotac_cli.io import camera, read_events
+
+    n = 20_000
+    rng = np.random.default_rng(1)
+    t = np.sort(rng.integers(0, 10**9, n))
+    body = "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(t, rng.integers(0, 240, n), rng.integers(0, 180, n), rng.integers(0, 2, n)))
+    path = write(tmp_path, "big.csv", "t,x,y,p\n" + body)
+    monkeypatch.setattr(camera, "CHUNK_BYTES", 1 << 14)
+    schema, batches = read_events(path)
+    parts = list(batches)
+    assert len(parts) > 3
+    assert sum(b.num_rows for b in parts) == n
+    assert np.array_equal(np.concatenate([b.column("t").to_numpy() for b in parts]), t)
