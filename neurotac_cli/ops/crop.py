@@ -1,0 +1,321 @@
+"""Crop and sum-pool frames, recordings or events to the contact area (thesis 4.5.2, 5.4.1).
+
+A box is `(x, y, w, h)` in the input's pixels (origin top-left). With a size and a centre, the box
+is centred there; `center="auto"` finds the contact area's centre once from the whole input: the
+activity of every pixel (frames' counts, or events after each trial's t0) is median-filtered 3x3
+(hot pixels are single pixels), smoothed (Gaussian, 2 px), thresholded at 20% of its peak, and the
+centre of the bounding box of the largest connected region is taken (thesis: the largest contact
+area). A box that would reach past the sensor is moved inside it when the centre was found
+automatically, and refused when it was given.
+
+Pooling sums K x L neighbouring pixels (K along x, L along y): 140x150 pooled 2x2 gives 70x75
+(thesis 5.4.1). `pool="all"` keeps one pixel per channel (thesis ch. 3: no spatial information).
+Pooled uint16 counts that pass 65535 stay there and are reported.
+
+What lies outside the box is counted (events, or frame counts) in a `CropReport`.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError, SchemaError
+
+MAX_COUNT = int(np.iinfo(np.uint16).max)
+
+
+@dataclass(frozen=True)
+class CropSpec:
+    """What to cut. Validated when built."""
+
+    box: tuple | None = None
+    size: tuple | None = None
+    center: tuple | str | None = None
+    pool: tuple | str | None = None
+
+    def __post_init__(self):
+        if self.box is not None and (self.size is not None or self.center is not None):
+            raise NeurotacError("give either --box or --size with --center, not both")
+        if self.size is not None and self.center is None:
+            raise NeurotacError("--size needs --center X,Y or --center auto")
+        if self.center is not None and self.size is None:
+            raise NeurotacError("--center needs --size WxH")
+        if self.box is not None and (len(self.box) != 4 or self.box[2] <= 0 or self.box[3] <= 0 or min(self.box) < 0):
+            raise NeurotacError(f"box must be X,Y,W,H with X,Y >= 0 and W,H > 0, got {self.box}")
+        if isinstance(self.pool, tuple) and (len(self.pool) != 2 or min(self.pool) <= 0):
+            raise NeurotacError(f"pool must be KxL with positive K and L, got {self.pool}")
+        if self.pool is not None and not isinstance(self.pool, tuple) and self.pool != "all":
+            raise NeurotacError(f"pool must be KxL or all, got {self.pool!r}")
+        if self.box is None and self.size is None and self.pool is None:
+            raise NeurotacError("nothing to do: give --box, --size with --center, or --pool")
+
+
+@dataclass
+class CropReport:
+    kept: int = 0
+    cut: int = 0
+    unit: str = "events"
+    box: list | None = None
+    center: list | None = None
+    center_from: str | None = None
+    pool: object = None
+    saturated_pixels: int = 0
+
+    @property
+    def share_cut(self) -> float:
+        total = self.kept + self.cut
+        return self.cut / total if total else 0.0
+
+    def as_dict(self) -> dict:
+        out = {"kept": self.kept, "cut": self.cut, "counted": self.unit, "box": self.box, "pool": self.pool}
+        if self.center is not None:
+            out["center"] = self.center
+            out["center_from"] = self.center_from
+        if self.saturated_pixels:
+            out["saturated_pixels"] = self.saturated_pixels
+        return out
+
+    def warnings(self, threshold: float) -> list[str]:
+        lines = []
+        if self.cut and self.share_cut > threshold:
+            lines.append(
+                f"the crop cut away {self.cut} of {self.kept + self.cut} {self.unit} ({100 * self.share_cut:.1f}%); "
+                "check the box against `neurotac info`, or use --center auto"
+            )
+        if self.saturated_pixels:
+            lines.append(f"{self.saturated_pixels} pooled counts reached {MAX_COUNT} (uint16) and were held there")
+        return lines
+
+
+# ---------------------------------------------------------------- where
+
+
+def contact_center(activity: np.ndarray) -> tuple[int, int]:
+    """(x, y) centre of the largest active region of an (H, W) activity map (see the module doc)."""
+    from scipy import ndimage
+
+    activity = np.asarray(activity, dtype=np.float64)
+    if activity.max(initial=0) <= 0:
+        raise NeurotacError("cannot find the contact area: the input has no events (give --center X,Y)")
+    smooth = ndimage.gaussian_filter(ndimage.median_filter(activity, size=3, mode="nearest"), 2.0)
+    if smooth.max() <= 0:
+        smooth = ndimage.gaussian_filter(activity, 2.0)
+    mask = smooth >= 0.2 * smooth.max()
+    labels, count = ndimage.label(mask)
+    sizes = ndimage.sum_labels(mask, labels, index=np.arange(1, count + 1))
+    largest = int(np.argmax(sizes)) + 1
+    ys, xs = np.nonzero(labels == largest)
+    return int(round((xs.min() + xs.max()) / 2)), int(round((ys.min() + ys.max()) / 2))
+
+
+def activity_map(table: pa.Table) -> np.ndarray:
+    """(H, W) activity of a frames, recordings or events table (events of recordings from t0 on)."""
+    kind = sch.kind_of(table.schema)
+    if kind == "frames":
+        height, width = sch.frames_shape(table.schema)
+        total = np.zeros((height, width), dtype=np.float64)
+        for batch in table.to_batches():
+            counts = sch.counts_numpy(batch.column("counts"))
+            total += counts.sum(axis=(0, 1), dtype=np.float64)
+        return total
+    width, height = _sensor(table.schema)
+    if kind == "recordings":
+        values = pa.chunked_array([chunk.values for chunk in table.column("events").chunks], type=sch.EVENT_STRUCT)
+        t = np.concatenate([chunk.field("t").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.int64)])
+        x = np.concatenate([chunk.field("x").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.uint16)])
+        y = np.concatenate([chunk.field("y").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.uint16)])
+        keep = t >= 0
+        x, y = x[keep], y[keep]
+    else:
+        x = table.column("x").to_numpy().astype(np.int64)
+        y = table.column("y").to_numpy().astype(np.int64)
+    flat = np.bincount(y.astype(np.int64) * width + x, minlength=width * height)
+    return flat.reshape(height, width).astype(np.float64)
+
+
+def _sensor(schema: pa.Schema) -> tuple[int, int]:
+    if sch.kind_of(schema) == "frames":
+        height, width = sch.frames_shape(schema)
+        return width, height
+    sensor = sch.sensor_of(schema)
+    if sensor is None:
+        raise SchemaError("the table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
+    return sensor
+
+
+def resolve_box(spec: CropSpec, sensor: tuple[int, int], activity=None, report: CropReport | None = None) -> tuple | None:
+    """The (x, y, w, h) box of `spec` on a `sensor` = (W, H); None when only pooling."""
+    width, height = sensor
+    if spec.box is not None:
+        box = tuple(int(v) for v in spec.box)
+        if box[0] + box[2] > width or box[1] + box[3] > height:
+            raise NeurotacError(f"box {','.join(map(str, box))} reaches past the {width}x{height} sensor")
+        return box
+    if spec.size is None:
+        return None
+    w, h = spec.size
+    if w > width or h > height:
+        raise NeurotacError(f"crop size {w}x{h} is larger than the {width}x{height} input")
+    if spec.center == "auto":
+        cx, cy = contact_center(activity)
+        source = "auto"
+    else:
+        cx, cy = spec.center
+        source = "given"
+    x0, y0 = int(cx) - w // 2, int(cy) - h // 2
+    if source == "given" and (x0 < 0 or y0 < 0 or x0 + w > width or y0 + h > height):
+        raise NeurotacError(f"a {w}x{h} box centred at {cx},{cy} reaches past the {width}x{height} sensor; move the centre")
+    x0 = min(max(x0, 0), width - w)
+    y0 = min(max(y0, 0), height - h)
+    if report is not None:
+        report.center = [int(cx), int(cy)]
+        report.center_from = source
+    return (x0, y0, w, h)
+
+
+def pooled_size(width: int, height: int, pool) -> tuple[int, int]:
+    if pool is None:
+        return width, height
+    if pool == "all":
+        return 1, 1
+    k, l = pool
+    if width % k or height % l:
+        raise NeurotacError(f"cannot pool {width}x{height} by {k}x{l}: the size must divide evenly (choose a crop size that does)")
+    return width // k, height // l
+
+
+# ---------------------------------------------------------------- frames
+
+
+def pool_counts(counts: np.ndarray, pool, report: CropReport | None = None) -> np.ndarray:
+    """Sum-pool (n, 2, H, W) counts by (K, L) or `all`, keeping the dtype (uint16 held at 65535)."""
+    if pool is None:
+        return counts
+    n, c, height, width = counts.shape
+    if pool == "all":
+        k, l = width, height
+    else:
+        k, l = pool
+    wide = np.float64 if counts.dtype.kind == "f" else np.int64
+    summed = counts.reshape(n, c, height // l, l, width // k, k).sum(axis=(3, 5), dtype=wide)
+    if counts.dtype == np.uint16:
+        over = summed > MAX_COUNT
+        if report is not None:
+            report.saturated_pixels += int(over.sum())
+        summed = np.minimum(summed, MAX_COUNT)
+    return summed.astype(counts.dtype)
+
+
+def crop_frames(table: pa.Table, box, pool, report: CropReport) -> pa.Table:
+    height, width = sch.frames_shape(table.schema)
+    x0, y0, w, h = box if box is not None else (0, 0, width, height)
+    new_w, new_h = pooled_size(w, h, pool)
+    dtype = table.schema.field("counts").type.value_type.to_pandas_dtype()
+    report.unit = "frame counts"
+    schema = _frames_schema_like(table.schema, new_h, new_w, dtype)
+    batches = []
+    for batch in table.to_batches():
+        counts = sch.counts_numpy(batch.column("counts"))
+        inner = counts[:, :, y0:y0 + h, x0:x0 + w]
+        total = float(counts.sum(dtype=np.float64))
+        kept = float(inner.sum(dtype=np.float64))
+        report.kept += int(kept) if dtype != np.float32 else kept
+        report.cut += int(total - kept) if dtype != np.float32 else total - kept
+        pooled = pool_counts(np.ascontiguousarray(inner), pool, report)
+        index = batch.schema.get_field_index("counts")
+        columns = list(batch.columns)
+        columns[index] = sch.counts_array(pooled)
+        batches.append(pa.RecordBatch.from_arrays(columns, schema=schema))
+    return pa.Table.from_batches(batches, schema=schema)
+
+
+def _frames_schema_like(schema: pa.Schema, height: int, width: int, dtype) -> pa.Schema:
+    index = schema.get_field_index("counts")
+    schema = schema.set(index, pa.field("counts", sch.counts_type(height, width, dtype)))
+    return sch.set_meta(schema, sensor=sch.sensor_meta(width, height))
+
+
+# ---------------------------------------------------------------- events and recordings
+
+
+def crop_event_arrays(t, x, y, p, box, pool):
+    """Keep events inside `box`, shift them to its origin, pool coordinates; returns arrays and the mask."""
+    if box is not None:
+        x0, y0, w, h = box
+        inside = (x >= x0) & (x < x0 + w) & (y >= y0) & (y < y0 + h)
+        t, x, y, p = t[inside], (x[inside] - x0), (y[inside] - y0), p[inside]
+    else:
+        inside = None
+    if pool == "all":
+        x, y = np.zeros_like(x), np.zeros_like(y)
+    elif pool is not None:
+        x, y = x // pool[0], y // pool[1]
+    return (t, x.astype(np.uint16), y.astype(np.uint16), p), inside
+
+
+def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropReport, sensor=None):
+    """Crop an events stream batch by batch; returns (schema, iterator). The report fills as it runs."""
+    width, height = sensor or _sensor(schema)
+    x0, y0, w, h = box if box is not None else (0, 0, width, height)
+    new_w, new_h = pooled_size(w, h, pool)
+    out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
+
+    def generate():
+        for batch in batches:
+            arrays = [batch.column(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
+            (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
+            report.kept += len(t)
+            report.cut += batch.num_rows - len(t)
+            yield sch.events_batch(t, x, y, p, out_schema)
+
+    return out_schema, generate()
+
+
+def crop_recordings(table: pa.Table, box, pool, report: CropReport, sensor=None) -> pa.Table:
+    width, height = sensor or _sensor(table.schema)
+    x0, y0, w, h = box if box is not None else (0, 0, width, height)
+    new_w, new_h = pooled_size(w, h, pool)
+    schema = sch.set_meta(table.schema, sensor=sch.sensor_meta(new_w, new_h))
+    batches = []
+    for batch in table.to_batches():
+        events = batch.column("events")
+        offsets = events.offsets.to_numpy() - events.offsets.to_numpy()[0]
+        values = events.values.slice(events.offsets.to_numpy()[0], offsets[-1]) if len(offsets) else events.values
+        arrays = [values.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
+        (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
+        if inside is not None:
+            kept_before = np.concatenate([[0], np.cumsum(inside)])
+            new_offsets = kept_before[offsets].astype(np.int32)
+        else:
+            new_offsets = offsets.astype(np.int32)
+        report.kept += len(t)
+        report.cut += len(arrays[0]) - len(t)
+        nested = pa.ListArray.from_arrays(pa.array(new_offsets), sch.events_array(t, x, y, p), type=pa.list_(sch.EVENT_STRUCT))
+        columns = list(batch.columns)
+        columns[batch.schema.get_field_index("events")] = nested
+        batches.append(pa.RecordBatch.from_arrays(columns, schema=schema))
+    return pa.Table.from_batches(batches, schema=schema)
+
+
+# ---------------------------------------------------------------- one call
+
+
+def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None, sensor=None) -> pa.Table:
+    """Crop a whole frames, recordings or events table (auto centre from the whole table)."""
+    report = report if report is not None else CropReport()
+    kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
+    if sensor is not None and kind != "frames":
+        table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+    dims = _sensor(table.schema)
+    activity = activity_map(table) if spec.center == "auto" else None
+    box = resolve_box(spec, dims, activity, report)
+    report.box = list(box) if box is not None else None
+    report.pool = list(spec.pool) if isinstance(spec.pool, tuple) else spec.pool
+    if kind == "frames":
+        return crop_frames(table, box, spec.pool, report)
+    if kind == "recordings":
+        return crop_recordings(table, box, spec.pool, report)
+    schema, batches = crop_events_batches(table.schema, table.to_batches(), box, spec.pool, report)
+    return pa.Table.from_batches(list(batches), schema=schema)
