@@ -17,9 +17,9 @@ HEADER = (
     "# This is a raw AE data file - do not edit\r\n"
     "# Data format is int32 address, int32 timestamp (8 bytes total), repeated for each event\r\n"
     "# Timestamps tick is 1 us\r\n"
-    "# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n"
-    "# created by neurotac simulate\r\n"
+    "# created by neurotac\r\n"
 )
+DAVIS240C = "# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n"
 
 
 def aedat2_bytes(t, x, y, p, width: int = 240, height: int = 180) -> bytes:
@@ -43,7 +43,8 @@ def aedat2_bytes(t, x, y, p, width: int = 240, height: int = 180) -> bytes:
     words = np.empty((t.size, 2), dtype=">u4")
     words[:, 0] = address
     words[:, 1] = t
-    return HEADER.encode("ascii") + words.tobytes()
+    header = HEADER + (DAVIS240C if (width, height) == (240, 180) else f"# sensor: {width}x{height}\r\n")
+    return header.encode("ascii") + words.tobytes()
 
 
 def write_aedat2(path, t, x, y, p, width: int = 240, height: int = 180) -> None:

@@ -74,6 +74,7 @@ class SimConfig:
     hold_us: int = 190_000  # holding phase
     release_us: int = 60_000  # releasing phase: the gripper opens
     tail_us: int = 20_000  # recording after the releasing phase
+    max_duration_us: int = 0  # longest recording from LED-off (0 = no limit): the hold is shortened to fit
     duration_jitter: float = 0.08  # grasp-to-grasp spread of the phase durations (relative s.d.)
     gripper_speed_mm_s: float = 150.0  # closing speed once in contact
     servo_settle_us: int = 30_000  # the shortest loading or unloading ramp of the servo
@@ -82,13 +83,14 @@ class SimConfig:
     force_lag_us: int = 0  # 0 = the sensor's own default (nano17 1 ms, flexiforce 25 ms)
     force_noise_n: float = -1.0  # < 0 = the sensor's own default
     # ------------------------------------------------------------ contact mechanics
-    membrane_youngs_pa: float = 1.0e6  # silicone membrane (thesis ch. 3: 4.0 x 2.0 x 0.2 cm)
+    membrane_youngs_pa: float = 0.5e6  # soft transparent silicone membrane (thesis ch. 3: 4.0 x 2.0 x 0.2 cm)
+    membrane_confinement: float = 3.0  # stiffening of a thin bonded, nearly incompressible layer
     membrane_poisson: float = 0.48
     membrane_thickness_mm: float = 2.0
     saturation_force_n: float = 4.0  # membrane compaction: effective force = Fs tanh(F / Fs)
     creep: float = 0.15  # share of the membrane's deformation that follows with a delay (creep)
     creep_us: int = 120_000  # creep time constant
-    tilt_deg: float = 1.0  # s.d. of the misalignment of the object face to the membrane
+    tilt_deg: float = 0.15  # s.d. of the misalignment of the object face to the membrane
     edge_factor_max: float = 2.5  # flat-punch edge pressure concentration, capped by edge rounding
     pressure_scale_pa: float = 25e3  # pressure at which the membrane darkens to 63% of the object's contrast
     # ------------------------------------------------------------ optics
@@ -136,14 +138,14 @@ PRESETS = {
     "ch3": dict(
         groups=_groups("foam:hex:11", "rubber:hex:9", "silicone:hex:14", "steel:hex:14"),
         force_min_n=0.8, force_max_n=3.7, contact_delay_us=(5_000, 20_000), grasp_us=154_000,
-        hold_us=700_000, release_us=154_000, tail_us=10_000, duration_jitter=0.0,
+        hold_us=700_000, release_us=154_000, tail_us=0, duration_jitter=0.0, max_duration_us=1_008_000,
         force_sensor="flexiforce", saturation_force_n=4.5,
     ),
     # Thesis 4.5: 35 grasps of steel bolts of 8, 12 and 16 mm, up to 3.12 N, at most 410 ms, Nano17.
     "ch4": dict(
         groups=_groups("steel:bolt8:12", "steel:bolt12:12", "steel:bolt16:11"),
         force_min_n=1.6, force_max_n=3.12, grasp_us=110_000, hold_us=180_000, release_us=60_000,
-        tail_us=15_000, duration_jitter=0.08, force_sensor="nano17", saturation_force_n=4.5,
+        tail_us=15_000, duration_jitter=0.08, max_duration_us=410_000, force_sensor="nano17", saturation_force_n=4.5,
     ),
     # Thesis 5.4: 60 grasps of bolts of 12, 15, 18 mm (20 each), 0-25 N, at most 360 ms, two gripper
     # settings, a thicker membrane (8 mm, shore 50A), Nano17; frames: first 5 / 6-30 / last 5 of 36.
@@ -154,7 +156,7 @@ PRESETS = {
             "steel:bolt18:10:gripper_force=low", "steel:bolt18:10:gripper_force=high",
         ),
         force_min_n=8.0, force_max_n=25.0, contact_delay_us=(3_000, 10_000), grasp_us=50_000,
-        hold_us=250_000, release_us=50_000, tail_us=5_000, duration_jitter=0.04,
+        hold_us=250_000, release_us=50_000, tail_us=5_000, duration_jitter=0.04, max_duration_us=360_000,
         force_sensor="nano17", membrane_youngs_pa=2.0e6, membrane_thickness_mm=8.0,
         saturation_force_n=30.0, pressure_scale_pa=120e3, servo_settle_us=25_000,
         gripper_speed_mm_s=250.0,
@@ -220,7 +222,7 @@ def validate(config: SimConfig):
     if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:
         problems.append("force range (need 0 <= force_min_n <= force_max_n, force_max_n > 0)")
     for name in ("on_threshold", "off_threshold", "pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm",
-                 "saturation_force_n", "pressure_scale_pa", "cutoff_hz", "gripper_speed_mm_s"):
+                 "saturation_force_n", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s"):
         if getattr(config, name) <= 0:
             problems.append(f"{name} must be > 0")
     for name in ("step_us", "force_period_us", "grasp_us"):

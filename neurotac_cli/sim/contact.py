@@ -37,15 +37,13 @@ def hertz_peak_pressure(force_n, radius_m: float, e_star: float):
 def foundation_stiffness(config, material, length_mm: float) -> float:
     """Stiffness per unit area (Pa/m) of the membrane layer in series with the object column.
 
-    A thin bonded layer is stiffer than its Young's modulus says: its constrained (oedometric) modulus
-    E (1 - nu) / ((1 + nu)(1 - 2 nu)) is capped here at 10 E for a nearly incompressible silicone
-    that can still bulge at the free edges of the contact.
+    A thin bonded layer of nearly incompressible silicone is stiffer than its Young's modulus says
+    (it can only bulge at the free rim of the contact): its modulus is scaled by
+    `membrane_confinement` (about 3 for a face 2-5 times wider than the layer is thick). The object is
+    a free column of its length, compressed at its own Young's modulus.
     """
-    def constrained(e, nu):
-        return e * min(10.0, (1 - nu) / ((1 + nu) * max(1e-3, 1 - 2 * nu)))
-
-    compliance = (config.membrane_thickness_mm * 1e-3) / constrained(config.membrane_youngs_pa, config.membrane_poisson)
-    compliance += (length_mm * 1e-3) / constrained(material.youngs_pa, material.poisson)
+    compliance = (config.membrane_thickness_mm * 1e-3) / (config.membrane_youngs_pa * config.membrane_confinement)
+    compliance += (length_mm * 1e-3) / material.youngs_pa
     return 1.0 / compliance
 
 

@@ -165,157 +165,193 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
 
     forces: (n, K) true force at t_k = k * step; motions: (n, K, 2) pixels; residual: (n, H, W) the
     reference-minus-level state each pixel of each grasp starts in (after its LED blink).
+
+    The pixels near each contact (the face grown by the largest motion and a margin) of all grasps
+    form one flat vector, stepped together. The geometry of each face is computed once at rest; the
+    small rigid motion d moves it to first order (rho(x - d) = rho(x) - d . grad rho), and the tilt
+    term of the flat punch, linear in position, folds into each grasp's approach.
     """
-    from neurotac_cli.sim.contact import flat_force_table, flat_pressure, foundation_stiffness, visibility
+    from neurotac_cli.sim.contact import flat_force_table, foundation_stiffness
 
     n, steps = forces.shape
     step = config.step_us
     pitch = config.pixel_pitch_mm
     h, w = camera.shape
     fm = membrane_force(config, forces, step)
-    # Geometry per grasp: flat hexagons (approach from force) or spheres (Hertz radius from force).
-    flat = np.array([g.shape.face == "hex" for g in grasps])
-    approach = np.zeros((n, steps))
-    radius_mm = np.zeros((n, steps))
-    peak_pressure = np.zeros((n, steps))
-    stiffness = np.zeros(n)
-    half_px = np.zeros(n)
-    for i, g in enumerate(grasps):  # per grasp set-up (dozens), not per pixel
-        mat = MATERIALS[g.material]
-        if flat[i]:
-            stiffness[i] = foundation_stiffness(config, mat, g.shape.length_mm)
-            table_a, table_f = flat_force_table(g.shape.size_mm / 2, g.tilt, g.tilt_dir, stiffness[i],
-                                                config.edge_factor_max, pitch)
-            approach[i] = np.interp(fm[i], table_f + np.arange(table_f.size) * 1e-12, table_a)
-            half_px[i] = g.shape.size_mm / 2 / contact.SQRT3_2 / pitch
-        else:
-            e_star = contact.effective_modulus(config.membrane_youngs_pa, config.membrane_poisson, mat.youngs_pa, mat.poisson)
-            r_m = g.shape.size_mm / 2 * 1e-3
-            radius_mm[i] = contact.hertz_radius_m(fm[i], r_m, e_star) * 1e3
-            peak_pressure[i] = contact.hertz_peak_pressure(fm[i], r_m, e_star)
-            half_px[i] = radius_mm[i].max() / pitch
     reach = float(np.abs(motions).max()) if motions.size else 0.0
-    half = int(np.ceil(half_px.max() + reach + 3))
-    size = 2 * half + 1
-    if size > min(h, w):
-        from neurotac_cli.errors import NeurotacError
-
-        raise NeurotacError(f"the contact ({size} px across) does not fit the {w}x{h} sensor (use a smaller object or a larger pixel_pitch_mm)")
-    cx = np.array([g.center_px[0] for g in grasps])
-    cy = np.array([g.center_px[1] for g in grasps])
-    ox = np.clip(np.round(cx).astype(int) - half, 0, w - size)
-    oy = np.clip(np.round(cy).astype(int) - half, 0, h - size)
-    cols = ox[:, None] + np.arange(size)[None, :]  # (n, S)
-    rows = oy[:, None] + np.arange(size)[None, :]
-    gather = rows[:, :, None] * w + cols[:, None, :]  # (n, S, S) flat sensor index
-    bright = camera.brightness.ravel()[gather]
-    on_thr = camera.on_threshold.ravel()[gather]
-    off_thr = camera.off_threshold.ravel()[gather]
-    # Positions relative to the face centre before motion (pixel centres at +0.5), in pixels.
-    u0 = (cols + 0.5 - cx[:, None])[:, None, :].astype(np.float32)  # (n, 1, S)
-    v0 = (rows + 0.5 - cy[:, None])[:, :, None].astype(np.float32)  # (n, S, 1)
-    cos_o = np.cos([g.orientation for g in grasps]).astype(np.float32)[:, None, None]
-    sin_o = np.sin([g.orientation for g in grasps]).astype(np.float32)[:, None, None]
-    tilt = np.array([g.tilt for g in grasps], np.float32)[:, None, None]
-    tdir = np.array([g.tilt_dir for g in grasps], np.float32)
-    apothem = np.array([g.shape.size_mm / 2 for g in grasps], np.float32)[:, None, None]
-    stiff = stiffness.astype(np.float32)[:, None, None]
-    level = np.log(bright + config.dark_level).astype(np.float32)
+    blocks = []
+    for i, g in enumerate(grasps):  # per-grasp set-up (dozens), not per pixel
+        blocks.append(_contact_block(config, camera, g, i, fm[i], motions[i], reach, residual[i]))
+    flat = np.concatenate([b["flat"] for b in blocks])
+    trial = np.concatenate([b["trial"] for b in blocks])
+    xs = np.concatenate([b["x"] for b in blocks])
+    ys = np.concatenate([b["y"] for b in blocks])
+    field = {name: np.concatenate([b[name] for b in blocks]).astype(np.float32)
+             for name in ("rho", "grad_x", "grad_y", "gap", "stiffness", "apothem", "bright", "on", "off", "residual")}
+    # per grasp and step: the flat punch's approach (tilt motion folded in) or the sphere's radius and peak pressure
+    drive = np.stack([b["drive"] for b in blocks]).astype(np.float32)  # (n, K)
+    peak = np.stack([b["peak"] for b in blocks]).astype(np.float32)
+    mx = motions[:, :, 0].astype(np.float32)
+    my = motions[:, :, 1].astype(np.float32)
+    is_flat = flat.all()
+    is_sphere = (~flat).all()
+    bright = field["bright"]
+    level = np.log(bright + np.float32(config.dark_level))
     filtered = level.copy()
-    reference = level + residual.reshape(n, -1)[np.arange(n)[:, None, None], gather]
-    last = np.full(level.shape, -1e12)
-    two_pi_fc = 2 * np.pi * config.cutoff_hz * step * 1e-6
+    reference = level + field["residual"]
+    last = np.full(level.shape, -1e9, np.float32)
+    two_pi_fc = np.float32(2 * np.pi * config.cutoff_hz * step * 1e-6)
+    contrast = np.float32(config.object_contrast)
+    dark = np.float32(config.dark_level)
+    cap = np.float32(config.edge_factor_max)
+    scale = np.float32(1.0 / config.pressure_scale_pa)
+    inv_pitch = np.float32(1.0 / pitch)
+    # A grasp needs stepping only while it touches and a little after (the filtered level settles).
+    touching = (drive > 0).any(axis=0) | (peak > 0).any(axis=0)
+    active = np.convolve(touching.astype(float), np.ones(int(20_000 / step) + 1), mode="full")[:steps] > 0
     out = []
     for k in range(steps):  # a loop over time steps; every pixel of every grasp at once
-        du = u0 - motions[:, k, 0][:, None, None]
-        dv = v0 - motions[:, k, 1][:, None, None]
-        uu = (du * cos_o + dv * sin_o) * pitch
-        vv = (-du * sin_o + dv * cos_o) * pitch
-        s = np.zeros(level.shape, np.float32)
-        if flat.any():
-            pressure, cover = flat_pressure(uu, vv, apothem, tilt, (tdir[:, 0, None, None], tdir[:, 1, None, None]),
-                                            approach[:, k][:, None, None], stiff, config.edge_factor_max, pitch)
-            s = np.where(flat[:, None, None], visibility(pressure, cover, config.pressure_scale_pa), s)
-        if not flat.all():
-            a = radius_mm[:, k][:, None, None]
-            r2 = uu * uu + vv * vv
-            with np.errstate(invalid="ignore", divide="ignore"):
-                p = peak_pressure[:, k][:, None, None] * np.sqrt(np.clip(1.0 - r2 / np.maximum(a * a, 1e-12), 0.0, None))
-            cover = np.clip(0.5 + (a - np.sqrt(r2)) / pitch, 0.0, 1.0)
-            s = np.where(flat[:, None, None], s, visibility(p, cover, config.pressure_scale_pa))
-        intensity = bright * (1.0 - config.object_contrast * s)
-        target = np.log(intensity + config.dark_level)
-        alpha = -np.expm1(-two_pi_fc * np.clip(intensity, 0.02, None))
+        if not active[k]:
+            continue
+        dx = mx[trial, k]
+        dy = my[trial, k]
+        rho = field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]
+        s = np.empty_like(rho)
+        if not is_sphere:
+            # flat punch: rho = hex norm, coverage from the rim distance, Boussinesq rim factor, foundation pressure
+            f = flat if not is_flat else slice(None)
+            r = rho[f]
+            cover = np.clip(np.float32(0.5) + (np.float32(1.0) - r) * field["apothem"][f] * inv_pitch, 0, 1)
+            edge = np.minimum(np.float32(0.5) / np.sqrt(np.clip(np.float32(1.0) - r * r, np.float32(1e-6), None)), cap)
+            pressure = field["stiffness"][f] * np.clip(drive[trial[f], k] - field["gap"][f], 0, None) * edge
+            s[f] = -np.expm1(-pressure * scale) * cover
+        if not is_flat:
+            # Hertz: rho = distance from the centre (mm), drive = contact radius (mm), peak = p0 (Pa)
+            f = ~flat if not is_sphere else slice(None)
+            r = rho[f]
+            a = drive[trial[f], k]
+            inside = np.clip(np.float32(1.0) - (r * r) / np.maximum(a * a, np.float32(1e-12)), 0, None)
+            cover = np.clip(np.float32(0.5) + (a - r) * inv_pitch, 0, 1)
+            s[f] = -np.expm1(-peak[trial[f], k] * np.sqrt(inside) * scale) * cover
+        intensity = bright * (np.float32(1.0) - contrast * s)
+        target = np.log(intensity + dark)
+        alpha = -np.expm1(-two_pi_fc * np.maximum(intensity, np.float32(0.02)))
         previous = filtered
         filtered = previous + alpha * (target - previous)
-        t0 = k * step
-        events = _fire(previous, filtered, reference, on_thr, off_thr, last, t0, step, config.refractory_us)
+        events = _fire(previous, filtered, reference, field["on"], field["off"], last, float(k * step), step,
+                       config.refractory_us)
         if events is not None:
             out.append(events)
         if progress is not None and k % 200 == 0:
             progress(k, steps)
     if progress is not None:
         progress(steps, steps)
-    return _split(out, n, size, ox, oy)
+    return _split(out, n, trial, xs, ys)
+
+
+def _contact_block(config, camera, grasp, index, membrane_force_n, motion, reach, residual):
+    """The pixels near one grasp's contact, with their geometry at rest, and the grasp's drive per step."""
+    from neurotac_cli.sim.contact import flat_force_table, foundation_stiffness, hex_norm
+
+    pitch = config.pixel_pitch_mm
+    h, w = camera.shape
+    mat = MATERIALS[grasp.material]
+    cx, cy = grasp.center_px
+    flat = grasp.shape.face == "hex"
+    if flat:
+        apothem = grasp.shape.size_mm / 2
+        stiffness = foundation_stiffness(config, mat, grasp.shape.length_mm)
+        table_a, table_f = flat_force_table(apothem, grasp.tilt, grasp.tilt_dir, stiffness, config.edge_factor_max, pitch)
+        approach = np.interp(membrane_force_n, table_f + np.arange(table_f.size) * 1e-12, table_a)
+        # moving the face by d lowers the gap under it by tilt * (d . tilt_dir): add that to the approach
+        shift_mm = (motion[:, 0] * grasp.tilt_dir[0] + motion[:, 1] * grasp.tilt_dir[1]) * pitch
+        drive = np.where(approach > 0, approach + grasp.tilt * shift_mm * 1e-3, 0.0)
+        peak = np.zeros_like(drive)
+        extent_px = apothem / contact.SQRT3_2 / pitch
+    else:
+        e_star = contact.effective_modulus(config.membrane_youngs_pa, config.membrane_poisson, mat.youngs_pa, mat.poisson)
+        radius_m = grasp.shape.size_mm / 2 * 1e-3
+        drive = contact.hertz_radius_m(membrane_force_n, radius_m, e_star) * 1e3
+        peak = contact.hertz_peak_pressure(membrane_force_n, radius_m, e_star)
+        stiffness, apothem = 0.0, 0.0
+        extent_px = float(drive.max()) / pitch
+    half = int(np.ceil(extent_px + reach + 3))
+    cols = np.arange(int(np.floor(cx)) - half, int(np.floor(cx)) + half + 1)
+    rows = np.arange(int(np.floor(cy)) - half, int(np.floor(cy)) + half + 1)
+    u_px = (cols + 0.5 - cx)[None, :] + np.zeros((rows.size, 1))
+    v_px = (rows + 0.5 - cy)[:, None] + np.zeros((1, cols.size))
+    cos_o, sin_o = np.cos(grasp.orientation), np.sin(grasp.orientation)
+    uu = (u_px * cos_o + v_px * sin_o) * pitch
+    vv = (-u_px * sin_o + v_px * cos_o) * pitch
+    if flat:
+        rho = hex_norm(uu, vv, apothem)
+        corner = apothem / contact.SQRT3_2
+        gap = grasp.tilt * ((uu * grasp.tilt_dir[0] + vv * grasp.tilt_dir[1]) + corner) * 1e-3
+        near = rho <= 1.0 + (reach + 3) * pitch / apothem
+    else:
+        rho = np.hypot(uu, vv)
+        gap = np.zeros_like(rho)
+        near = rho <= (extent_px + reach + 3) * pitch
+    grad_y, grad_x = np.gradient(rho)  # per pixel of motion
+    yy, xx = np.meshgrid(rows, cols, indexing="ij")
+    keep = near & (xx >= 0) & (xx < w) & (yy >= 0) & (yy < h)
+    x, y = xx[keep], yy[keep]
+    count = int(keep.sum())
+    return {
+        "flat": np.full(count, flat), "trial": np.full(count, index), "x": x, "y": y,
+        "rho": rho[keep], "grad_x": grad_x[keep], "grad_y": grad_y[keep], "gap": gap[keep],
+        "stiffness": np.full(count, stiffness), "apothem": np.full(count, apothem),
+        "bright": camera.brightness[y, x], "on": camera.on_threshold[y, x], "off": camera.off_threshold[y, x],
+        "residual": residual[y, x], "drive": drive, "peak": peak,
+    }
 
 
 def _fire(previous, filtered, reference, on_thr, off_thr, last, t0, step, refractory):
     """Emit the threshold crossings of one step (in place: reference, last). None when there are none."""
     diff = filtered - reference
-    n_on = np.floor(diff / on_thr)
-    n_off = np.floor(-diff / off_thr)
-    fire_on = n_on >= 1
-    fire_off = n_off >= 1
-    if not (fire_on.any() or fire_off.any()):
+    on_index = np.flatnonzero(diff >= on_thr)
+    off_index = np.flatnonzero(diff <= -off_thr)
+    if not (on_index.size or off_index.size):
         return None
     parts = []
-    for mask, count, threshold, sign, polarity in ((fire_on, n_on, on_thr, 1.0, 1), (fire_off, n_off, off_thr, -1.0, 0)):
-        index = np.flatnonzero(mask)
+    for index, threshold, sign, polarity in ((on_index, on_thr, 1.0, 1), (off_index, off_thr, -1.0, 0)):
         if not index.size:
             continue
-        count = np.minimum(count.ravel()[index], 16).astype(np.int64)
-        thr = threshold.ravel()[index]
-        ref = reference.ravel()[index]
-        reference.ravel()[index] = ref + sign * count * thr
+        thr = threshold[index]
+        ref = reference[index]
+        count = np.minimum(np.floor(sign * diff[index] / thr), 16).astype(np.int64)
+        reference[index] = ref + sign * count * thr  # the reset absorbs what the refractory period misses
         rep = np.repeat(np.arange(index.size), count)
         kth = np.arange(rep.size) - np.repeat(np.cumsum(count) - count, count) + 1
         crossing = ref[rep] + sign * kth * thr[rep]
-        start = previous.ravel()[index][rep]
-        end = filtered.ravel()[index][rep]
+        start = previous[index][rep]
+        end = filtered[index][rep]
         with np.errstate(invalid="ignore", divide="ignore"):
-            frac = np.clip((crossing - start) / (end - start), 0.0, 1.0)
-        frac = np.nan_to_num(frac, nan=1.0)
+            frac = np.nan_to_num(np.clip((crossing - start) / (end - start), 0.0, 1.0), nan=1.0)
         t = t0 + frac * step
-        t = np.maximum(t, last.ravel()[index][rep] + kth * refractory)
+        t = np.maximum(t, last[index][rep] + kth * refractory)
         keep = t < t0 + step
         pixel = index[rep[keep]]
         t = t[keep]
-        if pixel.size:
-            # events of one pixel come in increasing k, so the last kept one is the latest
-            flat_last = last.reshape(-1)
-            flat_last[pixel] = t
+        last[pixel] = t  # events of a pixel come in increasing k: the last write is its latest event
         parts.append((pixel, t, np.full(pixel.size, polarity, np.uint8)))
     if not parts:
         return None
-    pixel = np.concatenate([p[0] for p in parts])
-    return pixel, np.concatenate([p[1] for p in parts]), np.concatenate([p[2] for p in parts])
+    return tuple(np.concatenate([part[j] for part in parts]) for j in range(3))
 
 
-def _split(out, n, size, ox, oy):
+def _split(out, n, trial, xs, ys):
     if out:
         pixel = np.concatenate([o[0] for o in out])
         t = np.concatenate([o[1] for o in out])
         p = np.concatenate([o[2] for o in out])
     else:
         pixel, t, p = np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.uint8)
-    trial = pixel // (size * size)
-    local = pixel % (size * size)
-    x = ox[trial] + local % size
-    y = oy[trial] + local // size
-    order = np.argsort(trial, kind="stable")
-    bounds = np.searchsorted(trial[order], np.arange(n + 1))
+    owner = trial[pixel]
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(n + 1))
     result = []
     for i in range(n):
         sel = order[bounds[i]:bounds[i + 1]]
-        result.append((np.round(t[sel]).astype(np.int64), x[sel], y[sel], p[sel]))
+        result.append((np.round(t[sel]).astype(np.int64), xs[pixel[sel]], ys[pixel[sel]], p[sel]))
     return result

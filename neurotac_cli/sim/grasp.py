@@ -82,7 +82,7 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
     counters: dict = {}
     grasps = []
     for material, shape, _, labels in queue:
-        key = (material, shape.name)
+        key = (material, shape.name, tuple(sorted(labels.items())))
         counters[key] = counters.get(key, 0) + 1
         band = GRIPPER_FORCE_BANDS.get(labels.get("gripper_force"), (0.0, 1.0))
         low = config.force_min_n + band[0] * (config.force_max_n - config.force_min_n)
@@ -116,8 +116,11 @@ def _plan_one(config, rng, material, shape, labels, peak, index) -> Grasp:
     grasp_end = max(contact + 5_000, _jitter(config, rng, config.grasp_us))
     load = min(loading_us(config, material, shape, peak) * rng.uniform(0.9, 1.1), grasp_end - contact)
     loaded = contact + int(load)
-    release = grasp_end + _jitter(config, rng, config.hold_us)
+    hold = _jitter(config, rng, config.hold_us)
     phase_release = _jitter(config, rng, config.release_us)
+    if config.max_duration_us:
+        hold = max(10_000, min(hold, config.max_duration_us - grasp_end - phase_release - config.tail_us))
+    release = grasp_end + hold
     unload = min(phase_release, int(0.5 * loading_us(config, material, shape, peak) * rng.uniform(0.8, 1.2)))
     released = release + max(2_000, unload)
     end = release + phase_release + config.tail_us

@@ -1,0 +1,154 @@
+"""`neurotac simulate` end to end: the rig's files, the synced table, same seed same bytes, user errors."""
+
+import csv
+import subprocess
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from neurotac_cli.cli import cli
+from neurotac_cli.io.writers import aedat2_bytes, write_aedat2
+
+SMALL = ["--preset", "ch4", "--trials", "2", "--set", "hold_us=40ms", "--set", "max_duration_us=0us"]
+
+
+def decode_aedat2(data: bytes, height=180):
+    """A tiny independent AEDAT 2.0 decoder: skip `#` lines, big-endian (address, timestamp) pairs."""
+    offset = 0
+    while data[offset:offset + 1] == b"#":
+        offset = data.index(b"\n", offset) + 1
+    words = np.frombuffer(data[offset:], dtype=">u4").reshape(-1, 2)
+    address, t = words[:, 0].astype(np.int64), words[:, 1].astype(np.int64)
+    return t, (address >> 12) & 0x3FF, height - 1 - ((address >> 22) & 0x1FF), (address >> 11) & 1
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sim")
+    done = subprocess.run(["neurotac", "simulate", *SMALL, "--seed", "7", "--out", str(folder)], capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()
+    assert done.stderr == b"" and done.stdout == b""  # no progress off a terminal, no data on stdout
+    return folder
+
+
+def test_aedat2_writer_round_trips_through_an_independent_decoder(tmp_path):
+    rng = np.random.default_rng(0)
+    t = np.sort(rng.integers(0, 2**32 - 1, 500))
+    x, y, p = rng.integers(0, 240, 500), rng.integers(0, 180, 500), rng.integers(0, 2, 500)
+    write_aedat2(tmp_path / "a.aedat", t, x, y, p)
+    data = (tmp_path / "a.aedat").read_bytes()
+    assert data.startswith(b"#!AER-DAT2.0\r\n")
+    for got, want in zip(decode_aedat2(data), (t, x, y, p)):
+        np.testing.assert_array_equal(got, want)
+    assert aedat2_bytes(t, x, y, p) == data
+
+
+def test_aedat2_writer_refuses_what_the_format_cannot_hold():
+    from neurotac_cli.errors import NeurotacError
+
+    with pytest.raises(NeurotacError, match="outside"):
+        aedat2_bytes([0], [240], [0], [1])
+    with pytest.raises(NeurotacError, match="32-bit"):
+        aedat2_bytes([2**32], [0], [0], [1])
+    with pytest.raises(NeurotacError, match="time order"):
+        aedat2_bytes([5, 4], [0, 0], [0, 0], [1, 1])
+
+
+def test_out_writes_camera_files_force_logs_still_and_manifest(dataset):
+    with open(dataset / "manifest.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2
+    assert list(rows[0])[:7] == ["trial", "events", "force", "material", "object", "size_mm", "true_t0_us"]
+    assert (dataset / "still.aedat").is_file()
+    for row in rows:
+        t, x, y, p = decode_aedat2((dataset / row["events"]).read_bytes())
+        t0 = int(row["true_t0_us"])
+        assert t[0] > 1_000_000 and np.all(np.diff(t) >= 0)  # the camera's own clock
+        assert x.max() < 240 and y.max() < 180
+        off = t[p == 0]
+        counts, edges = np.histogram(off, np.arange(t[0], t[-1] + 1000, 1000))
+        assert abs(edges[np.argmax(counts)] - t0) <= 1000  # the OFF spike is at the manifest's LED-off
+        with open(dataset / row["force"]) as handle:
+            lines = handle.read().splitlines()
+        assert lines[0] == "t_ms,force_N"
+        times = np.array([float(line.split(",")[0]) for line in lines[1:]])
+        assert times[0] == 0 and np.all(np.diff(times) == 2)  # 500 Hz from LED-off
+
+
+def test_camera_files_read_back_with_the_project_reader(dataset):
+    io = pytest.importorskip("neurotac_cli.io")
+    if not hasattr(io, "read_events_table"):
+        pytest.skip("reader not available yet")
+    with open(dataset / "manifest.csv") as handle:
+        row = next(csv.DictReader(handle))
+    table = io.read_events_table(str(dataset / row["events"]))
+    t, x, y, p = decode_aedat2((dataset / row["events"]).read_bytes())
+    np.testing.assert_array_equal(table.column("t").to_numpy(), t)
+    np.testing.assert_array_equal(table.column("x").to_numpy(), x)
+    np.testing.assert_array_equal(table.column("y").to_numpy(), y)
+    np.testing.assert_array_equal(table.column("p").to_numpy(), p)
+
+
+def test_same_seed_same_bytes(dataset, tmp_path):
+    again = tmp_path / "again"
+    done = subprocess.run(["neurotac", "simulate", *SMALL, "--seed", "7", "--out", str(again)], capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()
+    names = sorted(path.name for path in dataset.iterdir())
+    assert names == sorted(path.name for path in again.iterdir())
+    for name in names:
+        assert (dataset / name).read_bytes() == (again / name).read_bytes(), name
+    other = tmp_path / "other"
+    subprocess.run(["neurotac", "simulate", *SMALL, "--seed", "8", "--out", str(other)], check=True)
+    assert (other / "manifest.csv").read_bytes() != (dataset / "manifest.csv").read_bytes()
+
+
+def test_synced_writes_a_recordings_table_relative_to_led_off(tmp_path):
+    from neurotac_cli import schema, tables
+
+    out = tmp_path / "rec.arrows"
+    result = CliRunner().invoke(cli, ["simulate", *SMALL, "--seed", "7", "--synced", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = tables.read([str(out)])
+    assert schema.kind_of(table.schema) == "recordings"
+    assert schema.sensor_of(table.schema) == (240, 180)
+    assert table.num_rows == 2
+    assert {"material", "object", "size_mm"} <= set(schema.label_columns(table.schema))
+    events = table.column("events")[0].values
+    t = events.field("t").to_numpy()
+    p = events.field("p").to_numpy()
+    assert t.min() < 0 < t.max()  # the LED blink is before t0, the grasp after
+    assert np.sum((p == 0) & (t >= 0) & (t < 2_000)) > 1000  # the LED-off spike right at t0
+    force = table.column("force")[0].values
+    assert force.field("t").to_numpy()[0] == 0
+    history = schema.get_meta(table.schema, schema.HISTORY)
+    assert history[-1]["command"] == "simulate" and history[-1]["args"]["seed"] == 7
+
+
+def test_the_objects_option_and_labels(tmp_path):
+    result = CliRunner().invoke(cli, ["simulate", "--objects", "foam:hex:1,rubber:sphere10:1:grip=soft",
+                                      "--set", "hold_us=20ms", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    with open(tmp_path / "manifest.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [(r["material"], r["object"]) for r in rows] == [("foam", "hex"), ("rubber", "sphere10")]
+    assert rows[1]["grip"] == "soft"
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ([], "nothing to write"),
+        (["--synced", "--set", "bogus=1"], "unknown simulator parameter"),
+        (["--synced", "--set", "hold_us=700"], "carries its unit"),
+        (["--synced", "--objects", "steel:cube3:2"], "unknown object"),
+        (["--synced", "--objects", "wood:hex:2"], "unknown material"),
+        (["--synced", "--force-range", "3..1"], "force range"),
+        (["--out", "x", "-o", "y.arrows"], "-o writes the --synced table"),
+    ],
+)
+def test_user_errors_are_one_line_and_exit_1(args, message, tmp_path):
+    result = CliRunner().invoke(cli, ["simulate", *args])
+    assert result.exit_code == 1, result.output
+    assert message in result.output
+    assert "Traceback" not in result.output
