@@ -1,4 +1,4 @@
-"""Speed of `augment` on chapter-5-sized data: 60 trials x 36 frames x 2 x 70 x 75.
+"""Speed of `augment` on chapter-5-sized data: 60 trials x 36 frames x 2 x 75 x 70 (H x W; the thesis says 70x75).
 
 Rotation (0-45 degrees), resize (1.25), FS (-1) and TES (-2, 0.5), two copies each, must take under
 10 s on 2 cores. Peers measured in the same run: scipy.ndimage.affine_transform for the warps (one
@@ -16,7 +16,7 @@ import numpy as np
 from neurotac_cli import schema as sch
 from neurotac_cli.ops import augment as aug
 
-TRIALS, FRAMES, HEIGHT, WIDTH = 60, 36, 70, 75
+TRIALS, FRAMES, HEIGHT, WIDTH = 60, 36, 75, 70  # crop --size 140x150 (W x H), pooled 2x2
 BUDGET_S = 10.0
 
 
