@@ -391,3 +391,13 @@ def test_bad_settings_are_refused_when_built():
         aug.Rotate(45.0, 0.0)
     with pytest.raises(NeurotacError):
         aug.augment_frames(make_frames(), [aug.FrameShift(1)], seed=-1)
+
+
+def test_where_augments_only_the_chosen_trials_and_passes_the_others():
+    table = make_frames()
+    out, _ = aug.augment_frames(table, [aug.Resize(1.25)], where=[("size_mm", "12"), ("size_mm", "18")])
+    assert sorted(set(out["trial"].to_pylist())) == ["bolt0", "bolt0~resize(1.25)#1", "bolt1", "bolt2", "bolt2~resize(1.25)#1"]
+    with pytest.raises(SchemaError, match="no such column"):
+        aug.augment_frames(table, [aug.Resize(1.25)], where=[("colour", "red")])
+    with pytest.raises(NeurotacError, match="no trial matches"):
+        aug.augment_frames(table, [aug.Resize(1.25)], where=[("size_mm", "99")])

@@ -2,7 +2,7 @@
 
 import click
 
-from neurotac_cli.options import input_paths, output_option, seed_option
+from neurotac_cli.options import KeyValue, input_paths, output_option, seed_option
 
 LOSS_WARNING = 0.05  # warn on stderr when a method pushes out more than this share of its input events
 
@@ -31,10 +31,13 @@ LOSS_WARNING = 0.05  # warn on stderr when a method pushes out more than this sh
               help="independent: each method makes its own copies; hybrid: every copy gets all methods in turn.")
 @click.option("--copies", type=click.IntRange(min=1), default=1, show_default=True,
               help="Copies of every trial per method (independent) or in all (hybrid).")
+@click.option("--where", "where", type=KeyValue(), multiple=True,
+              help="Augment only trials with this label value, e.g. object=bolt12 (repeat: any of them); "
+                   "the others pass unchanged.")
 @click.option("--only-augmented", is_flag=True, help="Write the copies only, not the original trials.")
 @seed_option
 def command(paths, output, rotate, rotate_range, beta, preserve_total, noise_path, fs, tes, combine, copies,
-            only_augmented, seed):
+            where, only_augmented, seed):
     """Make augmented copies of every trial of a frames table (thesis chapter 5).
 
     Copies get the trial id TRIAL~WHAT#COPY and the columns source_trial (the original trial) and
@@ -73,7 +76,8 @@ def command(paths, output, rotate, rotate_range, beta, preserve_total, noise_pat
         noise = tables.read([noise_path], kind="frames")
         methods.append(augment.Noise(tuple(augment.noise_pool(noise, frames.schema))))
     result, counted = augment.augment_frames(
-        frames, methods, copies=copies, combine=combine, keep_original=not only_augmented, seed=seed
+        frames, methods, copies=copies, combine=combine, keep_original=not only_augmented, seed=seed,
+        where=list(where),
     )
     for name, entry in counted.items():
         lost = entry.get("events_lost", 0)
@@ -85,6 +89,6 @@ def command(paths, output, rotate, rotate_range, beta, preserve_total, noise_pat
     args = {
         "rotate": rotate, "rotate_range": list(rotate_range) if rotate_range else None, "resize": beta,
         "preserve_total": preserve_total, "noise": noise_path, "fs": fs, "tes": list(tes) if tes else None,
-        "combine": combine, "copies": copies, "only_augmented": only_augmented, "seed": seed, "counted": counted,
+        "combine": combine, "copies": copies, "where": [f"{k}={v}" for k, v in where] or None, "only_augmented": only_augmented, "seed": seed, "counted": counted,
     }
     tables.write(output, result, step=("augment", {key: value for key, value in args.items() if value is not None}))

@@ -395,6 +395,7 @@ def augment_frames(
     combine: str = "independent",
     keep_original: bool = True,
     seed: int = 0,
+    where: list[tuple[str, str]] | None = None,
 ) -> tuple[pa.Table, dict]:
     """Augment every trial of a `frames` table; returns (table, counts of what was done per method).
 
@@ -403,6 +404,8 @@ def augment_frames(
     Every copy keeps the rows' labels, force, phase, frame and t, and gets the id
     `<trial>~<what was done>#<copy>`, `source_trial` (the original trial) and `augment` (what was done).
     The draws of a trial's copy depend only on (seed, trial id, method, copy number).
+    `where` = [(column, value), ...]: augment only the trials whose column holds one of these
+    values (thesis 5.5 resizes small objects by 1.25 and large ones by 0.83); the others pass unchanged.
     """
     if combine not in COMBINES:
         raise NeurotacError(f"unknown combination {combine!r} (use independent or hybrid)")
@@ -422,12 +425,13 @@ def augment_frames(
     done_before = _column_or(frames, "augment", np.full(frames.num_rows, "", dtype=object))
     if any(method.name in ("fs", "tes") for method in methods):
         _check_consecutive(frame_numbers, order, bounds, trial_ids)
+    chosen = _chosen_rows(frames, where)
 
     plans = [[method] for method in methods] if combine == "independent" else [methods]
     stats = {}
     rows, new_ids, new_sources, new_augment = [], [], [], []
     per_row = int(keep_original) + len(plans) * copies
-    out_counts = np.empty((per_row * len(counts), *counts.shape[1:]), dtype=counts.dtype)
+    out_counts = np.empty((per_row * len(counts), *counts.shape[1:]), dtype=counts.dtype)  # at most
     filled = 0
     seen = set(trial_ids.tolist())
     for trial_rows in np.split(order, bounds):
@@ -440,7 +444,7 @@ def augment_frames(
             new_ids.append(trial_ids[trial_rows])
             new_sources.append(source_ids[trial_rows])
             new_augment.append(done_before[trial_rows])
-        for plan in plans:
+        for plan in plans if chosen[trial_rows[0]] else ():
             for copy in range(1, copies + 1):
                 result, labels = trial_counts, []
                 for method in plan:
@@ -471,7 +475,7 @@ def augment_frames(
     for entry in stats.values():
         for name, value in entry.items():
             entry[name] = int(round(value))
-    table = _assemble(frames, rows, out_counts, new_ids, new_sources, new_augment)
+    table = _assemble(frames, rows, out_counts[:filled], new_ids, new_sources, new_augment)
     return table, stats
 
 
@@ -489,6 +493,23 @@ def _trial_order(frames: pa.Table) -> tuple[np.ndarray, np.ndarray]:
     trials = rank[indices]
     order = np.lexsort((frames["frame"].to_numpy(), trials))
     return trials, order
+
+
+def _chosen_rows(frames: pa.Table, where) -> np.ndarray:
+    """True for the rows of the trials to augment: all, or those matching any (column, value) of `where`."""
+    if not where:
+        return np.ones(frames.num_rows, dtype=bool)
+    chosen = np.zeros(frames.num_rows, dtype=bool)
+    for name, value in where:
+        if name not in frames.column_names:
+            labels = ", ".join(sch.label_columns(frames.schema)) or "none"
+            raise SchemaError(f"cannot select trials by {name!r}: no such column (labels: {labels})")
+        chosen |= np.array([str(v) == value for v in frames[name].to_pylist()], dtype=bool)
+    if not chosen.any():
+        raise NeurotacError(
+            "no trial matches " + " or ".join(f"{name}={value}" for name, value in where) + " (check the label values with `neurotac info`)"
+        )
+    return chosen
 
 
 def _column_or(frames: pa.Table, name: str, default: np.ndarray) -> np.ndarray:
