@@ -10,7 +10,7 @@ Definitions (all forces in newtons):
   (1,0), (0,1), (1,1), no window); averaged over trials.
 - Bhattacharyya distance (D_B): between the distributions of measured and estimated force values of
   one trial within one phase, each taken as a normal distribution:
-  D_B = ¼·ln(¼·(σ₁²/σ₂² + σ₂²/σ₁² + 2)) + ¼·(μ₁-μ₂)²/(σ₁²+σ₂²), variances floored at 1e-6 N²; averaged
+  D_B = ¼·ln(¼·(σ₁²/σ₂² + σ₂²/σ₁² + 2)) + ¼·(μ₁-μ₂)²/(σ₁²+σ₂²), variances floored at 1e-4 N² (a 0.01 N resolution), so a flat phase does not blow up; averaged
   over trials.
 - `--nonzero` (thesis 4.6): only frames whose measured force is not zero are scored.
 
@@ -64,7 +64,7 @@ def dtw_distance(a, b) -> float:
     return float(total[n, m])
 
 
-def bhattacharyya(a, b, floor: float = 1e-6) -> float:
+def bhattacharyya(a, b, floor: float = 1e-4) -> float:
     """Bhattacharyya distance between normal fits of two samples."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if len(a) == 0 or len(b) == 0:

@@ -1,0 +1,71 @@
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from neurotac_cli import metrics
+
+
+def naive_dtw(a, b):
+    n, m = len(a), len(b)
+    total = np.full((n + 1, m + 1), np.inf)
+    total[0, 0] = 0
+    for i in range(1, n + 1):
+        for j in range(1, m + 1):
+            total[i, j] = abs(a[i - 1] - b[j - 1]) + min(total[i - 1, j - 1], total[i - 1, j], total[i, j - 1])
+    return total[n, m]
+
+
+series = st.lists(st.floats(-5, 5, allow_nan=False), min_size=1, max_size=12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(series, series)
+def test_dtw_equals_the_textbook_recurrence(a, b):
+    assert np.isclose(metrics.dtw_distance(a, b), naive_dtw(a, b))
+
+
+@settings(max_examples=40, deadline=None)
+@given(series, st.integers(0, 3))
+def test_dtw_of_a_stretched_copy_is_zero(a, repeat):
+    stretched = np.repeat(a, repeat + 1)
+    assert metrics.dtw_distance(a, stretched) == 0
+
+
+def test_bhattacharyya_zero_for_same_and_symmetric():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(0, 1, 200), rng.normal(1, 2, 200)
+    assert metrics.bhattacharyya(a, a) == 0
+    assert np.isclose(metrics.bhattacharyya(a, b), metrics.bhattacharyya(b, a))
+    # two unit normals one sigma apart: D_B = 1/8
+    assert np.isclose(metrics.bhattacharyya(np.array([-1.0, 1.0]), np.array([0.0, 2.0])), 0.125)
+
+
+def test_regression_figures():
+    true = np.array([0.0, 1.0, 2.0, 3.0])
+    pred = np.array([0.0, 1.0, 2.0, 5.0])
+    figures = metrics.regression(true, pred)
+    assert figures["mse"] == 1.0 and figures["rmse"] == 1.0 and figures["mae"] == 0.5
+    assert np.isclose(figures["rmse_pct_range"], 100 / 3)
+    assert np.isclose(figures["r2"], 1 - 4 / 5)
+    assert np.isclose(figures["mse_sd"], np.std([0, 0, 0, 4.0]))
+
+
+def test_phases_nonzero_and_trials():
+    trial = ["a"] * 4 + ["b"] * 4
+    phase = ["grasping", "grasping", "holding", "releasing"] * 2
+    true = np.array([0, 1, 2, 0, 0, 1, 3, 0], dtype=float)
+    pred = true + 0.5
+    rows = metrics.force_rows(trial, phase, true, pred, nonzero=True)
+    figures = {(s, m): v for s, m, v in rows}
+    assert figures[("all", "n")] == 4 and figures[("all", "mae")] == 0.5
+    assert ("phase:releasing", "mse") not in figures  # all zero force there
+    assert figures[("trial:b", "n")] == 2
+
+
+def test_confusion_and_recall():
+    rows = metrics.classification_rows(["a", "a", "b", "b"], ["a", "b", "b", "b"], ["a", "b"])
+    figures = {(s, m): v for s, m, v in rows}
+    assert figures[("all", "accuracy")] == 0.75
+    assert figures[("class:a", "recall")] == 0.5 and figures[("class:b", "recall")] == 1.0
+    assert figures[("confusion:a", "pred:b")] == 1
+    assert (metrics.confusion(["a", "b"], ["b", "b"], ["a", "b"]) == [[0, 1], [0, 1]]).all()

@@ -1,0 +1,99 @@
+import json
+
+import numpy as np
+import pytest
+
+from neurotac_cli import model as models
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import store
+from tests.test_model_helpers import tiny_frames
+
+ALL = models.FORCE_MODELS + models.MATERIAL_MODELS
+FAST = {"epochs": 3, "batch_size": 4}
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return tiny_frames()
+
+
+def _outputs(model, table):
+    if model.task == "force":
+        return models.predict_table(model, table).column("force_pred").to_numpy()
+    result = models.classify_table(model, table)
+    return np.stack([result.column(f"prob_{c}").to_numpy() for c in model.classes])
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_model_trains_and_round_trips_with_identical_predictions(name, frames, tmp_path):
+    options = dict(FAST) if name != "gp" else {"restarts": 0, "max_points": 200}
+    model = models.train(frames, models.make_spec(name, **options), val_fraction=0.3, seed=1)
+    path = tmp_path / f"{name}.model"
+    models.save(model, str(path))
+    loaded = models.load(str(path))
+    assert loaded.name == name and loaded.task == model.task
+    np.testing.assert_array_equal(_outputs(model, frames), _outputs(loaded, frames))
+
+
+def test_model_file_is_safetensors_with_a_json_header_and_no_pickle(frames, tmp_path):
+    model = models.train(frames, models.make_spec("convlstm", **FAST), val_fraction=0.3, seed=0)
+    path = tmp_path / "m.model"
+    models.save(model, str(path))
+    raw = path.read_bytes()
+    assert b"\x80\x04" not in raw[:16]  # no pickle protocol header
+    header = store.read_header(str(path))
+    assert header["architecture"] == {"layers": 4, "filters": 3, "kernel": 3, "dropout": 0.4, "dense": 0}
+    assert header["input"]["height"] == 9 and header["input"]["window_us"] == 10000
+    assert header["input"]["channels"] == ["off", "on"]
+    assert "count_scale" in header["input"]["normalisation"]
+    assert set(header["training"]["trials"]) == {"train", "validation"}
+    json.dumps(header)
+
+
+def test_gp_is_stored_as_arrays(frames, tmp_path):
+    model = models.train(frames, models.make_spec("gp", restarts=1, max_points=50), seed=0)
+    path = tmp_path / "gp.model"
+    models.save(model, str(path))
+    from safetensors.torch import load_file
+
+    tensors = load_file(str(path))
+    assert tensors["inputs"].shape == (50, 3) and tensors["dual"].shape == (50,)
+    assert tensors["length_scale"].shape == (3,)
+
+
+def test_same_seed_same_model(frames):
+    a = models.train(frames, models.make_spec("ours", **FAST), val_fraction=0.3, seed=5)
+    b = models.train(frames, models.make_spec("ours", **FAST), val_fraction=0.3, seed=5)
+    np.testing.assert_array_equal(_outputs(a, frames), _outputs(b, frames))
+
+
+def test_normalisation_is_fitted_on_training_trials_only(frames):
+    data = models.core.shaping.sequences(frames)
+    model = models.train(frames, models.make_spec("convlstm", epochs=1), val_trials=["t0", "t1"], seed=0)
+    train = [c for c, trial in zip(data.counts, data.trials) if trial not in ("t0", "t1")]
+    expected = np.max([c.reshape(len(c), 2, -1).max(axis=(0, 2)) for c in train], axis=0)
+    np.testing.assert_array_equal(model.net.count_scale.numpy(), expected.astype(np.float32))
+    assert model.training["trials"]["validation"] == ["t0", "t1"]
+
+
+def test_early_stopping_restores_best_weights(frames):
+    model = models.train(frames, models.make_spec("ours", epochs=40, patience=2, lr=0.05), val_fraction=0.3, seed=0)
+    curve = model.training["curve"]
+    best = min(row["val_loss"] for row in curve)
+    assert len(curve) < 40 or curve[-1]["val_loss"] == best
+    predictions = models.predict_table(model, frames)
+    assert predictions.num_rows == frames.num_rows
+
+
+def test_unknown_option_and_model_are_refused():
+    with pytest.raises(ModelError, match="no option 'delays'"):
+        models.make_spec("convlstm", delays=3)
+    with pytest.raises(ModelError, match="unknown model"):
+        models.make_spec("resnet")
+
+
+def test_a_foreign_file_is_refused_clearly(tmp_path):
+    path = tmp_path / "bad.model"
+    path.write_bytes(b"not a model at all")
+    with pytest.raises(ModelError, match="not a neurotac model file"):
+        models.load(str(path))

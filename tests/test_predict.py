@@ -1,0 +1,88 @@
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow as pa
+import pytest
+
+from neurotac_cli import model as models
+from neurotac_cli import tables
+from tests.test_model_helpers import tiny_frames, write_stream
+
+
+def run(args, stdin):
+    code = "from neurotac_cli.cli import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *args], stdin=stdin, capture_output=True)
+
+
+@pytest.mark.parametrize("name", ["ours", "convlstm", "tdnn", "gp", "lstm", "cnnlstm"])
+def test_streaming_in_pieces_equals_eval(name):
+    frames = tiny_frames(trials=4)
+    options = {"epochs": 2} if name != "gp" else {"restarts": 0, "max_points": 100}
+    model = models.train(frames, models.make_spec(name, **options), seed=0)
+    whole = models.predict_table(model, frames).column("force_pred").to_numpy()
+    # frames arriving one or a few at a time, trials interleaved
+    order = np.argsort(np.tile(np.arange(12), 4), kind="stable")
+    shuffled = frames.take(pa.array(order))
+    schema, batches = models.stream(model, shuffled.schema, iter(shuffled.to_batches(max_chunksize=3)))
+    streamed = pa.Table.from_batches(list(batches), schema=schema)
+    back = {(t, f): v for t, f, v in zip(streamed.column("trial").to_pylist(), streamed.column("frame").to_pylist(),
+                                          streamed.column("force_pred").to_pylist())}
+    keys = zip(frames.column("trial").to_pylist(), frames.column("frame").to_pylist())
+    np.testing.assert_allclose([back[k] for k in keys], whole, rtol=1e-5, atol=1e-5)
+
+
+def test_predict_command_streams_equal_to_eval_command(tmp_path):
+    frames = tiny_frames(trials=3)
+    model = models.train(frames, models.make_spec("ours", epochs=2), seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    path = write_stream(frames, tmp_path / "f.arrows", chunk=1)
+    with open(path, "rb") as stdin:
+        streamed = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "s.arrows")], stdin)
+    with open(path, "rb") as stdin:
+        evaluated = run(["eval", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "e.arrows")], stdin)
+    assert streamed.returncode == 0 and evaluated.returncode == 0, streamed.stderr + evaluated.stderr
+    a = tables.read([str(tmp_path / "s.arrows")])
+    b = tables.read([str(tmp_path / "e.arrows")])
+    np.testing.assert_allclose(a.column("force_pred").to_numpy(), b.column("force_pred").to_numpy(), atol=1e-5)
+    assert a.column("trial").to_pylist() == b.column("trial").to_pylist()
+
+
+def test_predict_writes_each_batch_before_reading_the_next(tmp_path):
+    """A frame's estimate comes out while later frames have not been written yet (a live pipe)."""
+    frames = tiny_frames(trials=1)
+    model = models.train(frames, models.make_spec("ours", epochs=1), seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    code = "from neurotac_cli.cli import main; main()"
+    proc = subprocess.Popen([sys.executable, "-c", code, "predict", "--model", str(tmp_path / "m.model")],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    import pyarrow.ipc as ipc
+
+    writer = ipc.new_stream(proc.stdin, frames.schema)
+    writer.write_batch(frames.to_batches(max_chunksize=1)[0])
+    proc.stdin.flush()
+    reader = ipc.open_stream(proc.stdout)
+    first = reader.read_next_batch()  # arrives although the input stream is still open
+    assert first.num_rows == 1 and first.column("frame").to_pylist() == [0]
+    for batch in frames.to_batches(max_chunksize=1)[1:]:
+        writer.write_batch(batch)
+    writer.close()
+    proc.stdin.close()
+    rest = reader.read_all()
+    assert rest.num_rows == frames.num_rows - 1
+    assert proc.wait(timeout=60) == 0
+
+
+def test_classify_command_one_row_per_trial(tmp_path):
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("material-dnn", epochs=3), seed=0)
+    models.save(model, str(tmp_path / "c.model"))
+    path = write_stream(frames, tmp_path / "f.arrows")
+    with open(path, "rb") as stdin:
+        done = run(["classify", "--model", str(tmp_path / "c.model"), "-o", str(tmp_path / "c.arrows")], stdin)
+    assert done.returncode == 0, done.stderr
+    table = tables.read([str(tmp_path / "c.arrows")])
+    assert table.column("trial").to_pylist() == ["t0", "t1", "t2", "t3"]
+    assert {"material_pred", "prob_foam", "prob_steel"} <= set(table.schema.names)
+    probs = np.stack([table.column("prob_foam").to_numpy(), table.column("prob_steel").to_numpy()], axis=1)
+    np.testing.assert_allclose(probs.sum(axis=1), 1, atol=1e-5)

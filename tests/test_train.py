@@ -1,0 +1,103 @@
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from neurotac_cli import model as models
+from neurotac_cli.errors import ModelError
+from tests.test_model_helpers import tiny_frames, write_stream
+
+NEUROTAC = [sys.executable, "-m", "neurotac_cli.cli"]
+
+
+def run(args, stdin=None):
+    code = "from neurotac_cli.cli import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *args], stdin=stdin, capture_output=True)
+
+
+def test_split_that_separates_a_trial_from_its_augmented_copy_is_refused():
+    frames = tiny_frames(trials=6, augmented_copies=1)
+    with pytest.raises(ModelError, match="augmented copies fall on both sides"):
+        models.train(frames, models.make_spec("ours", epochs=1), val_trials=["t0"], seed=0)
+
+
+def test_fraction_split_keeps_copies_together():
+    frames = tiny_frames(trials=6, augmented_copies=1)
+    model = models.train(frames, models.make_spec("ours", epochs=1), val_fraction=0.3, seed=0)
+    val = set(model.training["trials"]["validation"])
+    train = set(model.training["trials"]["train"])
+    sources = lambda names: {n.split("~")[0] for n in names}  # noqa: E731
+    assert val and not (sources(val) & sources(train))
+
+
+def test_val_where_picks_a_label_value():
+    frames = tiny_frames(trials=6)
+    model = models.train(frames, models.make_spec("tdnn", epochs=1), val_where="object=large", seed=0)
+    assert model.training["trials"]["validation"] == ["t1", "t3", "t5"]
+
+
+def test_leak_is_refused_on_the_command_line(tmp_path):
+    path = write_stream(tiny_frames(trials=4, augmented_copies=1), tmp_path / "f.arrows")
+    with open(path, "rb") as stdin:
+        done = run(["train", "--model", "ours", "--epochs", "1", "--val-trials", "t0", "-o", str(tmp_path / "m.model")], stdin)
+    assert done.returncode == 1
+    assert b"neurotac train: error: trial 't0' and its augmented copies fall on both sides" in done.stderr
+    assert b"Traceback" not in done.stderr
+
+
+def test_model_from_a_different_input_spec_is_refused(tmp_path):
+    model = models.train(tiny_frames(trials=4), models.make_spec("ours", epochs=1), seed=0)
+    path = tmp_path / "m.model"
+    models.save(model, str(path))
+    other = write_stream(tiny_frames(trials=2, size=(8, 9)), tmp_path / "small.arrows")
+    with open(other, "rb") as stdin:
+        done = run(["eval", "--model", str(path)], stdin)
+    assert done.returncode == 1
+    message = done.stderr.decode()
+    assert "was trained on 9x9 frames of 10 ms, this input has 9x8 frames of 10 ms (different crop)" in message
+    with pytest.raises(ModelError, match="different window"):
+        models.predict_table(models.load(str(path)), tiny_frames(trials=2, window_us=7000))
+
+
+def test_train_command_writes_model_curve_and_plot(tmp_path):
+    path = write_stream(tiny_frames(trials=4), tmp_path / "f.arrows")
+    with open(path, "rb") as stdin:
+        done = run(["train", "--model", "tdnn", "--epochs", "3", "--layers", "2", "--units", "5", "-o", str(tmp_path / "m.model"),
+                    "--curve", str(tmp_path / "curve.parquet"), "--plot", str(tmp_path / "curve.png")], stdin)
+    assert done.returncode == 0, done.stderr
+    assert b"tdnn: 3 epochs" in done.stderr
+    assert (tmp_path / "curve.png").stat().st_size > 1000
+    import pyarrow.parquet as pq
+
+    curve = pq.read_table(tmp_path / "curve.parquet")
+    assert curve.num_rows == 6 and set(curve.column("metric").to_pylist()) == {"train_loss", "val_loss"}
+    model = models.load(str(tmp_path / "m.model"))
+    assert model.config.layers == 2 and model.config.units == 5
+
+
+def test_eval_cross_validation_folds_and_classification(tmp_path):
+    path = write_stream(tiny_frames(trials=6), tmp_path / "f.arrows")
+    with open(path, "rb") as stdin:
+        done = run(["eval", "--cv", "kfold:3", "--model-spec", "material-ours", "--epochs", "5",
+                    "--metrics", str(tmp_path / "m.parquet"), "--plot", str(tmp_path / "cm.png"), "-o", str(tmp_path / "oof.parquet")], stdin)
+    assert done.returncode == 0, done.stderr
+    assert b"confusion (rows true, columns predicted)" in done.stderr
+    import pyarrow.parquet as pq
+
+    oof = pq.read_table(tmp_path / "oof.parquet")
+    assert sorted(oof.column("trial").to_pylist()) == [f"t{i}" for i in range(6)]
+    assert set(oof.column("fold").to_pylist()) == {0, 1, 2}
+    metrics = pq.read_table(tmp_path / "m.parquet").to_pylist()
+    assert any(row["metric"] == "accuracy_fold_mean" for row in metrics)
+    assert (tmp_path / "cm.png").stat().st_size > 1000
+
+
+def test_eval_cv_held_out_group_scores_only_that_group(tmp_path):
+    frames = tiny_frames(trials=6)
+    from neurotac_cli.model import evaluate
+
+    predictions, rows = evaluate.cross_validate(frames, models.make_spec("ours", epochs=2), "group:object=large", seed=0)
+    assert set(predictions.column("object").to_pylist()) == {"large"}
+    figures = {(s, m): v for s, m, v in rows}
+    assert np.isfinite(figures[("all", "rmse")]) and ("phase:holding", "dtw") in figures
