@@ -1,0 +1,105 @@
+"""A reduced run of the thesis's augmentation study (5.5): train on the small and large bolts, validate
+on the medium one; no augmentation against each method; mean and σ of the validation MSE over seeds.
+
+The thesis: ConvLSTM, 48 training and 12 validation grasps, 10 seeds, training set doubled by each
+method. Here: 6 simulated grasps, a one-layer LSTM with 4 units, 2 epochs, 2 seeds, so it checks that
+the pieces fit together (augment -> train -> eval, copies never split from their originals), not
+the thesis's numbers. `examples/` runs the full study.
+"""
+
+import importlib.util
+import math
+import subprocess
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+import pytest
+from click.testing import CliRunner
+
+from neurotac_cli.cli import cli
+
+pytestmark = pytest.mark.slow
+
+CONDITIONS = {
+    "none": [],
+    "resize": [["--where", "object=bolt12", "--resize", "1.25"], ["--where", "object=bolt18", "--resize", "0.83"]],
+    "fs(-1)": [["--fs", "-1"]],
+    "tes(-2,0.5)": [["--tes", "-2", "0.5"]],
+}
+SEEDS = (0, 1)
+TRAIN = ["--model", "lstm", "--layers", "1", "--units", "4", "--epochs", "2", "--patience", "2", "--threads", "1"]
+
+
+def needs(*commands):
+    missing = [c for c in commands if importlib.util.find_spec(f"neurotac_cli.commands.{c}") is None]
+    if missing:
+        pytest.skip(f"neurotac {', '.join(missing)} not built yet")
+
+
+def invoke(*args):
+    done = CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+    assert done.exit_code == 0, done.output
+    return done
+
+
+@pytest.fixture(scope="module")
+def ch5(tmp_path_factory):
+    needs("simulate", "frame", "crop", "train", "eval")
+    folder = tmp_path_factory.mktemp("study")
+    frames = folder / "frames.parquet"
+    command = (
+        "neurotac simulate --preset ch5 --trials 6 --seed 1 --synced | neurotac frame --window 10ms "
+        f"| neurotac crop --size 140x150 --center auto --pool 2x2 -o {frames}"
+    )
+    subprocess.run(["bash", "-o", "pipefail", "-c", command], check=True, capture_output=True)
+    table = pq.read_table(frames)
+    medium = pc.equal(table["object"], "bolt15")
+    pq.write_table(table.filter(pc.invert(medium)), folder / "train.parquet")
+    pq.write_table(table.filter(medium), folder / "validation.parquet")
+    return folder
+
+
+def augmented_training_set(folder, name, stages):
+    """The training trials with the condition's copies, beside the validation trials (for early stopping)."""
+    current = folder / "train.parquet"
+    for index, stage in enumerate(stages):
+        following = folder / f"{name}-{index}.parquet"
+        invoke("augment", *stage, "--seed", 7, "-o", following, current)
+        current = following
+    combined = folder / f"{name}-all.parquet"
+    train, validation = pq.read_table(current), pq.read_table(folder / "validation.parquet")
+    if "source_trial" not in validation.column_names:
+        validation = validation.append_column("source_trial", validation["trial"]).append_column(
+            "augment", pa.array([""] * validation.num_rows, pa.string())
+        )
+    if "source_trial" not in train.column_names:
+        train = train.append_column("source_trial", train["trial"]).append_column(
+            "augment", pa.array([""] * train.num_rows, pa.string())
+        )
+    pq.write_table(pa.concat_tables([train, validation.select(train.column_names)]), combined)
+    return combined, len(set(train["trial"].to_pylist()))
+
+
+def validation_mse(folder, data, seed):
+    model = folder / f"{data.stem}-{seed}.model"
+    metrics = folder / f"{data.stem}-{seed}-metrics.parquet"
+    invoke("train", *TRAIN, "--val-where", "object=bolt15", "--seed", seed, "-o", model, data)
+    invoke("eval", "--model", model, "--metrics", metrics, "--no-per-trial", "-o", folder / "pred.arrows",
+           folder / "validation.parquet")
+    table = pq.read_table(metrics).to_pylist()
+    return next(row["value"] for row in table if row["scope"] == "all" and row["metric"] == "mse")
+
+
+def test_reduced_augmentation_study(ch5, capsys):
+    results = {}
+    for name, stages in CONDITIONS.items():
+        data, training_trials = augmented_training_set(ch5, name.replace("(", "_").replace(")", "").replace(",", "_"), stages)
+        assert training_trials == (4 if name == "none" else 8)  # the thesis doubles the training set
+        results[name] = [validation_mse(ch5, data, seed) for seed in SEEDS]
+    with capsys.disabled():
+        print("\nreduced augmentation study (validation on bolt15, MSE in N^2 over seeds):")
+        for name, values in results.items():
+            print(f"  {name:12s} mean {np.mean(values):8.3f}  sd {np.std(values):7.3f}")
+    assert all(math.isfinite(v) and v >= 0 for values in results.values() for v in values)
