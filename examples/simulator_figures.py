@@ -59,7 +59,7 @@ def figure_counts_vs_force(out):
     ax.set_xlabel("frame (7 ms)")
     ax.set_ylabel("normalised value")
     ax.set_title("One simulated grasp (ch3 preset, rubber hexagon): force and events per frame")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="center right", fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(out, "sim_counts_vs_force.png"), dpi=110)
     plt.close(fig)
@@ -75,7 +75,7 @@ def figure_montage(out):
              int(g.release_us // 10_000) + 2, int(g.release_us // 10_000) + 4]
     cx, cy = (int(round(c)) for c in g.center_px)
     half = 57  # the thesis's 115 x 115 crop
-    fig, axes = plt.subplots(2, 6, figsize=(12, 4.4))
+    fig, axes = plt.subplots(2, 6, figsize=(12, 5.0))
     for ax, frame in zip(axes.ravel(), picks):
         sel = (rel >= frame * 10_000) & (rel < (frame + 1) * 10_000)
         image = np.ones((2 * half + 1, 2 * half + 1, 3))

@@ -139,7 +139,7 @@ PRESETS = {
         groups=_groups("foam:hex:11", "rubber:hex:9", "silicone:hex:14", "steel:hex:14"),
         force_min_n=0.8, force_max_n=3.7, contact_delay_us=(5_000, 20_000), grasp_us=154_000,
         hold_us=700_000, release_us=154_000, tail_us=0, duration_jitter=0.0, max_duration_us=1_008_000,
-        force_sensor="flexiforce", saturation_force_n=4.5,
+        force_sensor="flexiforce", saturation_force_n=4.5, pressure_scale_pa=50e3, servo_settle_us=60_000,
     ),
     # Thesis 4.5: 35 grasps of steel bolts of 8, 12 and 16 mm, up to 3.12 N, at most 410 ms, Nano17.
     "ch4": dict(
@@ -157,7 +157,7 @@ PRESETS = {
         ),
         force_min_n=8.0, force_max_n=25.0, contact_delay_us=(3_000, 10_000), grasp_us=50_000,
         hold_us=250_000, release_us=50_000, tail_us=5_000, duration_jitter=0.04, max_duration_us=360_000,
-        force_sensor="nano17", membrane_youngs_pa=2.0e6, membrane_thickness_mm=8.0,
+        force_sensor="nano17", membrane_youngs_pa=2.4e6, membrane_thickness_mm=8.0,
         saturation_force_n=30.0, pressure_scale_pa=120e3, servo_settle_us=25_000,
         gripper_speed_mm_s=250.0,
     ),
@@ -175,7 +175,10 @@ def preset_config(name: str, **overrides) -> SimConfig:
     if name not in PRESETS:
         raise NeurotacError(f"unknown preset {name!r} (choose one of {', '.join(PRESETS)})")
     values = dict(PRESETS[name], preset=name)
-    values.update({k: v for k, v in overrides.items() if v is not None})
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    if "max_duration_us" not in overrides and {"grasp_us", "hold_us", "release_us", "tail_us"} & set(overrides):
+        values["max_duration_us"] = 0  # phases set by hand are kept as given, not cut to the preset's longest trial
+    values.update(overrides)
     unknown = set(values) - set(field_names())
     if unknown:
         raise NeurotacError(f"unknown simulator parameter(s) {', '.join(sorted(unknown))} (see docs/simulator.md for the list)")

@@ -191,6 +191,7 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     # per grasp and step: the flat punch's approach (tilt motion folded in) or the sphere's radius and peak pressure
     drive = np.stack([b["drive"] for b in blocks]).astype(np.float32)  # (n, K)
     peak = np.stack([b["peak"] for b in blocks]).astype(np.float32)
+    spread = np.stack([b["spread"] for b in blocks]).astype(np.float32)  # 1 + lateral bulge of the face
     mx = motions[:, :, 0].astype(np.float32)
     my = motions[:, :, 1].astype(np.float32)
     is_flat = flat.all()
@@ -215,7 +216,7 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
             continue
         dx = mx[trial, k]
         dy = my[trial, k]
-        rho = field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]
+        rho = (field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]) / spread[trial, k]
         s = np.empty_like(rho)
         if not is_sphere:
             # flat punch: rho = hex norm, coverage from the rim distance, Boussinesq rim factor, foundation pressure
@@ -267,13 +268,18 @@ def _contact_block(config, camera, grasp, index, membrane_force_n, motion, reach
         shift_mm = (motion[:, 0] * grasp.tilt_dir[0] + motion[:, 1] * grasp.tilt_dir[1]) * pitch
         drive = np.where(approach > 0, approach + grasp.tilt * shift_mm * 1e-3, 0.0)
         peak = np.zeros_like(drive)
-        extent_px = apothem / contact.SQRT3_2 / pitch
+        # A soft object squeezed along its length bulges sideways (Poisson): its face grows by
+        # nu * strain, strain = mean pressure / E (foam at 3 N: ~7%; steel: nothing).
+        area_mm2 = 2 * np.sqrt(3.0) * apothem**2
+        spread = 1.0 + mat.poisson * np.clip(membrane_force_n, 0, None) / (area_mm2 * 1e-6) / mat.youngs_pa
+        extent_px = apothem * float(spread.max()) / contact.SQRT3_2 / pitch
     else:
         e_star = contact.effective_modulus(config.membrane_youngs_pa, config.membrane_poisson, mat.youngs_pa, mat.poisson)
         radius_m = grasp.shape.size_mm / 2 * 1e-3
         drive = contact.hertz_radius_m(membrane_force_n, radius_m, e_star) * 1e3
         peak = contact.hertz_peak_pressure(membrane_force_n, radius_m, e_star)
         stiffness, apothem = 0.0, 0.0
+        spread = np.ones_like(drive)
         extent_px = float(drive.max()) / pitch
     half = int(np.ceil(extent_px + reach + 3))
     cols = np.arange(int(np.floor(cx)) - half, int(np.floor(cx)) + half + 1)
@@ -287,7 +293,7 @@ def _contact_block(config, camera, grasp, index, membrane_force_n, motion, reach
         rho = hex_norm(uu, vv, apothem)
         corner = apothem / contact.SQRT3_2
         gap = grasp.tilt * ((uu * grasp.tilt_dir[0] + vv * grasp.tilt_dir[1]) + corner) * 1e-3
-        near = rho <= 1.0 + (reach + 3) * pitch / apothem
+        near = rho <= float(spread.max()) + (reach + 3) * pitch / apothem
     else:
         rho = np.hypot(uu, vv)
         gap = np.zeros_like(rho)
@@ -302,7 +308,7 @@ def _contact_block(config, camera, grasp, index, membrane_force_n, motion, reach
         "rho": rho[keep], "grad_x": grad_x[keep], "grad_y": grad_y[keep], "gap": gap[keep],
         "stiffness": np.full(count, stiffness), "apothem": np.full(count, apothem),
         "bright": camera.brightness[y, x], "on": camera.on_threshold[y, x], "off": camera.off_threshold[y, x],
-        "residual": residual[y, x], "drive": drive, "peak": peak,
+        "residual": residual[y, x], "drive": drive, "peak": peak, "spread": spread,
     }
 
 
