@@ -5,6 +5,9 @@ first event (plain events tables, unless a start is given). A trial covers `[0, 
 period past the last force sample where the trial has a force trace (the force log defines the
 experiment's length), else one microsecond past its last event. Window k is complete when
 (k+1)·T <= E; the last, partial window is kept (default) or dropped. Empty windows are zero frames.
+A plain events stream follows tonic's `ToFrame` instead: window k is complete when it ends at or
+before the last event's time, so its frames equal tonic's (see docs/commands/frame.md for the two
+edge cases where tonic differs from its own description).
 
 Counts are uint16 (channel 0 = OFF, 1 = ON); a pixel that would pass 65535 stays there and the
 events it could not hold are counted as saturated. `dtype="float32"` divides each channel by a
@@ -539,8 +542,10 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
 
         if state["start"] is None:
             raise NeurotacError("input events table is empty: nothing to frame")
-        end = state["last_t"] + 1 - state["start"]
-        n_real = n_windows(end, window, framing.partial)
+        # tonic's convention for a stream: window k is complete when it ends at or before the last
+        # event's time; the partial window kept is the one holding the last event
+        span = state["last_t"] - state["start"]
+        n_real = 0 if span < 0 else span // window + (1 if framing.partial == "keep" else 0)
         n_total = n_real
         if cap is not None:
             n_total = cap

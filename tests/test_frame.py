@@ -1,0 +1,276 @@
+"""frame: half-open windows from t0, conservation, tonic equality on real recordings, force, phases."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.errors import NeurotacError
+from neurotac_cli.ops import frame as fr
+from neurotac_cli.ops import phases as ph
+from tests.conftest import REAL_DATA
+
+W, H = 24, 18
+
+
+def random_events(seed, n=2000, span=95_000, start=0, width=W, height=H):
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(start, start + span, n))
+    return t, rng.integers(0, width, n), rng.integers(0, height, n), rng.integers(0, 2, n)
+
+
+def recordings(trials, width=W, height=H):
+    return sch.recordings_table(trials, width, height)
+
+
+def trapezoid_force(end_ms=200):
+    t_ms = np.arange(0, end_ms + 1, 2)
+    force = np.interp(t_ms, [0, 20, 60, 140, 170, end_ms], [0, 0, 3, 3, 0, 0])
+    return t_ms * 1000, force
+
+
+def counts_of(table):
+    return sch.counts_numpy(table.column("counts"))
+
+
+# ---------------------------------------------------------------- windows and conservation
+
+
+def test_windows_are_half_open_from_t0_and_empty_windows_are_zero_frames():
+    t = np.array([-5, 0, 9_999, 10_000, 45_000])
+    x, y, p = np.array([0, 1, 2, 3, 4]), np.zeros(5), np.array([0, 0, 1, 1, 0])
+    force_t, force_v = np.arange(0, 50_001, 2000), np.ones(26)
+    table = recordings([{"trial": "a", "t0": 7, "events": (t, x, y, p), "force": (force_t, force_v)}])
+    report = fr.FramingReport()
+    frames = fr.frame_recordings(table, 10_000, report=report)
+    counts = counts_of(frames)
+    assert frames.column("t").to_pylist() == [0, 10_000, 20_000, 30_000, 40_000, 50_000]
+    assert counts[0].sum() == 2 and counts[0][0, 0, 1] == 1 and counts[0][1, 0, 2] == 1  # 0 and 9999 in [0, 10ms)
+    assert counts[1][1, 0, 3] == 1  # 10000 starts the next window
+    assert counts[2].sum() == counts[3].sum() == 0  # empty windows are zero frames, not missing rows
+    assert report.before_start == 1 and report.framed == 4
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), window=st.sampled_from([1_000, 7_000, 10_000]), keep=st.booleans(),
+       chunk=st.sampled_from([7, 100, 100_000]))
+def test_counts_of_all_frames_equal_the_events_inside_the_windows(seed, window, keep, chunk):
+    t, x, y, p = random_events(seed, start=1_234_567)
+    table = sch.events_table(t, x, y, p, W, H)
+    report = fr.FramingReport()
+    framing = fr.Framing(window_us=window, partial="keep" if keep else "drop")
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=chunk), framing, report)
+    frames = pa.Table.from_batches(list(batches), schema=schema)
+    counts = counts_of(frames)
+    n = len(counts)
+    inside = (t - t[0]) < n * window
+    assert counts.sum() == inside.sum() == report.framed
+    assert report.framed + report.dropped == len(t)
+    assert frames.column("frame").to_pylist() == list(range(n))
+    # every event is in the frame of its window, on its pixel and channel
+    k = (t[inside] - t[0]) // window
+    expected = np.zeros_like(counts)
+    np.add.at(expected, (k, p[inside], y[inside], x[inside]), 1)
+    assert np.array_equal(counts, expected)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), pad=st.sampled_from([None, "longest", 3, 30]))
+def test_recording_counts_equal_events_inside_windows_and_drops_are_counted(seed, pad):
+    rng = np.random.default_rng(seed)
+    trials = []
+    for i in range(3):
+        t, x, y, p = random_events(seed + i, n=500, span=int(rng.integers(20_000, 120_000)), start=-15_000)
+        force_t = np.arange(0, int(rng.integers(10_000, 110_000)), 2000)
+        trials.append({"trial": f"g{i}", "t0": 10**6, "events": (t, x, y, p), "force": (force_t, np.ones(len(force_t)))})
+    report = fr.FramingReport()
+    frames = fr.frame_recordings(recordings(trials), 10_000, report=report, pad_to=pad)
+    assert counts_of(frames).sum() == report.framed
+    assert report.framed + report.before_start + report.after_end == report.events == 1500
+    lengths = [frames.filter(pc.equal(frames.column("trial"), f"g{i}")).num_rows for i in range(3)]
+    if pad == "longest":
+        assert len(set(lengths)) == 1
+    elif isinstance(pad, int):
+        assert lengths == [pad] * 3
+
+
+def test_streamed_frames_equal_whole_frames_with_a_small_buffer(monkeypatch):
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 3)  # three frames of buffer: frames leave early
+    t, x, y, p = random_events(3, n=5000, span=400_000)
+    t[2000:2100] += 150_000  # a gap of empty windows
+    t = np.sort(t)
+    table = sch.events_table(t, x, y, p, W, H)
+    streamed = fr.frames_from_events_table(table, 5_000)
+    n = len(counts_of(streamed))
+    assert np.array_equal(counts_of(streamed), fr.count_frames(t, x, y, p, 5_000, n, H, W, start=int(t[0])))
+
+
+def test_events_later_than_one_window_of_slack_are_counted_not_lost(monkeypatch):
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 2)
+    t = np.array([0, 10_000, 50_000, 60_000, 5_000, 70_000])  # 5000 arrives after frames 0..4 have left
+    x = y = np.zeros(6, dtype=int)
+    p = np.ones(6, dtype=int)
+    table = sch.events_table(t, x, y, p, W, H)
+    report = fr.FramingReport()
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=1), fr.Framing(window_us=10_000), report)
+    frames = pa.Table.from_batches(list(batches), schema=schema)
+    assert report.late == 1 and counts_of(frames).sum() == 5
+
+
+def test_saturation_holds_at_65535_and_is_counted_in_both_kernels():
+    n = 70_000
+    t, x, y, p = np.zeros(n, np.int64), np.full(n, 3), np.full(n, 2), np.ones(n)
+    for kernel in (fr._bin_numpy, None):
+        out = np.zeros((1, 2, H, W), np.uint16)
+        if kernel is None:
+            inside, saturated = fr.bin_into(t, x, y, p, 0, 10_000, 0, out)
+        else:
+            inside, saturated = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out)
+        assert out[0, 1, 2, 3] == 65535 and inside == n and saturated == n - 65535
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), first=st.integers(0, 5))
+def test_numpy_fallback_equals_compiled_kernel(seed, first):
+    t, x, y, p = random_events(seed, n=3000)
+    a = np.zeros((6, 2, H, W), np.uint16)
+    b = np.zeros((6, 2, H, W), np.uint16)
+    ra = fr.bin_into(t, x, y, p, 0, 10_000, first, a)
+    rb = fr._bin_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b)
+    assert ra == rb and np.array_equal(a, b)
+
+
+def test_last_partial_window_kept_or_dropped_and_counted():
+    force_t, force_v = np.arange(0, 25_001, 2000) * 1, np.ones(13)  # covers [0, 26 ms)
+    t = np.array([1_000, 21_000, 25_500])
+    trial = {"trial": "a", "t0": 0, "events": (t, np.zeros(3), np.zeros(3), np.zeros(3)), "force": (force_t, force_v)}
+    kept = fr.frame_recordings(recordings([trial]), 10_000)
+    report = fr.FramingReport()
+    dropped = fr.frame_recordings(recordings([trial]), 10_000, report=report, partial="drop")
+    assert kept.num_rows == 3 and dropped.num_rows == 2
+    assert report.after_end == 2 and counts_of(dropped).sum() == 1
+
+
+def test_accumulate_counts_from_the_trial_start():
+    t = np.array([1_000, 12_000, 13_000, 35_000])
+    trial = {"trial": "a", "t0": 0, "events": (t, np.zeros(4), np.zeros(4), np.ones(4)), "force": (np.arange(0, 38_001, 2000), np.zeros(20))}
+    frames = fr.frame_recordings(recordings([trial]), 10_000, accumulate=True)
+    assert counts_of(frames)[:, 1, 0, 0].tolist() == [1, 3, 3, 4]
+
+
+def test_float32_divides_each_channel_by_its_largest_count_and_records_the_scale():
+    t = np.array([1_000, 2_000, 3_000, 12_000])
+    p = np.array([1, 1, 0, 1])
+    trial = {"trial": "a", "t0": 0, "events": (t, np.zeros(4), np.zeros(4), p), "force": (np.arange(0, 18_001, 2000), np.zeros(10))}
+    frames = fr.frame_recordings(recordings([trial]), 10_000, dtype="float32")
+    counts = counts_of(frames)
+    assert counts.dtype == np.float32 and counts[0, 1, 0, 0] == 1.0 and counts[1, 1, 0, 0] == 0.5 and counts[0, 0, 0, 0] == 1.0
+    assert sch.get_meta(frames.schema, "neurotac:scale") == [1.0, 2.0]
+
+
+# ---------------------------------------------------------------- force and phases
+
+
+def test_force_per_frame_end_mean_median():
+    force_t = np.arange(0, 30_001, 2_000)
+    force_v = force_t / 1000.0  # 1 N per ms
+    end = fr.frame_force(force_t, force_v, 10_000, 4, "end")
+    mean = fr.frame_force(force_t, force_v, 10_000, 4, "mean")
+    median = fr.frame_force(force_t, force_v, 10_000, 4, "median")
+    assert end.tolist() == [10.0, 20.0, 30.0, 30.0]  # the last one holds the trace's last sample
+    assert mean[:3].tolist() == [4.0, 14.0, 24.0] and median[:3].tolist() == [4.0, 14.0, 24.0]
+
+
+def test_phases_follow_rise_plateau_and_fall_of_the_force():
+    force_t, force_v = trapezoid_force()
+    frames = fr.frame_recordings(
+        recordings([{"trial": "a", "t0": 0, "events": ([5], [0], [0], [0]), "force": (force_t, force_v)}]), 10_000, pad_to=25
+    )
+    phase = frames.column("phase").to_pylist()
+    assert phase[0] == "none" and phase[3] == "grasping" and phase[10] == "holding" and phase[15] == "releasing"
+    assert phase[-1] == "none" and phase.index("holding") < phase.index("releasing")
+    assert frames.column("force").null_count == 0
+
+
+def test_phases_given_as_frame_ranges():
+    assert ph.parse_ranges("0-21,22-121,122-143") == [(0, 21), (22, 121), (122, 143)]
+    labels = ph.phases_from_ranges(6, [(0, 1), (2, 3), (4, 4)])
+    assert labels.tolist() == ["grasping", "grasping", "holding", "holding", "releasing", "none"]
+    for bad in ("0-21,22-121", "5-2,3-4,5-6", "0-5,5-6,7-8", "a-b,1-2,3-4"):
+        with pytest.raises(NeurotacError):
+            ph.parse_ranges(bad)
+
+
+# ---------------------------------------------------------------- real recordings vs tonic
+
+
+REAL_FILES = [
+    "davis240c_rotdisk.aedat", "davis346_aestream.aedat4", "dvxplorer_tonic.aedat4", "prophesee_vga_faery.evt2.raw",
+    "prophesee_hd_expelliarmus.evt3.raw", "atis_ncars_loris.dat", "atis_ncars_loris.es",
+]
+
+
+@pytest.mark.parametrize("name", REAL_FILES)
+@pytest.mark.parametrize("window", [1_000, 10_000])
+def test_frames_of_real_recordings_equal_tonic_to_frame(name, window, real_data):
+    tonic = pytest.importorskip("tonic.transforms")
+    from neurotac_cli.io import read_events_table
+
+    path = real_data / name
+    if not path.is_file():
+        pytest.skip(f"{name} not in {real_data}")
+    table = read_events_table(str(path))
+    width, height = sch.sensor_of(table.schema)
+    events = np.zeros(table.num_rows, dtype=[("x", "<i8"), ("y", "<i8"), ("t", "<i8"), ("p", "<i8")])
+    for name_ in "xytp":
+        events[name_] = table.column(name_).to_numpy()
+    span = int(events["t"][-1] - events["t"][0])
+    for keep in (False, True):
+        ours = counts_of(fr.frames_from_events_table(table, window, partial="keep" if keep else "drop"))
+        theirs = tonic.ToFrame(sensor_size=(width, height, 2), time_window=window, include_incomplete=keep)(events)
+        if not keep and span < window:
+            assert len(ours) == 0 and len(theirs) == 1  # tonic keeps one incomplete frame here (documented)
+            continue
+        if keep and span % window == 0:
+            theirs_sum = theirs.sum()  # tonic drops the events at the last instant here (documented)
+            assert ours[: len(theirs)].sum() >= theirs_sum
+            continue
+        assert ours.shape == theirs.shape
+        assert np.array_equal(ours.astype(np.int64), theirs.astype(np.int64))
+
+
+# ---------------------------------------------------------------- command line
+
+
+def run(args, stdin=None):
+    return subprocess.run(["neurotac", *args],
+                          input=stdin, capture_output=True, env={**os.environ, "PATH": f"{os.path.dirname(sys.executable)}:{os.environ['PATH']}"})
+
+
+def test_frame_command_streams_an_events_table_and_records_history(tmp_path):
+    t, x, y, p = random_events(1, n=3000, span=100_000, start=5_000_000)
+    source = tmp_path / "ev.arrows"
+    tables.write(str(source), sch.events_table(t, x, y, p, W, H))
+    done = run(["frame", "--window", "10ms", str(source), "-o", str(tmp_path / "f.parquet")])
+    assert done.returncode == 0, done.stderr
+    frames = tables.read([str(tmp_path / "f.parquet")], kind="frames")
+    assert counts_of(frames).sum() == 3000 and frames.num_rows == 10
+    step = sch.get_meta(frames.schema, sch.HISTORY)[-1]
+    assert step["command"] == "frame" and step["args"]["window_us"] == 10_000
+    assert frames.column("trial").unique().to_pylist() == ["events"]
+
+
+def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
+    assert run(["frame", "--window", "10"]).returncode == 2
+    t, x, y, p = random_events(1)
+    source = tmp_path / "ev.arrows"
+    tables.write(str(source), sch.events_table(t, x, y, p, W, H))
+    done = run(["frame", "--window", "10ms", "--phases", "1-2", str(source)])
+    assert done.returncode == 1 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
