@@ -103,3 +103,27 @@ def test_large_text_is_read_in_several_batches(tmp_path, monkeypatch):
     assert len(parts) > 3
     assert sum(b.num_rows for b in parts) == n
     assert np.array_equal(np.concatenate([b.column("t").to_numpy() for b in parts]), t)
+
+
+def test_times_are_scaled_exactly_from_their_digits(tmp_path):
+    text = "1e-5 1 2 1\r\n2.5E-6   3  4 -1\r\n\r\n  0.0000015\t5 6 0\n1.0000004 0 0 1\n4.000001 0 0 1"
+    table = read_events_table(write(tmp_path, "e.txt", text))
+    # 2.5 µs and 1.5 µs round half up; 1.0000004 s rounds down; no float error on 4.000001 s
+    assert table["t"].to_pylist() == [10, 3, 2, 1_000_000, 4_000_001]
+    assert table["p"].to_pylist() == [1, 0, 0, 1, 1]
+
+
+def test_extra_csv_columns_are_ignored_and_negative_times_kept(tmp_path):
+    table = read_events_table(write(tmp_path, "e.csv", "t_ms,x,y,p,note\n1.5,1,2,1,abc\n-2,3,4,0,\n"))
+    assert events_of(table) == [(1500, 1, 2, 1), (-2000, 3, 4, 0)]
+
+
+@pytest.mark.parametrize("value", ["123456789012345678901", "1e30", "9223372036854775808"])
+def test_times_too_large_are_a_clear_error(tmp_path, value):
+    with pytest.raises(FormatError, match="line 2"):
+        read_events_table(write(tmp_path, "e.csv", f"t,x,y,p\n{value},1,2,1\n"))
+
+
+def test_long_numbers_with_only_zeros_beyond_int64_are_fine(tmp_path):
+    table = read_events_table(write(tmp_path, "e.csv", "t_s,x,y,p\n0000000000000000001.50000000000000000000,1,2,1\n"))
+    assert table["t"].to_pylist() == [1_500_000]

@@ -6,6 +6,7 @@ schema metadata `neurotac:triggers` as [{"t": µs, "type": ...}], which `sync --
 frame and exposure triggers of the APS are left out, as are frames and IMU samples.
 """
 
+import os
 import struct
 
 import numpy as np
@@ -22,6 +23,7 @@ TRIGGER_TYPES = {
     5: "generator_falling",
 }
 BATCH_EVENTS = 1 << 20
+SINGLE_PASS_BYTES = 64 << 20  # files up to this size are decoded once, larger ones twice
 
 
 def check_header(path: str):
@@ -55,15 +57,17 @@ def check_header(path: str):
         raise FormatError(f"the AEDAT 4.0 header is damaged ({error})") from None
 
 
-def _packets(path: str):
-    """The `aedat` decoder's packets, with its failures (a Rust panic included) as FormatError."""
+def _packets(path: str, skip_streams: bool = False):
+    """The `aedat` decoder's packets (after its streams, unless `skip_streams`), with its failures
+    (a Rust panic included) as FormatError."""
     import aedat
 
     check_header(path)
     try:
         decoder = aedat.Decoder(path)
         streams = decoder.id_to_stream()
-        yield streams
+        if not skip_streams:
+            yield streams
         for packet in decoder:
             yield packet
     except (KeyboardInterrupt, SystemExit, GeneratorExit, FormatError):
@@ -81,35 +85,42 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
         raise FormatError("the AEDAT 4.0 file has no events stream")
     events_id = event_ids[0]
     declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
-    meta = {}
-    if any(s.get("type") == "triggers" for s in streams.values()):
-        triggers = []
-        for packet in packets:
-            if "triggers" in packet:
-                found = packet["triggers"]
-                keep = np.isin(found["source"], list(TRIGGER_TYPES))
-                triggers += [
-                    {"t": int(t), "type": TRIGGER_TYPES[int(s)]} for t, s in zip(found["t"][keep], found["source"][keep])
-                ]
-        meta["triggers"] = triggers
-    else:
+    has_triggers = any(s.get("type") == "triggers" for s in streams.values())
+    if not has_triggers:
         packets.close()
+        return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path), events_id), meta={})
+    # The triggers go into the schema, which is written before the first batch: find them first.
+    # A small file is decoded once and its events kept; a large one is decoded twice, so memory
+    # stays flat.
+    small = os.path.getsize(path) <= SINGLE_PASS_BYTES
+    triggers, kept = [], []
+    for packet in packets:
+        if "triggers" in packet:
+            found = packet["triggers"]
+            keep = np.isin(found["source"], list(TRIGGER_TYPES))
+            triggers += [{"t": int(t), "type": TRIGGER_TYPES[int(s)]} for t, s in zip(found["t"][keep], found["source"][keep])]
+        elif small and packet.get("stream_id") == events_id and "events" in packet:
+            kept.append(packet)
+    if small:
+        chunks = lambda: _event_chunks(iter(kept), events_id)  # noqa: E731
+    else:
+        chunks = lambda: _event_chunks(_packets(path, skip_streams=True), events_id)  # noqa: E731
+    return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers})
 
-    def chunks():
-        pending, count = [], 0
-        for packet in _packets(path):
-            if packet.get("stream_id") != events_id or "events" not in packet:
-                continue
-            events = packet["events"]
-            pending.append(events)
-            count += len(events)
-            if count >= BATCH_EVENTS:
-                yield _columns(pending)
-                pending, count = [], 0
-        if pending:
+
+def _event_chunks(packets, events_id):
+    pending, count = [], 0
+    for packet in packets:
+        if packet.get("stream_id") != events_id or "events" not in packet:
+            continue
+        events = packet["events"]
+        pending.append(events)
+        count += len(events)
+        if count >= BATCH_EVENTS:
             yield _columns(pending)
-
-    return Decoded(sensor=declared, chunks=chunks, meta=meta)
+            pending, count = [], 0
+    if pending:
+        yield _columns(pending)
 
 
 def _columns(pending):

@@ -214,3 +214,201 @@ def decode_es_dvs(data, width, height, state):
             k += 1
     state[0], state[1], state[2], state[3], state[4] = time, step, on, cx, cy
     return t[:k], x[:k], y[:k], p[:k], bad
+
+
+# ---------------------------------------------------------------- text
+
+TEXT_OK, TEXT_NUMBER, TEXT_FIELDS, TEXT_COORDINATE, TEXT_POLARITY, TEXT_FRACTION, TEXT_DIGITS = range(7)
+TEXT_PROBLEMS = {
+    TEXT_NUMBER: "not a number",
+    TEXT_FIELDS: "wrong number of fields",
+    TEXT_COORDINATE: "x and y must be whole numbers from 0 to 65535",
+    TEXT_POLARITY: "polarity must be 0/1 or -1/1",
+    TEXT_FRACTION: "time is not a whole number of microseconds",
+    TEXT_DIGITS: "number too long",
+}
+POWERS = np.array([10**k for k in range(19)], dtype=np.int64)
+INT64_MAX = np.iinfo(np.int64).max
+
+
+@njit(cache=True, nogil=True)
+def _long_number(data, first, end, fraction):
+    """A number of more than 18 digits: drop leading zeros and trailing zeros of its fraction."""
+    start = first
+    while start < end and (data[start] == 48 or data[start] == 46):
+        start += 1
+    stop = end
+    if fraction > 0:
+        while stop > start and data[stop - 1] == 48 and fraction > 0:
+            stop -= 1
+            fraction -= 1
+    mantissa = np.int64(0)
+    count = 0
+    for j in range(start, stop):
+        if data[j] != 46:
+            mantissa = mantissa * 10 + (np.int64(data[j]) - 48)
+            count += 1
+    return mantissa, fraction, count <= 18
+
+
+@njit(cache=True, nogil=True)
+def parse_text(data, roles, comma, time_digits):
+    """Rows of text numbers -> (t, x, y, p, rows, status, offset).
+
+    `roles[i]` says what field i is: 0 = time, 1 = x, 2 = y, 3 = polarity, -1 = ignored. Fields are
+    separated by a comma (`comma`) or by runs of spaces and tabs; blank lines are skipped. Time is a
+    decimal (optionally with an exponent) scaled by 10**time_digits to whole µs: exactly, from its
+    digits, with no float rounding; a time column in µs (time_digits 0) must be whole, finer columns
+    are rounded half up to the µs. On the first problem, `status` says what and `offset` where.
+    """
+    n = data.shape[0]
+    rows_max = 1
+    for i in range(n):
+        if data[i] == 10:
+            rows_max += 1
+    t = np.empty(rows_max, np.int64)
+    x = np.empty(rows_max, np.uint16)
+    y = np.empty(rows_max, np.uint16)
+    p = np.empty(rows_max, np.uint8)
+    ncols = roles.shape[0]
+    row = 0
+    i = 0
+    while i < n:
+        line_start = i
+        # skip blank lines (and a lone \r)
+        j = i
+        while j < n and (data[j] == 32 or data[j] == 9 or data[j] == 13):
+            j += 1
+        if j >= n:
+            break
+        if data[j] == 10:
+            i = j + 1
+            continue
+        field = 0
+        if not comma:
+            i = j
+        while True:
+            if comma:
+                while i < n and (data[i] == 32 or data[i] == 9):
+                    i += 1
+            start = i
+            if field >= ncols:
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start
+            role = roles[field]
+            negative = False
+            mantissa = np.int64(0)
+            digits = 0
+            fraction = 0
+            exponent = 0
+            seen = role < 0
+            if role >= 0:
+                if i < n and (data[i] == 45 or data[i] == 43):
+                    negative = data[i] == 45
+                    i += 1
+                first = i
+                while i < n:
+                    digit = np.int64(data[i]) - 48
+                    if digit < 0 or digit > 9:
+                        break
+                    mantissa = mantissa * 10 + digit
+                    i += 1
+                seen = i > first
+                if i < n and data[i] == 46:
+                    i += 1
+                    point = i
+                    while i < n:
+                        digit = np.int64(data[i]) - 48
+                        if digit < 0 or digit > 9:
+                            break
+                        mantissa = mantissa * 10 + digit
+                        i += 1
+                    fraction = i - point
+                    seen = seen or fraction > 0
+                    digits = i - first - 1
+                else:
+                    digits = i - first
+                if digits > 18:
+                    # more digits than int64 holds: fine only if the extra ones are leading or trailing zeros
+                    mantissa, fraction, ok = _long_number(data, first, i, fraction)
+                    if not ok:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
+                if seen and i < n and (data[i] == 101 or data[i] == 69):
+                    i += 1
+                    exp_negative = False
+                    if i < n and (data[i] == 45 or data[i] == 43):
+                        exp_negative = data[i] == 45
+                        i += 1
+                    exp_seen = False
+                    while i < n and 48 <= data[i] <= 57:
+                        exponent = exponent * 10 + (data[i] - 48)
+                        exp_seen = True
+                        if exponent > 40:
+                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
+                        i += 1
+                    if not exp_seen:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+                    if exp_negative:
+                        exponent = -exponent
+            if not seen:
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+            if role < 0:
+                while i < n and data[i] != 10 and not ((comma and data[i] == 44) or (not comma and (data[i] == 32 or data[i] == 9))):
+                    i += 1
+            # the field must end here
+            end = i
+            if comma:
+                while i < n and (data[i] == 32 or data[i] == 9 or data[i] == 13):
+                    i += 1
+            else:
+                while i < n and (data[i] == 32 or data[i] == 9 or data[i] == 13):
+                    i += 1
+            at_end = i >= n or data[i] == 10
+            if not at_end and comma and data[i] != 44:
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+            if not at_end and not comma and i == end:
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+            if role >= 0:
+                scale = (time_digits if role == 0 else 0) + exponent - fraction
+                if scale >= 0:
+                    if scale > 18 or mantissa > INT64_MAX // POWERS[scale]:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
+                    value = mantissa * POWERS[scale]
+                else:
+                    if -scale > 18:
+                        divisor = POWERS[18]
+                        value = np.int64(0)
+                        rest = mantissa
+                    else:
+                        divisor = POWERS[-scale]
+                        value = mantissa // divisor
+                        rest = mantissa - value * divisor
+                    if rest != 0:
+                        if role != 0 or time_digits == 0:
+                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_FRACTION if role == 0 else TEXT_COORDINATE, start
+                        if 2 * rest >= divisor:
+                            value += 1
+                if negative:
+                    value = -value
+                if role == 0:
+                    t[row] = value
+                elif role == 1 or role == 2:
+                    if value < 0 or value > 65535:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_COORDINATE, start
+                    if role == 1:
+                        x[row] = value
+                    else:
+                        y[row] = value
+                else:
+                    if value != -1 and value != 0 and value != 1:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_POLARITY, start
+                    p[row] = 1 if value == 1 else 0
+            field += 1
+            if at_end:
+                if field != ncols:
+                    return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start
+                row += 1
+                i += 1
+                break
+            if comma:
+                i += 1  # past the comma
+    return t[:row], x[:row], y[:row], p[:row], row, TEXT_OK, n

@@ -3,15 +3,14 @@
 CSV time unit comes from the header: `t`, `t_us` or `timestamp` = µs, `t_ms` = ms, `t_s` = s. In a
 whitespace file (the public event-camera datasets' `events.txt`) a plain `t` is in seconds and the
 header is optional. Polarity 0/1 or -1/1 (-1 = OFF). Leading `#` or `%` comment lines are skipped.
-Parsing is pyarrow's multithreaded CSV reader, streamed block by block; a bad row is found again
-by a line-by-line pass, only on the error path, so its line number can be reported.
+Parsing is one compiled pass over the bytes (kernels.parse_text), block by block of whole lines;
+times are scaled to µs from their decimal digits, exactly (no float rounding; finer than µs is
+rounded half up). The first bad row stops the read with its line number.
 """
 
 import re
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv as pacsv
 
 from neurotac_cli.errors import FormatError
 from neurotac_cli.io import camera
@@ -19,7 +18,6 @@ from neurotac_cli.io.camera import Decoded
 
 TIME_NAMES = {"t": None, "t_us": 1, "timestamp": 1, "ts": 1, "time": None, "t_ms": 1_000, "t_s": 1_000_000}
 POLARITY_NAMES = ("p", "polarity", "pol")
-MAX_COORDINATE = 65535
 
 
 def open_text(path: str, head: bytes, sensor) -> Decoded:
@@ -50,42 +48,47 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
         raise FormatError(f"header {first.strip()!r} has no {', '.join(missing)} column (expected t,x,y,p; t may be t_us, t_ms or t_s)")
     factor = TIME_NAMES[time_name] or (1 if delimiter == "," else 1_000_000)
     data_line = skip + 1 + (1 if has_header else 0)  # 1-based line number of the first data row
-    types = {name: pa.float64() if factor != 1 else pa.int64() for name in names}
-    types.update({"x": pa.int64(), "y": pa.int64(), polarity_name: pa.int64()})
+    roles = np.array([{time_name: 0, "x": 1, "y": 2, polarity_name: 3}.get(name, -1) for name in names], dtype=np.int64)
+    time_digits = {1: 0, 1_000: 3, 1_000_000: 6}[factor]
 
     def chunks():
-        read = pacsv.ReadOptions(skip_rows=data_line - 1, column_names=names, block_size=max(1 << 12, min(camera.CHUNK_BYTES, 1 << 22)))
-        parse = pacsv.ParseOptions(delimiter=delimiter)
-        convert = pacsv.ConvertOptions(column_types=types, include_columns=[time_name, "x", "y", polarity_name])
-        try:
-            reader = pacsv.open_csv(path, read_options=read, parse_options=parse, convert_options=convert)
-            for batch in reader:
-                yield _columns(batch, time_name, polarity_name, factor)
-        except (pa.ArrowInvalid, ValueError) as error:
-            raise FormatError(_locate(path, data_line, names, delimiter, time_name, polarity_name, factor, error)) from None
+        from neurotac_cli.io import kernels
+
+        line = data_line
+        for block in _line_blocks(path, data_line):
+            data = np.frombuffer(block, dtype=np.uint8)
+            t, x, y, p, rows, status, offset = kernels.parse_text(data, roles, delimiter == ",", time_digits)
+            if status != kernels.TEXT_OK:
+                number = line + block.count(b"\n", 0, offset)
+                start = block.rfind(b"\n", 0, offset) + 1
+                end = block.find(b"\n", offset)
+                text = block[start : end if end >= 0 else len(block)].decode("utf-8", "replace").rstrip("\r")
+                raise FormatError(f"line {number}: {kernels.TEXT_PROBLEMS[status]}: {text[:80]!r} (fix or delete that row)")
+            line += block.count(b"\n")
+            yield t, x, y, p
 
     return Decoded(sensor=None, chunks=chunks)
 
 
-def _columns(batch, time_name, polarity_name, factor):
-    t = batch.column(time_name).to_numpy(zero_copy_only=False)
-    x = batch.column("x").to_numpy(zero_copy_only=False)
-    y = batch.column("y").to_numpy(zero_copy_only=False)
-    p = batch.column(polarity_name).to_numpy(zero_copy_only=False)
-    if any(column.null_count for column in batch.columns):
-        raise ValueError("empty field")
-    if factor != 1:
-        if not np.isfinite(t).all():
-            raise ValueError("time is not a finite number")
-        t = np.rint(t * factor)
-        if len(t) and np.abs(t).max() >= 2.0**62:
-            raise ValueError("time out of range")
-        t = t.astype(np.int64)
-    if len(x) and (min(x.min(), y.min()) < 0 or max(x.max(), y.max()) > MAX_COORDINATE):
-        raise ValueError("coordinate out of range")
-    if len(p) and not np.isin(p, (-1, 0, 1)).all():
-        raise ValueError("polarity is not 0/1 or -1/1")
-    return t, x.astype(np.uint16), y.astype(np.uint16), (p > 0).astype(np.uint8)
+def _line_blocks(path: str, first_line: int):
+    """The file from line `first_line` on, in blocks of whole lines of about CHUNK_BYTES."""
+    with open(path, "rb") as handle:
+        for _ in range(first_line - 1):
+            handle.readline()
+        rest = b""
+        while True:
+            block = handle.read(max(camera.CHUNK_BYTES, 1 << 12))
+            if not block:
+                if rest:
+                    yield rest
+                return
+            data = rest + block
+            cut = data.rfind(b"\n") + 1
+            if cut == 0:
+                rest = data
+                continue
+            rest = data[cut:]
+            yield data[:cut]
 
 
 def _is_number(text: str) -> bool:
@@ -94,38 +97,3 @@ def _is_number(text: str) -> bool:
         return True
     except ValueError:
         return False
-
-
-def _locate(path, data_line, names, delimiter, time_name, polarity_name, factor, error) -> str:
-    """Find the first bad row again, line by line, to name its line number."""
-    with open(path, "rb") as handle:
-        for number, raw in enumerate(handle, start=1):
-            if number < data_line:
-                continue
-            line = raw.decode("utf-8", "replace").rstrip("\r\n")
-            if not line.strip():
-                continue
-            fields = line.split(",") if delimiter == "," else line.split(delimiter)
-            problem = _row_problem(fields, names, time_name, polarity_name, factor)
-            if problem:
-                return f"line {number}: {problem}: {line[:80]!r} (fix or delete that row)"
-    return f"cannot parse the text ({str(error).splitlines()[0][:160]})"
-
-
-def _row_problem(fields, names, time_name, polarity_name, factor) -> str | None:
-    if len(fields) != len(names):
-        return f"{len(fields)} fields where the header has {len(names)}"
-    row = dict(zip(names, (f.strip() for f in fields)))
-    try:
-        t = float(row[time_name]) if factor != 1 else int(row[time_name])
-        if t != t or abs(t) == float("inf"):
-            return "time is not a finite number"
-        x, y, p = int(row["x"]), int(row["y"]), int(row[polarity_name])
-    except ValueError:
-        kind = "a number" if factor != 1 else "whole microseconds, x, y and p integers"
-        return f"not {kind}"
-    if not (0 <= x <= MAX_COORDINATE and 0 <= y <= MAX_COORDINATE):
-        return "coordinate out of range"
-    if p not in (-1, 0, 1):
-        return f"polarity {p} is not 0/1 or -1/1"
-    return None
