@@ -12,7 +12,6 @@ import math
 import subprocess
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
@@ -55,31 +54,21 @@ def ch5(tmp_path_factory):
     )
     subprocess.run(["bash", "-o", "pipefail", "-c", command], check=True, capture_output=True)
     table = pq.read_table(frames)
-    medium = pc.equal(table["object"], "bolt15")
-    pq.write_table(table.filter(pc.invert(medium)), folder / "train.parquet")
-    pq.write_table(table.filter(medium), folder / "validation.parquet")
+    pq.write_table(table.filter(pc.equal(table["object"], "bolt15")), folder / "validation.parquet")
     return folder
 
 
-def augmented_training_set(folder, name, stages):
-    """The training trials with the condition's copies, beside the validation trials (for early stopping)."""
-    current = folder / "train.parquet"
+def augmented(folder, name, stages):
+    """All trials, with copies of the training ones (small and large bolts) made by the condition's stages."""
+    current = folder / "frames.parquet"
     for index, stage in enumerate(stages):
         following = folder / f"{name}-{index}.parquet"
-        invoke("augment", *stage, "--seed", 7, "-o", following, current)
+        where = [] if "--where" in stage else ["--where", "object=bolt12", "--where", "object=bolt18"]
+        invoke("augment", *where, *stage, "--seed", 7, "-o", following, current)
         current = following
-    combined = folder / f"{name}-all.parquet"
-    train, validation = pq.read_table(current), pq.read_table(folder / "validation.parquet")
-    if "source_trial" not in validation.column_names:
-        validation = validation.append_column("source_trial", validation["trial"]).append_column(
-            "augment", pa.array([""] * validation.num_rows, pa.string())
-        )
-    if "source_trial" not in train.column_names:
-        train = train.append_column("source_trial", train["trial"]).append_column(
-            "augment", pa.array([""] * train.num_rows, pa.string())
-        )
-    pq.write_table(pa.concat_tables([train, validation.select(train.column_names)]), combined)
-    return combined, len(set(train["trial"].to_pylist()))
+    table = pq.read_table(current)
+    training = {t for t, o in zip(table["trial"].to_pylist(), table["object"].to_pylist()) if o != "bolt15"}
+    return current, len(training)
 
 
 def validation_mse(folder, data, seed):
@@ -95,7 +84,7 @@ def validation_mse(folder, data, seed):
 def test_reduced_augmentation_study(ch5, capsys):
     results = {}
     for name, stages in CONDITIONS.items():
-        data, training_trials = augmented_training_set(ch5, name.replace("(", "_").replace(")", "").replace(",", "_"), stages)
+        data, training_trials = augmented(ch5, name.replace("(", "_").replace(")", "").replace(",", "_"), stages)
         assert training_trials == (4 if name == "none" else 8)  # the thesis doubles the training set
         results[name] = [validation_mse(ch5, data, seed) for seed in SEEDS]
     with capsys.disabled():
