@@ -102,3 +102,20 @@ def test_in_a_real_pipe(frames_file):
     assert table.num_rows == 3 * 8 * 5
     assert set(table["source_trial"].to_pylist()) == {"bolt0", "bolt1", "bolt2"}
     assert np.all(sch.counts_numpy(table["counts"]) >= 0)
+
+
+@pytest.mark.slow
+def test_the_chapter_5_pipe_from_simulator_to_info():
+    import importlib.util
+
+    missing = [c for c in ("simulate", "frame", "crop", "info") if importlib.util.find_spec(f"neurotac_cli.commands.{c}") is None]
+    if missing:
+        pytest.skip(f"neurotac {', '.join(missing)} not built yet")
+    command = (
+        "neurotac simulate --preset ch5 --trials 3 --synced | neurotac frame --window 10ms "
+        "| neurotac crop --size 140x150 --center auto --pool 2x2 | neurotac augment --tes -2 0.5 --copies 2 "
+        "| neurotac info -"
+    )
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "trials        9" in done.stdout and "2x75x70" in done.stdout
