@@ -273,17 +273,20 @@ def read_chunks(path: str, offset: int, record: int) -> Iterator[bytes]:
     """The bytes of `path` from `offset`, in chunks of whole `record`-byte records (a cut last record is dropped)."""
     size = max(record, (CHUNK_BYTES // record) * record)
     with open(path, "rb") as handle:
+        remaining = os.fstat(handle.fileno()).st_size - offset
         handle.seek(offset)
         rest = b""
-        while True:
-            block = handle.read(size)
+        while remaining > 0:
+            # never ask for more than is left: a read of n bytes allocates n bytes first
+            block = handle.read(min(size, remaining))
             if not block:
                 return
-            data = rest + block
+            remaining -= len(block)
+            data = rest + block if rest else block
             usable = len(data) - len(data) % record
             rest = data[usable:]
             if usable:
-                yield data[:usable]
+                yield data if usable == len(data) else data[:usable]
 
 
 def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
