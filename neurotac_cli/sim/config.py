@@ -139,7 +139,7 @@ PRESETS = {
         groups=_groups("foam:hex:11", "rubber:hex:9", "silicone:hex:14", "steel:hex:14"),
         force_min_n=0.8, force_max_n=3.7, contact_delay_us=(5_000, 20_000), grasp_us=154_000,
         hold_us=700_000, release_us=154_000, tail_us=0, duration_jitter=0.0, max_duration_us=1_008_000,
-        force_sensor="flexiforce", saturation_force_n=4.5, pressure_scale_pa=50e3, servo_settle_us=60_000,
+        force_sensor="flexiforce", saturation_force_n=4.5, pressure_scale_pa=50e3, servo_settle_us=30_000, gripper_speed_mm_s=40.0,
     ),
     # Thesis 4.5: 35 grasps of steel bolts of 8, 12 and 16 mm, up to 3.12 N, at most 410 ms, Nano17.
     "ch4": dict(

@@ -33,6 +33,7 @@ class Grasp:
     camera_start_us: int  # camera clock at the first recorded instant
     preroll_us: int  # first recorded instant to LED-on
     led_on_us: int  # LED on-time
+    ripple_seed: int = 0  # seed of the grasp's band-limited force ripple
     extra: dict = field(default_factory=dict)
 
     @property
@@ -152,6 +153,7 @@ def _plan_one(config, rng, material, shape, labels, peak, index) -> Grasp:
         camera_start_us=int(rng.uniform(*config.camera_offset_us)),
         preroll_us=int(rng.uniform(*config.preroll_us)),
         led_on_us=int(rng.uniform(*config.led_on_us)),
+        ripple_seed=int(rng.integers(0, 2**63 - 1)),
     )
 
 
@@ -170,14 +172,27 @@ def true_force(config: SimConfig, grasp: Grasp, t_us: np.ndarray) -> np.ndarray:
     force = peak * load**1.5
     held = np.clip(t - grasp.loaded_us, 0, None)
     relax = 1.0 - mat.relaxation * -np.expm1(-held / mat.relaxation_us)
-    ripple = config.force_vibration * np.sin(2 * np.pi * config.vibration_hz * held * 1e-6 + grasp.vibration_phase)
+    ripple = config.force_vibration * _ripple(config, grasp, t)
     settle = 0.06 * np.exp(-held / max(1, config.settle_us)) * np.sin(2 * np.pi * config.settle_hz * held * 1e-6)
     force = force * (relax + (ripple + settle) * (t > grasp.loaded_us))
     level_at_release = peak * (1.0 - mat.relaxation * -np.expm1(-(grasp.release_us - grasp.loaded_us) / mat.relaxation_us))
     unload = np.clip((t - grasp.release_us) / max(1, grasp.released_us - grasp.release_us), 0, 1)
     after = t >= grasp.release_us
     force = np.where(after, level_at_release * (1.0 - unload) ** 1.5, force)
-    return np.clip(force, 0.0, None)
+    return np.clip(force, 0.0, max(config.force_max_n, peak))  # the design's stated maximum holds, ripple included
+
+
+def _ripple(config, grasp, t):
+    """Unit-s.d. force ripple of the hold: half a tone at `vibration_hz`, half band-limited noise
+    (white noise on a 1 ms grid, smoothed over ~1 / vibration_hz), a fixed function of time per grasp."""
+    from scipy.ndimage import gaussian_filter1d
+
+    grid_ms = np.arange(0, grasp.end_us / 1000 + 2)
+    noise = np.random.default_rng(grasp.ripple_seed).standard_normal(grid_ms.size)
+    noise = gaussian_filter1d(noise, sigma=max(1.0, 1000.0 / config.vibration_hz / 4))
+    noise /= max(noise.std(), 1e-12)
+    tone = np.sqrt(2) * np.sin(2 * np.pi * config.vibration_hz * t * 1e-6 + grasp.vibration_phase)
+    return np.sqrt(0.5) * (tone + np.interp(t / 1000, grid_ms, noise))
 
 
 def rigid_motion_px(config: SimConfig, grasp: Grasp, t_us: np.ndarray) -> np.ndarray:
