@@ -1,0 +1,251 @@
+"""sync: force logs, the LED spike, triggers, offsets, cross-correlation, sessions, manifests, the command."""
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.errors import NeurotacError, SyncError
+from neurotac_cli.io.force import read_force_log
+from neurotac_cli.ops import sync as sy
+
+W, H = 40, 30
+BIN = os.path.dirname(sys.executable)
+
+
+def run(args, cwd=None):
+    env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
+    return subprocess.run(["neurotac", *args], capture_output=True, cwd=cwd, env=env)
+
+
+def synthetic_recording(seed, led_off=None, start=3_000_000, span=400_000, noise_hz=2.0, contact=True):
+    """Background noise, a local contact burst, and (when led_off is given) an LED-off spike whose
+    onset follows the switch-off by the default latency."""
+    rng = np.random.default_rng(seed)
+    n = rng.poisson(noise_hz * W * H * span * 1e-6)
+    parts = [(rng.integers(start, start + span, n), rng.integers(0, W, n), rng.integers(0, H, n), rng.integers(0, 2, n))]
+    if contact:  # a grasp: thousands of OFF and ON events in a 6x6 patch over 30 ms
+        m = 6000
+        t = start + 150_000 + rng.integers(0, 30_000, m)
+        parts.append((t, 15 + rng.integers(0, 6, m), 10 + rng.integers(0, 6, m), rng.integers(0, 2, m)))
+    if led_off is not None:
+        pixels = W * H
+        t = led_off + sy.LED_LATENCY_US + rng.exponential(300.0, 2 * pixels).astype(np.int64)
+        parts.append((t, np.tile(np.arange(W), 2 * H), np.repeat(np.arange(H), 2 * W), np.zeros(2 * pixels, int)))
+    t, x, y, p = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(t, kind="stable")
+    return sch.events_table(t[order], x[order], y[order], p[order], W, H)
+
+
+def force_log(duration_ms=300):
+    t_ms = np.arange(0, duration_ms + 1, 2)
+    force = np.interp(t_ms, [0, 150, 180, 250, 270, duration_ms], [0, 0, 3, 3, 0, 0])
+    return sy.ForceLog(t=t_ms * 1000, value=force)
+
+
+# ---------------------------------------------------------------- force logs
+
+
+@pytest.mark.parametrize("header,scale", [("t_ms,force_N", 1000), ("time_us,force_N", 1), ("t_s,force_N", 1_000_000)])
+def test_force_log_time_unit_from_the_header_suffix(tmp_path, header, scale):
+    path = tmp_path / "f.csv"
+    path.write_text(f"{header}\n0,0.5\n2,1.5\n4,2.5\n")
+    (log,) = read_force_log(str(path))
+    assert log.t.tolist() == [0, 2 * scale, 4 * scale] and log.value.tolist() == [0.5, 1.5, 2.5]
+
+
+def test_force_log_parquet_units_and_overrides(tmp_path):
+    path = tmp_path / "f.parquet"
+    pq.write_table(pa.table({"trial": ["a", "a", "b", "b"], "stamp": [0, 2, 0, 2], "fz_mN": [100.0, 200.0, 300.0, 400.0]}), path)
+    with pytest.raises(NeurotacError, match="unit of time"):
+        read_force_log(str(path))
+    logs = read_force_log(str(path), time_unit="ms")
+    assert [log.trial for log in logs] == ["a", "b"] and logs[1].value.tolist() == pytest.approx([0.3, 0.4])
+    assert logs[0].t.tolist() == [0, 2000]
+
+
+def test_force_log_time_restarting_at_zero_starts_a_new_trial(tmp_path):
+    path = tmp_path / "f.csv"
+    path.write_text("t_ms,force_N\n0,0\n2,1\n4,0\n0,0\n2,2\n")
+    logs = read_force_log(str(path))
+    assert [len(log.t) for log in logs] == [3, 2]
+
+
+def test_force_log_errors_say_what_to_do(tmp_path):
+    path = tmp_path / "f.csv"
+    path.write_text("t_ms,force_N\n0,0\n2,\n")
+    with pytest.raises(NeurotacError, match="NaN or empty"):
+        read_force_log(str(path))
+    with pytest.raises(NeurotacError, match="no such force log"):
+        read_force_log(str(tmp_path / "missing.csv"))
+
+
+def test_median_filter_removes_a_single_sample_spike():
+    log = sy.ForceLog(t=np.arange(0, 40_001, 2000), value=np.r_[np.ones(10), 9.0, np.ones(10)])
+    assert sy.condition_force(log, 10_000).max() == 1.0
+    assert sy.condition_force(log, 0).max() == 9.0
+
+
+# ---------------------------------------------------------------- LED
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_led_finds_the_switch_off_despite_noise_and_contact(seed):
+    led_off = 3_000_000 + 50_000 + 37 * seed
+    table = synthetic_recording(seed, led_off=led_off, noise_hz=5.0)
+    source = sy.Source(trial="g", events=table, force=[force_log()])
+    trials, info = sy.sync_source(source, sy.SyncMethod())
+    assert abs(trials[0]["t0"] - led_off) <= 100
+    assert info["g"]["score"] >= 10 and info["g"]["coverage"] > 0.5
+
+
+def test_led_within_a_region():
+    led_off = 3_100_000
+    table = synthetic_recording(1, led_off=led_off)
+    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(region=(0, 0, 10, 10)))
+    assert abs(trials[0]["t0"] - led_off) <= 100
+
+
+def test_no_led_fails_with_one_clear_message():
+    table = synthetic_recording(2, led_off=None)
+    with pytest.raises(SyncError, match="no LED-off spike stands out") as caught:
+        sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod())
+    assert "\n" not in str(caught.value) and "--method xcorr" in str(caught.value)
+
+
+def test_a_session_is_cut_at_each_blink_and_matched_to_the_force_trials():
+    first, second = synthetic_recording(3, led_off=3_050_000), synthetic_recording(4, led_off=3_050_000)
+    shifted = second.set_column(0, "t", pa.array(second.column("t").to_numpy() + 1_000_000))
+    session = pa.concat_tables([first, shifted])
+    logs = [force_log(), force_log()]
+    logs[0].trial, logs[1].trial = "a", "b"
+    trials, info = sy.sync_source(sy.Source("s", session, logs), sy.SyncMethod())
+    assert [t["trial"] for t in trials] == ["a", "b"]
+    assert abs(trials[0]["t0"] - 3_050_000) <= 100 and abs(trials[1]["t0"] - 4_050_000) <= 100
+    assert sum(len(t["events"][0]) for t in trials) == session.num_rows  # nothing lost between trials
+
+
+def test_a_session_with_fewer_blinks_than_force_trials_fails():
+    table = synthetic_recording(5, led_off=3_050_000)
+    with pytest.raises(SyncError, match="found 1 of 2"):
+        sy.sync_source(sy.Source("s", table, [force_log(), force_log()]), sy.SyncMethod())
+
+
+# ---------------------------------------------------------------- trigger, offset
+
+
+def test_trigger_and_offset_methods():
+    table = synthetic_recording(6, led_off=None)
+    schema = table.schema.with_metadata({**table.schema.metadata, b"neurotac:triggers": json.dumps(
+        [{"t": 3_010_000, "type": "rising"}, {"t": 3_020_000, "type": "falling"}]).encode()})
+    table = table.replace_schema_metadata(schema.metadata)
+    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_type="falling"))
+    assert trials[0]["t0"] == 3_020_000 and info["g"]["type"] == "falling"
+    trials, _ = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(method="offset", offset_us=3_001_000))
+    assert trials[0]["t0"] == 3_001_000
+    assert (trials[0]["events"][0] == table.column("t").to_numpy() - 3_001_000).all()
+    with pytest.raises(SyncError, match="no external trigger"):
+        sy.sync_source(sy.Source("g", synthetic_recording(6), [force_log()]), sy.SyncMethod(method="trigger"))
+
+
+# ---------------------------------------------------------------- simulated grasps
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    if shutil.which("neurotac", path=f"{BIN}:{os.environ['PATH']}") is None:
+        pytest.skip("neurotac is not installed")
+    out = tmp_path_factory.mktemp("sim")
+    runs = {}
+    for name, extra in (("plain", []), ("noisy", ["--background-rate", "0.2"])):
+        folder = out / name
+        done = run(["simulate", "--preset", "ch4", "--trials", "3", "--seed", "7", "--out", str(folder), *extra])
+        if done.returncode != 0:
+            pytest.skip(f"simulate failed: {done.stderr.decode()[-300:]}")
+        runs[name] = folder
+    return runs
+
+
+def true_instants(folder):
+    with open(folder / "manifest.csv") as handle:
+        return {row["trial"]: int(row["true_t0_us"]) for row in csv.DictReader(handle)}
+
+
+@pytest.mark.parametrize("noise", ["plain", "noisy"])
+def test_led_sync_of_simulated_grasps_within_100us(simulated, noise):
+    folder = simulated[noise]
+    table = sy.sync_sources(sy.manifest_sources(str(folder / "manifest.csv"), sy.ForceOptions()), sy.SyncMethod())
+    truth = true_instants(folder)
+    for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()):
+        assert abs(t0 - truth[trial]) <= 100, (trial, t0 - truth[trial])
+    assert not any(name.startswith("true_") for name in table.column_names)
+    assert {"material", "object", "size_mm"} <= set(table.column_names)
+
+
+def test_xcorr_sync_of_simulated_grasps_within_2ms(simulated):
+    folder = simulated["plain"]
+    table = sy.sync_sources(sy.manifest_sources(str(folder / "manifest.csv"), sy.ForceOptions()), sy.SyncMethod(method="xcorr"))
+    truth = true_instants(folder)
+    for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()):
+        assert abs(t0 - truth[trial]) <= 2000, (trial, t0 - truth[trial])
+    info = sch.get_meta(table.schema, sch.SYNC)
+    assert all(entry["correlation"] > 0.3 for entry in info["trials"].values())
+
+
+def test_sync_command_on_a_text_event_file_and_a_t_ms_force_log(simulated, tmp_path):
+    from neurotac_cli.io import read_events_table
+
+    folder = simulated["plain"]
+    trial = sorted(true_instants(folder))[0]
+    events = read_events_table(str(folder / f"{trial}.aedat"))
+    columns = np.stack([events.column(name).to_numpy().astype(np.int64) for name in "txyp"], axis=1)
+    with open(tmp_path / "grasp_events.csv", "w") as handle:
+        handle.write("t,x,y,p\n")
+        np.savetxt(handle, columns, fmt="%d", delimiter=",")
+    shutil.copy(folder / f"{trial}_force.csv", tmp_path / "grasp_force.csv")
+    done = run(["sync", "grasp_events.csv", "--force", "grasp_force.csv", "--trial", "g1", "--label", "material=foam",
+                "-o", "g1.parquet"], cwd=tmp_path)
+    assert done.returncode == 0, done.stderr.decode()
+    table = tables.read([str(tmp_path / "g1.parquet")], kind="recordings")
+    assert table.column("trial").to_pylist() == ["g1"] and table.column("material").to_pylist() == ["foam"]
+    assert abs(table.column("t0")[0].as_py() - true_instants(folder)[trial]) <= 100
+    info = sch.get_meta(table.schema, sch.SYNC)
+    assert info["method"] == "led" and info["trials"]["g1"]["score"] > 10
+
+
+def test_sync_manifest_pipeline_frames_every_trial(simulated, tmp_path):
+    folder = simulated["plain"]
+    command = (f"neurotac sync --manifest {folder}/manifest.csv | neurotac frame --window 10ms --pad-to longest "
+               f"| neurotac crop --size 115x115 --center auto > {tmp_path}/f.arrows")
+    env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, env=env)
+    assert done.returncode == 0, done.stderr.decode()
+    frames = tables.read([str(tmp_path / "f.arrows")], kind="frames")
+    assert len(frames.column("trial").unique()) == 3
+    assert frames.column("force").null_count == 0 and frames.column("phase").null_count == 0
+    assert sch.frames_shape(frames.schema) == (115, 115)
+    history = [step["command"] for step in sch.get_meta(frames.schema, sch.HISTORY)]
+    assert history == ["sync", "frame", "crop"]
+
+
+def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
+    path = tmp_path / "still.arrows"
+    tables.write(str(path), synthetic_recording(8, led_off=None))
+    force = tmp_path / "f.csv"
+    force.write_text("t_ms,force_N\n" + "\n".join(f"{i * 2},0.1" for i in range(100)) + "\n")
+    done = run(["sync", str(path), "--force", str(force)])
+    assert done.returncode == 1
+    assert done.stderr.decode().count("\n") == 1 and done.stderr.decode().startswith("neurotac sync: error: no LED-off spike")
+
+
+def test_sync_command_needs_a_force_log_or_a_manifest(tmp_path):
+    done = run(["sync", "x.aedat"], cwd=tmp_path)
+    assert done.returncode == 1 and "--force" in done.stderr.decode()
