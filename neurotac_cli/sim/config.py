@@ -5,7 +5,7 @@ in `_us` are durations (µs). Sources of the defaults are given in docs/simulato
 """
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from neurotac_cli.errors import NeurotacError
 

@@ -171,12 +171,8 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     small rigid motion d moves it to first order (rho(x - d) = rho(x) - d . grad rho), and the tilt
     term of the flat punch, linear in position, folds into each grasp's approach.
     """
-    from neurotac_cli.sim.contact import flat_force_table, foundation_stiffness
-
     n, steps = forces.shape
     step = config.step_us
-    pitch = config.pixel_pitch_mm
-    h, w = camera.shape
     fm = membrane_force(config, forces, step)
     reach = float(np.abs(motions).max()) if motions.size else 0.0
     blocks = []
@@ -206,7 +202,7 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     dark = np.float32(config.dark_level)
     cap = np.float32(config.edge_factor_max)
     scale = np.float32(1.0 / config.pressure_scale_pa)
-    inv_pitch = np.float32(1.0 / pitch)
+    inv_pitch = np.float32(1.0 / config.pixel_pitch_mm)
     # A grasp needs stepping only while it touches and a little after (the filtered level settles).
     touching = (drive > 0).any(axis=0) | (peak > 0).any(axis=0)
     active = np.convolve(touching.astype(float), np.ones(int(20_000 / step) + 1), mode="full")[:steps] > 0

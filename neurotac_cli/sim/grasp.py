@@ -80,6 +80,8 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
                 remaining[index] -= 1
     if trials is not None:
         queue = queue[:trials]
+    if not queue:
+        raise NeurotacError("no trials to simulate (every group has a count of 0)")
     counters: dict = {}
     grasps = []
     for material, shape, _, labels in queue:
