@@ -25,4 +25,7 @@ def command(paths, as_json, sensor):
     from neurotac_cli.describe import describe_paths, format_text
 
     info = describe_paths(paths, sensor=sensor)
-    click.echo(json.dumps(info, indent=2, sort_keys=True, ensure_ascii=False) if as_json else format_text(info), nl=not as_json or True)
+    if as_json:
+        click.echo(json.dumps(info, indent=2, sort_keys=True, ensure_ascii=False))
+    else:
+        click.echo(format_text(info), nl=False)

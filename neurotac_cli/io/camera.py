@@ -7,6 +7,7 @@ into Arrow batches with the `events` schema, checks coordinates against the sens
 low-level decoding failure into one `FormatError` line.
 """
 
+import ctypes
 import os
 import shutil
 import sys
@@ -33,6 +34,25 @@ FORMAT_NAMES = {
     "csv": "CSV text (t,x,y,p)",
     "text": "whitespace text (t x y p, seconds)",
 }
+
+
+def _keep_decoded_chunks_on_the_heap():
+    """glibc hands blocks above its mmap threshold straight back to the OS when freed, and trims the
+    heap top above its trim threshold, so decoding chunk after chunk (each chunk's output freed once
+    written) page-faults every output afresh: measured 6-10 ms instead of 1.7 ms for the 2 MB EVT 2.0
+    file. A fixed 32 MiB mmap threshold and a 128 MiB trim threshold keep chunk-sized blocks for
+    reuse. Linux/glibc only; elsewhere nothing changes."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 32 << 20)  # M_MMAP_THRESHOLD
+        libc.mallopt(-1, 128 << 20)  # M_TRIM_THRESHOLD
+    except (OSError, AttributeError):
+        pass
+
+
+_keep_decoded_chunks_on_the_heap()
 
 
 @dataclass

@@ -70,8 +70,24 @@ def _aedat(path):
     return [packet for packet in aedat.Decoder(str(path)) if "events" in packet]
 
 
+def _tonic_numpy(path):
+    """tonic's AEDAT 2.0 reader (raw address and timestamp words) decoded with numpy, as a tonic user
+    would: the only pipeline among the peers' that reads a DAVIS AEDAT 2.0 file right."""
+    import tonic.io
+
+    version, start = tonic.io.read_aedat_header_from_file(str(path))[:2]
+    raw = tonic.io.get_aer_events_from_file(str(path), version, start)
+    address = raw["address"]
+    keep = (address & np.uint32(0x80000400)) == 0
+    address = address[keep]
+    return np.rec.fromarrays(
+        [raw["timeStamp"][keep].astype(np.int64), (address >> 12) & 0x3FF, 179 - ((address >> 22) & 0x1FF), (address >> 11) & 1],
+        names="t,x,y,p",
+    )
+
+
 PEERS = {
-    "davis240c_rotdisk.aedat": {"evlib": _evlib, "faery": _faery, "aedat": _aedat},
+    "davis240c_rotdisk.aedat": {"evlib": _evlib, "faery": _faery, "aedat": _aedat, "tonic+numpy": _tonic_numpy},
     "prophesee_hd_expelliarmus.evt3.raw": {"evlib": _evlib, "faery": _faery, "expelliarmus": _expelliarmus("evt3")},
     "prophesee_vga_faery.evt2.raw": {"evlib": _evlib, "faery": _faery, "expelliarmus": _expelliarmus("evt2")},
     "davis346_aestream.aedat4": {"evlib": _evlib, "faery": _faery, "aedat": _aedat},
