@@ -73,51 +73,39 @@ def led_events(config, camera: Camera, on_us: float, off_us: float, rng: np.rand
     on_t, off_t = camera.on_threshold, camera.off_threshold
     # Unknown history before the blink: the reference sits anywhere in its dead band.
     ref = -off_t + rng.random((h, w)).astype(np.float32) * (on_t + off_t) * 0.999
-    pieces = []
+    ys, xs = np.mgrid[0:h, 0:w]
+    out = []
+    last = np.full((h, w), -np.inf)
+    refractory = float(config.refractory_us)
+
+    def emit(t, fire, polarity):
+        # latency jitter (µs), then the refractory period: a pixel still past its threshold fires as
+        # soon as it may (the level keeps moving the same way during a blink)
+        t = t + rng.exponential(15.0, (h, w))
+        t = np.where(fire, np.maximum(t, last + refractory), last)
+        last[...] = t
+        out.append((t[fire], xs[fire], ys[fire], np.full(int(fire.sum()), polarity, np.uint8)))
+
     kmax = int(np.ceil(float(delta.max() / camera.on_threshold.min()))) + 1
     ref_after = ref.copy()
     for k in range(1, kmax + 1):  # at most a handful of thresholds per blink; vectorised over pixels
         level = ref + k * on_t
         fire = (level < delta) & (level > 0)
         with np.errstate(invalid="ignore", divide="ignore"):
-            t = on_us - tau_on * np.log1p(-np.where(fire, level / delta, 0.0))
-        pieces.append((t, fire, 1, k))
+            emit(on_us - tau_on * np.log1p(-np.where(fire, level / delta, 0.0)), fire, 1)
         ref_after = np.where(fire, level, ref_after)
     ref = ref_after
     kmax = int(np.ceil(float((ref.max() + 1e-9) / camera.off_threshold.min()))) + 1
     for k in range(1, kmax + 1):
         level = ref - k * off_t
-        fire = level > 0.02 * delta  # the level approaches 0 asymptotically: crossings very near it are lost in noise
+        # the level falls from delta towards 0 asymptotically: crossings very near 0 are lost in noise
+        fire = (level > 0.02 * delta) & (level < delta)
         with np.errstate(invalid="ignore", divide="ignore"):
-            t = off_us - tau_off * np.log(np.where(fire, level / delta, 1.0))
-        pieces.append((t, fire, 0, k))
+            emit(off_us - tau_off * np.log(np.where(fire, level / delta, 1.0)), fire, 0)
         ref_after = np.where(fire, level, ref_after)
-    ys, xs = np.mgrid[0:h, 0:w]
-    out_t, out_x, out_y, out_p = [], [], [], []
-    for t, fire, polarity, k in pieces:
-        out_t.append(t[fire] + rng.exponential(15.0, int(fire.sum())))  # latency jitter (µs)
-        out_x.append(xs[fire])
-        out_y.append(ys[fire])
-        out_p.append(np.full(int(fire.sum()), polarity, np.uint8))
-    t = np.concatenate(out_t)
-    events = (np.round(t).astype(np.int64), np.concatenate(out_x), np.concatenate(out_y), np.concatenate(out_p))
-    return _refractory(events, config.refractory_us, w), ref_after.astype(np.float32)
-
-
-def _refractory(events, refractory_us, width):
-    """Drop events of a pixel closer than the refractory period to its previous event (vectorised)."""
-    t, x, y, p = events
-    if not t.size or refractory_us <= 0:
-        return events
-    pixel = y.astype(np.int64) * width + x
-    order = np.lexsort((t, pixel))
-    t_s, pix_s = t[order], pixel[order]
-    # Events of one pixel after a kept one: keep only those past the refractory time since the previous.
-    gap = np.diff(t_s, prepend=t_s[0] - refractory_us - 1)
-    same = np.concatenate([[False], pix_s[1:] == pix_s[:-1]])
-    keep = ~same | (gap >= refractory_us)
-    kept = order[keep]
-    return t[kept], x[kept], y[kept], p[kept]
+    t = np.concatenate([o[0] for o in out])
+    events = (np.round(t).astype(np.int64), *(np.concatenate([o[j] for o in out]) for j in (1, 2, 3)))
+    return events, ref_after.astype(np.float32)
 
 
 # ---------------------------------------------------------------- noise
