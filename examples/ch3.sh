@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Thesis chapter 3 on simulated grasps: force from accumulated ON/OFF events (TDNN k x n grid and GP,
+# leave-one-out, Tables 3.1-3.2, Figs 3.9-3.10), materials from the same events (DNN k x n grid,
+# Table 3.4, Fig. 3.13) and the force-sensor-only classifier.
+#   MODE=full|quick bash examples/ch3.sh        (see lib.sh for OUT, RESULTS, SEED, NEUROTAC_*)
+source "$(dirname "$0")/lib.sh"
+DIR=$OUT/ch3
+mkdir -p "$DIR"
+START=$SECONDS
+
+if [[ $MODE == full ]]; then
+  TRIALS=()                                  # the preset's 48 grasps: foam 11, rubber 9, silicone 14, steel 14
+  TDNN_LAYERS=(1 2 3 4 5); TDNN_UNITS=(5 10 15 20 25 30 35 40)
+  DNN_LAYERS=(1 2 3 4 5 6); DNN_UNITS=(5 10 15 20 25 30)
+  FIT=()                                     # the models' defaults: early stopping after 20 epochs
+  GP_FIT=()                                  # 1500 frames, 3 restarts
+  CV=loo
+else
+  TRIALS=(--trials 8)                        # two grasps per material
+  TDNN_LAYERS=(1 4); TDNN_UNITS=(5 40)
+  DNN_LAYERS=(1 2); DNN_UNITS=(10 30)
+  FIT=(--epochs 30 --patience 5)
+  GP_FIT=(--max-points 200 --restarts 1)
+  CV=loo
+fi
+
+# Grasps -> synced trials -> 7 ms frames (144 per grasp, padded to the longest) -> one pixel per
+# channel: the accumulated ON and OFF counts of thesis 3.4 (the models accumulate over time).
+if [[ ! -s $DIR/frames.parquet ]]; then
+  say "simulating the ch3 preset (seed $SEED)"
+  neurotac simulate --preset ch3 --seed "$SEED" "${TRIALS[@]}" --out "$DIR/sim"
+  neurotac sync --manifest "$DIR/sim/manifest.csv" \
+    | neurotac frame --window 7ms --pad-to longest \
+    | neurotac crop --pool all -o "$DIR/frames.parquet"
+fi
+FRAMES=$DIR/frames.parquet
+
+# Force: the TDNN grid, every point a leave-one-out study; validation trials drawn per material.
+for k in "${TDNN_LAYERS[@]}"; do
+  for n in "${TDNN_UNITS[@]}"; do
+    plot=()
+    [[ $k == "${TDNN_LAYERS[-1]}" && $n == "${TDNN_UNITS[-1]}" ]] && plot=(--plot "$FIGURES/ch3-tdnn.png")
+    study "tdnn@layers=$k,units=$n" --cv "$CV" --model-spec tdnn --layers "$k" --units "$n" \
+      --val-per material "${FIT[@]}" "${plot[@]}" "$FRAMES"
+  done
+done
+study gp --cv "$CV" --model-spec gp --val-per material "${GP_FIT[@]}" --plot "$FIGURES/ch3-gp.png" "$FRAMES"
+
+# Materials: the DNN grid on the accumulation curves, and the same network on the force log alone.
+for k in "${DNN_LAYERS[@]}"; do
+  for n in "${DNN_UNITS[@]}"; do
+    plot=()
+    [[ $k == 2 && $n == 30 ]] && plot=(--plot "$FIGURES/ch3-confusion.png")
+    study "material-dnn@layers=$k,units=$n" --cv "$CV" --model-spec material-dnn --layers "$k" --units "$n" \
+      --val-per material "${FIT[@]}" "${plot[@]}" "$FRAMES"
+  done
+done
+study material-force --cv "$CV" --model-spec material-force --val-per material "${FIT[@]}" "$FRAMES"
+
+publish ch3 "Run: \`MODE=$MODE\`, \`simulate --preset ch3 --seed $SEED ${TRIALS[*]}\`, $CV cross-validation, $((SECONDS - START)) s on $(machine)."

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Thesis chapter 4 on simulated grasps: force from spatio-temporal frames of bolts of three sizes.
+# TDNN, LSTM, CNNLSTM and ConvLSTM with leave-one-out (Table 4.3), MSE per phase (Table 4.4), DTW and
+# Bhattacharyya distances per phase (Table 4.5), and ConvLSTM on an object size it never saw (4.6).
+#   MODE=full|quick bash examples/ch4.sh        (see lib.sh for OUT, RESULTS, SEED, NEUROTAC_*)
+source "$(dirname "$0")/lib.sh"
+DIR=$OUT/ch4
+mkdir -p "$DIR"
+START=$SECONDS
+
+if [[ $MODE == full ]]; then
+  TRIALS=()                    # the preset's 35 grasps: bolts of 8 mm (12), 12 mm (12), 16 mm (11)
+  POOL=()                      # 115x115 frames, as the thesis
+  FIT=()                       # the models' defaults (thesis architectures, early stopping after 20 epochs)
+else
+  TRIALS=(--trials 6)          # two grasps per bolt
+  POOL=(--pool 5x5)            # 23x23 frames
+  FIT=(--epochs 4 --patience 2)
+fi
+
+# Grasps -> synced trials -> 10 ms frames padded to the longest grasp (41) -> 115x115 around the contact.
+if [[ ! -s $DIR/frames.parquet ]]; then
+  say "simulating the ch4 preset (seed $SEED)"
+  neurotac simulate --preset ch4 --seed "$SEED" "${TRIALS[@]}" --out "$DIR/sim"
+  neurotac sync --manifest "$DIR/sim/manifest.csv" \
+    | neurotac frame --window 10ms --pad-to longest \
+    | neurotac crop --size 115x115 --center auto "${POOL[@]}" -o "$DIR/frames.parquet"
+fi
+FRAMES=$DIR/frames.parquet
+
+# Leave-one-out, one validation grasp drawn per bolt size in every fold, scored on non-zero force
+# (thesis 4.6). Layers and units are the thesis's chosen architectures (the models' defaults).
+for model in tdnn lstm cnnlstm convlstm; do
+  plot=()
+  [[ $model == convlstm ]] && plot=(--plot "$FIGURES/ch4-convlstm.png")
+  study "$model" --cv loo --model-spec "$model" --val-per object --nonzero "${FIT[@]}" "${plot[@]}" "$FRAMES"
+done
+
+# The held-out size: ConvLSTM trained on the 8 and 16 mm bolts, tested on every 12 mm grasp.
+study heldout --cv group:object=bolt12 --model-spec convlstm --val-per object --nonzero "${FIT[@]}" "$FRAMES"
+
+publish ch4 "Run: \`MODE=$MODE\`, \`simulate --preset ch4 --seed $SEED ${TRIALS[*]}\`, crop 115x115 ${POOL[*]}, $((SECONDS - START)) s on $(machine)."

@@ -1,0 +1,46 @@
+# Shared by ch3.sh, ch4.sh, ch5.sh (sourced, not run).
+#
+# Environment:
+#   MODE      full (the thesis's protocol) or quick (fewer grasps, smaller grids, few epochs)
+#   OUT       output folder (default examples/out or examples/out-quick); one subfolder per chapter
+#   RESULTS   the page the tables go into (full: docs/results.md; quick: $OUT/results.md)
+#   FIGURES   where the PNGs go (full: docs/results/; quick: $OUT/figures)
+#   SEED      the seed of the simulation and of every study (default 1)
+#   NEUROTAC_JOBS / NEUROTAC_SCHEDULER / NEUROTAC_CACHE: where the studies run (docs/studies.md).
+#     The cache defaults to $OUT/cache, so an interrupted run resumes where it stopped.
+set -euo pipefail
+
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+MODE=${MODE:-quick}
+case $MODE in
+  full) OUT=${OUT:-$HERE/out}; RESULTS=${RESULTS:-$HERE/../docs/results.md}; FIGURES=${FIGURES:-$HERE/../docs/results} ;;
+  quick) OUT=${OUT:-$HERE/out-quick}; RESULTS=${RESULTS:-$OUT/results.md}; FIGURES=${FIGURES:-$OUT/figures} ;;
+  *) echo "MODE must be full or quick, got $MODE" >&2; exit 2 ;;
+esac
+SEED=${SEED:-1}
+PYTHON=${PYTHON:-python}
+export NEUROTAC_CACHE=${NEUROTAC_CACHE:-$OUT/cache}
+mkdir -p "$OUT" "$FIGURES"
+
+say() { printf '%s: %s\n' "$(basename "$0" .sh)" "$*" >&2; }
+
+# study NAME ARGS...: `neurotac eval ARGS --metrics DIR/NAME.metrics.parquet`, unless that file
+# exists already (a finished study is not run again; a half-finished one resumes from the cache).
+study() {
+  local name=$1; shift
+  local metrics="$DIR/$name.metrics.parquet"
+  if [[ -s $metrics ]]; then
+    say "$name: done before, kept ($metrics)"
+    return
+  fi
+  say "$name: neurotac eval $*"
+  # neurotac writes -o/--metrics files atomically: the file appears only once complete.
+  neurotac eval "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
+}
+
+# publish CHAPTER "how it was run": write the chapter's tables into $RESULTS.
+publish() {
+  "$PYTHON" "$HERE/results.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$2"
+}
+
+machine() { echo "$(nproc) CPUs, $(uname -m)"; }
