@@ -228,7 +228,7 @@ TEXT_PROBLEMS = {
     TEXT_DIGITS: "number too long",
 }
 POWERS = np.array([10**k for k in range(19)], dtype=np.int64)
-INT64_MAX = np.iinfo(np.int64).max
+LIMITS = np.array([np.iinfo(np.int64).max // 10**k for k in range(19)], dtype=np.int64)  # largest mantissa per scale
 
 
 @njit(cache=True, nogil=True)
@@ -253,7 +253,7 @@ def _long_number(data, first, end, fraction):
 
 @njit(cache=True, nogil=True)
 def parse_text(data, roles, comma, time_digits):
-    """Rows of text numbers -> (t, x, y, p, rows, status, offset).
+    """Rows of text numbers -> (t, x, y, p, rows, status, offset, newlines).
 
     `roles[i]` says what field i is: 0 = time, 1 = x, 2 = y, 3 = polarity, -1 = ignored. Fields are
     separated by a comma (`comma`) or by runs of spaces and tabs; blank lines are skipped. Time is a
@@ -262,10 +262,11 @@ def parse_text(data, roles, comma, time_digits):
     are rounded half up to the µs. On the first problem, `status` says what and `offset` where.
     """
     n = data.shape[0]
-    rows_max = 1
+    newlines = 0
     for i in range(n):
         if data[i] == 10:
-            rows_max += 1
+            newlines += 1
+    rows_max = newlines + 1
     t = np.empty(rows_max, np.int64)
     x = np.empty(rows_max, np.uint16)
     y = np.empty(rows_max, np.uint16)
@@ -293,7 +294,7 @@ def parse_text(data, roles, comma, time_digits):
                     i += 1
             start = i
             if field >= ncols:
-                return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start, newlines
             role = roles[field]
             negative = False
             mantissa = np.int64(0)
@@ -331,7 +332,7 @@ def parse_text(data, roles, comma, time_digits):
                     # more digits than int64 holds: fine only if the extra ones are leading or trailing zeros
                     mantissa, fraction, ok = _long_number(data, first, i, fraction)
                     if not ok:
-                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start, newlines
                 if seen and i < n and (data[i] == 101 or data[i] == 69):
                     i += 1
                     exp_negative = False
@@ -343,14 +344,14 @@ def parse_text(data, roles, comma, time_digits):
                         exponent = exponent * 10 + (data[i] - 48)
                         exp_seen = True
                         if exponent > 40:
-                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
+                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start, newlines
                         i += 1
                     if not exp_seen:
-                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start, newlines
                     if exp_negative:
                         exponent = -exponent
             if not seen:
-                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start, newlines
             if role < 0:
                 while i < n and data[i] != 10 and not ((comma and data[i] == 44) or (not comma and (data[i] == 32 or data[i] == 9))):
                     i += 1
@@ -364,15 +365,18 @@ def parse_text(data, roles, comma, time_digits):
                     i += 1
             at_end = i >= n or data[i] == 10
             if not at_end and comma and data[i] != 44:
-                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start, newlines
             if not at_end and not comma and i == end:
-                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start
+                return t[:row], x[:row], y[:row], p[:row], row, TEXT_NUMBER, start, newlines
             if role >= 0:
                 scale = (time_digits if role == 0 else 0) + exponent - fraction
                 if scale >= 0:
-                    if scale > 18 or mantissa > INT64_MAX // POWERS[scale]:
-                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start
-                    value = mantissa * POWERS[scale]
+                    if scale == 0:
+                        value = mantissa
+                    elif scale > 18 or mantissa > LIMITS[scale]:
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_DIGITS, start, newlines
+                    else:
+                        value = mantissa * POWERS[scale]
                 else:
                     if -scale > 18:
                         divisor = POWERS[18]
@@ -384,7 +388,7 @@ def parse_text(data, roles, comma, time_digits):
                         rest = mantissa - value * divisor
                     if rest != 0:
                         if role != 0 or time_digits == 0:
-                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_FRACTION if role == 0 else TEXT_COORDINATE, start
+                            return t[:row], x[:row], y[:row], p[:row], row, TEXT_FRACTION if role == 0 else TEXT_COORDINATE, start, newlines
                         if 2 * rest >= divisor:
                             value += 1
                 if negative:
@@ -393,22 +397,22 @@ def parse_text(data, roles, comma, time_digits):
                     t[row] = value
                 elif role == 1 or role == 2:
                     if value < 0 or value > 65535:
-                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_COORDINATE, start
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_COORDINATE, start, newlines
                     if role == 1:
                         x[row] = value
                     else:
                         y[row] = value
                 else:
                     if value != -1 and value != 0 and value != 1:
-                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_POLARITY, start
+                        return t[:row], x[:row], y[:row], p[:row], row, TEXT_POLARITY, start, newlines
                     p[row] = 1 if value == 1 else 0
             field += 1
             if at_end:
                 if field != ncols:
-                    return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start
+                    return t[:row], x[:row], y[:row], p[:row], row, TEXT_FIELDS, line_start, newlines
                 row += 1
                 i += 1
                 break
             if comma:
                 i += 1  # past the comma
-    return t[:row], x[:row], y[:row], p[:row], row, TEXT_OK, n
+    return t[:row], x[:row], y[:row], p[:row], row, TEXT_OK, n, newlines

@@ -8,6 +8,7 @@ times are scaled to µs from their decimal digits, exactly (no float rounding; f
 rounded half up). The first bad row stops the read with its line number.
 """
 
+import os
 import re
 
 import numpy as np
@@ -57,38 +58,42 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
         line = data_line
         for block in _line_blocks(path, data_line):
             data = np.frombuffer(block, dtype=np.uint8)
-            t, x, y, p, rows, status, offset = kernels.parse_text(data, roles, delimiter == ",", time_digits)
+            t, x, y, p, rows, status, offset, newlines = kernels.parse_text(data, roles, delimiter == ",", time_digits)
             if status != kernels.TEXT_OK:
-                number = line + block.count(b"\n", 0, offset)
-                start = block.rfind(b"\n", 0, offset) + 1
-                end = block.find(b"\n", offset)
-                text = block[start : end if end >= 0 else len(block)].decode("utf-8", "replace").rstrip("\r")
+                raw = bytes(block)
+                number = line + raw.count(b"\n", 0, offset)
+                start = raw.rfind(b"\n", 0, offset) + 1
+                end = raw.find(b"\n", offset)
+                text = raw[start : end if end >= 0 else len(raw)].decode("utf-8", "replace").rstrip("\r")
                 raise FormatError(f"line {number}: {kernels.TEXT_PROBLEMS[status]}: {text[:80]!r} (fix or delete that row)")
-            line += block.count(b"\n")
+            line += newlines
             yield t, x, y, p
 
     return Decoded(sensor=None, chunks=chunks)
 
 
 def _line_blocks(path: str, first_line: int):
-    """The file from line `first_line` on, in blocks of whole lines of about CHUNK_BYTES."""
+    """The file from line `first_line` on, in blocks of whole lines of about CHUNK_BYTES (memoryviews:
+    no copies; a block's last line continues into the next read when it is cut)."""
     with open(path, "rb") as handle:
         for _ in range(first_line - 1):
             handle.readline()
+        remaining = os.fstat(handle.fileno()).st_size - handle.tell()
         rest = b""
-        while True:
-            block = handle.read(max(camera.CHUNK_BYTES, 1 << 12))
+        while remaining > 0:
+            block = handle.read(min(max(camera.CHUNK_BYTES, 1 << 12), remaining))
             if not block:
-                if rest:
-                    yield rest
-                return
-            data = rest + block
-            cut = data.rfind(b"\n") + 1
+                break
+            remaining -= len(block)
+            data = rest + block if rest else block
+            cut = len(data) if remaining <= 0 else data.rfind(b"\n") + 1
             if cut == 0:
                 rest = data
                 continue
             rest = data[cut:]
-            yield data[:cut]
+            yield memoryview(data)[:cut]
+        if rest:
+            yield memoryview(rest)
 
 
 def _is_number(text: str) -> bool:
