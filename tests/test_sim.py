@@ -140,6 +140,14 @@ def test_led_off_is_the_spike_of_off_events():
     assert trial.t[0] > 1_000_000  # the camera clock does not start at 0
 
 
+def test_led_box_confines_the_blink():
+    trial = simulate(ch4(groups=("steel:bolt12:1",), led_box=(0, 0, 40, 180)), seed=3).trials[0]
+    rel = trial.t - trial.grasp.led_off_camera_us
+    spike = (trial.p == 0) & (rel >= 0) & (rel < 3_000)
+    assert spike.sum() > 5_000
+    assert np.mean(trial.x[spike] < 40) > 0.99  # a few background events fall anywhere
+
+
 # ---------------------------------------------------------------- force sensors
 
 

@@ -111,6 +111,7 @@ class SimConfig:
     drift_px: float = 0.3  # slow drift of the object during the hold (px)
     # ------------------------------------------------------------ LED
     led_gain: float = 1.0  # LED on: the field brightens by this share
+    led_box: tuple = ()  # X,Y,W,H of the part of the field the LED lights (empty: the whole field)
     led_on_us: tuple = (15_000, 25_000)  # LED on-time, uniform range
     preroll_us: tuple = (30_000, 80_000)  # recording before LED-on, uniform range
     camera_offset_us: tuple = (2_000_000, 60_000_000)  # camera clock at the first recorded instant
@@ -195,6 +196,14 @@ def parse_value(name: str, text: str):
     if name not in fields:
         raise NeurotacError(f"unknown simulator parameter {name!r} (see docs/simulator.md for the list)")
     default = fields[name].default
+    if name == "led_box":
+        try:
+            box = tuple(int(part) for part in str(text).split(",") if part.strip())
+        except ValueError:
+            box = (0,)
+        if len(box) not in (0, 4) or any(v < 0 for v in box):
+            raise NeurotacError(f"led_box={text!r}: write X,Y,W,H in pixels, e.g. led_box=0,0,40,180")
+        return box
     if isinstance(default, tuple) and name != "groups":
         parts = str(text).split("..")
         if len(parts) != 2:

@@ -67,8 +67,14 @@ def led_events(config, camera: Camera, on_us: float, off_us: float, rng: np.rand
     """
     h, w = camera.shape
     base = camera.brightness + config.dark_level
-    delta = np.log((camera.brightness * (1 + config.led_gain) + config.dark_level) / base)
-    tau_on = _tau_us(config, camera.brightness * (1 + config.led_gain))
+    gain = np.full((h, w), config.led_gain, np.float32)
+    if config.led_box:
+        x0, y0, bw, bh = config.led_box
+        lit = np.zeros((h, w), bool)
+        lit[y0:y0 + bh, x0:x0 + bw] = True
+        gain = np.where(lit, gain, 0.0).astype(np.float32)
+    delta = np.log((camera.brightness * (1 + gain) + config.dark_level) / base)
+    tau_on = _tau_us(config, camera.brightness * (1 + gain))
     tau_off = _tau_us(config, camera.brightness)
     on_t, off_t = camera.on_threshold, camera.off_threshold
     # Unknown history before the blink: the reference sits anywhere in its dead band.
