@@ -304,3 +304,51 @@ def test_torch_results_are_identical_in_process_and_on_dask(cluster):
     assert [torch_sums(**task) for task in tasks] != run_tasks(torch_sums, tasks)  # the pin matters
     assert run_tasks(torch_sums, tasks) == run_tasks(torch_sums, tasks, scheduler=cluster.scheduler_address)
     assert torch.get_num_threads() == 2  # the caller's setting is given back
+
+
+# -- a real study through the command line ---------------------------------------------------------
+
+
+def _eval(args, env=None):
+    from neurotac_cli.cli import cli
+
+    result = CliRunner().invoke(cli, ["eval", *args], env=env, catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    return result
+
+
+def _metrics(path):
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    rows = zip(*(table.column(name).to_pylist() for name in ("scope", "metric", "value")))
+    return [(scope, metric, "nan" if value != value else value) for scope, metric, value in rows]
+
+
+@pytest.fixture(scope="module")
+def tiny_frames_file(tmp_path_factory):
+    pytest.importorskip("torch")
+    from tests.test_model_helpers import tiny_frames, write_stream
+
+    path = tmp_path_factory.mktemp("frames") / "frames.arrows"
+    write_stream(tiny_frames(trials=5), path)
+    return str(path)
+
+
+def test_eval_cv_through_the_scheduler_gives_the_metrics_of_the_in_process_run(cluster, tiny_frames_file, tmp_path):
+    study = ["--cv", "loo", "--model-spec", "tdnn", "--layers", "1", "--units", "4", "--epochs", "3", "--seed", "2"]
+    _eval([*study, tiny_frames_file, "--metrics", str(tmp_path / "here.parquet"), "-o", str(tmp_path / "here.arrows")])
+    _eval([*study, tiny_frames_file, "--metrics", str(tmp_path / "dask.parquet"), "-o", str(tmp_path / "dask.arrows"),
+           "--scheduler", cluster.scheduler_address])
+    here, dask = _metrics(tmp_path / "here.parquet"), _metrics(tmp_path / "dask.parquet")
+    assert len(here) > 20 and here == dask
+
+
+def test_eval_cv_rerun_with_a_cache_trains_nothing(tiny_frames_file, tmp_path):
+    study = ["--cv", "loo", "--model-spec", "tdnn", "--layers", "1", "--units", "4", "--epochs", "2",
+             "--cache", str(tmp_path / "cache"), tiny_frames_file, "-o", str(tmp_path / "p.arrows")]
+    first = _eval([*study, "--metrics", str(tmp_path / "first.parquet")], env={"NEUROTAC_PROGRESS": "1"})
+    again = _eval([*study, "--metrics", str(tmp_path / "again.parquet")], env={"NEUROTAC_PROGRESS": "1"})
+    assert "5/5 done, " in first.stderr
+    assert "5/5 done (5 cached)" in again.stderr
+    assert _metrics(tmp_path / "first.parquet") == _metrics(tmp_path / "again.parquet")
