@@ -106,6 +106,16 @@ def test_aedat2_reads_the_simulator_writer_exactly(tmp_path):
     assert_same(table, t, x, y, p)
 
 
+def test_aedat2_reads_the_simulator_writer_at_other_sensor_sizes(tmp_path):
+    writers = pytest.importorskip("neurotac_cli.io.writers")
+    t, x, y, p = np.arange(10, 20), np.arange(10) * 30, np.arange(10) * 9, np.arange(10) % 2
+    path = tmp_path / "sim346.aedat"
+    writers.write_aedat2(path, t, x, y, p, width=346, height=260)
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (346, 260)
+    assert_same(table, t, x, y, p)
+
+
 # ---------------------------------------------------------------- AEDAT 4.0
 
 

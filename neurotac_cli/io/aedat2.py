@@ -48,6 +48,12 @@ def chip_of(header: bytes) -> str | None:
     return match.group(1).decode("latin-1") if match else None
 
 
+def sensor_line(header: bytes) -> tuple[int, int] | None:
+    """A `# sensor: WxH` header line (written by neurotac's simulator for sizes other than 240x180)."""
+    match = re.search(rb"#\s*sensor:\s*(\d+)\s*x\s*(\d+)", header)
+    return (int(match.group(1)), int(match.group(2))) if match else None
+
+
 def sensor_of_chip(chip: str | None) -> tuple[int, int] | None:
     if not chip:
         return None
@@ -69,7 +75,7 @@ def _read_header(path: str, head: bytes) -> bytes:
 def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     header = _read_header(path, head)
     chip = chip_of(header)
-    declared = sensor_of_chip(chip)
+    declared = sensor_line(header) or sensor_of_chip(chip)
     if chip and "dvs128" in chip.lower() and "davis" not in chip.lower():
         raise FormatError(f"jAER chip {chip} uses the DVS128 address layout, which is not supported (only DAVIS chips)")
     height = (sensor or declared or (None, None))[1]
