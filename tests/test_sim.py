@@ -61,6 +61,12 @@ def test_off_events_during_loading_grow_with_the_force_increase():
     assert counts[0] < counts[1] < counts[2]
 
 
+def test_the_membrane_saturates_beyond_about_5_newtons():
+    counts = {f: loading_off_events(one_grasp("steel:bolt12:1", f, f)[0]) for f in (1.0, 2.0, 5.0, 10.0)}
+    assert counts[2.0] / counts[1.0] > 1.5
+    assert counts[10.0] / counts[5.0] < 1.15
+
+
 def test_off_events_during_loading_grow_with_object_size():
     counts = [loading_off_events(one_grasp(f"steel:bolt{size}:1", 2.5, 2.5)[0]) for size in (8, 12, 16)]
     assert counts[0] < counts[1] < counts[2]

@@ -87,7 +87,8 @@ class SimConfig:
     membrane_confinement: float = 3.0  # stiffening of a thin bonded, nearly incompressible layer
     membrane_poisson: float = 0.48
     membrane_thickness_mm: float = 2.0
-    saturation_force_n: float = 4.0  # membrane compaction: effective force = Fs tanh(F / Fs)
+    saturation_force_n: float = 4.0  # membrane compaction: effective force F / (1 + (F / Fs)^n)^(1/n)
+    saturation_sharpness: float = 4.0  # n: how abruptly the membrane stops deforming
     creep: float = 0.15  # share of the membrane's deformation that follows with a delay (creep)
     creep_us: int = 120_000  # creep time constant
     tilt_deg: float = 0.15  # s.d. of the misalignment of the object face to the membrane
@@ -234,7 +235,7 @@ def validate(config: SimConfig):
     if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:
         problems.append("force range (need 0 <= force_min_n <= force_max_n, force_max_n > 0)")
     for name in ("on_threshold", "off_threshold", "pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm",
-                 "saturation_force_n", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s"):
+                 "saturation_force_n", "saturation_sharpness", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s"):
         if getattr(config, name) <= 0:
             problems.append(f"{name} must be > 0")
     for name in ("step_us", "force_period_us", "grasp_us"):

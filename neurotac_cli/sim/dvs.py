@@ -144,9 +144,12 @@ def noise_events(config, camera: Camera, start_us: int, end_us: int, rng: np.ran
 def membrane_force(config, force: np.ndarray, step_us: int) -> np.ndarray:
     """Force the membrane deforms under: saturating (compaction) and creeping (a delayed share).
 
-    g = Fs tanh(F / Fs); deformation = (1 - c) g + c LP_tau(g), a standard linear solid in creep.
+    g = F / (1 + (F / Fs)^n)^(1/n): linear at low force, flat beyond Fs (the membrane is fully
+    compacted); deformation = (1 - c) g + c LP_tau(g), a standard linear solid in creep.
     """
-    sat = config.saturation_force_n * np.tanh(force / config.saturation_force_n)
+    n = config.saturation_sharpness
+    force = np.clip(force, 0.0, None)
+    sat = force / (1.0 + (force / config.saturation_force_n) ** n) ** (1.0 / n)
     if config.creep <= 0:
         return sat
     alpha = 1.0 - np.exp(-step_us / max(1, config.creep_us))
