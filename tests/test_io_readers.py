@@ -5,6 +5,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from neurotac_cli import schema as sch
 from neurotac_cli.io import camera, read_events, read_events_table
@@ -270,3 +272,81 @@ def test_formats_are_told_from_their_first_bytes(real_data):
     for name, fmt in expected.items():
         head = (real_data / name).read_bytes()[: 1 << 16]
         assert camera.detect_format(name, head) == fmt
+
+
+# ---------------------------------------------------------------- synthetic edge cases
+
+
+def _raw(tmp_path, name, header, words, dtype):
+    path = tmp_path / name
+    path.write_bytes(header + np.asarray(words, dtype=dtype).tobytes())
+    return path
+
+
+def test_evt3_time_high_wrap_adds_2_24_us_and_vectors_advance_x(tmp_path):
+    words = [
+        0x8000 | 0xFFF,  # TIME_HIGH 4095
+        0x0000 | 7,  # ADDR_Y 7
+        0x6000 | 0x010,  # TIME_LOW 16
+        0x2000 | (1 << 11) | 5,  # ADDR_X x=5, ON
+        0x8000 | 0x000,  # TIME_HIGH 0: a wrap
+        0x3000 | 100,  # VECT_BASE_X x=100, OFF
+        0x4000 | 0b100000000001,  # VECT_12: x=100 and x=111
+        0x5000 | 0b10000001,  # VECT_8: x=112 and x=119
+        0x6000 | 0x005,  # TIME_LOW 5
+        0x6000 | 0x003,  # TIME_LOW 3: steps back, kept
+        0x2000 | 9,  # ADDR_X x=9, OFF
+    ]
+    path = _raw(tmp_path, "w.raw", b"% evt 3.0\n% geometry 1280x720\n", words, "<u2")
+    table = read_events_table(path)
+    base = 1 << 24
+    assert columns(table)[0].tolist() == [(4095 << 12) + 16, base, base, base, base, base + 3]
+    assert columns(table)[1].tolist() == [5, 100, 111, 112, 119, 9]
+    assert columns(table)[2].tolist() == [7] * 6
+    assert columns(table)[3].tolist() == [1, 0, 0, 0, 0, 0]
+    assert sch.sensor_of(table.schema) == (1280, 720)
+
+
+def test_evt2_time_high_wrap_and_events_before_the_first_time_high(tmp_path):
+    cd = lambda on, low, x, y: (on << 28) | (low << 22) | (x << 11) | y  # noqa: E731
+    words = [
+        cd(1, 1, 3, 4),  # no time base yet: skipped
+        (0x8 << 28) | 0x0FFFFFFF,
+        cd(1, 2, 5, 6),
+        (0x8 << 28) | 0x1,  # wrap
+        cd(0, 3, 7, 8),
+    ]
+    path = _raw(tmp_path, "w.raw", b"% evt 2.0\n% geometry 640x480\n", words, "<u4")
+    t, x, y, p = columns(read_events_table(path))
+    assert t.tolist() == [(0x0FFFFFFF << 6) + 2, (1 << 34) + (1 << 6) + 3]
+    assert x.tolist() == [5, 7] and y.tolist() == [6, 8] and p.tolist() == [1, 0]
+
+
+def test_aedat4_decoded_twice_when_large_gives_the_same_table(monkeypatch):
+    from neurotac_cli.io import aedat4
+
+    path = real_file("davis346_aestream.aedat4")
+    once = read_events_table(path)
+    monkeypatch.setattr(aedat4, "SINGLE_PASS_BYTES", 0)
+    assert read_events_table(path).equals(once, check_metadata=True)
+
+
+def test_aedat2_sensor_option_does_not_change_the_flip():
+    path = real_file("davis240c_rotdisk.aedat")
+    wider = read_events_table(path, sensor=(300, 300))
+    assert sch.sensor_of(wider.schema) == (300, 300)
+    assert np.array_equal(wider["y"].to_numpy(), read_events_table(path)["y"].to_numpy())
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 3000), width=st.integers(1, 1024), height=st.integers(1, 512))
+def test_any_events_the_simulator_writes_read_back_exactly(tmp_path_factory, seed, n, width, height):
+    writers = pytest.importorskip("neurotac_cli.io.writers")
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(0, 2**32, n))
+    x, y, p = rng.integers(0, width, n), rng.integers(0, height, n), rng.integers(0, 2, n)
+    path = tmp_path_factory.mktemp("aedat") / "e.aedat"
+    writers.write_aedat2(path, t, x, y, p, width=width, height=height)
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (width, height)
+    assert_same(table, t, x, y, p)

@@ -78,7 +78,7 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     declared = sensor_line(header) or sensor_of_chip(chip)
     if chip and "dvs128" in chip.lower() and "davis" not in chip.lower():
         raise FormatError(f"jAER chip {chip} uses the DVS128 address layout, which is not supported (only DAVIS chips)")
-    height = (sensor or declared or (None, None))[1]
+    height = (declared or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
     if height is None:
         raise FormatError(
             f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
