@@ -127,12 +127,12 @@ def test_events_later_than_one_window_of_slack_are_counted_not_lost(monkeypatch)
 def test_saturation_holds_at_65535_and_is_counted_in_both_kernels():
     n = 70_000
     t, x, y, p = np.zeros(n, np.int64), np.full(n, 3), np.full(n, 2), np.ones(n)
-    for kernel in (fr._bin_numpy, None):
+    for kernel in (fr._scan_numpy, None):
         out = np.zeros((1, 2, H, W), np.uint16)
         if kernel is None:
             inside, saturated = fr.bin_into(t, x, y, p, 0, 10_000, 0, out)
         else:
-            inside, saturated = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out)
+            inside, saturated, *_ = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out)
         assert out[0, 1, 2, 3] == 65535 and inside == n and saturated == n - 65535
 
 
@@ -142,8 +142,8 @@ def test_numpy_fallback_equals_compiled_kernel(seed, first):
     t, x, y, p = random_events(seed, n=3000)
     a = np.zeros((6, 2, H, W), np.uint16)
     b = np.zeros((6, 2, H, W), np.uint16)
-    ra = fr.bin_into(t, x, y, p, 0, 10_000, first, a)
-    rb = fr._bin_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b)
+    ra = fr.scan_into(t, x, y, p, 0, 10_000, first, a)
+    rb = fr._scan_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b)
     assert ra == rb and np.array_equal(a, b)
 
 

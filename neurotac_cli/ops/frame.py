@@ -42,13 +42,23 @@ try:  # numba compiles the one-pass loop; numpy's bincount path below gives iden
     import numba
 
     @numba.njit(cache=True, nogil=True)
-    def _bin_numba(t, x, y, p, start, window_us, first, out):  # pragma: no cover - compiled
+    def _scan_numba(t, x, y, p, start, window_us, first, out):  # pragma: no cover - compiled
         n = out.shape[0]
-        inside = 0
-        saturated = 0
+        inside = saturated = before = late = beyond = 0
+        k_max = -1
         for i in range(t.shape[0]):
-            k = (t[i] - start) // window_us - first
-            if k < 0 or k >= n:
+            k = (t[i] - start) // window_us
+            if k > k_max:
+                k_max = k
+            if k < 0:
+                before += 1
+                continue
+            k -= first
+            if k < 0:
+                late += 1
+                continue
+            if k >= n:
+                beyond += 1
                 continue
             inside += 1
             cell = out[k, p[i], y[i], x[i]]
@@ -56,39 +66,51 @@ try:  # numba compiles the one-pass loop; numpy's bincount path below gives iden
                 saturated += 1
             else:
                 out[k, p[i], y[i], x[i]] = cell + 1
-        return inside, saturated
+        return inside, saturated, before, late, beyond, k_max
 
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - exercised with NEUROTAC_NO_NUMBA=1
     HAVE_NUMBA = False
 
 
-def _bin_numpy(t, x, y, p, start, window_us, first, out):
+def _scan_numpy(t, x, y, p, start, window_us, first, out):
     n, _, height, width = out.shape
-    k = (t - start) // window_us - first
+    window = (t - start) // window_us
+    k = window - first
     keep = (k >= 0) & (k < n)
+    before = int(np.count_nonzero(window < 0))
+    late = int(np.count_nonzero((window >= 0) & (k < 0)))
+    beyond = int(np.count_nonzero(k >= n))
     k, x, y, p = k[keep], x[keep], y[keep], p[keep]
     flat = ((k * 2 + p) * height + y.astype(np.int64)) * width + x
     total = out.reshape(-1).astype(np.int64) + np.bincount(flat, minlength=out.size)
     saturated = int(np.clip(total - MAX_COUNT, 0, None).sum())
     out.reshape(-1)[:] = np.minimum(total, MAX_COUNT)
-    return int(keep.sum()), saturated
+    k_max = int(window.max()) if len(window) else -1
+    return int(keep.sum()), saturated, before, late, beyond, k_max
 
 
-def bin_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray) -> tuple[int, int]:
+def scan_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray) -> tuple:
     """Add events to `out` (n, 2, H, W) uint16, whose frame 0 is window `first` counted from `start`.
 
-    Events of other windows are skipped. Returns (events inside these windows, of which lost to
-    saturation). Coordinates must lie inside the sensor and p in {0, 1} (checked by the callers).
+    One pass; returns (inside, saturated, before, late, beyond, k_max): events counted into these
+    windows (of which `saturated` could not be, the pixel being at 65535), events before `start`,
+    events of windows before `first` (late), events of windows past the buffer (beyond), and the
+    largest window index seen (-1 for none). Coordinates must lie inside the sensor and p in {0, 1}.
     """
     t = np.ascontiguousarray(t, dtype=np.int64)
     x = np.ascontiguousarray(x, dtype=np.uint16)
     y = np.ascontiguousarray(y, dtype=np.uint16)
     p = np.ascontiguousarray(p, dtype=np.uint8)
     if HAVE_NUMBA and out.flags.c_contiguous:
-        inside, saturated = _bin_numba(t, x, y, p, np.int64(start), np.int64(window_us), np.int64(first), out)
-        return int(inside), int(saturated)
-    return _bin_numpy(t, x, y, p, int(start), int(window_us), int(first), out)
+        return tuple(int(v) for v in _scan_numba(t, x, y, p, np.int64(start), np.int64(window_us), np.int64(first), out))
+    return _scan_numpy(t, x, y, p, int(start), int(window_us), int(first), out)
+
+
+def bin_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray) -> tuple[int, int]:
+    """`scan_into`, returning only (events inside these windows, of which lost to saturation)."""
+    inside, saturated, *_ = scan_into(t, x, y, p, start, window_us, first, out)
+    return inside, saturated
 
 
 def count_frames(t, x, y, p, window_us: int, n_frames: int, height: int, width: int, start: int = 0) -> np.ndarray:
@@ -421,9 +443,10 @@ def _frames_batch(schema, trial, counts, force, phase, label_values, labels, win
 def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingReport, sensor=None):
     """Frame a plain `events` stream as one unlabelled trial, batch by batch.
 
-    Memory stays flat: a ring of at most BUFFER_CELLS counts is filled and frames leave it as soon
-    as a later event shows they are complete (one window of slack absorbs small time disorder, such
-    as the steps back of Prophesee EVT 3.0 files). Returns (frames schema, iterator of batches); the
+    Memory stays flat: frames are counted into a buffer of at most BUFFER_CELLS counts and leave it,
+    without a copy, as soon as a later event shows they are complete (one window of slack absorbs
+    small time disorder, such as the steps back of Prophesee EVT 3.0 files; events later than that
+    are counted as late). Returns (frames schema, iterator of batches); the
     report is complete once the iterator is exhausted.
     """
     sensor = sensor or sch.sensor_of(schema)
@@ -444,13 +467,16 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
     cap = framing.pad_to if isinstance(framing.pad_to, int) else None
 
     def generate():
-        state = {"start": framing.start_us, "first": 0, "last_t": None, "emitted": 0}
+        # Frames are counted straight into `buffer` and leave as views of it (no copy); when events
+        # reach past its end, a fresh buffer takes over, carrying the frames still open (one or two).
+        state = {"start": framing.start_us, "first": 0, "base": 0, "high": -1, "last_t": None, "emitted": 0}
         buffer = np.zeros((capacity, 2, height, width), dtype=np.uint16)
         running = np.zeros((2, height, width), dtype=np.int64) if framing.accumulate else None
         held = []  # float32 output without a given scale: frames wait for the maximum
+        ready = []  # frames batches made, waiting to be yielded
 
         def emit(frames: np.ndarray):
-            """Frames leave here, in order, numbered from state['emitted']."""
+            """Frames leave here, in order, numbered from state['emitted']; never written again."""
             nonlocal running
             if not len(frames):
                 return
@@ -458,40 +484,61 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
                 total = running[None] + np.cumsum(frames, axis=0, dtype=np.int64)
                 running = total[-1].copy()
                 frames = np.minimum(total, MAX_COUNT).astype(np.uint16)
-            report.saturated_pixels += int(np.count_nonzero(frames == MAX_COUNT))
+            if report.saturated_events or running is not None:
+                report.saturated_pixels += int(np.count_nonzero(frames == MAX_COUNT))
             first = state["emitted"]
             state["emitted"] += len(frames)
             report.frames += len(frames)
             phase = ph.phases_from_ranges(first + len(frames), list(phases))[first:] if phases else None
             if framing.dtype == "float32" and framing.scale is None:
-                held.append((first, frames.copy(), phase))
+                held.append((first, frames, phase))
                 return
             scale = [float(s) for s in framing.scale] if framing.dtype == "float32" else None
-            yield_queue.append(
-                _frames_batch(out_schema, framing.trial, frames.copy(), None, phase, {}, (), window, scale, first_frame=first)
-            )
+            ready.append(_frames_batch(out_schema, framing.trial, frames, None, phase, {}, (), window, scale, first_frame=first))
+
+        def zeros(count: int):
+            while count > 0:
+                step = min(count, capacity)
+                emit(np.zeros((step, 2, height, width), dtype=np.uint16))
+                count -= step
+
+        def rebase():
+            """A fresh buffer starting at the first open frame, carrying the open frames over."""
+            nonlocal buffer
+            offset = state["first"] - state["base"]
+            filled = max(0, min(capacity, state["high"] - state["base"] + 1) - offset)
+            fresh = np.zeros(buffer.shape, dtype=buffer.dtype)  # calloc: pages are zeroed when first touched
+            fresh[:filled] = buffer[offset:offset + filled]
+            buffer = fresh
+            state["base"] = state["first"]
 
         def advance(new_first: int):
-            """Emit frames [first, new_first) and slide the buffer."""
-            first = state["first"]
-            move = new_first - first
-            if move <= 0:
+            """Emit frames [first, new_first)."""
+            first, base = state["first"], state["base"]
+            if new_first <= first:
                 return
-            if move >= capacity:
-                emit(buffer)
-                gap = move - capacity
-                while gap > 0:
-                    step = min(gap, capacity)
-                    emit(np.zeros((step, 2, height, width), dtype=np.uint16))
-                    gap -= step
-                buffer[:] = 0
-            else:
-                emit(buffer[:move])
-                buffer[: capacity - move] = buffer[move:]
-                buffer[capacity - move:] = 0
-            state["first"] = new_first
+            end = base + capacity
+            upto = min(new_first, end)
+            emit(buffer[first - base:upto - base])
+            state["first"] = upto
+            if new_first > end:
+                zeros(new_first - end)
+                state["first"] = new_first
+                rebase()
 
-        yield_queue = []
+        def scan(t, x, y, p):
+            offset = state["first"] - state["base"]
+            inside, saturated, before, late, beyond, k_max = scan_into(
+                t, x, y, p, state["start"], window, state["first"], buffer[offset:]
+            )
+            report.framed += inside - saturated
+            report.saturated_events += saturated
+            report.before_start += before
+            report.late += late
+            if inside:
+                state["high"] = max(state["high"], min(k_max, state["base"] + capacity - 1))
+            return beyond, k_max
+
         for batch in batches:
             if not batch.num_rows:
                 continue
@@ -504,41 +551,25 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
                 state["start"] = int(t[0])
             state["last_t"] = int(t[-1])
             report.events += len(t)
-            start = state["start"]
-            k = (t - start) // window
-            before = k < 0
-            report.before_start += int(before.sum())
-            if cap is not None:
-                past = k >= cap
-                report.after_end += int(past.sum())
-                keep = ~(before | past)
-                if not keep.all():
-                    t, x, y, p, k = t[keep], x[keep], y[keep], p[keep], k[keep]
-            while len(t):
-                first = state["first"]
-                bound = first + capacity
-                now = k < bound
-                late = int(np.count_nonzero((k >= 0) & (k < first) & now))
-                report.late += late
-                if now.all():
-                    inside, saturated = bin_into(t, x, y, p, start, window, first, buffer)
-                    report.framed += inside - saturated
-                    report.saturated_events += saturated
-                    break
-                inside, saturated = bin_into(t[now], x[now], y[now], p[now], start, window, first, buffer)
-                report.framed += inside - saturated
-                report.saturated_events += saturated
-                rest = ~now
-                t, x, y, p, k = t[rest], x[rest], y[rest], p[rest], k[rest]
-                advance(int(k.min()) - 1)
-                yield from yield_queue
-                yield_queue.clear()
-            # frames that are surely complete: all before the window of the latest event, less one of slack
-            latest = int(k.max()) if len(k) else None
-            if latest is not None and latest - 1 > state["first"]:
-                advance(latest - 1)
-            yield from yield_queue
-            yield_queue.clear()
+            if cap is not None:  # windows past --pad-to N are cut here, and counted
+                past = (t - state["start"]) // window >= cap
+                if past.any():
+                    report.after_end += int(past.sum())
+                    t, x, y, p = t[~past], x[~past], y[~past], p[~past]
+            beyond, k_max = scan(t, x, y, p)
+            while beyond:  # events past the buffer's end (once per buffer length): move on and count them
+                windows = (t - state["start"]) // window
+                rest = windows >= state["base"] + capacity
+                t, x, y, p = t[rest], x[rest], y[rest], p[rest]
+                advance(int(windows[rest].min()) - 1)
+                if state["first"] != state["base"]:
+                    rebase()
+                beyond, k_max = scan(t, x, y, p)
+            # frames before the latest event's window, less one window of slack, are complete
+            if k_max - 1 > state["first"]:
+                advance(k_max - 1)
+            yield from ready
+            ready.clear()
 
         if state["start"] is None:
             raise NeurotacError("input events table is empty: nothing to frame")
@@ -550,29 +581,18 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
         if cap is not None:
             n_total = cap
             n_real = min(n_real, cap)
-        report.padded_frames = n_total - n_real
+        report.padded_frames = max(0, n_total - n_real)
         report.trials = 1
-        first = state["first"]
-        # frames still in the buffer: those past n_real are dropped (partial window, or past N)
-        if n_real > first:
-            keep_upto = min(n_real - first, capacity)
-            if n_real - first > capacity:  # cannot happen: the buffer trails the latest event by one window
-                advance(n_real - capacity)
-                first = state["first"]
-                keep_upto = n_real - first
-            lost = int(buffer[keep_upto:].sum(dtype=np.int64))
-            emit(buffer[:keep_upto])
-        else:
-            lost = int(buffer.sum(dtype=np.int64))
+        first, base = state["first"], state["base"]
+        filled_end = min(capacity, max(0, state["high"] - base + 1))
+        keep_end = min(max(n_real - base, first - base), capacity)
+        lost = int(buffer[keep_end:max(filled_end, keep_end)].sum(dtype=np.int64))  # the partial window, when dropped
+        emit(buffer[first - base:keep_end])
         report.framed -= lost
         report.after_end += lost
-        remaining = n_total - state["emitted"]
-        while remaining > 0:
-            step = min(remaining, capacity)
-            emit(np.zeros((step, 2, height, width), dtype=np.uint16))
-            remaining -= step
-        yield from yield_queue
-        yield_queue.clear()
+        zeros(n_total - state["emitted"])
+        yield from ready
+        ready.clear()
         if held:
             peaks = np.zeros(2, dtype=np.int64)
             for _, frames, _ in held:
