@@ -90,8 +90,10 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
     if synced and output in (None, "-"):
         tables.refuse_terminal()  # before minutes of work, not after
 
-    from neurotac_cli.sim.run import recordings, simulate, write_dataset
+    from neurotac_cli.sim.run import prepare_folder, recordings, simulate, write_dataset
 
+    if out_dir:
+        prepare_folder(out_dir)
     simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer())
     if out_dir:
         write_dataset(simulation, out_dir)

@@ -130,7 +130,7 @@ def write_dataset(simulation: Simulation, folder: str) -> list[str]:
     from neurotac_cli.io.writers import write_aedat2
 
     config = simulation.config
-    os.makedirs(folder, exist_ok=True)
+    prepare_folder(folder)
     written = []
     for trial in simulation.trials:
         path = os.path.join(folder, f"{trial.grasp.trial}.aedat")
@@ -151,6 +151,18 @@ def write_dataset(simulation: Simulation, folder: str) -> list[str]:
     manifest = os.path.join(folder, "manifest.csv")
     _write_text(manifest, buffer.getvalue())
     return written + [still, manifest]
+
+
+def prepare_folder(folder: str) -> None:
+    """Create the output folder (and check it is writable) before minutes of work, not after."""
+    from neurotac_cli.errors import NeurotacError
+
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as error:
+        raise NeurotacError(f"cannot create folder {folder} ({error.strerror}; choose another --out)") from None
+    if not os.access(folder, os.W_OK):
+        raise NeurotacError(f"cannot write to folder {folder} (permission denied; choose another --out)")
 
 
 def _write_text(path, text):
