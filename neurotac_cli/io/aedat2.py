@@ -29,14 +29,24 @@ APS_OR_IMU = np.uint32(1 << 31)
 SPECIAL = np.uint32(1 << 10)
 
 
+_CONTROL = bytes(c for c in range(32) if c not in (9, 13))
+
+
 def header_length(data: bytes) -> int:
-    """Bytes of the `#` header: lines starting with `#`, up to the first that does not."""
+    """Bytes of the `#` header: the lines starting with `#`, up to the first that does not.
+
+    A record whose first address byte happens to be `#` (0x23: a DAVIS row 140-143 counted from the
+    bottom) is not mistaken for a header line, because header lines are text: a candidate line with a
+    control byte in it (other than tab and CR) is data.
+    """
     offset = 0
     while offset < len(data) and data[offset : offset + 1] == b"#":
         end = data.find(b"\n", offset)
+        line = data[offset : end if end >= 0 else len(data)]
+        if line.translate(None, _CONTROL) != line:
+            break
         if end < 0:
             return len(data)
-        line = data[offset:end]
         offset = end + 1
         if line.lower().startswith(b"#end of ascii header"):
             break
