@@ -106,7 +106,7 @@ class SimConfig:
     settle_px: float = 0.6  # rigid motion of the object when it settles after loading (px)
     settle_hz: float = 25.0
     settle_us: int = 40_000
-    vibration_px: float = 0.08  # rigid vibration during the hold (px)
+    vibration_px: float = 0.12  # rigid vibration during the hold (px)
     vibration_hz: float = 30.0
     force_vibration: float = 0.02  # force ripple during the hold, share of the peak force
     drift_px: float = 0.3  # slow drift of the object during the hold (px)
