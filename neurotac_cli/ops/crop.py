@@ -2,8 +2,9 @@
 
 A box is `(x, y, w, h)` in the input's pixels (origin top-left). With a size and a centre, the box
 is centred there; `center="auto"` finds the contact area's centre once from the whole input: the
-activity of every pixel (frames' counts, or events after each trial's t0) is median-filtered 3x3
-(hot pixels are single pixels), smoothed (Gaussian, 2 px), thresholded at 20% of its peak, and the
+activity of every pixel (frames' counts, or events after each trial's t0) less the median pixel's
+(what the whole field saw: the LED flash at t0, background noise) is median-filtered 3x3 (hot pixels
+are single pixels), smoothed (Gaussian, 2 px), thresholded at 20% of its peak, and the
 centre of the bounding box of the largest connected region is taken (thesis: the largest contact
 area). A box that would reach past the sensor is moved inside it when the centre was found
 automatically, and refused when it was given.
@@ -99,9 +100,13 @@ def contact_center(activity: np.ndarray) -> tuple[int, int]:
     activity = np.asarray(activity, dtype=np.float64)
     if activity.max(initial=0) <= 0:
         raise NeurotacError("cannot find the contact area: the input has no events (give --center X,Y)")
-    smooth = ndimage.gaussian_filter(ndimage.median_filter(activity, size=3, mode="nearest"), 2.0)
+    # what every pixel saw (the LED flash at t0, background noise) is not contact: take it away
+    above = np.clip(activity - np.median(activity), 0, None)
+    if above.max() <= 0:
+        above = activity
+    smooth = ndimage.gaussian_filter(ndimage.median_filter(above, size=3, mode="nearest"), 2.0)
     if smooth.max() <= 0:
-        smooth = ndimage.gaussian_filter(activity, 2.0)
+        smooth = ndimage.gaussian_filter(above, 2.0)
     mask = smooth >= 0.2 * smooth.max()
     labels, count = ndimage.label(mask)
     sizes = ndimage.sum_labels(mask, labels, index=np.arange(1, count + 1))

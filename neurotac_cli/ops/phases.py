@@ -14,14 +14,15 @@ PHASES = ("grasping", "holding", "releasing")
 NONE = "none"
 
 # Detection thresholds, as shares of the trial's force range above its baseline.
-CONTACT_SHARE = 0.10  # force above baseline + 10% of the range = in contact
+CONTACT_SHARE = 0.05  # force above baseline + 5% of the range = in contact
 PLATEAU_SHARE = 0.90  # force above baseline + 90% of the range = holding
 
 
 def detect_phases(force: np.ndarray, contact_share: float = CONTACT_SHARE, plateau_share: float = PLATEAU_SHARE) -> np.ndarray:
-    """Label each frame from its force: `none` before contact and after release, `grasping` while the
-    force rises to its plateau, `holding` from the first to the last frame on the plateau, `releasing`
-    while it falls back to the contact threshold.
+    """Label each frame from its force (read at the frame's end): `none` before contact and after
+    release, `grasping` while the force rises to its plateau, `holding` from the first to the last
+    frame on the plateau, `releasing` while it falls, up to and including the frame in which it
+    drops below the contact threshold.
 
     The baseline is the force's 5th percentile and the plateau level its 95th (robust to spikes);
     frames with a missing force count as below contact. A trace with no rise above the noise
@@ -44,7 +45,8 @@ def detect_phases(force: np.ndarray, contact_share: float = CONTACT_SHARE, plate
     first_hold, last_hold = int(plateau[0]), int(plateau[-1])
     labels[first_contact:first_hold] = "grasping"
     labels[first_hold:last_hold + 1] = "holding"
-    labels[last_hold + 1:last_contact + 1] = "releasing"
+    # the frame whose end first reads below contact is the one the release finished in: releasing too
+    labels[last_hold + 1:last_contact + 2] = "releasing"
     return labels
 
 
