@@ -64,14 +64,14 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
         t0 = g.led_off_camera_us
         first, last = g.camera_start_us, t0 + g.end_us
         ct, cx, cy, cp = contacts[i]
-        keep = ct <= g.end_us
+        keep = ct < g.end_us  # the recording is [camera start, LED-off + duration)
         led_t, led_x, led_y, led_p = blinks[i][0]
         nt, nx, ny, np_ = dvs.noise_events(config, camera, first, last, rng)
         t = np.concatenate([led_t, ct[keep] + t0, nt])
         x = np.concatenate([led_x, cx[keep], nx])
         y = np.concatenate([led_y, cy[keep], ny])
         p = np.concatenate([led_p, cp[keep], np_])
-        inside = (t >= first) & (t <= last)
+        inside = (t >= first) & (t < last)
         order = np.argsort(t[inside], kind="stable")
         sel = np.flatnonzero(inside)[order]
         force_t, measured, truth = _force_log(config, g, rng)
@@ -91,7 +91,7 @@ def _force_log(config, grasp, rng):
     truth = true_force(config, grasp, fine)
     moving = ((fine >= grasp.contact_us) & (fine <= grasp.loaded_us)) | ((fine >= grasp.release_us) & (fine <= grasp.released_us))
     reading = force_sensor.measure(config, truth, SENSOR_STEP_US, moving.astype(float), rng)
-    log_t = np.arange(0, grasp.end_us + 1, config.force_period_us, dtype=np.int64)
+    log_t = np.arange(0, grasp.end_us, config.force_period_us, dtype=np.int64)
     index = np.minimum(np.round(log_t / SENSOR_STEP_US).astype(int), fine.size - 1)
     return log_t, reading[index].astype(np.float32), truth[index].astype(np.float32)
 
