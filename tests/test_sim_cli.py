@@ -74,6 +74,8 @@ def test_out_writes_camera_files_force_logs_still_and_manifest(dataset):
         assert lines[0] == "t_ms,force_N"
         times = np.array([float(line.split(",")[0]) for line in lines[1:]])
         assert times[0] == 0 and np.all(np.diff(times) == 2)  # 500 Hz from LED-off
+        assert times[-1] < float(row["true_duration_ms"]) <= times[-1] + 2
+        assert t[-1] < t0 + float(row["true_duration_ms"]) * 1000
 
 
 def test_camera_files_read_back_with_the_project_reader(dataset):
