@@ -350,3 +350,18 @@ def test_any_events_the_simulator_writes_read_back_exactly(tmp_path_factory, see
     table = read_events_table(path)
     assert sch.sensor_of(table.schema) == (width, height)
     assert_same(table, t, x, y, p)
+
+
+def test_prophesee_external_triggers_go_to_the_metadata(tmp_path):
+    words3 = [0x8000 | 5, 0x6000 | 7, 0xA000 | (2 << 8) | 1, 0x6000 | 9, 0xA000 | (2 << 8) | 0, 0x0000 | 1, 0x2000 | 3]
+    table = read_events_table(_raw(tmp_path, "t3.raw", b"% evt 3.0\n", words3, "<u2"))
+    base = 5 << 12
+    assert sch.get_meta(table.schema, "neurotac:triggers") == [
+        {"t": base + 7, "type": "rising", "id": 2},
+        {"t": base + 9, "type": "falling", "id": 2},
+    ]
+    assert table.num_rows == 1
+    words2 = [(0x8 << 28) | 3, (0xA << 28) | (4 << 22) | (1 << 8) | 1]
+    table = read_events_table(_raw(tmp_path, "t2.raw", b"% evt 2.0\n", words2, "<u4"), sensor=(640, 480))
+    assert sch.get_meta(table.schema, "neurotac:triggers") == [{"t": (3 << 6) + 4, "type": "rising", "id": 1}]
+    assert sch.get_meta(read_events_table(real_file("prophesee_vga_faery.evt2.raw")).schema, "neurotac:triggers") is None

@@ -103,8 +103,7 @@ def decode_evt2(words, state):
     n = words.shape[0]
     count = 0
     for i in range(n):
-        if (words[i] >> 28) <= 1:
-            count += 1
+        count += (words[i] >> 28) <= 1  # branch-free, so it vectorises
     t = np.empty(count, np.int64)
     x = np.empty(count, np.uint16)
     y = np.empty(count, np.uint16)
@@ -139,8 +138,7 @@ def decode_davis(data, height):
     n = data.shape[0] // 8
     count = 0
     for i in range(n):
-        if (data[8 * i] & 0x80) == 0 and (data[8 * i + 2] & 0x04) == 0:
-            count += 1
+        count += ((data[8 * i] & 0x80) == 0) & ((data[8 * i + 2] & 0x04) == 0)
     t = np.empty(count, np.int64)
     x = np.empty(count, np.uint16)
     y = np.empty(count, np.uint16)
@@ -416,3 +414,80 @@ def parse_text(data, roles, comma, time_digits):
             if comma:
                 i += 1  # past the comma
     return t[:row], x[:row], y[:row], p[:row], row, TEXT_OK, n, newlines
+
+
+# ---------------------------------------------------------------- Prophesee external triggers
+
+
+@njit(cache=True, nogil=True)
+def evt3_triggers(words, state):
+    """EXT_TRIGGER words of EVT 3.0 -> (t, value, id), timed as decode_evt3 times events."""
+    n = words.shape[0]
+    count = 0
+    for i in range(n):
+        if (words[i] >> 12) == 0xA:
+            count += 1
+    t = np.empty(count, np.int64)
+    value = np.empty(count, np.uint8)
+    channel = np.empty(count, np.uint8)
+    high, loop, low, timed = state[0], state[1], state[2], state[6]
+    k = 0
+    for i in range(n):
+        word = np.int64(words[i])
+        kind = word >> 12
+        payload = word & 0xFFF
+        if kind == 0x6:
+            low = payload
+        elif kind == 0x8:
+            if timed and high - payload >= EVT3_WRAP:
+                loop += 1
+            high = payload
+            low = 0
+            timed = 1
+        elif kind == 0xA and timed:
+            t[k] = ((high << 12) + loop * EVT3_LOOP) + low
+            value[k] = payload & 1
+            channel[k] = (payload >> 8) & 0xF
+            k += 1
+    state[0], state[1], state[2], state[6] = high, loop, low, timed
+    return t[:k], value[:k], channel[:k]
+
+
+@njit(cache=True, nogil=True)
+def evt2_triggers(words, state):
+    """EXT_TRIGGER words of EVT 2.0 -> (t, value, id), timed as decode_evt2 times events."""
+    n = words.shape[0]
+    count = 0
+    for i in range(n):
+        if (words[i] >> 28) == 0xA:
+            count += 1
+    t = np.empty(count, np.int64)
+    value = np.empty(count, np.uint8)
+    channel = np.empty(count, np.uint8)
+    high, loop, timed = state[0], state[1], state[2]
+    k = 0
+    for i in range(n):
+        word = np.int64(words[i])
+        kind = word >> 28
+        if kind == 0x8:
+            new = word & 0x0FFFFFFF
+            if timed and high - new > (1 << 27):
+                loop += 1
+            high = new
+            timed = 1
+        elif kind == 0xA and timed:
+            t[k] = (high << 6) + loop * EVT2_LOOP + ((word >> 22) & 0x3F)
+            value[k] = word & 1
+            channel[k] = (word >> 8) & 0x1F
+            k += 1
+    state[0], state[1], state[2] = high, loop, timed
+    return t[:k], value[:k], channel[:k]
+
+
+@njit(cache=True, nogil=True)
+def has_kind(words, shift, kind):
+    """Whether any word has `kind` in its top bits (a branch-free count, which the compiler vectorises)."""
+    count = 0
+    for i in range(words.shape[0]):
+        count += (words[i] >> shift) == kind
+    return count > 0

@@ -10,6 +10,7 @@ wrap and adds 2^24 µs (EVT 3.0) or 2^34 µs (EVT 2.0). Events before the first 
 base and are skipped, as OpenEB does.
 """
 
+import os
 import re
 
 import numpy as np
@@ -88,19 +89,51 @@ def open_evt3(path: str, head: bytes, sensor) -> Decoded:
 
 
 def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
-    from neurotac_cli.io import kernels
+    from neurotac_cli.io import camera, kernels
 
     offset, fields = header_of(path, head)
     decode, fresh, dtype = (
         (kernels.decode_evt2, kernels.evt2_state, "<u4") if word_bytes == 4 else (kernels.decode_evt3, kernels.evt3_state, "<u2")
     )
+    if os.path.getsize(path) - offset <= camera.CHUNK_BYTES:
+        # one chunk: read it once, look for triggers in memory, decode it when the batches are asked for
+        blocks = list(read_chunks(path, offset, word_bytes))
+        triggers = _triggers(blocks, word_bytes)
 
-    def chunks():
-        state = fresh()
-        for block in read_chunks(path, offset, word_bytes):
-            yield decode(np.frombuffer(block, dtype=dtype), state)
+        def chunks():
+            state = fresh()
+            for block in blocks:
+                yield decode(np.frombuffer(block, dtype=dtype), state)
 
-    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
+    else:
+        triggers = _triggers(read_chunks(path, offset, word_bytes), word_bytes)
+
+        def chunks():
+            state = fresh()
+            for block in read_chunks(path, offset, word_bytes):
+                yield decode(np.frombuffer(block, dtype=dtype), state)
+
+    meta = _meta(fields)
+    if triggers is not None:
+        meta["triggers"] = triggers
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta)
+
+
+def _triggers(blocks, word_bytes: int) -> list | None:
+    """External trigger events ([{"t", "type": rising|falling, "id"}]) for `neurotac:triggers`, or
+    None when the file has none. Blocks already in memory get a quick compiled look for EXT_TRIGGER
+    words first; otherwise (a file of several chunks) the trigger kernel reads them, timing words only."""
+    from neurotac_cli.io import kernels
+
+    dtype, shift = ("<u4", 28) if word_bytes == 4 else ("<u2", 12)
+    if isinstance(blocks, list) and not any(kernels.has_kind(np.frombuffer(b, dtype=dtype), shift, 0xA) for b in blocks):
+        return None
+    find, state = (kernels.evt2_triggers, kernels.evt2_state()) if word_bytes == 4 else (kernels.evt3_triggers, kernels.evt3_state())
+    triggers = []
+    for block in blocks:
+        t, value, channel = find(np.frombuffer(block, dtype=dtype), state)
+        triggers += [{"t": int(a), "type": "rising" if b else "falling", "id": int(c)} for a, b, c in zip(t, value, channel)]
+    return triggers or None
 
 
 # ---------------------------------------------------------------- DAT
