@@ -22,9 +22,9 @@ def command(paths, output, sensor, fmt):
     """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
 
     Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
-    APS/IMU words skipped), AEDAT 4.0 (external triggers kept in metadata), Prophesee EVT 2.0 and
-    EVT 3.0 .raw and .dat, Event Stream .es, CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
-    whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them. Several
+    APS/IMU words skipped), AEDAT 4.0, Prophesee EVT 2.0 and EVT 3.0 .raw and .dat, Event Stream .es, CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
+    whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them; external
+    trigger events (AEDAT 4.0, EVT 2.0/3.0) go into the metadata for `sync --method trigger`. Several
     files are read in order as one table; `-` reads a file from stdin.
 
     \b
