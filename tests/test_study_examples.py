@@ -1,0 +1,124 @@
+"""The reproduction scripts' helpers: results pages written beside the thesis's numbers without
+touching anyone else's section, and the frames tool; the scripts at least parse."""
+
+import importlib.util
+import pathlib
+import subprocess
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
+
+
+def load(name):
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def write_metrics(path, rows):
+    scopes, metrics, values = zip(*rows)
+    pq.write_table(
+        pa.table({"scope": list(scopes), "metric": list(metrics), "value": list(values), "model": ["m"] * len(rows)}),
+        path,
+    )
+
+
+def force_rows(mse):
+    rows = [("all", "mse", mse), ("all", "mse_fold_mean", mse), ("all", "mse_fold_sd", mse / 2), ("all", "mae", mse / 2)]
+    for phase in ("grasping", "holding", "releasing"):
+        rows += [(f"phase:{phase}", "mse", mse), (f"phase:{phase}", "dtw_fold_mean", 1.0)]
+    return rows
+
+
+PAGE = """# Reproduced results
+
+intro kept as written
+
+<!-- results:ch3:start -->
+old
+<!-- results:ch3:end -->
+
+<!-- results:issue6:start -->
+engineer E's table, not ours
+<!-- results:issue6:end -->
+"""
+
+
+def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tmp_path):
+    results = load("results")
+    folder = tmp_path / "ch3"
+    folder.mkdir()
+    for k, n, mse in ((1, 5, 0.4), (1, 40, 0.3), (4, 5, 0.25), (4, 40, 0.2)):
+        write_metrics(folder / f"tdnn@layers={k},units={n}.metrics.parquet", force_rows(mse))
+    write_metrics(folder / "gp.metrics.parquet", force_rows(0.22))
+    write_metrics(folder / "material-dnn@layers=2,units=30.metrics.parquet", [("all", "accuracy", 0.75), ("class:steel", "recall", 1.0)])
+    write_metrics(folder / "material-force.metrics.parquet", [("all", "accuracy", 0.5)])
+    page = tmp_path / "results.md"
+    page.write_text(PAGE)
+
+    results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
+    text = page.read_text()
+    assert "intro kept as written" in text and "engineer E's table, not ours" in text
+    assert "\nold\n" not in text
+    assert "| k=4 | 0.250 (0.180) | 0.200 (0.160) |" in text  # ours (thesis Table 3.2)
+    assert "Lowest: k=4, n=40: 0.200" in text
+    assert "| material-dnn (k=2, n=30), events | 75.0 | 79.17 |" in text
+    assert "25.0 points above the force-only classifier" in text
+
+    results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
+    assert page.read_text() == text  # idempotent
+
+
+def test_a_missing_section_is_appended_with_its_markers(tmp_path):
+    results = load("results")
+    folder = tmp_path / "ch4"
+    folder.mkdir()
+    for model, mse in (("lstm", 0.3), ("convlstm", 0.2)):
+        write_metrics(folder / f"{model}.metrics.parquet", force_rows(mse))
+    write_metrics(folder / "heldout.metrics.parquet", force_rows(0.4))
+    page = tmp_path / "page.md"
+    results.main(["ch4", str(folder), str(page)])
+    text = page.read_text()
+    assert text.count("<!-- results:ch4:start -->") == 1 and "<!-- results:ch4:end -->" in text
+    assert "our models rank convlstm < lstm (thesis: convlstm < lstm)" in text
+    assert "2.0× its leave-one-out error" in text
+
+
+def test_chapter5_orders_methods_and_draws_its_figures(tmp_path):
+    results = load("results")
+    folder = tmp_path / "ch5"
+    folder.mkdir()
+    for name, mse in (("none", 8.0), ("fs-1", 5.5), ("fs1", 7.0), ("tes-2_0.5", 6.0), ("tes-1_0.25", 6.5), ("hybrid", 7.5)):
+        write_metrics(folder / f"{name}.metrics.parquet", [("all", "mse_fold_mean", mse), ("all", "mse_fold_sd", 0.5)])
+    page = tmp_path / "page.md"
+    results.main(["ch5", str(folder), str(page), "--figures", str(tmp_path / "fig")])
+    text = page.read_text()
+    methods = [line.split("|")[1].strip() for line in text.splitlines() if line.startswith("| ") and "N²" not in line]
+    assert methods == ["No augmentation", "FS-1", "FS+1", "TES-2(0.50)", "TES-1(0.25)", "Resize + FS-1, hybrid"]
+    assert "| FS-1 | 5.500 | 0.500 | 0 | -31% | 5.51 (0.41) |" in text
+    assert (tmp_path / "fig" / "ch5-methods.png").is_file() and (tmp_path / "fig" / "ch5-tes.png").is_file()
+
+
+def test_frames_tool_selects_by_label_and_stacks_originals_with_copies(tmp_path):
+    tool = load("frames_tool")
+    schema = pa.schema([("trial", pa.string()), ("object", pa.string())], metadata={b"neurotac:kind": b'"frames"'})
+    pq.write_table(pa.table({"trial": ["a", "b"], "object": ["bolt12", "bolt18"]}, schema=schema), tmp_path / "f.parquet")
+    tool.select(tmp_path / "f.parquet", tmp_path / "small.parquet", "object=bolt12")
+    small = pq.read_table(tmp_path / "small.parquet")
+    assert small.column("trial").to_pylist() == ["a"] and small.schema.metadata == schema.metadata
+    copies = pa.table({"trial": ["a~fs#1"], "object": ["bolt12"], "source_trial": ["a"], "augment": ["fs(-1)"]})
+    pq.write_table(copies, tmp_path / "copies.parquet")
+    tool.concat(tmp_path / "all.parquet", [tmp_path / "f.parquet", tmp_path / "copies.parquet"])
+    stacked = pq.read_table(tmp_path / "all.parquet")
+    assert stacked.column("source_trial").to_pylist() == ["a", "b", "a"]
+    assert stacked.column("augment").to_pylist() == ["", "", "fs(-1)"]
+
+
+@pytest.mark.parametrize("script", ["lib.sh", "ch3.sh", "ch4.sh", "ch5.sh"])
+def test_the_chapter_scripts_parse(script):
+    done = subprocess.run(["bash", "-n", str(EXAMPLES / script)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
