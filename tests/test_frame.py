@@ -112,6 +112,25 @@ def test_streamed_frames_equal_whole_frames_with_a_small_buffer(monkeypatch):
     assert np.array_equal(counts_of(streamed), fr.count_frames(t, x, y, p, 5_000, n, H, W, start=int(t[0])))
 
 
+def test_buffers_are_reused_only_once_downstream_lets_go_of_their_frames(monkeypatch):
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 4)
+    t, x, y, p = random_events(4, n=20_000, span=900_000)
+    table = sch.events_table(t, x, y, p, W, H)
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=500), fr.Framing(window_us=5_000), fr.FramingReport())
+    copies, kept = [], []
+    for i, batch in enumerate(batches):
+        copies.append(counts_of(pa.Table.from_batches([batch])).copy())
+        if i % 3 == 0:
+            kept.append(batch)  # some frames stay held: their buffers must not be reused
+    streamed = np.concatenate(copies)
+    assert np.array_equal(streamed, fr.count_frames(t, x, y, p, 5_000, len(streamed), H, W, start=int(t[0])))
+    held = np.concatenate([counts_of(pa.Table.from_batches([b])) for b in kept])
+    first = [b.column("frame")[0].as_py() for b in kept]
+    lengths = [b.num_rows for b in kept]
+    expected = np.concatenate([streamed[f:f + n] for f, n in zip(first, lengths)])
+    assert np.array_equal(held, expected)
+
+
 def test_events_later_than_one_window_of_slack_are_counted_not_lost(monkeypatch):
     monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 2)
     t = np.array([0, 10_000, 50_000, 60_000, 5_000, 70_000])  # 5000 arrives after frames 0..4 have left

@@ -20,6 +20,7 @@ Everything not framed is counted in a `FramingReport`: events before the start, 
 
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,7 +32,7 @@ from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 FORCE_AT = ("end", "mean", "median")
-BUFFER_CELLS = 1 << 24  # uint16 cells held while streaming: 32 MiB, whatever the recording's length
+BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
 
 
 # ---------------------------------------------------------------- kernel
@@ -471,6 +472,7 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
         # reach past its end, a fresh buffer takes over, carrying the frames still open (one or two).
         state = {"start": framing.start_us, "first": 0, "base": 0, "high": -1, "last_t": None, "emitted": 0}
         buffer = np.zeros((capacity, 2, height, width), dtype=np.uint16)
+        spares = []  # earlier buffers, reused once nothing downstream holds their frames
         running = np.zeros((2, height, width), dtype=np.int64) if framing.accumulate else None
         held = []  # float32 output without a given scale: frames wait for the maximum
         ready = []  # frames batches made, waiting to be yielded
@@ -507,8 +509,17 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
             nonlocal buffer
             offset = state["first"] - state["base"]
             filled = max(0, min(capacity, state["high"] - state["base"] + 1) - offset)
-            fresh = np.zeros(buffer.shape, dtype=buffer.dtype)  # calloc: pages are zeroed when first touched
+            fresh = None
+            for i in range(len(spares)):  # a buffer whose frames have all been let go of downstream
+                if sys.getrefcount(spares[i]) <= 2:  # held by the list and the call's argument only
+                    fresh = spares.pop(i)
+                    fresh.fill(0)
+                    break
+            if fresh is None:
+                fresh = np.zeros(buffer.shape, dtype=buffer.dtype)  # calloc: pages are zeroed when first touched
             fresh[:filled] = buffer[offset:offset + filled]
+            if len(spares) < 4:
+                spares.append(buffer)
             buffer = fresh
             state["base"] = state["first"]
 
