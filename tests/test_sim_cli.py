@@ -128,12 +128,13 @@ def test_synced_writes_a_recordings_table_relative_to_led_off(tmp_path):
 
 
 def test_the_objects_option_and_labels(tmp_path):
-    result = CliRunner().invoke(cli, ["simulate", "--objects", "foam:hex:1,rubber:sphere10:1:grip=soft",
+    result = CliRunner().invoke(cli, ["simulate", "--objects", "foam:hex:1,rubber:sphere10:1:grip=soft,steel:hex7:1",
                                       "--set", "hold_us=20ms", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     with open(tmp_path / "manifest.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert [(r["material"], r["object"]) for r in rows] == [("foam", "hex"), ("rubber", "sphere10")]
+    assert [(r["material"], r["object"], r["size_mm"]) for r in rows] == [
+        ("foam", "hex", "7.5x6.5x35.5"), ("rubber", "sphere10", "10"), ("steel", "hex7", "7")]
     assert rows[1]["grip"] == "soft"
 
 

@@ -40,7 +40,7 @@ def _progress_printer():
 @seed_option
 @click.option("--objects", "groups", default=None, metavar="MAT:OBJ:N,...",
               help="Trial groups instead of the preset's, e.g. steel:bolt8:5,foam:hex:5,rubber:sphere10:3 "
-                   "(objects: hex, hex:SIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label).")
+                   "(objects: hex, hexSIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label).")
 @click.option("--force-range", default=None, metavar="LOW..HIGH",
               help="Peak force of each grasp drawn uniformly in this range, in newtons, e.g. 0.5..3.7.")
 @click.option("--hold", type=Duration(), default=None, help="Holding phase length, with its unit: 700ms.")

@@ -44,12 +44,16 @@ class ObjectShape:
 
 
 def parse_object(text: str) -> ObjectShape:
-    """`hex`, `hex:6.5`, `bolt12`, `sphere10` -> ObjectShape. Bolts are pressed by their hexagonal head."""
+    """`hex`, `hex7` (or `hex:7`), `bolt12`, `sphere10` -> ObjectShape. Bolts are pressed by their hexagonal head."""
     text = text.strip()
     if text == "hex" or text.startswith("hex:"):
-        size = float(text.split(":")[1]) if ":" in text else 6.5
-        return ObjectShape("hex", "hex", size, 35.5, "7.5x6.5x35.5" if ":" not in text else f"{size:g}")
-    for prefix, face, length in (("bolt", "hex", 30.0), ("sphere", "sphere", 0.0)):
+        try:
+            size = float(text.split(":", 1)[1]) if ":" in text else 6.5
+        except ValueError:
+            size = -1.0
+        if size > 0:
+            return ObjectShape("hex", "hex", size, 35.5, "7.5x6.5x35.5" if ":" not in text else f"{size:g}")
+    for prefix, face, length in (("bolt", "hex", 30.0), ("sphere", "sphere", 0.0), ("hex", "hex", 35.5)):
         if text.startswith(prefix):
             try:
                 size = float(text[len(prefix):])
@@ -58,7 +62,7 @@ def parse_object(text: str) -> ObjectShape:
             if size <= 0:
                 break
             return ObjectShape(text, face, size, length or size, f"{size:g}")
-    raise NeurotacError(f"unknown object {text!r} (use hex, hex:SIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
+    raise NeurotacError(f"unknown object {text!r} (use hex, hexSIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
 
 
 @dataclass(frozen=True)
