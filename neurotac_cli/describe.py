@@ -224,7 +224,7 @@ def format_text(info: dict) -> str:
     lines = []
 
     def add(name, value):
-        lines.append(f"{name:<14}{value}")
+        lines.append(f"{name:<13} {value}")
 
     kind = info["kind"]
     if "camera_file" in info:
