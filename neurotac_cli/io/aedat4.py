@@ -124,5 +124,18 @@ def _event_chunks(packets, events_id):
 
 
 def _columns(pending):
-    events = np.concatenate(pending) if len(pending) > 1 else pending[0]
-    return events["t"].astype(np.int64), events["x"], events["y"], events["on"].astype(np.uint8)
+    """Packets of structured events -> contiguous t, x, y, p columns: one copy per field."""
+    total = sum(len(events) for events in pending)
+    t = np.empty(total, np.int64)
+    x = np.empty(total, np.uint16)
+    y = np.empty(total, np.uint16)
+    p = np.empty(total, np.uint8)
+    start = 0
+    for events in pending:
+        end = start + len(events)
+        t[start:end] = events["t"]
+        x[start:end] = events["x"]
+        y[start:end] = events["y"]
+        p[start:end] = events["on"]
+        start = end
+    return t, x, y, p
