@@ -83,11 +83,16 @@ def test_pooling_sums_neighbours_and_all_keeps_one_pixel_per_channel():
         cr.crop_table(frames, cr.CropSpec(pool=(5, 5)))
 
 
-def test_pooled_uint16_counts_saturate_and_are_reported():
+def test_pooled_counts_past_uint16_widen_to_uint32_instead_of_clipping():
     counts = np.full((1, 2, 2, 2), 30_000, dtype=np.uint16)
+    table = pa.Table.from_batches([fr._frames_batch(sch.frames_schema(2, 2), "a", counts, None, None, {}, (), 10_000, None)])
     report = cr.CropReport()
-    pooled = cr.pool_counts(counts, (2, 2), report)
-    assert pooled.dtype == np.uint16 and pooled.max() == 65535 and report.saturated_pixels == 2
+    pooled = cr.crop_table(table, cr.CropSpec(pool="all"), report)
+    values = sch.counts_numpy(pooled.column("counts"))
+    assert values.dtype == np.uint32 and values.max() == 120_000 and report.as_dict()["widened_to"] == "uint32"
+    small = cr.crop_table(pa.Table.from_batches([fr._frames_batch(sch.frames_schema(2, 2), "a", counts // 100, None, None, {}, (), 10_000, None)]),
+                          cr.CropSpec(pool="all"))
+    assert sch.counts_numpy(small.column("counts")).dtype == np.uint16
 
 
 def test_auto_centre_is_the_largest_contact_area():

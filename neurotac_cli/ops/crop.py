@@ -11,7 +11,7 @@ automatically, and refused when it was given.
 
 Pooling sums K x L neighbouring pixels (K along x, L along y): 140x150 pooled 2x2 gives 70x75
 (thesis 5.4.1). `pool="all"` keeps one pixel per channel (thesis ch. 3: no spatial information).
-Pooled uint16 counts that pass 65535 stay there and are reported.
+Pooled uint16 counts that pass 65535 widen the table's counts to uint32 (recorded in history).
 
 What lies outside the box is counted (events, or frame counts) in a `CropReport`.
 """
@@ -62,7 +62,7 @@ class CropReport:
     center: list | None = None
     center_from: str | None = None
     pool: object = None
-    saturated_pixels: int = 0
+    widened: str | None = None
 
     @property
     def share_cut(self) -> float:
@@ -74,8 +74,8 @@ class CropReport:
         if self.center is not None:
             out["center"] = self.center
             out["center_from"] = self.center_from
-        if self.saturated_pixels:
-            out["saturated_pixels"] = self.saturated_pixels
+        if self.widened:
+            out["widened_to"] = self.widened
         return out
 
     def warnings(self, threshold: float) -> list[str]:
@@ -85,8 +85,6 @@ class CropReport:
                 f"the crop cut away {self.cut} of {self.kept + self.cut} {self.unit} ({100 * self.share_cut:.1f}%); "
                 "check the box against `neurotac info`, or use --center auto"
             )
-        if self.saturated_pixels:
-            lines.append(f"{self.saturated_pixels} pooled counts reached {MAX_COUNT} (uint16) and were held there")
         return lines
 
 
@@ -195,7 +193,7 @@ def pooled_size(width: int, height: int, pool) -> tuple[int, int]:
 
 
 def pool_counts(counts: np.ndarray, pool, report: CropReport | None = None) -> np.ndarray:
-    """Sum-pool (n, 2, H, W) counts by (K, L) or `all`, keeping the dtype (uint16 held at 65535)."""
+    """Sum-pool (n, 2, H, W) counts by (K, L) or `all`: int64 sums of integer counts, float64 of floats."""
     if pool is None:
         return counts
     n, c, height, width = counts.shape
@@ -204,34 +202,35 @@ def pool_counts(counts: np.ndarray, pool, report: CropReport | None = None) -> n
     else:
         k, l = pool
     wide = np.float64 if counts.dtype.kind == "f" else np.int64
-    summed = counts.reshape(n, c, height // l, l, width // k, k).sum(axis=(3, 5), dtype=wide)
-    if counts.dtype == np.uint16:
-        over = summed > MAX_COUNT
-        if report is not None:
-            report.saturated_pixels += int(over.sum())
-        summed = np.minimum(summed, MAX_COUNT)
-    return summed.astype(counts.dtype)
+    return counts.reshape(n, c, height // l, l, width // k, k).sum(axis=(3, 5), dtype=wide)
 
 
 def crop_frames(table: pa.Table, box, pool, report: CropReport) -> pa.Table:
+    """Crop and pool a frames table. Pooled uint16 counts that pass 65535 widen the whole table's
+    counts to uint32 (a whole-sensor sum of accumulated counts easily does): nothing is clipped."""
     height, width = sch.frames_shape(table.schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
-    dtype = table.schema.field("counts").type.value_type.to_pandas_dtype()
+    dtype = np.dtype(table.schema.field("counts").type.value_type.to_pandas_dtype())
     report.unit = "frame counts"
-    schema = _frames_schema_like(table.schema, new_h, new_w, dtype)
-    batches = []
+    pieces = []
     for batch in table.to_batches():
         counts = sch.counts_numpy(batch.column("counts"))
         inner = counts[:, :, y0:y0 + h, x0:x0 + w]
         total = float(counts.sum(dtype=np.float64))
         kept = float(inner.sum(dtype=np.float64))
-        report.kept += int(kept) if dtype != np.float32 else kept
-        report.cut += int(total - kept) if dtype != np.float32 else total - kept
-        pooled = pool_counts(np.ascontiguousarray(inner), pool, report)
-        index = batch.schema.get_field_index("counts")
+        report.kept += kept if dtype.kind == "f" else int(kept)
+        report.cut += (total - kept) if dtype.kind == "f" else int(total - kept)
+        pieces.append((batch, pool_counts(np.ascontiguousarray(inner), pool)))
+    out_dtype = dtype
+    if pool is not None and dtype == np.uint16 and any(len(c) and c.max() > MAX_COUNT for _, c in pieces):
+        out_dtype = np.dtype(np.uint32)
+        report.widened = "uint32"
+    schema = _frames_schema_like(table.schema, new_h, new_w, out_dtype)
+    batches = []
+    for batch, pooled in pieces:
         columns = list(batch.columns)
-        columns[index] = sch.counts_array(pooled)
+        columns[batch.schema.get_field_index("counts")] = sch.counts_array(pooled.astype(out_dtype))
         batches.append(pa.RecordBatch.from_arrays(columns, schema=schema))
     return pa.Table.from_batches(batches, schema=schema)
 
