@@ -365,3 +365,22 @@ def test_prophesee_external_triggers_go_to_the_metadata(tmp_path):
     table = read_events_table(_raw(tmp_path, "t2.raw", b"% evt 2.0\n", words2, "<u4"), sensor=(640, 480))
     assert sch.get_meta(table.schema, "neurotac:triggers") == [{"t": (3 << 6) + 4, "type": "rising", "id": 1}]
     assert sch.get_meta(read_events_table(real_file("prophesee_vga_faery.evt2.raw")).schema, "neurotac:triggers") is None
+
+
+def test_prophesee_geometry_from_newer_headers(tmp_path):
+    words = [0x8000 | 1, 0x0000 | 3, 0x2000 | 4]
+    for header in (b"% format EVT3;height=720;width=1280\n", b"% evt 3.0\n% geometry 1280x720\n"):
+        table = read_events_table(_raw(tmp_path, "g.raw", header, words, "<u2"))
+        assert sch.sensor_of(table.schema) == (1280, 720) and table.num_rows == 1
+    from neurotac_cli.errors import FormatError
+
+    with pytest.raises(FormatError, match="EVT 2.1"):
+        read_events_table(_raw(tmp_path, "e21.raw", b"% format EVT21;height=720;width=1280\n", words, "<u2"))
+
+
+def test_dat_geometry_from_its_header(tmp_path):
+    header = b"% Data file containing CD events.\n% Version 2\n% Height 240\n% Width 304\n" + bytes([0x0C, 8])
+    record = np.array([[100, (1 << 28) | (7 << 14) | 9]], dtype="<u4")
+    table = read_events_table(_raw(tmp_path, "d.dat", header, record, "<u4"))
+    assert sch.sensor_of(table.schema) == (304, 240)
+    assert [tuple(r.values()) for r in table.to_pylist()] == [(100, 9, 7, 1)]

@@ -92,7 +92,9 @@ def detect_format(path, head: bytes) -> str:
     if head.startswith(b"%"):
         header = _percent_header(head)
         if "evt" in header or "format" in header:
-            version = (header.get("evt") or header.get("format", "")).upper().replace("EVT", "").strip()
+            version = (header.get("evt") or header.get("format", "")).upper().replace("EVT", "").split(";")[0].strip()
+            if version in ("2.1", "21"):
+                raise FormatError(f"{name}: Prophesee EVT 2.1 is not supported (EVT 2.0 and 3.0 are); convert it with metavision_file_to_dat or to EVT 3.0")
             if version.startswith("3"):
                 return "evt3"
             if version.startswith("2"):

@@ -62,9 +62,10 @@ def sensor_of_header(fields: dict) -> tuple[int, int] | None:
             return int(fields["width"]), int(fields["height"])
         except ValueError:
             pass
-    match = re.search(r"width=(\d+);height=(\d+)", fields.get("format", ""))
-    if match:
-        return int(match.group(1)), int(match.group(2))
+    width = re.search(r"width=(\d+)", fields.get("format", ""))
+    height = re.search(r"height=(\d+)", fields.get("format", ""))
+    if width and height:
+        return int(width.group(1)), int(height.group(1))
     text = (fields.get("plugin_name", "") + " " + fields.get("sensor_generation", "")).lower()
     for fragment, size in SENSORS:
         if fragment in text:
