@@ -132,10 +132,10 @@ def _plan_one(config, rng, material, shape, labels, peak, index) -> Grasp:
     angle = rng.uniform(0, 2 * np.pi)
     settle = rng.uniform(0, 2 * np.pi)
     drift = rng.uniform(0, 2 * np.pi)
-    size = shape.name if shape.name.startswith("hex") else shape.name
+    extra_labels = labels
     labels = {"material": material, "object": shape.name, "size_mm": shape.size_label, **labels}
     return Grasp(
-        trial=f"{material}-{size}-{labels.get('gripper_force', '') + '-' if 'gripper_force' in labels else ''}{index:02d}",
+        trial="-".join([material, shape.name, *extra_labels.values(), f"{index:02d}"]),
         material=material,
         shape=shape,
         labels=labels,

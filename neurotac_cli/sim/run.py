@@ -44,7 +44,7 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     streams = np.random.SeedSequence(seed).spawn(4)
     camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
     grasps = plan_grasps(config, np.random.default_rng(streams[1]), trials)
-    noise_rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(streams[2].generate_state(1)[0]).spawn(len(grasps) + 1)]
+    noise_rngs = [np.random.default_rng(s) for s in streams[2].spawn(len(grasps) + 1)]  # one per trial + the still scene
     step = config.step_us
     end = max(g.end_us for g in grasps) if grasps else 0
     steps = int(np.ceil(end / step)) + 1
