@@ -33,7 +33,7 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     fields = [f.strip() for f in (first.split(",") if delimiter == "," else first.split())]
     has_header = any(re.search(r"[a-zA-Z_]", f) and not _is_number(f) for f in fields)
     if has_header:
-        names = [f.lower() for f in fields]
+        names = [f.strip("\"'").lower() for f in fields]
     elif delimiter == ",":
         raise FormatError(
             "a CSV file needs a header naming its columns, e.g. `t,x,y,p` (t in µs; or t_ms, t_s); add one as the first line"
