@@ -7,7 +7,8 @@
 #   FIGURES   where the PNGs go (full: docs/results/; quick: $OUT/figures)
 #   SEED      the seed of the simulation and of every study (default 1)
 #   NEUROTAC_JOBS / NEUROTAC_SCHEDULER / NEUROTAC_CACHE: where the studies run (docs/studies.md).
-#     The cache defaults to $OUT/cache, so an interrupted run resumes where it stopped.
+#     The cache defaults to $OUT/cache, so an interrupted run resumes where it stopped; full runs
+#     default to NEUROTAC_JOBS=0 (one process per core).
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -20,6 +21,12 @@ esac
 SEED=${SEED:-1}
 PYTHON=${PYTHON:-python}
 export NEUROTAC_CACHE=${NEUROTAC_CACHE:-$OUT/cache}
+# Each task trains on one thread (so results do not depend on where it ran): a full run uses every
+# core through a process pool unless a Dask scheduler is given. Quick runs stay in-process, where
+# starting worker processes would cost more than their few small trainings.
+if [[ $MODE == full && -z ${NEUROTAC_SCHEDULER:-} ]]; then
+  export NEUROTAC_JOBS=${NEUROTAC_JOBS:-0}
+fi
 mkdir -p "$OUT" "$FIGURES"
 
 say() { printf '%s: %s\n' "$(basename "$0" .sh)" "$*" >&2; }
