@@ -90,13 +90,23 @@ def read_metrics(path) -> dict:
 
 
 def studies(folder) -> dict:
-    """{(name, ((key, value), ...)): figures} for every metrics file in folder."""
+    """{(name, ((key, value), ...)): figures} for every metrics file in folder. A grid point comes
+    from the file name (`NAME@k=v,...`) or, for a table holding a whole grid, from its extra columns
+    (one column per grid parameter beside scope, metric, value, model)."""
     found = {}
     for path in sorted(pathlib.Path(folder).glob("*.metrics.parquet")):
         stem = path.name[: -len(".metrics.parquet")]
         name, _, point = stem.partition("@")
         params = tuple((k, _number(v)) for k, _, v in (part.partition("=") for part in point.split(",") if part))
-        found[(name, params)] = read_metrics(path)
+        table = pq.read_table(path)
+        extra = [c for c in table.schema.names if c not in ("scope", "metric", "value", "model")]
+        if not extra:
+            found[(name, params)] = read_metrics(path)
+            continue
+        columns = {c: table.column(c).to_pylist() for c in (*extra, "scope", "metric", "value")}
+        for i in range(table.num_rows):
+            key = (name, params + tuple((c, columns[c][i]) for c in extra))
+            found.setdefault(key, {}).setdefault(columns["scope"][i], {})[columns["metric"][i]] = columns["value"][i]
     return found
 
 

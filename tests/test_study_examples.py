@@ -122,3 +122,15 @@ def test_frames_tool_selects_by_label_and_stacks_originals_with_copies(tmp_path)
 def test_the_chapter_scripts_parse(script):
     done = subprocess.run(["bash", "-n", str(EXAMPLES / script)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_grid_held_in_one_table_is_read_by_its_parameter_columns(tmp_path):
+    results = load("results")
+    table = pa.table({
+        "scope": ["all"] * 4, "metric": ["mse_fold_mean"] * 4, "value": [0.4, 0.3, 0.2, 0.1], "model": ["tdnn"] * 4,
+        "layers": [1, 1, 2, 2], "units": [5, 10, 5, 10],
+    })
+    pq.write_table(table, tmp_path / "tdnn.metrics.parquet")
+    points = results.grid(results.studies(tmp_path), "tdnn")
+    assert {key: results.get(f, "all", "mse_fold_mean") for key, f in points.items()} == {
+        (1, 5): 0.4, (1, 10): 0.3, (2, 5): 0.2, (2, 10): 0.1}
