@@ -47,26 +47,32 @@ try:  # numba compiles the one-pass loop; numpy's bincount path below gives iden
         n = out.shape[0]
         inside = saturated = before = late = beyond = 0
         k_max = -1
+        k = 0
+        lo = hi = start  # [lo, hi) = the window of the previous event: sorted time rarely leaves it
         for i in range(t.shape[0]):
-            k = (t[i] - start) // window_us
+            ti = t[i]
+            if ti < lo or ti >= hi:
+                k = (ti - start) // window_us
+                lo = start + k * window_us
+                hi = lo + window_us
             if k > k_max:
                 k_max = k
             if k < 0:
                 before += 1
                 continue
-            k -= first
-            if k < 0:
+            j = k - first
+            if j < 0:
                 late += 1
                 continue
-            if k >= n:
+            if j >= n:
                 beyond += 1
                 continue
             inside += 1
-            cell = out[k, p[i], y[i], x[i]]
+            cell = out[j, p[i], y[i], x[i]]
             if cell == 65535:
                 saturated += 1
             else:
-                out[k, p[i], y[i], x[i]] = cell + 1
+                out[j, p[i], y[i], x[i]] = cell + 1
         return inside, saturated, before, late, beyond, k_max
 
     HAVE_NUMBA = True
