@@ -249,3 +249,18 @@ def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
 def test_sync_command_needs_a_force_log_or_a_manifest(tmp_path):
     done = run(["sync", "x.aedat"], cwd=tmp_path)
     assert done.returncode == 1 and "--force" in done.stderr.decode()
+
+
+def test_simulated_grasp_with_its_blink_cut_away_fails_led_and_syncs_by_xcorr(simulated):
+    import pyarrow.compute as pc
+
+    folder = simulated["plain"]
+    truth = true_instants(folder)
+    trial = sorted(truth)[0]
+    events = sy.read_camera(str(folder / f"{trial}.aedat"))
+    no_blink = events.filter(pc.greater(events.column("t"), truth[trial] + 3000))  # contact events only
+    force = sy.ForceOptions().read(str(folder / f"{trial}_force.csv"))
+    with pytest.raises(SyncError, match="no LED-off spike stands out"):
+        sy.sync_source(sy.Source(trial, no_blink, force), sy.SyncMethod())
+    trials, info = sy.sync_source(sy.Source(trial, no_blink, force), sy.SyncMethod(method="xcorr"))
+    assert abs(trials[0]["t0"] - truth[trial]) <= 2000 and info[trial]["correlation"] > 0.3
