@@ -127,3 +127,36 @@ def test_times_too_large_are_a_clear_error(tmp_path, value):
 def test_long_numbers_with_only_zeros_beyond_int64_are_fine(tmp_path):
     table = read_events_table(write(tmp_path, "e.csv", "t_s,x,y,p\n0000000000000000001.50000000000000000000,1,2,1\n"))
     assert table["t"].to_pylist() == [1_500_000]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    rows=st.lists(
+        st.tuples(
+            st.decimals(min_value=-(10**6), max_value=10**6, allow_nan=False, allow_infinity=False, places=9),
+            st.integers(0, 65535),
+            st.integers(0, 65535),
+            st.sampled_from([-1, 0, 1]),
+        ),
+        min_size=1,
+        max_size=6,
+    ),
+    digits=st.sampled_from([3, 6]),
+    style=st.sampled_from(["plain", "exponent"]),
+    separator=st.sampled_from([",", " ", "\t", "  "]),
+    end=st.sampled_from(["", "\n", "\r\n"]),
+)
+def test_text_times_equal_exact_decimal_arithmetic(rows, digits, style, separator, end):
+    """The compiled parser against Python's Decimal: t scaled by 10**digits, rounded half up."""
+    from decimal import ROUND_HALF_UP, Decimal
+
+    from neurotac_cli.io import kernels
+
+    written = [(format(t, "E") if style == "exponent" else format(t, "f"), x, y, p) for t, x, y, p in rows]
+    text = "\n".join(separator.join(map(str, row)) for row in written) + end
+    t, x, y, p, count, status, _, _ = kernels.parse_text(np.frombuffer(text.encode(), np.uint8), np.arange(4), separator == ",", digits)
+    expected = [int((Decimal(w[0]) * 10**digits).quantize(Decimal(1), rounding=ROUND_HALF_UP)) for w in written]
+    assert status == kernels.TEXT_OK
+    assert list(t) == expected
+    assert list(x) == [r[1] for r in rows] and list(y) == [r[2] for r in rows]
+    assert list(p) == [1 if r[3] == 1 else 0 for r in rows]

@@ -5,7 +5,7 @@ whitespace file (the public event-camera datasets' `events.txt`) a plain `t` is 
 header is optional. Polarity 0/1 or -1/1 (-1 = OFF). Leading `#` or `%` comment lines are skipped.
 Parsing is one compiled pass over the bytes (kernels.parse_text), block by block of whole lines;
 times are scaled to µs from their decimal digits, exactly (no float rounding; finer than µs is
-rounded half up). The first bad row stops the read with its line number.
+rounded half away from zero). The first bad row stops the read with its line number.
 """
 
 import os
