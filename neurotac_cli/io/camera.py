@@ -202,13 +202,13 @@ def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, I
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))
         decoded = _guarded_call(name, fmt, lambda: _decoder(fmt)(local, head, sensor))
+        declared = sensor or decoded.sensor
+        source = "option" if sensor else ("file" if decoded.sensor else "events")
+        if declared is None:
+            declared = _extent(name, fmt, decoded)
     except BaseException:
         cleanup()
         raise
-    declared = sensor or decoded.sensor
-    source = "option" if sensor else ("file" if decoded.sensor else "events")
-    if declared is None:
-        declared = _extent(name, fmt, decoded)
     schema = sch.events_schema(*declared)
     entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoded.meta.pop("source", {})}}
     entries.update(decoded.meta)
