@@ -38,8 +38,8 @@ class Cell(nn.Module):
         batch, length = x.shape[:2]
         gates_x = self.input_conv(x.reshape(batch * length, *x.shape[2:])).reshape(batch, length, 4 * self.filters, *x.shape[3:])
         outputs = []
-        for step in range(length):
-            gates = gates_x[:, step] + self.recurrent_conv(h)
+        for gates_in in gates_x.unbind(1):  # unbind, not indexing: one backward copy instead of one per frame
+            gates = gates_in + self.recurrent_conv(h)
             i, f, o, g = torch.split(gates, self.filters, dim=1)
             c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)
             h = torch.sigmoid(o) * torch.tanh(c)

@@ -166,10 +166,10 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
         "trials": {"train": train_set.trials, "validation": val_set.trials},
         "data_history": sch.get_meta(table.schema, sch.HISTORY, []),
     }
-    if name in MATERIAL_MODELS:
-        return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
     if hasattr(config, "accumulate") and accumulated:
         config = dataclasses.replace(config, accumulate=False)
+    if name in MATERIAL_MODELS:
+        return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
     return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress)
 
 

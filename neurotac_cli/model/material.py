@@ -30,6 +30,7 @@ class Config:
     activation: str = "sigmoid"
     points: int = 30
     dropout: float = 0.0
+    accumulate: bool = True  # False when the input counts are already accumulated (frame --accumulate)
 
 
 PRESETS = {
@@ -53,7 +54,10 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     if config.inputs == "force":
         return resample(np.nan_to_num(force.astype(np.float64)), points)
     sums = counts.reshape(len(counts), 2, -1).sum(axis=2).astype(np.float64)
-    acc = np.cumsum(sums, axis=0)
+    if config.accumulate:
+        acc = np.cumsum(sums, axis=0)
+    else:
+        acc, sums = sums, np.diff(sums, axis=0, prepend=0.0)
     if config.inputs == "events":
         return resample(acc, points).T.reshape(-1)
     totals = acc[-1] if len(acc) else np.zeros(2)
