@@ -27,6 +27,7 @@ MAGICS = [
     b"% evt 3.0\n",
     b"% Data file containing events.\n% Version 2\n",
     b"Event Stream\x02\x00\x00\x01\xf0\x00\xb4\x00",
+    b"Event Stream\x02\x00\x00\x02\x30\x01\xf0\x00",
     b"t,x,y,p\n",
     b"",
 ]

@@ -384,3 +384,25 @@ def test_dat_geometry_from_its_header(tmp_path):
     table = read_events_table(_raw(tmp_path, "d.dat", header, record, "<u4"))
     assert sch.sensor_of(table.schema) == (304, 240)
     assert [tuple(r.values()) for r in table.to_pylist()] == [(100, 9, 7, 1)]
+
+
+def test_event_stream_atis_keeps_change_detections_as_faery_does(tmp_path):
+    import struct
+
+    data = bytearray(b"Event Stream" + bytes([2, 0, 0, 2]) + struct.pack("<HH", 304, 240))
+
+    def event(dt, on, crossing, x, y):
+        data.extend([(dt << 2) | (on << 1) | crossing, x & 255, x >> 8, y & 255, y >> 8])
+
+    event(5, 1, 0, 10, 20)
+    event(3, 0, 0, 300, 7)
+    event(2, 1, 1, 11, 21)  # an exposure measurement: skipped
+    data.append(0xFF)  # +189 µs
+    event(1, 0, 0, 12, 22)
+    path = tmp_path / "atis.es"
+    path.write_bytes(bytes(data))
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (304, 240)
+    assert [tuple(r.values()) for r in table.to_pylist()] == [(5, 10, 219, 1), (8, 300, 232, 0), (200, 12, 217, 0)]
+    if pytest.importorskip("faery"):
+        assert_same(table, *faery_events(path))

@@ -1,7 +1,9 @@
-"""Event Stream 2.x (`.es`, the neuromorphic-systems format read by faery, loris and sepia), DVS type.
+"""Event Stream 2.x (`.es`, the neuromorphic-systems format read by faery, loris and sepia): DVS and
+ATIS types.
 
-Header: `Event Stream`, version (major, minor, patch), event type (1 = DVS), width and height as
-little-endian uint16. Events are bytes (see kernels.decode_es_dvs). The format's origin is the
+Header: `Event Stream`, version (major, minor, patch), event type (1 = DVS, 2 = ATIS), width and
+height as little-endian uint16. Events are bytes (see kernels.decode_es_dvs / decode_es_atis; of
+ATIS events only the change detections are kept, as faery does). The format's origin is the
 bottom-left corner, so rows are flipped (row = height - 1 - y), as faery does.
 """
 
@@ -24,18 +26,20 @@ def open_es(path: str, head: bytes, sensor) -> Decoded:
     major, minor, patch, event_type = head[12], head[13], head[14], head[15]
     if major != 2:
         raise FormatError(f"Event Stream version {major}.{minor}.{patch} is not supported (2.x is)")
-    if event_type != 1:
-        raise FormatError(f"Event Stream events of type {TYPES.get(event_type, event_type)} are not supported (DVS is)")
+    if event_type not in (1, 2):
+        raise FormatError(f"Event Stream events of type {TYPES.get(event_type, event_type)} are not supported (DVS and ATIS are)")
     if len(head) < HEADER:
         raise FormatError("the Event Stream header is cut short")
     width, height = struct.unpack_from("<HH", head, 16)
     if width == 0 or height == 0:
         raise FormatError(f"the Event Stream header declares a {width}x{height} sensor")
 
+    decode = kernels.decode_es_dvs if event_type == 1 else kernels.decode_es_atis
+
     def chunks():
         state = kernels.es_state()
         for block in read_chunks(path, HEADER, 1):
-            t, x, y, p, bad = kernels.decode_es_dvs(np.frombuffer(block, dtype=np.uint8), width, height, state)
+            t, x, y, p, bad = decode(np.frombuffer(block, dtype=np.uint8), width, height, state)
             if bad >= 0:
                 raise FormatError(f"an event lies outside the declared {width}x{height} sensor (damaged file)")
             yield t, x, (height - 1 - y.astype(np.int64)).astype(np.uint16), p

@@ -461,3 +461,50 @@ def has_kind(words, shift, kind):
     for i in range(words.shape[0]):
         count += (words[i] >> shift) == kind
     return count > 0
+
+
+@njit(cache=True, nogil=True)
+def decode_es_atis(data, width, height, state):
+    """Event Stream 2.x ATIS bytes -> the change-detection events (t, x, y_stored, p, bad); exposure
+    measurements (threshold crossings) are skipped. A byte with its 6 high bits set adds 63 µs times
+    its 2 low bits; any other byte starts an event (t += byte >> 2, polarity = bit 1, threshold
+    crossing = bit 0) followed by x and y as little-endian uint16."""
+    n = data.shape[0]
+    t = np.empty(n // 5 + 1, np.int64)
+    x = np.empty(n // 5 + 1, np.uint16)
+    y = np.empty(n // 5 + 1, np.uint16)
+    p = np.empty(n // 5 + 1, np.uint8)
+    time, step, flags, cx, cy = state[0], state[1], state[2], state[3], state[4]
+    bad = -1
+    k = 0
+    for i in range(n):
+        byte = np.int64(data[i])
+        if step == 0:
+            if (byte & 0xFC) == 0xFC:
+                time += 63 * (byte & 0x3)
+            else:
+                time += byte >> 2
+                flags = byte & 0x3
+                step = 1
+        elif step == 1:
+            cx = byte
+            step = 2
+        elif step == 2:
+            cx |= byte << 8
+            step = 3
+        elif step == 3:
+            cy = byte
+            step = 4
+        else:
+            cy |= byte << 8
+            step = 0
+            if (cx >= width or cy >= height) and bad < 0:
+                bad = 1
+            if (flags & 1) == 0:
+                t[k] = time
+                x[k] = cx
+                y[k] = cy
+                p[k] = (flags >> 1) & 1
+                k += 1
+    state[0], state[1], state[2], state[3], state[4] = time, step, flags, cx, cy
+    return t[:k], x[:k], y[:k], p[:k], bad
