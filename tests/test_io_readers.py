@@ -406,3 +406,16 @@ def test_event_stream_atis_keeps_change_detections_as_faery_does(tmp_path):
     assert [tuple(r.values()) for r in table.to_pylist()] == [(5, 10, 219, 1), (8, 300, 232, 0), (200, 12, 217, 0)]
     if pytest.importorskip("faery"):
         assert_same(table, *faery_events(path))
+
+
+def test_dvs128_aedat2_is_read_as_jaer_reads_it(tmp_path):
+    # jAER DVS128 extractor: x = 127 - ((a >> 1) & 0x7F), y up = (a >> 8) & 0x7F, ON when raw bit 0 is 0
+    header = b"#!AER-DAT2.0\r\n# AEChip: ch.unizh.ini.jaer.chip.retina.DVS128\r\n"
+    records = np.array(
+        [[(5 << 8) | (3 << 1) | 0, 10], [(0 << 8) | (127 << 1) | 1, 20], [0x8000, 25], [(127 << 8) | (0 << 1) | 1, 30]], dtype=">u4"
+    )
+    path = tmp_path / "dvs128.aedat"
+    path.write_bytes(header + records.tobytes())
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (128, 128)
+    assert [tuple(r.values()) for r in table.to_pylist()] == [(10, 124, 122, 1), (20, 0, 127, 0), (30, 127, 0, 0)]

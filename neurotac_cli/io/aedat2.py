@@ -4,7 +4,8 @@ DAVIS address layout (jAER's DavisChip): bit 31 set = APS sample or IMU word, sk
 special event (external input), skipped; otherwise y = (a >> 22) & 0x1FF, x = (a >> 12) & 0x3FF,
 p = (a >> 11) & 1 (1 = ON). Timestamps are read unsigned, so they increase over the whole 71 minutes
 a 32-bit µs clock holds. jAER's y axis points up, so the image row is H - 1 - y. A truncated
-trailing record (a recording cut mid-write) is dropped.
+trailing record (a recording cut mid-write) is dropped. DVS128 files have their own layout (see
+decode_dvs128).
 """
 
 import re
@@ -21,7 +22,6 @@ CHIPS = [
     ("davis640", (640, 480)),
     ("davis208", (208, 192)),
     ("davis128", (128, 128)),
-    ("dvs128", (128, 128)),
     ("davis", (240, 180)),
 ]
 RECORD = 8
@@ -86,8 +86,14 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     header = _read_header(path, head)
     chip = chip_of(header)
     declared = sensor_line(header) or sensor_of_chip(chip)
-    if chip and "dvs128" in chip.lower() and "davis" not in chip.lower():
-        raise FormatError(f"jAER chip {chip} uses the DVS128 address layout, which is not supported (only DAVIS chips)")
+    if is_dvs128(chip):
+        offset = len(header)
+
+        def dvs128_chunks():
+            for block in read_chunks(path, offset, RECORD):
+                yield decode_dvs128(block)
+
+        return Decoded(sensor=(128, 128), chunks=dvs128_chunks, meta={"source": {"camera": chip}})
     height = (declared or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
     if height is None:
         raise FormatError(
@@ -108,6 +114,26 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
             yield t, x, y, p
 
     return Decoded(sensor=declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {})
+
+
+def is_dvs128(chip: str | None) -> bool:
+    name = (chip or "").rsplit(".", 1)[-1].lower()
+    return name.startswith("dvs128") or name.startswith("tmpdiff128")
+
+
+def decode_dvs128(block: bytes):
+    """DVS128 records, as jAER's DVS128 extractor reads them: address bits 15 (sync) or 31 (special)
+    set = skipped; x = 127 - ((a >> 1) & 0x7F) (jAER flips x), jAER y = (a >> 8) & 0x7F (up, so the
+    row is 127 - y), and the raw polarity bit is inverted (raw 0 = ON)."""
+    words = np.frombuffer(block, dtype=">u4").reshape(-1, 2)
+    address = words[:, 0]
+    keep = (address & np.uint32(0x80008000)) == 0
+    address = address[keep]
+    t = words[keep, 1].astype(np.int64)
+    x = (127 - ((address >> 1) & 0x7F)).astype(np.uint16)
+    row = (127 - ((address >> 8) & 0x7F)).astype(np.uint16)
+    p = (1 - (address & 1)).astype(np.uint8)
+    return t, x, row, p
 
 
 def decode_davis_numpy(block: bytes, height: int):
