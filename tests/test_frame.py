@@ -103,6 +103,7 @@ def test_recording_counts_equal_events_inside_windows_and_drops_are_counted(seed
 
 def test_streamed_frames_equal_whole_frames_with_a_small_buffer(monkeypatch):
     monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 3)  # three frames of buffer: frames leave early
+    monkeypatch.setattr(fr, "SCAN_EVENTS", 700)  # one big input batch is scanned in slices
     t, x, y, p = random_events(3, n=5000, span=400_000)
     t[2000:2100] += 150_000  # a gap of empty windows
     t = np.sort(t)

@@ -33,6 +33,7 @@ from neurotac_cli.ops import phases as ph
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 FORCE_AT = ("end", "mean", "median")
 BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
+SCAN_EVENTS = 1 << 18  # events scanned at a time: a huge input batch (a whole Parquet file) is cut up
 
 
 # ---------------------------------------------------------------- kernel
@@ -556,7 +557,7 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
                 state["high"] = max(state["high"], min(k_max, state["base"] + capacity - 1))
             return beyond, k_max
 
-        for batch in batches:
+        for batch in _slices(batches, SCAN_EVENTS):
             if not batch.num_rows:
                 continue
             t = batch.column("t").to_numpy(zero_copy_only=False).astype(np.int64, copy=False)
@@ -620,6 +621,15 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
                 yield _frames_batch(out_schema, framing.trial, frames, None, phase, {}, (), window, scale, first_frame=first)
 
     return out_schema, generate()
+
+
+def _slices(batches, size: int):
+    for batch in batches:
+        if batch.num_rows <= size:
+            yield batch
+        else:
+            for offset in range(0, batch.num_rows, size):
+                yield batch.slice(offset, size)
 
 
 def frames_from_events_table(table: pa.Table, window_us: int, report: FramingReport | None = None, **options) -> pa.Table:

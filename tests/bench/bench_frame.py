@@ -6,7 +6,8 @@ Run on demand (not part of `make test`):
     .venv/bin/python tests/bench/bench_frame.py            # the same, as a script
 
 Each tool gets the input it is made for and produces dense (frames, 2, 180, 240) counts:
-- neurotac: an Arrow events table, framed by `frame_events` (the streaming path of `neurotac frame`)
+- neurotac: an Arrow events table in memory, framed by `frame_events` (the streaming path of `neurotac frame`,
+  which scans 2**18 events at a time)
   into Arrow frames batches (uint16 fixed-shape tensors);
 - tonic: `ToFrame(time_window=10000)` on its structured numpy array (int16 frames);
 - evlib: `create_stacked_histogram` (Polars, fixed 10 ms windows from the first event) on a Polars
@@ -54,7 +55,7 @@ def run_neurotac(t, x, y, p):
     from neurotac_cli.ops import frame as fr
 
     table = sch.events_table(t, x, y, p, WIDTH, HEIGHT)
-    batches = table.to_batches(max_chunksize=1 << 16)
+    batches = table.to_batches()  # the whole table, as tonic and evlib get theirs; scanned 2**18 events at a time
 
     def go():
         report = fr.FramingReport()
