@@ -1,6 +1,5 @@
 """frame: half-open windows from t0, conservation, tonic equality on real recordings, force, phases."""
 
-import json
 import os
 import subprocess
 import sys
@@ -15,7 +14,6 @@ from neurotac_cli import schema as sch, tables
 from neurotac_cli.errors import NeurotacError
 from neurotac_cli.ops import frame as fr
 from neurotac_cli.ops import phases as ph
-from tests.conftest import REAL_DATA
 
 W, H = 24, 18
 
@@ -165,6 +163,16 @@ def test_numpy_fallback_equals_compiled_kernel(seed, first):
     ra = fr.scan_into(t, x, y, p, 0, 10_000, first, a)
     rb = fr._scan_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b)
     assert ra == rb and np.array_equal(a, b)
+
+
+def test_sliced_recordings_frame_like_whole_ones():
+    trials = [{"trial": f"g{i}", "t0": 0, "events": random_events(i, n=300, span=50_000), "force": (np.arange(0, 50_001, 2000), np.zeros(26))}
+              for i in range(4)]
+    table = recordings(trials)
+    whole = fr.frame_recordings(table, 10_000)
+    tail = fr.frame_recordings(table.slice(2), 10_000)
+    assert tail.column("trial").unique().to_pylist() == ["g2", "g3"]
+    assert np.array_equal(counts_of(tail), counts_of(whole)[-len(counts_of(tail)):])
 
 
 def test_last_partial_window_kept_or_dropped_and_counted():

@@ -16,7 +16,7 @@ Pooled uint16 counts that pass 65535 widen the table's counts to uint32 (recorde
 What lies outside the box is counted (events, or frame counts) in a `CropReport`.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pyarrow as pa
@@ -125,7 +125,7 @@ def activity_map(table: pa.Table) -> np.ndarray:
         return total
     width, height = _sensor(table.schema)
     if kind == "recordings":
-        values = pa.chunked_array([chunk.values for chunk in table.column("events").chunks], type=sch.EVENT_STRUCT)
+        values = pa.chunked_array([chunk.flatten() for chunk in table.column("events").chunks], type=sch.EVENT_STRUCT)
         t = np.concatenate([chunk.field("t").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.int64)])
         x = np.concatenate([chunk.field("x").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.uint16)])
         y = np.concatenate([chunk.field("y").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.uint16)])

@@ -18,7 +18,6 @@ Everything not framed is counted in a `FramingReport`: events before the start, 
 (or past --pad-to N), late events (out of time order by more than one window), saturated events.
 """
 
-import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -261,10 +260,10 @@ def _trial_rows(table: pa.Table):
         events = batch.column("events")
         force = batch.column("force")
         ev_offsets = events.offsets.to_numpy()
-        ev_values = events.values
+        ev_values = events.flatten()  # the values this (possibly sliced) list array spans
         fields = {name: ev_values.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")}
         f_offsets = force.offsets.to_numpy()
-        f_values = force.values
+        f_values = force.flatten()
         f_t = f_values.field("t").to_numpy(zero_copy_only=False)
         f_v = f_values.field("value").to_numpy(zero_copy_only=False)
         trials = batch.column("trial").to_pylist()

@@ -26,7 +26,6 @@ the next trial's lead-in, as in a file of one grasp (the first trial holds all t
 Force is conditioned as in the thesis: a median filter (window `median_us`), in newtons.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
