@@ -1,9 +1,9 @@
 """A montage of one trial's frames with its force trace and phases underneath.
 
-    neurotac simulate --preset ch4 --seed 1 --out sim
+    neurotac simulate --preset ch4 --out sim
     neurotac sync --manifest sim/manifest.csv | neurotac frame --window 10ms \
       | neurotac crop --size 115x115 --center auto > frames.arrows
-    python examples/frame_montage.py frames.arrows --trial steel-bolt12-01 -o docs/img/frame_montage.png
+    python examples/frame_montage.py frames.arrows --trial steel-bolt12-01 --columns 11 -o docs/img/frame_montage.png
 
 Each tile is one frame: ON counts in red, OFF counts in blue (both on a square-root scale, clipped
 at the 99.5th percentile of the trial's counts), titled with its frame number and phase. Below, the
