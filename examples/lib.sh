@@ -47,7 +47,7 @@ study() {
 
 # publish CHAPTER "how it was run": write the chapter's tables into $RESULTS.
 publish() {
-  "$PYTHON" "$HERE/results.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$2"
+  "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$2"
 }
 
 machine() { echo "$(nproc) CPUs, $(uname -m)"; }

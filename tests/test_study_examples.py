@@ -49,7 +49,7 @@ engineer E's table, not ours
 
 
 def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tmp_path):
-    results = load("results")
+    results = load("chapters")
     folder = tmp_path / "ch3"
     folder.mkdir()
     for k, n, mse in ((1, 5, 0.4), (1, 40, 0.3), (4, 5, 0.25), (4, 40, 0.2)):
@@ -74,7 +74,7 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
 
 
 def test_a_missing_section_is_appended_with_its_markers(tmp_path):
-    results = load("results")
+    results = load("chapters")
     folder = tmp_path / "ch4"
     folder.mkdir()
     for model, mse in (("lstm", 0.3), ("convlstm", 0.2)):
@@ -89,7 +89,7 @@ def test_a_missing_section_is_appended_with_its_markers(tmp_path):
 
 
 def test_chapter5_orders_methods_and_draws_its_figures(tmp_path):
-    results = load("results")
+    results = load("chapters")
     folder = tmp_path / "ch5"
     folder.mkdir()
     for name, mse in (("none", 8.0), ("fs-1", 5.5), ("fs1", 7.0), ("tes-2_0.5", 6.0), ("tes-1_0.25", 6.5), ("hybrid", 7.5)):
@@ -125,7 +125,7 @@ def test_the_chapter_scripts_parse(script):
 
 
 def test_a_grid_held_in_one_table_is_read_by_its_parameter_columns(tmp_path):
-    results = load("results")
+    results = load("chapters")
     table = pa.table({
         "scope": ["all"] * 4, "metric": ["mse_fold_mean"] * 4, "value": [0.4, 0.3, 0.2, 0.1], "model": ["tdnn"] * 4,
         "layers": [1, 1, 2, 2], "units": [5, 10, 5, 10],
