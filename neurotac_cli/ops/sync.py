@@ -14,7 +14,8 @@ Methods (each returns the sync instants t0 on the camera clock, one per force-lo
 - `offset`: a known clock offset: the force log's zero is camera time `offset_us`.
 - `xcorr`: no LED: the camera's event rate is cross-correlated with |dF/dt| of the force log, both
   in 250 µs bins smoothed over 1 ms (bins ten times above their surroundings, such as a blink, are
-  set to the surroundings' level so a blink cannot dominate). The lag of the highest Pearson
+  set to the surroundings' level so a blink cannot dominate). Among the lags that keep the force
+  log inside the recording (20 ms of slack at either end), the one of the highest Pearson
   correlation, refined by a parabola, less the camera's response delay `response_us` (the event
   rate follows the force ~1.6 ms late on the simulated rig: membrane creep and photoreceptor), is
   the instant. Confidence = the correlation at the peak and its margin over the best lag 20 ms or
@@ -40,6 +41,7 @@ LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simula
 XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
 XCORR_BIN_US = 250
 XCORR_SMOOTH_US = 1_000
+XCORR_SLACK_US = 20_000  # how far the force log may reach past the recording's ends
 
 
 @dataclass(frozen=True)
@@ -235,7 +237,7 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
     corr = _pearson_by_lag(a, b)
     lags = np.arange(-len(b) + 1, len(a))
     overlap = np.minimum(len(a), lags + len(b)) - np.maximum(0, lags)
-    valid = overlap >= (3 * len(b)) // 4  # most of the force trace lies inside the recording
+    valid = overlap >= len(b) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
     corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
     best = int(np.argmax(corr))
     peak = float(corr[best])
