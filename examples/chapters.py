@@ -541,11 +541,14 @@ def main(argv=None):
     parser.add_argument("folder", help="the chapter script's output folder with *.metrics.parquet")
     parser.add_argument("page", help="the markdown page to update (created when missing)")
     parser.add_argument("--figures", default=None, help="folder of the chapter's PNGs (default: beside the page)")
-    parser.add_argument("--run", default="", help="one line saying how the numbers were made (preset, seeds, mode, time)")
+    parser.add_argument("--run", default="", help="one line saying how the numbers were made (default: FOLDER/run.md)")
     args = parser.parse_args(argv)
     page = pathlib.Path(args.page)
     figures = args.figures or str(page.parent)
-    body = CHAPTERS[args.chapter](args.folder, page, figures, args.run)
+    run = args.run
+    if not run and (pathlib.Path(args.folder) / "run.md").is_file():
+        run = (pathlib.Path(args.folder) / "run.md").read_text().strip()
+    body = CHAPTERS[args.chapter](args.folder, page, figures, run)
     text = page.read_text() if page.exists() else "# Reproduced results\n"
     page.parent.mkdir(parents=True, exist_ok=True)
     temporary = page.with_name(page.name + ".tmp")

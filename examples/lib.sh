@@ -45,9 +45,15 @@ study() {
   neurotac eval "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
 }
 
-# publish CHAPTER "how it was run": write the chapter's tables into $RESULTS.
+# publish CHAPTER "how it was run": write the chapter's tables into $RESULTS (the line is kept in
+# $DIR/run.md so `make publish-quick` can put the same tables into docs/results.md later).
 publish() {
-  "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$2"
+  local run=$2
+  if [[ $MODE == quick ]]; then
+    run="**Reduced run** (\`make reproduce-quick\`): it checks the whole pipeline in minutes; its figures are not the thesis's protocol and say little about the sensor. $run"
+  fi
+  printf '%s\n' "$run" > "$DIR/run.md"
+  "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$run"
 }
 
 machine() { echo "$(nproc) CPUs, $(uname -m)"; }
