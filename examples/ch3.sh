@@ -57,4 +57,4 @@ for k in "${DNN_LAYERS[@]}"; do
 done
 study material-force --cv "$CV" --model-spec material-force --val-per material "${FIT[@]}" "$FRAMES"
 
-publish ch3 "Run: \`MODE=$MODE\`, \`simulate --preset ch3 --seed $SEED ${TRIALS[*]}\`, $CV cross-validation, $((SECONDS - START)) s on $(machine)."
+publish ch3 "Run: \`MODE=$MODE\`, \`simulate --preset ch3 --seed $SEED ${TRIALS[*]}\`, $CV cross-validation, $((SECONDS - START)) s on $(machine) (this invocation; studies finished before are reused)."

@@ -39,4 +39,4 @@ done
 # The held-out size: ConvLSTM trained on the 8 and 16 mm bolts, tested on every 12 mm grasp.
 study heldout --cv group:object=bolt12 --model-spec convlstm --val-per object --nonzero "${FIT[@]}" "$FRAMES"
 
-publish ch4 "Run: \`MODE=$MODE\`, \`simulate --preset ch4 --seed $SEED ${TRIALS[*]}\`, crop 115x115 ${POOL[*]}, $((SECONDS - START)) s on $(machine)."
+publish ch4 "Run: \`MODE=$MODE\`, \`simulate --preset ch4 --seed $SEED ${TRIALS[*]}\`, crop 115x115 ${POOL[*]}, $((SECONDS - START)) s on $(machine) (this invocation; studies finished before are reused)."

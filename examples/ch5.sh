@@ -87,4 +87,4 @@ for data in "$DIR"/train/*.parquet; do
     "${FIT[@]}" "$data"
 done
 
-publish ch5 "Run: \`MODE=$MODE\`, \`simulate --preset ch5 --seed $SEED ${TRIALS[*]}\`, crop 140x150 pool $POOL, $SEEDS seeds, $((SECONDS - START)) s on $(machine)."
+publish ch5 "Run: \`MODE=$MODE\`, \`simulate --preset ch5 --seed $SEED ${TRIALS[*]}\`, crop 140x150 pool $POOL, $SEEDS seeds, $((SECONDS - START)) s on $(machine) (this invocation; studies finished before are reused)."
