@@ -172,6 +172,30 @@ def best_point(points, metric, lowest=True):
     return key, value
 
 
+def first_frame_note(folder, shifts=False) -> str:
+    """A sentence when the first frame of the grasps holds a large share of all events (the LED
+    switch-off's OFF spike lands in frame 0 when sync puts t0 at the switch-off), measured on the
+    chapter's frames."""
+    path = pathlib.Path(folder) / "frames.parquet"
+    if not path.is_file():
+        return ""
+    import numpy as np
+
+    from neurotac_cli import schema as sch
+
+    table = pq.read_table(path, columns=["frame", "counts"])
+    counts = sch.counts_numpy(table.column("counts")).reshape(table.num_rows, -1).sum(axis=1, dtype=np.int64)
+    first = counts[table.column("frame").to_numpy() == 0].sum()
+    share = first / max(int(counts.sum()), 1)
+    if share < 0.2:
+        return ""
+    note = (f" Frame 0 of the grasps holds {100 * share:.0f}% of all their events: the LED switch-off's OFF "
+            "spike just after t0 (sync puts t0 at the switch-off), which frame counts; in the thesis the blink only marks the start of a recording (3.6.1)")
+    if shifts:
+        note += ", and here frame shifts to the left push the spike out of the sequence, which changes what those methods do"
+    return note + "."
+
+
 def ratio(ours, theirs) -> str:
     if ours != ours or not theirs:
         return "–"
@@ -282,7 +306,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         "no FlexiForce hysteresis beyond the modelled one delays the reference. The thesis trained in",
         "MATLAB (scaled conjugate gradient, Levenberg-Marquardt, Bayesian-optimised GP) in double precision;",
         "we train with Adam in float32 and fit the GP by marginal likelihood with restarts. The thesis",
-        "reports MSE with unit N; it is N² here.",
+        "reports MSE with unit N; it is N² here." + first_frame_note(folder),
         "",
     ]
     return "\n".join(part for part in parts if part is not None)
@@ -382,11 +406,11 @@ def chapter4(folder, page, figures_dir, run) -> str:
         parts += ["**Compared with the thesis:** " + "; ".join(said) + ".", ""]
     parts += [
         "**Where and why the numbers differ.** Simulated grasps of 8, 12 and 16 mm bolts",
-        "(`simulate --preset ch4`) replace the Baxter recordings: the simulated Nano17 reference has no",
-        "gripper vibration beyond the modelled one, so the holding phase is easier and the releasing",
-        "phase depends on the simulator's membrane relaxation. The networks are the thesis's",
-        "architectures in PyTorch (float32, CPU) rather than Keras on a GPU; MSE is in N² (the thesis",
-        "writes N).",
+        "(`simulate --preset ch4`) replace the Baxter recordings: the simulated Nano17 reference carries",
+        "only the vibration and membrane relaxation the simulator models, and its event counts per",
+        "newton follow the simulator's DVS model, not the thesis's camera settings. The networks are the",
+        "thesis's architectures in PyTorch (float32, CPU) rather than Keras on a GPU; MSE is in N² (the",
+        "thesis writes N)." + first_frame_note(folder),
         "",
     ]
     return "\n".join(parts)
@@ -466,7 +490,7 @@ def chapter5(folder, page, figures_dir, run) -> str:
         "thesis attributes its 5.5–7.9 error over 0–25 N to the elastomer's elasticity and the DVS",
         "threshold; the simulator models its membrane's saturation (set at 30 N for this preset) and",
         "its DVS pixels with their own parameters, so absolute errors differ and the ranking of the",
-        "methods is the comparable part. MSE is in N² (the thesis writes N).",
+        "methods is the comparable part. MSE is in N² (the thesis writes N)." + first_frame_note(folder, shifts=True),
         "",
     ]
     return "\n".join(parts)
