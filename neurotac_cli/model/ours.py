@@ -9,6 +9,10 @@ force is better described by a few physical quantities that change smoothly with
 - a per-pixel *deformation map*, the running sum of OFF minus ON events (OFF fires as force grows,
   ON as it falls): its positive mass, its negative mass, the area where it is positive, and its
   radial extent (the second moment around its centroid), i.e. the contact patch's size;
+- the areas where the deformation map reaches each of `levels` depths (fractions of its 99.5th
+  percentile on the training trials): the membrane's pixels saturate, so how much of the patch
+  reaches which depth tells the force better than the patch's area (correlation with the holding
+  force 0.4-0.7 against 0.2 for the area, measured on simulated ch4);
 - a coarse `grid` x `grid` layout of the deformation map and of the frame's events, as shares of
   their totals (so they do not scale with object size).
 
@@ -19,6 +23,7 @@ counts and the GRU state, so streaming costs O(H x W) per frame plus a tiny GRU 
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -30,6 +35,7 @@ from neurotac_cli.model.base import ForceNet
 class Config:
     hidden: int = 32
     layers: int = 1
+    levels: int = 8  # depth levels of the deformation map whose areas are features
     grid: int = 0  # 4 adds a 4x4 layout: better on seen sizes, worse on an unseen size (measured)
     dropout: float = 0.0
 
@@ -40,9 +46,10 @@ class Net(ForceNet):
         self.config = config
         _, height, width = shape
         self.shape = (height, width)
-        width_features = 10 + 4 * config.grid * config.grid
+        width_features = 10 + config.levels + 4 * config.grid * config.grid
         self.register_buffer("feature_mean", torch.zeros(width_features))
         self.register_buffer("feature_std", torch.ones(width_features))
+        self.register_buffer("level_unit", torch.ones(1))
         self.register_buffer("x_coord", torch.arange(width, dtype=torch.float32).view(1, 1, 1, width) / max(width, 1))
         self.register_buffer("y_coord", torch.arange(height, dtype=torch.float32).view(1, 1, height, 1) / max(height, 1))
         self.gru = nn.GRU(width_features, config.hidden, num_layers=config.layers, batch_first=True,
@@ -79,6 +86,10 @@ class Net(ForceNet):
             torch.log1p(mass).unsqueeze(-1), torch.log1p(negative.sum(dim=(-1, -2))).unsqueeze(-1),
             torch.log1p(area).unsqueeze(-1), extent.unsqueeze(-1),
         ]
+        if self.config.levels:
+            steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32) / self.config.levels * self.level_unit
+            above = (deformation.unsqueeze(2) >= steps.view(1, 1, -1, 1, 1)).sum(dim=(-1, -2)).float()
+            parts.append(torch.log1p(above))
         grid = self.config.grid
         if grid:
             flat = lambda x: x.reshape(batch * length, -1, *self.shape)  # noqa: E731
@@ -99,6 +110,10 @@ class Net(ForceNet):
         return self.head(out).squeeze(-1), new
 
     def calibrate(self, counts, t_s):
+        depths = [np.cumsum(c[:, 0].astype(np.float32) - c[:, 1], axis=0).ravel() for c in counts]
+        depths = np.concatenate(depths) if depths else np.ones(1)
+        positive = depths[depths > 0]
+        self.level_unit.fill_(float(np.percentile(positive, 99.5)) if len(positive) else 1.0)
         rows = []
         with torch.no_grad():
             for c in counts:
