@@ -574,3 +574,65 @@ def _scalar(text: str):
         return float(text)
     except ValueError:
         return text
+
+
+# --------------------------------------------------------------------------------------------------
+# A grid of cross-validated models
+
+
+def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repeats=1, seed=0, val_fraction=0.1,
+                        per="object", label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None,
+                        cache_dir=None, progress=None):
+    """Cross-validate `model` at every grid point: (predictions, metric rows) with one column per grid
+    parameter added to both, in grid order.
+
+    Every training of every point (points × folds × repeats) is one task of a single `run_tasks`
+    call, so a cluster works on all of them at once; each point is then scored by
+    `model.evaluate.cross_validate`, which finds its trainings in the cache (a temporary one when
+    `cache_dir` is None) and so scores exactly as `neurotac eval --cv` does.
+    """
+    import tempfile
+
+    import pyarrow as pa
+
+    from neurotac_cli import model as models
+    from neurotac_cli.model import cv as cross
+    from neurotac_cli.model import data as shaping
+    from neurotac_cli.model import evaluate
+
+    specs = [models.make_spec(model, **point) for point in points]  # refuses unknown names before any work
+    data = shaping.sequences(frames)
+    tasks = []
+    for spec in specs:
+        tasks += cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)[1]
+    with tempfile.TemporaryDirectory(prefix="neurotac-study-") as scratch:
+        cache = cache_dir or scratch
+        run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
+                  label=f"{model} grid", shared={"frames": frames}, progress=progress)
+        parts, rows = [], []
+        for point, spec in zip(points, specs):
+            predictions, point_rows = evaluate.cross_validate(
+                frames, spec, cv, repeats=repeats, seed=seed, val_fraction=val_fraction, per=per, label=label,
+                nonzero=nonzero, per_trial=per_trial, cache=cache, progress=None)
+            for name, value in point.items():
+                predictions = predictions.append_column(name, pa.array([value] * predictions.num_rows))
+            parts.append(predictions)
+            rows.append((point, point_rows))
+    merged = pa.concat_tables(parts, promote_options="permissive").replace_schema_metadata(parts[0].schema.metadata)
+    return merged, rows
+
+
+def grid_metrics_table(rows, model: str):
+    """One metrics table for a grid: scope, metric, value, model, then one column per grid parameter."""
+    import pyarrow as pa
+
+    from neurotac_cli.metrics import metrics_table
+
+    tables = []
+    for point, point_rows in rows:
+        table = metrics_table(point_rows, model)
+        for name, value in point.items():
+            table = table.append_column(name, pa.array([value] * table.num_rows))
+        tables.append(table)
+    merged = pa.concat_tables(tables, promote_options="permissive")
+    return merged.replace_schema_metadata(tables[0].schema.metadata)

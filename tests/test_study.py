@@ -352,3 +352,44 @@ def test_eval_cv_rerun_with_a_cache_trains_nothing(tiny_frames_file, tmp_path):
     assert "5/5 done, " in first.stderr
     assert "5/5 done (5 cached)" in again.stderr
     assert _metrics(tmp_path / "first.parquet") == _metrics(tmp_path / "again.parquet")
+
+
+def test_study_command_runs_a_grid_through_the_scheduler_as_in_process(cluster, tiny_frames_file, tmp_path):
+    from neurotac_cli.cli import cli
+
+    grid = ["study", "--model-spec", "tdnn", "--grid", "layers=1..2", "--grid", "units=3 epochs=2", "--cv", "loo",
+            "--seed", "3", tiny_frames_file]
+    runner = CliRunner()
+    here = runner.invoke(cli, [*grid, "--metrics", str(tmp_path / "here.parquet"), "-o", str(tmp_path / "here.arrows")])
+    dask = runner.invoke(cli, [*grid, "--metrics", str(tmp_path / "dask.parquet"), "-o", str(tmp_path / "dask.arrows"),
+                               "--scheduler", cluster.scheduler_address])
+    assert here.exit_code == 0 and dask.exit_code == 0, here.output + dask.output
+    assert "tdnn layers=2, units=3, epochs=2: MSE" in here.stderr
+
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(tmp_path / "here.parquet")
+    assert table.schema.names == ["scope", "metric", "value", "model", "layers", "units", "epochs"]
+    assert sorted(set(table.column("layers").to_pylist())) == [1, 2]
+    assert _metrics(tmp_path / "here.parquet") == _metrics(tmp_path / "dask.parquet")
+
+    # each point scores as `eval --cv` scores it
+    _eval(["--cv", "loo", "--model-spec", "tdnn", "--layers", "2", "--units", "3", "--epochs", "2", "--seed", "3", "--no-per-trial",
+           tiny_frames_file, "--metrics", str(tmp_path / "one.parquet"), "-o", str(tmp_path / "one.arrows")])
+    point = table.filter(pa_equal(table.column("layers"), 2))
+    rows = [(s, m, "nan" if v != v else v) for s, m, v in zip(*(point.column(c).to_pylist() for c in ("scope", "metric", "value")))]
+    assert sorted(rows, key=str) == sorted(_metrics(tmp_path / "one.parquet"), key=str)
+
+
+def test_study_command_refuses_a_parameter_the_model_does_not_have(tiny_frames_file):
+    from neurotac_cli.cli import cli
+
+    result = CliRunner().invoke(cli, ["study", "--model-spec", "tdnn", "--grid", "filters=1,2", tiny_frames_file])
+    assert result.exit_code == 1
+    assert "has no option 'filters'" in result.stderr
+
+
+def pa_equal(column, value):
+    import pyarrow.compute as pc
+
+    return pc.equal(column, value)
