@@ -35,26 +35,21 @@ if [[ ! -s $DIR/frames.parquet ]]; then
 fi
 FRAMES=$DIR/frames.parquet
 
-# Force: the TDNN grid, every point a leave-one-out study; validation trials drawn per material.
-for k in "${TDNN_LAYERS[@]}"; do
-  for n in "${TDNN_UNITS[@]}"; do
-    plot=()
-    [[ $k == "${TDNN_LAYERS[-1]}" && $n == "${TDNN_UNITS[-1]}" ]] && plot=(--plot "$FIGURES/ch3-tdnn.png")
-    study "tdnn@layers=$k,units=$n" --cv "$CV" --model-spec tdnn --layers "$k" --units "$n" \
-      --val-per material "${FIT[@]}" "${plot[@]}" "$FRAMES"
-  done
-done
+# Force: the TDNN grid, every point a leave-one-out study (all trainings of the grid one study);
+# validation trials drawn per material in every fold.
+fixed=()
+((${#FIT[@]})) && fixed=(--grid "epochs=${FIT[1]} patience=${FIT[3]}")
+grid tdnn --model-spec tdnn --grid "layers=$(join "${TDNN_LAYERS[@]}")" --grid "units=$(join "${TDNN_UNITS[@]}")" \
+  "${fixed[@]}" --cv "$CV" --val-per material "$FRAMES"
+figure "$FIGURES/ch3-tdnn.png" --cv "$CV" --model-spec tdnn --layers "${TDNN_LAYERS[-1]}" --units "${TDNN_UNITS[-1]}" \
+  --val-per material "${FIT[@]}" "$FRAMES"
 study gp --cv "$CV" --model-spec gp --val-per material "${GP_FIT[@]}" --plot "$FIGURES/ch3-gp.png" "$FRAMES"
 
 # Materials: the DNN grid on the accumulation curves, and the same network on the force log alone.
-for k in "${DNN_LAYERS[@]}"; do
-  for n in "${DNN_UNITS[@]}"; do
-    plot=()
-    [[ $k == 2 && $n == 30 ]] && plot=(--plot "$FIGURES/ch3-confusion.png")
-    study "material-dnn@layers=$k,units=$n" --cv "$CV" --model-spec material-dnn --layers "$k" --units "$n" \
-      --val-per material "${FIT[@]}" "${plot[@]}" "$FRAMES"
-  done
-done
+grid material-dnn --model-spec material-dnn --grid "layers=$(join "${DNN_LAYERS[@]}")" \
+  --grid "units=$(join "${DNN_UNITS[@]}")" "${fixed[@]}" --cv "$CV" --val-per material "$FRAMES"
+figure "$FIGURES/ch3-confusion.png" --cv "$CV" --model-spec material-dnn --layers 2 --units 30 \
+  --val-per material "${FIT[@]}" "$FRAMES"
 study material-force --cv "$CV" --model-spec material-force --val-per material "${FIT[@]}" "$FRAMES"
 
 publish ch3 "Run: \`MODE=$MODE\`, \`simulate --preset ch3 --seed $SEED ${TRIALS[*]}\`, $CV cross-validation, $((SECONDS - START)) s on $(machine) (this invocation; studies finished before are reused)."

@@ -45,6 +45,28 @@ study() {
   neurotac eval "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
 }
 
+# grid NAME ARGS...: `neurotac study ARGS --metrics DIR/NAME.metrics.parquet` (a whole grid in one
+# table, one column per grid parameter), unless that file exists already.
+grid() {
+  local name=$1; shift
+  local metrics="$DIR/$name.metrics.parquet"
+  if [[ -s $metrics ]]; then
+    say "$name: done before, kept ($metrics)"
+    return
+  fi
+  say "$name: neurotac study $*"
+  neurotac study "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
+}
+
+# figure PNG EVAL-ARGS...: `neurotac eval EVAL-ARGS --plot PNG`; its trainings are usually in the
+# cache already (the same study ran before), so this only scores and draws.
+figure() {
+  local png=$1; shift
+  [[ -s $png ]] || neurotac eval "$@" --seed "$SEED" --plot "$png" > /dev/null
+}
+
+join() { local IFS=,; echo "$*"; }
+
 # publish CHAPTER "how it was run": write the chapter's tables into $RESULTS (the line is kept in
 # $DIR/run.md so `make publish-quick` can put the same tables into docs/results.md later).
 publish() {
