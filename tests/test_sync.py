@@ -130,7 +130,23 @@ def test_a_session_is_cut_at_each_blink_and_matched_to_the_force_trials():
     trials, info = sy.sync_source(sy.Source("s", session, logs), sy.SyncMethod())
     assert [t["trial"] for t in trials] == ["a", "b"]
     assert abs(trials[0]["t0"] - 3_050_000) <= 100 and abs(trials[1]["t0"] - 4_050_000) <= 100
-    assert sum(len(t["events"][0]) for t in trials) == session.num_rows  # nothing lost between trials
+    removed = sum(entry["led_events_removed"] for entry in info.values())
+    assert removed > 0
+    assert sum(len(t["events"][0]) for t in trials) + removed == session.num_rows  # nothing lost between trials
+
+
+def test_the_blink_burst_is_left_out_of_the_trial_and_counted_unless_kept():
+    table = synthetic_recording(7, led_off=3_050_000)
+    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod())
+    kept, kept_info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(keep_led=True))
+    t, _, _, p = trials[0]["events"]
+    removed = info["g"]["led_events_removed"]
+    assert removed > 0 and "led_events_removed" not in kept_info["g"]
+    assert len(t) + removed == len(kept[0]["events"][0])
+    assert t.min() >= info["g"]["led_end_us"] - info["g"]["t0"]  # no event of the burst is left
+    # the switch-off spike was most of the OFF events in the first millisecond: they are gone
+    first_ms = (t >= 0) & (t < 1_000)
+    assert np.count_nonzero(first_ms & (p == 0)) < removed / 10
 
 
 def test_a_session_with_fewer_blinks_than_force_trials_fails():

@@ -33,6 +33,7 @@ class Region(click.ParamType):
               "rate behind the force [default: 1.6ms] (both measured on the simulated DAVIS240C rig).")
 @click.option("--min-score", type=float, default=10.0, show_default=True, help="LED method: the z-score a spike needs over its surroundings.")
 @click.option("--min-coverage", type=float, default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
+@click.option("--keep-led", is_flag=True, help="LED method: keep the blink's switch-off burst in each trial (by default its events are left out and counted in the sync metadata: they mark the instant, they are not touch).")
 @click.option("--trigger-type", default=None, help="Trigger method: only triggers of this type (rising, falling, pulse, ...); default any.")
 @click.option("--median", "median_window", type=Duration(), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
 @click.option("--force-time-column", default=None, help="Force log: the time column (name or 0-based index) [default: first].")
@@ -42,7 +43,7 @@ class Region(click.ParamType):
               help="Force log: force unit, overriding the header's suffix [default: N].")
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH for files that do not declare it.")
 def command(events, output, force_path, trial, labels, manifest, method, offset, region, latency, min_score, min_coverage,
-            trigger_type, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
+            keep_led, trigger_type, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
     """Align camera events with a force log; cut and label trials (a recordings table).
 
     The LED is switched off before each grasp and the force log starts then (thesis 3.6.1): the
@@ -67,7 +68,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         method=method, offset_us=offset, region=region,
         latency_us=sy.LED_LATENCY_US if latency is None else latency,
         response_us=sy.XCORR_RESPONSE_US if latency is None else latency, min_z=min_score, min_coverage=min_coverage,
-        trigger_type=trigger_type, median_us=median_window,
+        trigger_type=trigger_type, median_us=median_window, keep_led=keep_led,
     )
     label_map = dict(labels)
     if manifest:

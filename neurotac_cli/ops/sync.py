@@ -58,6 +58,7 @@ class SyncMethod:
     trigger_type: str | None = None
     median_us: int = 10_000
     bin_us: int = 1_000
+    keep_led: bool = False  # keep the blink's own events in the trial (they are a marker, not touch)
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -74,7 +75,7 @@ class SyncMethod:
         if self.method == "offset":
             out["offset_us"] = self.offset_us
         if self.method == "led":
-            out.update(latency_us=self.latency_us, min_z=self.min_z, min_coverage=self.min_coverage)
+            out.update(latency_us=self.latency_us, min_z=self.min_z, min_coverage=self.min_coverage, keep_led=self.keep_led)
         if self.method == "xcorr":
             out["response_us"] = self.response_us
         if self.method == "trigger":
@@ -164,7 +165,12 @@ def find_led_spikes(t, x, y, p, method: SyncMethod, count: int, sensor=None) -> 
                 Instant(
                     t0=onset - method.latency_us,
                     score=float(round(z[i], 1)),
-                    details={"onset_us": onset, "coverage": round(coverage, 3), "spike_events": int(len(spike))},
+                    details={
+                        "onset_us": onset,
+                        "coverage": round(coverage, 3),
+                        "spike_events": int(len(spike)),
+                        "led_end_us": origin + _burst_end(counts, background, i) * bin_us,
+                    },
                 )
             )
             if len(chosen) == count:
@@ -185,6 +191,13 @@ def find_led_spikes(t, x, y, p, method: SyncMethod, count: int, sensor=None) -> 
             "or use --method xcorr, trigger or offset"
         )
     return sorted(chosen, key=lambda instant: instant.t0)
+
+
+def _burst_end(counts: np.ndarray, background: np.ndarray, peak: int, longest_bins: int = 20) -> int:
+    """The first bin after `peak` whose OFF count is back within 5 sigma of the background."""
+    stop = min(len(counts), peak + longest_bins)
+    quiet = counts[peak:stop] <= background[peak:stop] + 5 * np.sqrt(background[peak:stop] + 1)
+    return peak + (int(np.argmax(quiet)) if quiet.any() else stop - peak)
 
 
 # ---------------------------------------------------------------- trigger, offset
@@ -331,6 +344,12 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     for i, (instant, log) in enumerate(zip(instants, logs)):
         name = source.trial if count == 1 else (log.trial or f"{source.trial}-{i + 1:02d}")
         a, b = cuts[i], cuts[i + 1]
+        led_end = instant.details.get("led_end_us")
+        if led_end is not None and not method.keep_led:
+            # the blink's switch-off burst marks the instant; it is not touch: leave it out of the trial
+            a_led = max(a, int(np.searchsorted(t, led_end)))
+            instant.details["led_events_removed"] = a_led - a
+            a = a_led
         values = condition_force(log, method.median_us)
         trials.append(
             {
