@@ -16,7 +16,8 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
 @click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True, help="With --cv: repeat every fold with this many seeds (thesis 10).")
 @click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
               help="With --cv: validation share of each fold's training trials, drawn per --val-per value (thesis: one per size).")
-@click.option("--val-per", default="object", show_default=True, help="With --cv: label whose values each get validation trials.")
+@click.option("--val-per", default=None, metavar="LABEL",
+              help="With --cv: label whose values each get validation trials [default: object for force models, the class label for classifiers].")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column.")
 @click.option("--metrics", "metrics_path", type=click.Path(dir_okay=False), default=None, help="Write the metrics table (scope, metric, value, model) to this file.")
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")

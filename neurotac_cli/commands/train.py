@@ -42,8 +42,9 @@ def hyperparameters(values: dict) -> dict:
 
 
 def validation_options(function):
-    function = click.option("--val-per", default="object", show_default=True,
-                            help="With --val-fraction: draw validation trials per value of this label (thesis: per object size).")(function)
+    function = click.option("--val-per", default=None, metavar="LABEL",
+                            help="With --val-fraction: draw validation trials per value of this label [default: object "
+                            "(the thesis: one per size) for force models, the class label for classifiers].")(function)
     function = click.option("--val-where", default=None, metavar="LABEL=VALUE",
                             help="Validate on the trials with this label value, e.g. object=bolt15.")(function)
     function = click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=None,

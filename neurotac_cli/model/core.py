@@ -143,11 +143,16 @@ def check_input(model: Model, schema: pa.Schema):
 # ---------------------------------------------------------------- training
 
 
-def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, val_where=None, per="object",
+def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, val_where=None, per=None,
           seed: int = 0, progress=None, label: str = "material") -> Model:
-    """Train the model of `spec` on a frames table, validation chosen as asked (never leaking copies)."""
+    """Train the model of `spec` on a frames table, validation chosen as asked (never leaking copies).
+
+    `per`: the label whose values each get a share of the validation trials; default `object` (the
+    thesis draws one per size) for force models, the class label for classifiers (stratified).
+    """
     sch.validate(table.schema, "frames")
     name, config, fit_config = split_spec(spec)
+    per = per or (label if name in MATERIAL_MODELS else "object")
     data = shaping.sequences(table)
     rng = np.random.default_rng(seed)
     where = shaping.parse_where(val_where) if isinstance(val_where, str) else val_where

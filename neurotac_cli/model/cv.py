@@ -55,7 +55,7 @@ def _sources(table: pa.Table) -> pa.Array:
     return pc.if_else(pc.or_(pc.is_null(source), pc.equal(source, "")), trial, source)
 
 
-def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fraction: float, per: str,
+def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fraction: float, per: str | None,
              label: str = "material"):
     """Train on every trial outside the fold's source groups, predict the fold's test trials.
 
@@ -78,7 +78,7 @@ def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fra
 
 
 def fold_tasks(data: shaping.Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
-               per: str, label: str = "material"):
+               per: str | None, label: str = "material"):
     """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
     rng = np.random.default_rng(seed)
     groups = folds(data, cv, rng)

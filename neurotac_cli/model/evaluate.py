@@ -35,7 +35,7 @@ def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
     return predictions, score(predictions, nonzero=nonzero, per_trial=per_trial)
 
 
-def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, val_fraction=0.1, per="object",
+def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, val_fraction=0.1, per=None,
                    label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None, cache=None, progress=None):
     """Out-of-fold predictions (columns `repeat`, `fold` added) and metric rows: pooled over all
     out-of-fold predictions, per fold (scope `fold:R/F`), and mean / σ over folds."""
