@@ -49,17 +49,16 @@ class LazyGroup(click.Group):
                 formatter.write_dl(rows)
 
     def invoke(self, ctx):
-        name = ctx.protected_args[0] if ctx.protected_args else "neurotac"
         try:
             return super().invoke(ctx)
         except NeurotacError as error:
-            _fail(f"neurotac {name}: error: {error}")
+            _fail(f"neurotac {ctx.invoked_subcommand}: error: {error}")
         except BrokenPipeError:
             _quiet_exit()
         except KeyboardInterrupt:
-            _fail(f"neurotac {name}: interrupted", code=130)
+            _fail(f"neurotac {ctx.invoked_subcommand}: interrupted", code=130)
         except MemoryError:
-            _fail(f"neurotac {name}: error: out of memory (process the input in smaller pieces)")
+            _fail(f"neurotac {ctx.invoked_subcommand}: error: out of memory (process the input in smaller pieces)")
 
 
 def _fail(message: str, code: int = 1):
