@@ -97,3 +97,19 @@ def test_a_foreign_file_is_refused_clearly(tmp_path):
     path.write_bytes(b"not a model at all")
     with pytest.raises(ModelError, match="not a neurotac model file"):
         models.load(str(path))
+
+
+def test_ours_trained_on_features_computed_once_equals_the_full_forward():
+    import torch
+
+    from neurotac_cli.model import ours
+
+    net = ours.Net(ours.Config(hidden=8), (2, 12, 10))
+    generator = torch.Generator().manual_seed(3)
+    counts = torch.poisson(torch.full((5, 7, 2, 12, 10), 0.7), generator=generator)
+    t_s = torch.arange(7, dtype=torch.float64).repeat(5, 1) * 0.01
+    net.calibrate([c.numpy() for c in counts], [t.numpy() for t in t_s])
+    with torch.no_grad():
+        full, _ = net(counts, t_s)
+        encoded = net.forward_encoded(net.encode(counts, t_s, chunk=2))
+    assert torch.allclose(full, encoded, atol=1e-5)

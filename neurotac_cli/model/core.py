@@ -194,16 +194,24 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
     else:
         tensors = _force_tensors(train_set, force_scale)
         val_tensors = _force_tensors(val_set, force_scale) if len(val_set) else None
+        encoded = hasattr(net, "encode")
+        if encoded:  # fixed features: computed once, not once per epoch
+            for group in (tensors, val_tensors):
+                if group is not None:
+                    group["features"] = net.encode(group.pop("counts"), group["t"])
+
+        def run(group, indices=slice(None)):
+            if encoded:
+                return net.forward_encoded(group["features"][indices])
+            return net(group["counts"][indices], group["t"][indices])[0]
 
         def batch_loss(indices):
-            out, _ = net(tensors["counts"][indices], tensors["t"][indices])
-            return _masked_mse(out, tensors["force"][indices], tensors["mask"][indices])
+            return _masked_mse(run(tensors, indices), tensors["force"][indices], tensors["mask"][indices])
 
         def val_loss():
             if val_tensors is None:
                 return None
-            out, _ = net(val_tensors["counts"], val_tensors["t"])
-            return float(_masked_mse(out, val_tensors["force"], val_tensors["mask"]))
+            return float(_masked_mse(run(val_tensors), val_tensors["force"], val_tensors["mask"]))
 
         curve = fit(net, batch_loss, len(train_set), val_loss, fit_config, generator, progress, label=name)
     input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))

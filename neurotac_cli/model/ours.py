@@ -100,6 +100,20 @@ class Net(ForceNet):
         new = {"deformation": deformation[:, -1], "acc": acc[:, -1]}
         return torch.cat(parts, dim=-1), new
 
+    def encode(self, counts, t_s, chunk: int = 8):
+        """The features of whole sequences from their start. They hold no trained parameter, so
+        training computes them once instead of once per epoch (tens of times faster at 115x115)."""
+        with torch.no_grad():
+            parts = [self.features(counts[i : i + chunk], self.init_state(len(counts[i : i + chunk])))[0]
+                     for i in range(0, counts.shape[0], chunk)]
+        return torch.cat(parts) if parts else torch.zeros(0)
+
+    def forward_encoded(self, features):
+        """forward() from features made by encode(), for whole sequences from their start."""
+        x = (features - self.feature_mean) / self.feature_std
+        out, _ = self.gru(x, self.init_state(features.shape[0])["h"])
+        return self.head(out).squeeze(-1)
+
     def forward(self, counts, t_s, state=None):
         batch = counts.shape[0]
         state = state or self.init_state(batch)
