@@ -55,7 +55,7 @@ def validation_options(function):
 
 
 def progress_printer():
-    """Progress on stderr: every message on a terminal (overwriting epoch lines), every 10th epoch otherwise."""
+    """Progress on stderr: every message on a terminal (overwriting epoch lines), every 25th epoch otherwise."""
     interactive = sys.stderr.isatty()
 
     def show(message: str):
@@ -64,7 +64,7 @@ def progress_printer():
             if interactive:
                 click.echo("\r" + message[:150].ljust(150), err=True, nl=False)
                 return
-            if epoch % 10 and "(0/" not in message:
+            if epoch % 25:
                 return
         elif interactive:
             click.echo("", err=True)
