@@ -109,7 +109,7 @@ def test_synced_writes_a_recordings_table_relative_to_led_off(tmp_path):
     from neurotac_cli import schema, tables
 
     out = tmp_path / "rec.arrows"
-    result = CliRunner().invoke(cli, ["simulate", *SMALL, "--seed", "7", "--synced", "-o", str(out)])
+    result = CliRunner().invoke(cli, ["simulate", *SMALL, "--seed", "7", "--synced", "--keep-led", "-o", str(out)])
     assert result.exit_code == 0, result.output
     table = tables.read([str(out)])
     assert schema.kind_of(table.schema) == "recordings"
@@ -119,8 +119,8 @@ def test_synced_writes_a_recordings_table_relative_to_led_off(tmp_path):
     events = table.column("events")[0].values
     t = events.field("t").to_numpy()
     p = events.field("p").to_numpy()
-    assert t.min() < 0 < t.max()  # the LED blink is before t0, the grasp after
-    assert np.sum((p == 0) & (t >= 0) & (t < 2_000)) > 1000  # the LED-off spike right at t0
+    assert t.min() < 0 < t.max()  # kept: the LED blink is before t0, the grasp after
+    assert np.sum((p == 0) & (t >= 0) & (t < 2_000)) > 1000  # kept: the LED-off spike right at t0
     force = table.column("force")[0].values
     assert force.field("t").to_numpy()[0] == 0
     history = schema.get_meta(table.schema, schema.HISTORY)

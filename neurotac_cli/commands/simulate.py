@@ -51,8 +51,9 @@ def _progress_printer():
 @click.option("--set", "settings", type=KeyValue(), multiple=True,
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
                    "(the full list with units and sources: docs/simulator.md).")
+@click.option("--keep-led", is_flag=True, help="With --synced: keep the LED blink's events in each trial, as `sync --keep-led` does (by default they are left out: they mark the instant, they are not touch).")
 def command(preset, trials, out_dir, synced, output, seed, groups, force_range, hold, force_sensor,
-            background_rate, sensor_size, settings):
+            background_rate, sensor_size, settings, keep_led):
     """Simulate grasps on the neuromorphic tactile sensor: camera files, force logs and a manifest.
 
     A physical model (contact mechanics of the object on the silicone membrane, optics, a DVS pixel
@@ -98,8 +99,9 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
     if out_dir:
         write_dataset(simulation, out_dir)
     if synced:
-        args = {"preset": preset, "trials": trials, "seed": seed, **{k: _plain(v) for k, v in overrides.items()}}
-        tables.write(output, recordings(simulation), step=("simulate", args))
+        args = {"preset": preset, "trials": trials, "seed": seed, "keep_led": keep_led,
+                **{k: _plain(v) for k, v in overrides.items()}}
+        tables.write(output, recordings(simulation, keep_led=keep_led), step=("simulate", args))
 
 
 def _force_range(text):

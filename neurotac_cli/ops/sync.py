@@ -200,6 +200,19 @@ def _burst_end(counts: np.ndarray, background: np.ndarray, peak: int, longest_bi
     return peak + (int(np.argmax(quiet)) if quiet.any() else stop - peak)
 
 
+def led_burst_end_us(t_rel: np.ndarray, p: np.ndarray, bin_us: int = 1_000, around_us: int = 50_000) -> int:
+    """Where the switch-off burst of an LED that went dark at time 0 ends (times relative to it):
+    the first bin after its peak, within 2 bins of 0, whose OFF count is back to the background."""
+    off = t_rel[(p == 0) & (t_rel >= -around_us) & (t_rel < around_us)]
+    counts = np.bincount((off + around_us) // bin_us, minlength=2 * around_us // bin_us).astype(np.float64)
+    from scipy.ndimage import median_filter
+
+    background = median_filter(counts, size=51, mode="nearest")
+    start = around_us // bin_us
+    peak = start + int(np.argmax(counts[start : start + 3]))
+    return _burst_end(counts, background, peak) * bin_us - around_us
+
+
 # ---------------------------------------------------------------- trigger, offset
 
 

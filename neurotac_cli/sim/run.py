@@ -170,19 +170,24 @@ def _write_text(path, text):
         sink.write(text)
 
 
-def recordings(simulation: Simulation):
+def recordings(simulation: Simulation, keep_led: bool = False):
     """The `recordings` table: each trial's events and measured force relative to the true LED-off instant."""
     from neurotac_cli import schema
+
+    from neurotac_cli.ops.sync import led_burst_end_us
 
     config = simulation.config
     rows = []
     for trial in simulation.trials:
         g = trial.grasp
         t0 = g.led_off_camera_us
+        t = trial.t - t0
+        # as `neurotac sync` does by default: the blink marks the instant, it is not touch
+        kept = slice(None) if keep_led else slice(int(np.searchsorted(t, led_burst_end_us(t, trial.p))), None)
         rows.append({
             "trial": g.trial,
             "t0": t0,
-            "events": (trial.t - t0, trial.x, trial.y, trial.p),
+            "events": (t[kept], trial.x[kept], trial.y[kept], trial.p[kept]),
             "force": (trial.force_t_us, trial.force_n),
             "labels": dict(g.labels),
         })
