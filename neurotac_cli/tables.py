@@ -85,15 +85,19 @@ def sniff(head: bytes) -> str | None:
     return None
 
 
+def is_terminal(stream) -> bool:
+    """Whether a stream is a terminal (False for pipes, files, and streams without a descriptor)."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
 def _stdin():
     if sys.stdin is None:
         raise InputError("no input: give a path or pipe a table into stdin")
     stream = getattr(sys.stdin, "buffer", sys.stdin)
-    try:
-        interactive = stream.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    if interactive:
+    if is_terminal(stream):
         raise InputError("no input: give a path, or pipe a table into stdin (e.g. `neurotac import rec.aedat | ...`)")
     return stream
 
@@ -296,12 +300,7 @@ def with_step(schema: pa.Schema, step) -> pa.Schema:
 
 
 def refuse_terminal():
-    stream = getattr(sys.stdout, "buffer", sys.stdout)
-    try:
-        interactive = stream.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    if interactive:
+    if is_terminal(sys.stdout):
         raise NeurotacError(
             "refusing to write a binary Arrow table to a terminal (pipe it into another command, "
             "e.g. `| neurotac info -`, or write a file with -o out.parquet)"

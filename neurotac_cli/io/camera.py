@@ -244,15 +244,7 @@ def _batches(name, fmt, decoded: Decoded, sensor, schema, cleanup) -> Iterator[p
                     f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
                     f"y={int(y.max())}); the file is damaged, or give the right size with --sensor WxH"
                 )
-            yield pa.RecordBatch.from_arrays(
-                [
-                    pa.array(np.asarray(t, dtype=np.int64)),
-                    pa.array(np.asarray(x, dtype=np.uint16)),
-                    pa.array(np.asarray(y, dtype=np.uint16)),
-                    pa.array(np.asarray(p, dtype=np.uint8)),
-                ],
-                schema=schema,
-            )
+            yield sch.events_batch(t, x, y, p, schema)
     finally:
         cleanup()
 
