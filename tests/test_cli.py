@@ -27,3 +27,17 @@ def test_unknown_command_is_a_usage_error():
 def test_installed_console_script_runs():
     done = subprocess.run(["neurotac", "--version"], capture_output=True, text=True)
     assert done.returncode == 0 and __version__ in done.stdout
+
+
+def test_shell_completion_completes_commands_and_options():
+    import os
+
+    env = dict(os.environ, COMP_WORDS="neurotac fr", COMP_CWORD="1", _NEUROTAC_COMPLETE="bash_complete")
+    done = subprocess.run(["neurotac"], env=env, capture_output=True, text=True)
+    assert "frame" in done.stdout.split()[0].split(",") or "plain,frame" in done.stdout
+    env.update(COMP_WORDS="neurotac frame --pad", COMP_CWORD="2")
+    assert "--pad-to" in subprocess.run(["neurotac"], env=env, capture_output=True, text=True).stdout
+    for shell in ("bash", "zsh", "fish"):
+        env = dict(os.environ, _NEUROTAC_COMPLETE=f"{shell}_source")
+        script = subprocess.run(["neurotac"], env=env, capture_output=True, text=True).stdout
+        assert "neurotac" in script and "_NEUROTAC_COMPLETE" in script
