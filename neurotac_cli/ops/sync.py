@@ -169,7 +169,8 @@ def find_led_spikes(t, x, y, p, method: SyncMethod, count: int, sensor=None) -> 
                         "onset_us": onset,
                         "coverage": round(coverage, 3),
                         "spike_events": int(len(spike)),
-                        "led_end_us": origin + _burst_end(counts, background, i) * bin_us,
+                        # the pair starting at bin i holds the spike: its end is counted from the fuller bin
+                        "led_end_us": origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us,
                     },
                 )
             )
