@@ -224,7 +224,7 @@ def format_text(info: dict) -> str:
     lines = []
 
     def add(name, value):
-        lines.append(f"{name:<13} {value}")
+        lines.append((name, value))  # aligned on the longest name at the end
 
     kind = info["kind"]
     if "camera_file" in info:
@@ -298,13 +298,17 @@ def format_text(info: dict) -> str:
             text = f"{value:.6g}" if isinstance(value, float) else str(value)
             lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
     lines.append("")
-    lines.append("columns:      " + ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))
+    add("columns:", ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))
     history = info.get("history") or []
-    lines.append("history:" if history else "history:      (none)")
+    if history:
+        lines.append("history:")
+    else:
+        add("history:", "(none)")
     for step in history:
         args = " ".join(f"--{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
-    return "\n".join(lines) + "\n"
+    width = max((len(line[0]) for line in lines if isinstance(line, tuple)), default=0)
+    return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
 
 
 def _compact(value) -> str:
