@@ -315,8 +315,10 @@ def conform(batch, kind: str):
     return batch
 
 
-def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):
-    """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked)."""
+def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True,
+                 backward_us: int = 0):
+    """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked; steps back of at
+    most `backward_us` are allowed, as some cameras write them)."""
     place = f" in {where}" if where else ""
     if sensor is not None and len(x):
         width, height = sensor
@@ -330,8 +332,8 @@ def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sen
         raise SchemaError(f"polarity{place} must be 0 (OFF) or 1 (ON), found {int(p.max())}")
     if sorted_time and len(t) > 1:
         steps = np.diff(t)
-        if steps.min() < 0:
-            first = int(np.argmax(steps < 0)) + 1
+        if steps.min() < -backward_us:
+            first = int(np.argmax(steps < -backward_us)) + 1
             raise SchemaError(
                 f"event time goes backwards{place} at row {first} ({int(t[first - 1])} -> {int(t[first])} µs); "
                 "sort the events by time"
@@ -339,6 +341,8 @@ def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sen
 
 
 def check_force(values: np.ndarray, where: str = ""):
-    if len(values) and np.isnan(values).any():
+    """Every force value finite (missing values are nulls in tables, never NaN or inf)."""
+    bad = ~np.isfinite(np.asarray(values, dtype=np.float64))
+    if len(values) and bad.any():
         place = f" in {where}" if where else ""
-        raise SchemaError(f"{int(np.isnan(values).sum())} force values{place} are NaN; clean the force log first")
+        raise SchemaError(f"{int(bad.sum())} force values{place} are NaN or infinite; clean the force log first")

@@ -581,7 +581,7 @@ def _scalar(text: str):
 
 
 def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repeats=1, seed=0, val_fraction=0.1,
-                        per="object", label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None,
+                        per=None, label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None,
                         cache_dir=None, progress=None):
     """Cross-validate `model` at every grid point: (predictions, metric rows) with one column per grid
     parameter added to both, in grid order.

@@ -101,3 +101,39 @@ def test_eval_cv_held_out_group_scores_only_that_group(tmp_path):
     assert set(predictions.column("object").to_pylist()) == {"large"}
     figures = {(s, m): v for s, m, v in rows}
     assert np.isfinite(figures[("all", "rmse")]) and ("phase:holding", "dtw") in figures
+
+
+def test_non_finite_force_in_frames_is_refused_but_null_is_unknown():
+    import pyarrow as pa
+
+    from neurotac_cli.errors import SchemaError
+    from neurotac_cli.model import data as shaping
+
+    table = tiny_frames()
+    index = table.schema.get_field_index("force")
+    force = table.column("force").to_numpy(zero_copy_only=False).copy()
+    with_null = table.set_column(index, table.schema.field("force"), pa.array([None] + list(force[1:]), pa.float32()))
+    assert np.isnan(np.concatenate(shaping.sequences(with_null).force)).sum() == 1
+    for bad in (np.nan, np.inf):
+        force[3] = bad
+        broken = table.set_column(index, table.schema.field("force"), pa.array(force, pa.float32()))
+        with pytest.raises(SchemaError, match="NaN or infinite"):
+            shaping.sequences(broken)
+
+
+def test_a_model_header_missing_a_part_is_one_clear_error(tmp_path):
+    import json
+
+    from safetensors.torch import load_file, save_file
+
+    from neurotac_cli.model import store
+
+    path = tmp_path / "m.model"
+    models.save(models.train(tiny_frames(), models.make_spec("tdnn", epochs=1)), str(path))
+    header = store.read_header(str(path))
+    del header["input"]
+    save_file(load_file(str(path)), str(tmp_path / "broken.model"), metadata={store.HEADER_KEY: json.dumps(header)})
+    with pytest.raises(ModelError, match="lacks input"):
+        models.load(str(tmp_path / "broken.model"))
+    with pytest.raises(ModelError, match="not a regular file"):
+        models.load(str(tmp_path))

@@ -21,7 +21,8 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
               help="Train every fold with this many seeds (thesis 10).")
 @click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
               help="Validation share of each fold's training trials, drawn per --val-per value.")
-@click.option("--val-per", default="object", show_default=True, help="Label whose values each get validation trials.")
+@click.option("--val-per", default=None, metavar="LABEL",
+              help="Label whose values each get validation trials [default: the class label for classifiers, object for force models].")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column.")
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=False, show_default=True, help="Add one metrics scope per trial and point.")

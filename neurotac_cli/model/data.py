@@ -63,7 +63,9 @@ def sequences(table: pa.Table) -> Sequences:
     starts = np.concatenate([[0], bounds])
     counts = sch.counts_numpy(table.column("counts"))[order]
     t = table.column("t").to_numpy().astype(np.int64)[order]
-    force = table.column("force").cast(pa.float32()).fill_null(np.nan).to_numpy(zero_copy_only=False)[order]
+    force_column = table.column("force").cast(pa.float32())
+    sch.check_force(pc.drop_null(force_column).to_numpy(), "the frames' force column")  # null = unknown; NaN is an error
+    force = force_column.fill_null(np.nan).to_numpy(zero_copy_only=False)[order]
     phase = np.asarray(table.column("phase").to_pylist(), dtype=object)[order]
     frames = frame[order].astype(np.int32)
     split = lambda values: np.split(values, bounds)  # noqa: E731

@@ -19,7 +19,11 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
             nonzero=nonzero, per_trial=per_trial,
         )
     if label not in names:
-        return []
+        from neurotac_cli.errors import SchemaError
+
+        raise SchemaError(f"the frames have no {label!r} column to score the classifier against (label columns: "
+                          f"{', '.join(n for n in names if not n.startswith('prob_') and n != f'{label}_pred') or 'none'}); "
+                          "use `neurotac classify` to predict without scoring")
     true = predictions.column(label).to_pylist()
     pred = predictions.column(f"{label}_pred").to_pylist()
     classes = classes or [n[len("prob_"):] for n in names if n.startswith("prob_")]

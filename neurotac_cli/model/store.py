@@ -45,8 +45,10 @@ def _json_default(value):
 def read_header(path: str) -> dict:
     from safetensors import safe_open
 
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise ModelError(f"{path}: no such model file (train one with `neurotac train --model NAME -o {path}`)")
+    if not os.path.isfile(path):
+        raise ModelError(f"{path} is not a regular file; give a model file written by `neurotac train`")
     try:
         with safe_open(path, framework="pt") as handle:
             metadata = handle.metadata() or {}
@@ -60,6 +62,9 @@ def read_header(path: str) -> dict:
         raise ModelError(f"{path}: the model header is not valid JSON (file damaged?)") from None
     if header.get("format") != "neurotac-model":
         raise ModelError(f"{path}: not a neurotac model header")
+    missing = [key for key in ("model", "task", "architecture", "input") if key not in header]
+    if missing:
+        raise ModelError(f"{path}: the model header lacks {', '.join(missing)} (file damaged?); train the model again")
     return header
 
 
