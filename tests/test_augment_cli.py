@@ -1,5 +1,6 @@
 """`neurotac augment` as a user runs it: options, errors, history, bytes."""
 
+import re
 import subprocess
 
 import numpy as np
@@ -118,4 +119,4 @@ def test_the_chapter_5_pipe_from_simulator_to_info():
     )
     done = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert "trials        9" in done.stdout and "2x75x70" in done.stdout
+    assert re.search(r"trials\s+9\n", done.stdout) and "2x75x70" in done.stdout
