@@ -53,8 +53,7 @@ def frames(work: pathlib.Path, preset: str, pipeline: str) -> pathlib.Path:
     path = work / f"{preset}.arrows"
     if not path.exists():
         part = work / f"{preset}.part.arrows"
-        # --keep-led: the tables in docs/results.md were measured with the LED burst in frame 0 (see there)
-        sh(f"{neurotac()} simulate --preset {preset} --seed 1 --synced --keep-led | {pipeline} > {part}")
+        sh(f"{neurotac()} simulate --preset {preset} --seed 1 --synced | {pipeline} > {part}")
         part.rename(path)
     return path
 
