@@ -24,16 +24,18 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
     pred = predictions.column("force_pred").to_numpy(zero_copy_only=False).astype(float)
     phase = np.asarray(predictions.column("phase").to_pylist(), dtype=object)
     chosen = list(trials) if trials else list(dict.fromkeys(trial))[:3]
+    # cross-validation repeats hold every frame once per seed: traces show the first seed's run
+    first_run = predictions.column("repeat").to_numpy() == 0 if "repeat" in predictions.column_names else np.ones(len(trial), bool)
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
     for n, name in enumerate(chosen):
-        mask = trial == name
+        mask = (trial == name) & first_run
         colour = f"C{n}"
         left.plot(t[mask], true[mask], color=colour, lw=1.5, label=f"{name} measured")
         left.plot(t[mask], pred[mask], color=colour, lw=1.2, ls="--", label=f"{name} estimated")
     left.set_xlabel("time since sync (ms)")
     left.set_ylabel("force (N)")
     left.legend(fontsize=7)
-    left.set_title("measured vs estimated force")
+    left.set_title("measured vs estimated force" + (" (first seed)" if not first_run.all() else ""))
     for name, colour in PHASE_COLOURS.items():
         mask = phase == name
         if mask.any():
