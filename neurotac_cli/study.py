@@ -476,10 +476,9 @@ class Progress:
 
 
 def _isatty(stream) -> bool:
-    try:
-        return stream.isatty()
-    except (AttributeError, ValueError):
-        return False
+    from neurotac_cli.tables import is_terminal
+
+    return is_terminal(stream)
 
 
 def _clock(seconds: float) -> str:

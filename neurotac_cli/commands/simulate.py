@@ -9,11 +9,9 @@ from neurotac_cli.options import Duration, KeyValue, output_option, seed_option
 
 def _progress_printer():
     """A progress line on stderr when stderr is a terminal; otherwise nothing."""
-    try:
-        interactive = sys.stderr.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    if not interactive:
+    from neurotac_cli.tables import is_terminal
+
+    if not is_terminal(sys.stderr):
         return None
 
     def show(done, total):

@@ -56,7 +56,9 @@ def validation_options(function):
 
 def progress_printer():
     """Progress on stderr: every message on a terminal (overwriting epoch lines), every 25th epoch otherwise."""
-    interactive = sys.stderr.isatty()
+    from neurotac_cli.tables import is_terminal
+
+    interactive = is_terminal(sys.stderr)
 
     def show(message: str):
         if " epoch " in message:

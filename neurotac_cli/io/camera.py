@@ -176,7 +176,9 @@ def _local_path(path) -> tuple[str, Callable[[], None]]:
             raise InputError(f"{path}: permission denied")
         return str(path), lambda: None
     source = getattr(sys.stdin, "buffer", sys.stdin)
-    if source is None or (hasattr(source, "isatty") and source.isatty()):
+    from neurotac_cli.tables import is_terminal
+
+    if source is None or is_terminal(source):
         raise InputError("no input: give a camera file, or pipe one into stdin")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
     with os.fdopen(handle, "wb") as sink:
