@@ -305,7 +305,7 @@ def format_text(info: dict) -> str:
     else:
         add("history:", "(none)")
     for step in history:
-        args = " ".join(f"--{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
+        args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
     width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
     return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"

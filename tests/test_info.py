@@ -109,4 +109,4 @@ def test_history_is_listed(tmp_path):
     table = sch.events_table([1], [0], [0], [1], 2, 2)
     history = [{"command": "import", "args": {"files": ["a.aedat"]}, "version": "0.1.0"}]
     table = table.replace_schema_metadata(sch.set_meta(table.schema, history=history).metadata)
-    assert 'import --files=["a.aedat"]  (neurotac 0.1.0)' in format_text(described(table))
+    assert 'import files=["a.aedat"]  (neurotac 0.1.0)' in format_text(described(table))
