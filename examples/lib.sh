@@ -31,32 +31,24 @@ mkdir -p "$OUT" "$FIGURES"
 
 say() { printf '%s: %s\n' "$(basename "$0" .sh)" "$*" >&2; }
 
-# study NAME ARGS...: `neurotac eval ARGS --metrics DIR/NAME.metrics.parquet`, unless that file
+# once VERB NAME ARGS...: `neurotac VERB ARGS --metrics DIR/NAME.metrics.parquet`, unless that file
 # exists already (a finished study is not run again; a half-finished one resumes from the cache).
-study() {
-  local name=$1; shift
+# neurotac writes --metrics files atomically: the file appears only once complete.
+once() {
+  local verb=$1 name=$2; shift 2
   local metrics="$DIR/$name.metrics.parquet"
   if [[ -s $metrics ]]; then
     say "$name: done before, kept ($metrics)"
     return
   fi
-  say "$name: neurotac eval $*"
-  # neurotac writes -o/--metrics files atomically: the file appears only once complete.
-  neurotac eval "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
+  say "$name: neurotac $verb $*"
+  neurotac "$verb" "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
 }
 
-# grid NAME ARGS...: `neurotac study ARGS --metrics DIR/NAME.metrics.parquet` (a whole grid in one
-# table, one column per grid parameter), unless that file exists already.
-grid() {
-  local name=$1; shift
-  local metrics="$DIR/$name.metrics.parquet"
-  if [[ -s $metrics ]]; then
-    say "$name: done before, kept ($metrics)"
-    return
-  fi
-  say "$name: neurotac study $*"
-  neurotac study "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
-}
+# study NAME ARGS...: one `neurotac eval` cross-validation; grid NAME ARGS...: one `neurotac study`
+# grid (one table, one column per grid parameter).
+study() { once eval "$@"; }
+grid() { once study "$@"; }
 
 # figure PNG EVAL-ARGS...: `neurotac eval EVAL-ARGS --plot PNG`; its trainings are usually in the
 # cache already (the same study ran before), so this only scores and draws.
