@@ -190,7 +190,7 @@ def first_frame_note(folder, shifts=False) -> str:
     if share < 0.2:
         return ""
     note = (f" Frame 0 of the grasps holds {100 * share:.0f}% of all their events: the LED switch-off's OFF "
-            "spike just after t0 (sync puts t0 at the switch-off), which frame counts; in the thesis the blink only marks the start of a recording (3.6.1)")
+            "spike just after t0 kept in the trials (`sync --keep-led`), which frame counts; in the thesis the blink only marks the start of a recording (3.6.1)")
     if shifts:
         note += ", and here frame shifts to the left push the spike out of the sequence, which changes what those methods do"
     return note + "."
