@@ -236,6 +236,8 @@ def format_text(info: dict) -> str:
     if "sensor" in info:
         sensor = info["sensor"]
         origin = info.get("source", {}).get("sensor_from") if isinstance(info.get("source"), dict) else None
+        if any(step.get("command") == "crop" for step in info.get("history") or []):
+            origin = None  # the camera's size no longer: crop set this one
         note = {"file": " (from the file)", "option": " (from --sensor)", "events": " (extent of the events; the file does not say)"}.get(origin, "")
         add("sensor", f"{sensor['width']}x{sensor['height']}{note}")
     source = info.get("source")

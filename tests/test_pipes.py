@@ -76,3 +76,11 @@ def test_duckdb_reads_our_parquet(tmp_path):
     aedat = real_file("davis240c_rotdisk.aedat")
     assert sh(f"neurotac import {aedat} -o {tmp_path / 'a.parquet'}").returncode == 0
     assert duckdb.sql(f"SELECT count(*) FROM '{tmp_path / 'a.parquet'}'").fetchall()[0][0] == 374_296
+
+
+def test_info_after_crop_does_not_claim_the_file_gave_the_size():
+    aedat = real_file("davis240c_rotdisk.aedat")
+    done = sh(f"neurotac import {aedat} | neurotac crop --box 0,0,100,80 | neurotac info -")
+    sensor = [line for line in done.stdout.decode().splitlines() if line.startswith("sensor")]
+    assert done.returncode == 0 and sensor and sensor[0].split()[1] == "100x80"
+    assert "from the file" not in sensor[0]
