@@ -38,17 +38,23 @@ def montage(frames_path: str, trial: str | None, columns: int, every: int, outpu
     shown = list(range(0, len(counts), every))[: columns * 4]
     top = np.percentile(np.sqrt(counts[counts > 0]), 99.5) if (counts > 0).any() else 1.0
     n_rows = int(np.ceil(len(shown) / columns))
-    figure = plt.figure(figsize=(1.45 * columns, 1.55 * n_rows + 2.2), dpi=110)
-    grid = figure.add_gridspec(n_rows + 1, columns, height_ratios=[1] * n_rows + [1.5], hspace=0.35, wspace=0.05)
+    has_force = bool(np.isfinite(force).any())  # plain events framed without a force log: tiles only
+    figure = plt.figure(figsize=(1.45 * columns, 1.55 * n_rows + (2.2 if has_force else 0.4)), dpi=110)
+    grid = figure.add_gridspec(n_rows + has_force, columns, height_ratios=[1] * n_rows + [1.5] * has_force, hspace=0.35, wspace=0.05)
     for i, k in enumerate(shown):
         axis = figure.add_subplot(grid[i // columns, i % columns])
         on = np.clip(np.sqrt(counts[k, 1]) / top, 0, 1)
         off = np.clip(np.sqrt(counts[k, 0]) / top, 0, 1)
         image = np.stack([1 - off, 1 - off - on, 1 - on], axis=-1).clip(0, 1)  # white background, ON red, OFF blue
         axis.imshow(image, interpolation="nearest")
-        axis.set_title(f"{k}: {phase[k] or ''}", fontsize=7, pad=2)
+        axis.set_title(f"{k}: {phase[k]}" if phase[k] else f"{k}", fontsize=7, pad=2)
         axis.set_xticks([])
         axis.set_yticks([])
+    if not has_force:
+        figure.suptitle(f"{trial}: {window_ms:g} ms frames (ON red, OFF blue)", fontsize=9)
+        figure.savefig(output, bbox_inches="tight")
+        print(f"wrote {output}: trial {trial}, {len(shown)} of {len(counts)} frames")
+        return
     axis = figure.add_subplot(grid[n_rows, :])
     t_ms = (np.arange(len(force)) + 1) * window_ms  # force read at each window's end
     start = 0
