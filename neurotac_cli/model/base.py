@@ -20,6 +20,21 @@ class ForceNet(nn.Module):
         """Resize buffers whose shape depends on the training data before loading (the GP's arrays)."""
 
 
+class CountScaledNet(ForceNet):
+    """A network fed raw counts divided per channel by their training maximum (lstm, cnnlstm, convlstm)."""
+
+    def __init__(self, config):
+        super().__init__()
+        self.config = config
+        self.register_buffer("count_scale", torch.ones(2))
+
+    def scaled(self, counts):
+        return counts / self.count_scale.view(1, 1, 2, 1, 1)
+
+    def calibrate(self, counts, t_s):
+        self.count_scale.copy_(channel_scale(counts))
+
+
 def channel_scale(counts: list) -> torch.Tensor:
     """Per-channel maximum pixel count over the training frames (the thesis's max normalisation), >= 1."""
     peak = torch.ones(2)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from neurotac_cli.model.base import ForceNet, channel_scale, orthogonal_recurrent
+from neurotac_cli.model.base import CountScaledNet, orthogonal_recurrent
 
 
 @dataclass(frozen=True)
@@ -19,12 +19,10 @@ class Config:
     units: int = 32
 
 
-class Net(ForceNet):
+class Net(CountScaledNet):
     def __init__(self, config: Config, shape):
-        super().__init__()
-        self.config = config
+        super().__init__(config)
         _, height, width = shape
-        self.register_buffer("count_scale", torch.ones(2))
         blocks, channels = [], 2
         for index in range(config.layers):
             blocks += [nn.Conv2d(channels, config.filters, config.kernel, padding=config.kernel // 2), nn.ReLU()]
@@ -46,10 +44,7 @@ class Net(ForceNet):
     def forward(self, counts, t_s, state=None):
         batch, length = counts.shape[:2]
         state = state or self.init_state(batch)
-        x = (counts / self.count_scale.view(1, 1, 2, 1, 1)).reshape(batch * length, *counts.shape[2:])
+        x = (self.scaled(counts)).reshape(batch * length, *counts.shape[2:])
         features = self.cnn(x).reshape(batch, length, -1)
         out, (h, c) = self.lstm(features, (state["h"], state["c"]))
         return self.head(out).squeeze(-1), {"h": h, "c": c}
-
-    def calibrate(self, counts, t_s):
-        self.count_scale.copy_(channel_scale(counts))

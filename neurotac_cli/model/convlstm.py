@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from neurotac_cli.model.base import ForceNet, channel_scale
+from neurotac_cli.model.base import CountScaledNet
 
 
 @dataclass(frozen=True)
@@ -47,13 +47,11 @@ class Cell(nn.Module):
         return torch.stack(outputs, dim=1), h, c
 
 
-class Net(ForceNet):
+class Net(CountScaledNet):
     def __init__(self, config: Config, shape):
-        super().__init__()
-        self.config = config
+        super().__init__(config)
         _, height, width = shape
         self.shape = (height, width)
-        self.register_buffer("count_scale", torch.ones(2))
         self.cells = nn.ModuleList(
             Cell(2 if index == 0 else config.filters, config.filters, config.kernel) for index in range(config.layers)
         )
@@ -71,7 +69,7 @@ class Net(ForceNet):
     def forward(self, counts, t_s, state=None):
         batch, length = counts.shape[:2]
         state = state or self.init_state(batch)
-        x = counts / self.count_scale.view(1, 1, 2, 1, 1)
+        x = self.scaled(counts)
         new = {}
         for index, cell in enumerate(self.cells):
             x, h, c = cell(x, state[f"h{index}"], state[f"c{index}"])
@@ -79,6 +77,3 @@ class Net(ForceNet):
             if index < len(self.cells) - 1:
                 x = self.dropout(x)
         return self.head(x.reshape(batch, length, -1)).squeeze(-1), new
-
-    def calibrate(self, counts, t_s):
-        self.count_scale.copy_(channel_scale(counts))

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from neurotac_cli.model.base import ForceNet, channel_scale, orthogonal_recurrent
+from neurotac_cli.model.base import CountScaledNet, orthogonal_recurrent
 
 
 @dataclass(frozen=True)
@@ -16,12 +16,10 @@ class Config:
     dropout: float = 0.0
 
 
-class Net(ForceNet):
+class Net(CountScaledNet):
     def __init__(self, config: Config, shape):
-        super().__init__()
-        self.config = config
+        super().__init__(config)
         _, height, width = shape
-        self.register_buffer("count_scale", torch.ones(2))
         self.lstm = nn.LSTM(2 * height * width, config.units, num_layers=config.layers, batch_first=True,
                             dropout=config.dropout if config.layers > 1 else 0.0)
         orthogonal_recurrent(self.lstm)
@@ -34,9 +32,6 @@ class Net(ForceNet):
     def forward(self, counts, t_s, state=None):
         batch, length = counts.shape[:2]
         state = state or self.init_state(batch)
-        x = (counts / self.count_scale.view(1, 1, 2, 1, 1)).reshape(batch, length, -1)
+        x = (self.scaled(counts)).reshape(batch, length, -1)
         out, (h, c) = self.lstm(x, (state["h"], state["c"]))
         return self.head(out).squeeze(-1), {"h": h, "c": c}
-
-    def calibrate(self, counts, t_s):
-        self.count_scale.copy_(channel_scale(counts))
