@@ -18,6 +18,29 @@ class Region(click.ParamType):
         return parts
 
 
+class SensorLag(click.ParamType):
+    """RISE[,FALL]: the force sensor's first-order time constants, loading and unloading."""
+
+    name = "RISE[,FALL]"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        from neurotac_cli.errors import NeurotacError
+        from neurotac_cli.units import parse_duration_us
+
+        parts = [part.strip() for part in str(value).split(",")]
+        if len(parts) not in (1, 2):
+            self.fail(f"expected RISE or RISE,FALL, e.g. 25ms,75ms, got {value!r}", param, ctx)
+        try:
+            lags = tuple(parse_duration_us(part) for part in parts)
+        except NeurotacError as error:
+            self.fail(str(error), param, ctx)
+        if min(lags) < 0:
+            self.fail(f"time constants cannot be negative, got {value!r}", param, ctx)
+        return lags if len(lags) == 2 else lags * 2
+
+
 @click.command()
 @click.argument("events", required=False, type=click.Path(dir_okay=False, allow_dash=True))
 @output_option
@@ -31,6 +54,12 @@ class Region(click.ParamType):
 @click.option("--region", type=Region(), default=None, help="Look for the LED (or the activity, for xcorr) only in this box X,Y,W,H.")
 @click.option("--latency", type=Duration(), default=None, help="The camera's delay: led, from LED switch-off to the OFF spike's onset [default: 170us]; xcorr, of the event "
               "rate behind the force [default: 1.6ms] (both measured on the simulated DAVIS240C rig).")
+@click.option("--sensor-lag", type=SensorLag(), default=None,
+              help="xcorr: the force sensor's first-order time constants when loading and unloading, RISE[,FALL] "
+              "(e.g. 1ms for a strain-gauge cell, 25ms,75ms for a covered FlexiForce) [default: estimated with the offset].")
+@click.option("--saturation", type=float, default=0.5, show_default=True,
+              help="xcorr: the force, as a share of the trial's peak, at which the membrane's response to force has halved "
+              "(|dF/dt| is weighted by 1/(1 + F/(share*peak)); 0 = a linear membrane).")
 @click.option("--min-score", type=float, default=10.0, show_default=True, help="LED method: the z-score a spike needs over its surroundings.")
 @click.option("--min-coverage", type=float, default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
 @click.option("--keep-led", is_flag=True, help="LED method: keep the blink's switch-off burst in each trial (by default its events are left out and counted in the sync metadata: they mark the instant, they are not touch).")
@@ -42,7 +71,7 @@ class Region(click.ParamType):
 @click.option("--force-unit", type=click.Choice(["N", "mN", "kN", "g", "kg", "lbf"], case_sensitive=False), default=None,
               help="Force log: force unit, overriding the header's suffix [default: N].")
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH for files that do not declare it.")
-def command(events, output, force_path, trial, labels, manifest, method, offset, region, latency, min_score, min_coverage,
+def command(events, output, force_path, trial, labels, manifest, method, offset, region, latency, sensor_lag, saturation, min_score, min_coverage,
             keep_led, trigger_type, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
     """Align camera events with a force log; cut and label trials (a recordings table).
 
@@ -67,7 +96,8 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     spec = sy.SyncMethod(
         method=method, offset_us=offset, region=region,
         latency_us=sy.LED_LATENCY_US if latency is None else latency,
-        response_us=sy.XCORR_RESPONSE_US if latency is None else latency, min_z=min_score, min_coverage=min_coverage,
+        response_us=sy.XCORR_RESPONSE_US if latency is None else latency, sensor_lag_us=sensor_lag, saturation=saturation,
+        min_z=min_score, min_coverage=min_coverage,
         trigger_type=trigger_type, median_us=median_window, keep_led=keep_led,
     )
     label_map = dict(labels)

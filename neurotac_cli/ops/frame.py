@@ -33,6 +33,7 @@ MAX_COUNT = int(np.iinfo(np.uint16).max)
 FORCE_AT = ("end", "mean", "median")
 BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
 SCAN_EVENTS = 1 << 18  # events scanned at a time: a huge input batch (a whole Parquet file) is cut up
+EMIT_FRAMES = 16  # completed frames leave together, as one Arrow batch (at most 16 windows of stream time late)
 
 
 # ---------------------------------------------------------------- kernel
@@ -510,9 +511,16 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
                 emit(np.zeros((step, 2, height, width), dtype=np.uint16))
                 count -= step
 
+        def flush():
+            """Emit the completed frames still in the buffer, [emitted, first), as one batch."""
+            a, b = state["emitted"] - state["base"], state["first"] - state["base"]
+            if b > a:
+                emit(buffer[a:b])
+
         def rebase():
             """A fresh buffer starting at the first open frame, carrying the open frames over."""
             nonlocal buffer
+            flush()
             offset = state["first"] - state["base"]
             filled = max(0, min(capacity, state["high"] - state["base"] + 1) - offset)
             fresh = None
@@ -530,14 +538,16 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
             state["base"] = state["first"]
 
         def advance(new_first: int):
-            """Emit frames [first, new_first)."""
+            """Frames [first, new_first) are complete: they leave once EMIT_FRAMES of them wait (a
+            batch per few frames, not per input batch: building an Arrow batch costs as much as
+            counting tens of thousands of events)."""
             first, base = state["first"], state["base"]
             if new_first <= first:
                 return
             end = base + capacity
-            upto = min(new_first, end)
-            emit(buffer[first - base:upto - base])
-            state["first"] = upto
+            state["first"] = min(new_first, end)
+            if state["first"] - state["emitted"] >= EMIT_FRAMES or new_first > end:
+                flush()
             if new_first > end:
                 zeros(new_first - end)
                 state["first"] = new_first
@@ -604,7 +614,7 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
         filled_end = min(capacity, max(0, state["high"] - base + 1))
         keep_end = min(max(n_real - base, first - base), capacity)
         lost = int(buffer[keep_end:max(filled_end, keep_end)].sum(dtype=np.int64))  # the partial window, when dropped
-        emit(buffer[first - base:keep_end])
+        emit(buffer[state["emitted"] - base:keep_end])  # the completed frames still waiting, and the last ones
         report.framed -= lost
         report.after_end += lost
         zeros(n_total - state["emitted"])

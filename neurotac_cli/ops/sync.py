@@ -12,14 +12,28 @@ Methods (each returns the sync instants t0 on the camera clock, one per force-lo
   membrane; measure it once on a real rig, or use `trigger`).
 - `trigger`: external trigger events of an AEDAT 4.0 file (schema metadata `neurotac:triggers`).
 - `offset`: a known clock offset: the force log's zero is camera time `offset_us`.
-- `xcorr`: no LED: the camera's event rate is cross-correlated with |dF/dt| of the force log, both
+- `xcorr`: no LED: the camera's event rate is cross-correlated with the force log's |dF/dt|, both
   in 250 µs bins smoothed over 1 ms (bins ten times above their surroundings, such as a blink, are
-  set to the surroundings' level so a blink cannot dominate). Among the lags that keep the force
-  log inside the recording (20 ms of slack at either end), the one of the highest Pearson
-  correlation, refined by a parabola, less the camera's response delay `response_us` (the event
-  rate follows the force ~1.6 ms late on the simulated rig: membrane creep and photoreceptor), is
-  the instant. Confidence = the correlation at the peak and its margin over the best lag 20 ms or
-  more away.
+  set to the surroundings' level so a blink cannot dominate). Two pieces of physics sit between the
+  two signals and are modelled rather than ignored:
+  * the force sensor answers late: a first-order lag y' = (F - y) / tau, with its own tau when
+    loading (tau_rise) and when unloading (tau_fall), as strain-gauge cells (~1 ms) and
+    polymer-covered force-sensing resistors (tens of ms, slower to recover) do. Then dy/dt is dF/dt
+    through that lag, and sign(dy/dt) says which tau acts at each instant. The event rate, which
+    follows |dF/dt| with no such lag, is passed through the same lag (tau_rise where the log rises,
+    tau_fall where it falls) before it is compared: the clean camera signal is filtered, the noisy
+    force log is never differentiated twice. The two taus are given (`sensor_lag_us`) or estimated
+    jointly with the offset: every pair of a small geometric grid is tried, and of those within
+    `XCORR_TIE` of the best correlation the fastest sensor is kept (a longer lag only smooths, and
+    smoothing alone raises a correlation a little).
+  * the membrane saturates: a newton more changes the image less at high force (contact area and
+    contrast approach their limits), so |dF/dt| is weighted by 1 / (1 + F / (s F_peak)) with F the
+    force the sensor was following (y + tau dy/dt, smoothed) and s = `saturation` (0 = linear).
+  Among the offsets that keep the force log inside the recording (20 ms of slack at either end),
+  the one of the highest Pearson correlation, refined by a parabola, less the camera's response
+  delay `response_us` (the event rate follows the force ~1.6 ms late on the simulated rig:
+  photoreceptor and membrane), is the instant. Confidence = the correlation at the peak and its
+  margin over the best offset 20 ms or more away, for the chosen sensor model.
 
 A long session (several force-log trials in one camera file) is cut into trials: trial i holds the
 events up to the end of its force log (or the next instant, if sooner); the events after that are
@@ -42,6 +56,9 @@ XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photorec
 XCORR_BIN_US = 250
 XCORR_SMOOTH_US = 1_000
 XCORR_SLACK_US = 20_000  # how far the force log may reach past the recording's ends
+XCORR_SENSOR_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 20_000, 40_000, 80_000)  # tau grid, rise x fall
+XCORR_TIE = 0.01  # correlations this close are a tie: the faster sensor model wins
+XCORR_SATURATION = 0.5  # membrane saturation force, as a share of the trace's peak force (0 = linear)
 
 
 @dataclass(frozen=True)
@@ -53,6 +70,8 @@ class SyncMethod:
     region: tuple | None = None  # (x, y, w, h) where the LED is seen
     latency_us: int = LED_LATENCY_US
     response_us: int = XCORR_RESPONSE_US
+    sensor_lag_us: tuple | None = None  # xcorr: the force sensor's (rise, fall) time constants; None = estimate
+    saturation: float = XCORR_SATURATION
     min_z: float = 10.0
     min_coverage: float = 0.05
     trigger_type: str | None = None
@@ -69,6 +88,10 @@ class SyncMethod:
             raise NeurotacError(f"region must be X,Y,W,H with positive W and H, got {self.region!r}")
         if self.median_us < 0:
             raise NeurotacError("the median filter window cannot be negative")
+        if self.sensor_lag_us is not None and (len(self.sensor_lag_us) != 2 or min(self.sensor_lag_us) < 0):
+            raise NeurotacError(f"the sensor lag is RISE[,FALL], two durations >= 0, got {self.sensor_lag_us!r}")
+        if self.saturation < 0:
+            raise NeurotacError("the membrane saturation share cannot be negative (0 = a linear membrane)")
 
     def args(self) -> dict:
         out = {"method": self.method, "median_us": self.median_us}
@@ -78,6 +101,8 @@ class SyncMethod:
             out.update(latency_us=self.latency_us, min_z=self.min_z, min_coverage=self.min_coverage, keep_led=self.keep_led)
         if self.method == "xcorr":
             out["response_us"] = self.response_us
+            out["sensor_lag_us"] = None if self.sensor_lag_us is None else list(self.sensor_lag_us)
+            out["saturation"] = self.saturation
         if self.method == "trigger":
             out["trigger_type"] = self.trigger_type
         if self.region is not None:
@@ -240,10 +265,11 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
 
 
 def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
-    """Align the camera's event rate with |dF/dt| (see the module doc)."""
+    """Align the camera's event rate with |dF/dt| through a force-sensor model (see the module doc)."""
     from scipy.ndimage import gaussian_filter1d, median_filter
 
     bin_us = XCORR_BIN_US
+    smooth = XCORR_SMOOTH_US / bin_us
     keep = _in_region(x, y, method.region)
     times = t[keep]
     if len(times) < 100 or len(force_t) < 10:
@@ -252,24 +278,37 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
     rate = np.bincount((times - origin) // bin_us).astype(np.float64)
     # blinks and flicker: bins far above their surroundings are set to the surroundings' level
     local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
-    rate = np.where(rate > 10 * (local + 3), local, rate)
+    rate = gaussian_filter1d(np.where(rate > 10 * (local + 3), local, rate), smooth)
     grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
-    slope = np.abs(np.gradient(np.interp(grid, force_t, force_v)))
-    rate = gaussian_filter1d(rate, XCORR_SMOOTH_US / bin_us)
-    slope = gaussian_filter1d(slope, XCORR_SMOOTH_US / bin_us)
-    if slope.std() == 0 or rate.std() == 0:
+    force = gaussian_filter1d(np.interp(grid, force_t, force_v), smooth)
+    slope = np.gradient(force)  # N per bin
+    if not np.any(slope) or rate.std() == 0:
         raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
-    a = (rate - rate.mean()) / rate.std()
-    b = (slope - slope.mean()) / slope.std()
-    corr = _pearson_by_lag(a, b)
-    lags = np.arange(-len(b) + 1, len(a))
-    overlap = np.minimum(len(a), lags + len(b)) - np.maximum(0, lags)
-    valid = overlap >= len(b) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
-    corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
-    best = int(np.argmax(corr))
-    peak = float(corr[best])
-    if not np.isfinite(peak):
+    rising = (slope > 0).astype(np.float64)
+    peak_force = max(float(np.percentile(force, 99)), 1e-12)
+    candidates = [tuple(method.sensor_lag_us)] if method.sensor_lag_us is not None else [
+        (rise, fall) for rise in XCORR_SENSOR_LAGS_US for fall in XCORR_SENSOR_LAGS_US
+    ]
+    lagged = {tau: _first_order_lag(rate, tau, bin_us) for tau in {tau for pair in candidates for tau in pair}}
+    lags = np.arange(-len(grid) + 1, len(rate))
+    overlap = np.minimum(len(rate), lags + len(grid)) - np.maximum(0, lags)
+    valid = overlap >= len(grid) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
+    fits = []
+    for rise, fall in candidates:
+        target = np.abs(slope)
+        if method.saturation > 0:
+            # the force the sensor was following: its reading plus tau times its slope
+            followed = gaussian_filter1d(force + np.where(slope > 0, rise, fall) / bin_us * slope, 8 * smooth)
+            target = target / (1.0 + np.clip(followed, 0, None) / (method.saturation * peak_force))
+        corr = _pearson_by_lag(lagged[rise], lagged[fall], rising, target)
+        corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
+        best = int(np.argmax(corr))
+        fits.append((float(corr[best]), rise, fall, best, corr))
+    top = max(fit[0] for fit in fits)
+    if not np.isfinite(top):
         raise SyncError("the recording is shorter than the force log: nothing to cross-correlate")
+    # a slower sensor model also smooths, which alone lifts a correlation a little: near-ties go to the faster
+    peak, rise, fall, best, corr = min((fit for fit in fits if fit[0] >= top - XCORR_TIE), key=lambda fit: (fit[1] + fit[2], -fit[0]))
     shift = 0.0
     if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
         left, right = corr[best - 1], corr[best + 1]
@@ -283,30 +322,49 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
     return Instant(
         t0=int(round(t0)),
         score=round(peak, 3),
-        details={"correlation": round(peak, 3), "margin": round(peak - second, 3), "response_us": method.response_us},
+        details={
+            "correlation": round(peak, 3),
+            "margin": round(peak - second, 3),
+            "response_us": method.response_us,
+            "sensor_rise_us": int(rise),
+            "sensor_fall_us": int(fall),
+            "sensor": "given" if method.sensor_lag_us is not None else "estimated",
+            "saturation": method.saturation,
+        },
     )
 
 
-def _pearson_by_lag(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pearson correlation of a[L + j] with b[j] over their overlap, for every lag L (FFT sums)."""
+def _first_order_lag(signal: np.ndarray, tau_us: float, bin_us: int) -> np.ndarray:
+    """The signal through a first-order lag of time constant tau (starting settled at its first value)."""
+    if tau_us <= 0:
+        return signal
+    from scipy.signal import lfilter
+
+    alpha = 1.0 - np.exp(-bin_us / tau_us)
+    filtered, _ = lfilter([alpha], [1.0, alpha - 1.0], signal, zi=[(1.0 - alpha) * signal[0]])
+    return filtered
+
+
+def _pearson_by_lag(rise: np.ndarray, fall: np.ndarray, rising: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation, for every lag L, of a[L + j] with b[j] over their overlap, where
+    a[L + j] = rise[L + j] if rising[j] else fall[L + j] (the sensor's state is read on b's clock).
+    Every sum is a cross-correlation (FFT): rising is 0/1, so a² and a·b split the same way."""
     from scipy.signal import correlate
 
-    n_a, n_b = len(a), len(b)
-    lags = np.arange(-n_b + 1, n_a)
-    lo_a, hi_a = np.maximum(0, lags), np.minimum(n_a, lags + n_b)
-    lo_b, hi_b = lo_a - lags, hi_a - lags
-    n = (hi_a - lo_a).astype(np.float64)
-    cum_a = np.concatenate([[0.0], np.cumsum(a)])
-    cum_aa = np.concatenate([[0.0], np.cumsum(a * a)])
-    cum_b = np.concatenate([[0.0], np.cumsum(b)])
-    cum_bb = np.concatenate([[0.0], np.cumsum(b * b)])
-    s_a, s_aa = cum_a[hi_a] - cum_a[lo_a], cum_aa[hi_a] - cum_aa[lo_a]
-    s_b, s_bb = cum_b[hi_b] - cum_b[lo_b], cum_bb[hi_b] - cum_bb[lo_b]
-    s_ab = correlate(a, b, mode="full", method="fft")
+    def xc(u, v):
+        return correlate(u, v, mode="full", method="fft")
+
+    falling = 1.0 - rising
+    ones_a, ones_b = np.ones(len(rise)), np.ones(len(b))
+    n = np.rint(xc(ones_a, ones_b))
+    s_a = xc(rise, rising) + xc(fall, falling)
+    s_aa = xc(rise * rise, rising) + xc(fall * fall, falling)
+    s_ab = xc(rise, rising * b) + xc(fall, falling * b)
+    s_b, s_bb = xc(ones_a, b), xc(ones_a, b * b)
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = s_ab - s_a * s_b / n
         var = (s_aa - s_a * s_a / n) * (s_bb - s_b * s_b / n)
-        return np.where(var > 1e-12, cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
+        return np.where((n > 1) & (var > 1e-12 * np.maximum(s_aa * s_bb, 1e-300)), cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
 
 
 # ---------------------------------------------------------------- trials

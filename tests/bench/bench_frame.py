@@ -6,9 +6,9 @@ Run on demand (not part of `make test`):
     .venv/bin/python tests/bench/bench_frame.py            # the same, as a script
 
 Each tool gets the input it is made for and produces dense (frames, 2, 180, 240) counts:
-- neurotac: an Arrow events table in memory, framed by `frame_events` (the streaming path of `neurotac frame`,
-  which scans 2**18 events at a time)
-  into Arrow frames batches (uint16 fixed-shape tensors);
+- neurotac: an Arrow events table in memory, fed to `frame_events` (the streaming path of `neurotac frame`)
+  in batches of BATCH_EVENTS = 65,536 events, as `neurotac import` writes them to a pipe, and framed
+  into Arrow frames batches (uint16 fixed-shape tensors); the same table as one batch is timed too;
 - tonic: `ToFrame(time_window=10000)` on its structured numpy array (int16 frames);
 - evlib: `create_stacked_histogram` (Polars, fixed 10 ms windows from the first event) on a Polars
   DataFrame, then its `densify_event_frame` to the same dense layout (timed with and without it).
@@ -28,6 +28,7 @@ import numpy as np
 N_EVENTS = int(os.environ.get("BENCH_EVENTS", 20_000_000))
 WIDTH, HEIGHT, WINDOW_US = 240, 180, 10_000
 RATE_PER_S = 1_000_000  # 20 s of a busy DAVIS240C
+BATCH_EVENTS = 1 << 16  # what `neurotac import` writes per IPC batch
 
 
 def make_events(n, seed=0):
@@ -48,14 +49,12 @@ def best_of(function, repeats=2):
     return min(times), result
 
 
-def run_neurotac(t, x, y, p):
-    import pyarrow as pa
-
+def run_neurotac(t, x, y, p, batch_events=BATCH_EVENTS):
     from neurotac_cli import schema as sch
     from neurotac_cli.ops import frame as fr
 
     table = sch.events_table(t, x, y, p, WIDTH, HEIGHT)
-    batches = table.to_batches()  # the whole table, as tonic and evlib get theirs; scanned 2**18 events at a time
+    batches = table.to_batches(max_chunksize=batch_events)
 
     def go():
         report = fr.FramingReport()
@@ -63,7 +62,7 @@ def run_neurotac(t, x, y, p):
         return [batch for batch in out]
 
     fr.bin_into(t[:10], x[:10], y[:10], p[:10], 0, WINDOW_US, 0, np.zeros((1, 2, HEIGHT, WIDTH), np.uint16))  # compile once
-    seconds, batches_out = best_of(go)
+    seconds, batches_out = best_of(go, repeats=3)
     counts = np.concatenate([sch.counts_numpy(b.column("counts")) for b in batches_out])
     return seconds, counts
 
@@ -136,7 +135,8 @@ def bench(n_events=N_EVENTS):
     assert np.array_equal(ours.astype(np.int64), dense)
     del dense
     lines = [
-        f"framing {n_events:,} events, {WIDTH}x{HEIGHT}, {WINDOW_US // 1000} ms windows, {len(ours)} frames (numba kernel)",
+        f"framing {n_events:,} events, {WIDTH}x{HEIGHT}, {WINDOW_US // 1000} ms windows, {len(ours)} frames (numba kernel; "
+        f"neurotac fed {BATCH_EVENTS:,}-event batches, as from a pipe)",
         f"  neurotac frame_events  {ours_s:8.3f} s",
         f"  tonic ToFrame          {tonic_s:8.3f} s   neurotac is {tonic_s / ours_s:5.1f}x faster",
         f"  evlib stacked hist     {evlib_sparse_s:8.3f} s   neurotac is {evlib_sparse_s / ours_s:5.1f}x faster (sparse output only)",
