@@ -23,6 +23,13 @@ import pyarrow.parquet as pq
 # ------------------------------------------------------------------------------------------------
 # The thesis's published numbers (chapters 3.7, 4.6, 5.5).
 
+THESIS_TDNN_VAL = {  # Table 3.1: mean MSE over 48 leave-one-out folds on each fold's validation set
+    1: [0.23, 0.19, 0.18, 0.19, 0.20, 0.18, 0.16, 0.16],
+    2: [0.21, 0.19, 0.16, 0.17, 0.17, 0.17, 0.17, 0.17],
+    3: [0.19, 0.20, 0.18, 0.18, 0.16, 0.17, 0.17, 0.17],
+    4: [0.20, 0.19, 0.16, 0.17, 0.18, 0.17, 0.17, 0.15],
+    5: [0.20, 0.16, 0.20, 0.18, 0.18, 0.16, 0.17, 0.16],
+}
 THESIS_TDNN_TEST = {  # Table 3.2: mean MSE over 48 leave-one-out folds, k layers x n units
     1: [0.16, 0.24, 0.15, 0.22, 0.19, 0.16, 0.24, 0.15],
     2: [0.17, 0.16, 0.16, 0.16, 0.17, 0.18, 0.15, 0.35],
@@ -32,6 +39,14 @@ THESIS_TDNN_TEST = {  # Table 3.2: mean MSE over 48 leave-one-out folds, k layer
 }
 THESIS_TDNN_UNITS = [5, 10, 15, 20, 25, 30, 35, 40]
 THESIS_GP_MSE = 0.17
+THESIS_MATERIAL_VAL = {  # Table 3.3: accuracy (%) on the validation data
+    1: [80.21, 76.56, 83.33, 84.38, 85.94, 83.85],
+    2: [70.31, 81.25, 84.38, 85.94, 86.98, 90.10],
+    3: [64.06, 77.60, 81.77, 85.42, 86.98, 88.54],
+    4: [67.19, 77.60, 78.65, 84.38, 84.90, 89.06],
+    5: [60.42, 68.75, 76.56, 81.25, 86.46, 90.10],
+    6: [60.94, 69.79, 74.48, 81.77, 85.42, 86.46],
+}
 THESIS_MATERIAL_TEST = {  # Table 3.4: accuracy (%) on the left-out trial over 48 folds
     1: [70.83, 68.75, 62.50, 70.83, 62.50, 68.75],
     2: [58.33, 62.50, 68.75, 75.00, 60.42, 79.17],
@@ -147,18 +162,36 @@ def grid(found, name, row_key="layers", col_key="units"):
     return points
 
 
-def grid_table(points, metric, scale=1.0, digits=3, thesis=None, thesis_cols=None) -> str:
-    """A k x n table; each cell `ours (thesis)` where the thesis has that cell."""
+def grid_table(points, metric, scale=1.0, digits=3, thesis=None, thesis_cols=None, mark=None) -> str:
+    """A k x n table; each cell `ours (thesis)` where the thesis has that cell. `mark`: "lowest" or
+    "highest" puts our best cell in bold and the thesis's best (over the cells shown) in italics."""
     rows_k = sorted({k for k, _ in points})
     cols_n = sorted({n for _, n in points})
+
+    def thesis_value(k, n):
+        if thesis and k in thesis and thesis_cols and n in thesis_cols:
+            return thesis[k][thesis_cols.index(n)]
+        return None
+
+    pick = {"lowest": min, "highest": max}.get(mark)
+    ours_best = theirs_best = None
+    if pick:
+        ours = {key: get(figures, "all", metric) for key, figures in points.items()}
+        ours = {key: value for key, value in ours.items() if not math.isnan(value)}
+        ours_best = pick(ours, key=ours.get) if ours else None
+        theirs = {(k, n): thesis_value(k, n) for k in rows_k for n in cols_n if thesis_value(k, n) is not None}
+        theirs_best = pick(theirs.values()) if theirs else None
     body = []
     for k in rows_k:
         cells = [f"k={k}"]
         for n in cols_n:
-            value = get(points.get((k, n)), "all", metric) * scale
-            cell = fmt(value, digits)
-            if thesis and k in thesis and thesis_cols and n in thesis_cols:
-                cell += f" ({thesis[k][thesis_cols.index(n)]:.{digits}f})"
+            cell = fmt(get(points.get((k, n)), "all", metric) * scale, digits)
+            if ours_best == (k, n):
+                cell = f"**{cell}**"
+            theirs = thesis_value(k, n)
+            if theirs is not None:
+                shown = f"{theirs:.{digits}f}"
+                cell += f" (*{shown}*)" if theirs == theirs_best else f" ({shown})"
             cells.append(cell)
         body.append(cells)
     return md_table(["k \\ n"] + [f"n={n}" for n in cols_n], body)
@@ -218,17 +251,32 @@ def chapter3(folder, page, figures_dir, run) -> str:
     found = studies(folder)
     parts = [run, ""]
     tdnn = grid(found, "tdnn")
+    if tdnn and best_point(tdnn, "val_mse_fold_mean")[0] is not None:
+        key, value = best_point(tdnn, "val_mse_fold_mean")
+        parts += [
+            "#### TDNN validation error, k layers × n units (thesis Table 3.1)",
+            "",
+            "Mean over the leave-one-out folds of the MSE (N²) on each fold's validation grasps (drawn per "
+            "material from the training grasps; the early-stopping set), with the weights early stopping "
+            "restored; the thesis's number in brackets. The thesis selects its architecture on this table. "
+            "Lowest in bold (ours) and italics (the thesis's, among the cells shown).",
+            "",
+            grid_table(tdnn, "val_mse_fold_mean", thesis=THESIS_TDNN_VAL, thesis_cols=THESIS_TDNN_UNITS, mark="lowest"),
+            "",
+            f"Lowest validation error: k={key[0]}, n={key[1]}: {fmt(value)} N² (thesis: k=4, n=40, 0.15); "
+            f"that network's test error: {fmt(get(tdnn[key], 'all', 'mse_fold_mean'))} N².",
+            "",
+        ]
     if tdnn:
         key, value = best_point(tdnn, "mse_fold_mean")
         parts += [
             "#### TDNN force estimation, k layers × n units (thesis Table 3.2)",
             "",
             "Mean over leave-one-out folds of the MSE (N²) on the left-out grasp; the thesis's number in "
-            "brackets. Our folds pick their validation trials per fold as the thesis did (early stopping), "
-            "but the thesis's validation table (3.1) has no counterpart: model selection here is on these "
-            "test folds only for display.",
+            "brackets. Lowest in bold (ours) and italics (the thesis's, among the cells shown); the "
+            "thesis reports the network it chose on Table 3.1 (k=4, n=40: 0.16).",
             "",
-            grid_table(tdnn, "mse_fold_mean", thesis=THESIS_TDNN_TEST, thesis_cols=THESIS_TDNN_UNITS),
+            grid_table(tdnn, "mse_fold_mean", thesis=THESIS_TDNN_TEST, thesis_cols=THESIS_TDNN_UNITS, mark="lowest"),
             "",
             f"Lowest: k={key[0]}, n={key[1]}: {fmt(value)} N² (thesis: k=4, n=40, 0.16; lowest cell 0.15).",
             "",
@@ -252,6 +300,20 @@ def chapter3(folder, page, figures_dir, run) -> str:
     parts.append(figure_link(page, figures_dir, "ch3-tdnn.png", "TDNN: measured and estimated force, left-out grasps (thesis Fig. 3.9)"))
     parts.append(figure_link(page, figures_dir, "ch3-gp.png", "GP: measured and estimated force, left-out grasps (thesis Fig. 3.10)"))
     material = grid(found, "material-dnn")
+    if material and best_point(material, "val_accuracy_fold_mean", lowest=False)[0] is not None:
+        key, value = best_point(material, "val_accuracy_fold_mean", lowest=False)
+        parts += [
+            "#### Material DNN validation accuracy, k layers × n units (thesis Table 3.3)",
+            "",
+            "Mean over the leave-one-out folds of the accuracy (%) on each fold's validation grasps, the "
+            "thesis's number in brackets; highest in bold (ours) and italics (the thesis's).",
+            "",
+            grid_table(material, "val_accuracy_fold_mean", scale=100, digits=1, thesis=THESIS_MATERIAL_VAL,
+                       thesis_cols=THESIS_MATERIAL_UNITS, mark="highest"),
+            "",
+            f"Highest: k={key[0]}, n={key[1]}: {fmt(100 * value, 1)}% (thesis: k=2 and k=5, n=30, 90.10%).",
+            "",
+        ]
     if material:
         key, value = best_point(material, "accuracy", lowest=False)
         parts += [
@@ -260,7 +322,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
             "Accuracy (%) on the left-out grasp over the leave-one-out folds; the thesis's number in brackets.",
             "",
             grid_table(material, "accuracy", scale=100, digits=1, thesis=THESIS_MATERIAL_TEST,
-                       thesis_cols=THESIS_MATERIAL_UNITS),
+                       thesis_cols=THESIS_MATERIAL_UNITS, mark="highest"),
             "",
             f"Best: k={key[0]}, n={key[1]}: {fmt(100 * value, 1)}% (thesis: k=2, n=30, 79.17%).",
             "",
@@ -284,6 +346,10 @@ def chapter3(folder, page, figures_dir, run) -> str:
         ]
     parts.append(figure_link(page, figures_dir, "ch3-confusion.png", "Material DNN confusion matrix over all folds (thesis Fig. 3.13)"))
     said = []
+    if tdnn and best_point(tdnn, "val_mse_fold_mean")[0] is not None:
+        key, value = best_point(tdnn, "val_mse_fold_mean")
+        said.append(f"our lowest TDNN validation error is at k={key[0]}, n={key[1]}, {fmt(value)} N² "
+                    f"(thesis: k=4, n=40, 0.15)")
     if tdnn:
         key, value = best_point(tdnn, "mse_fold_mean")
         said.append(f"our lowest TDNN error is {fmt(value)} N² ({ratio(value, 0.15)} the thesis's lowest, 0.15)")
@@ -318,9 +384,95 @@ def chapter3(folder, page, figures_dir, run) -> str:
 CH4_MODELS = ("tdnn", "lstm", "cnnlstm", "convlstm", "ours")
 
 
+SWEEP_MODELS = ("convlstm", "lstm", "cnnlstm")
+THESIS_SWEEP_BEST = {"convlstm": 4, "lstm": 6, "cnnlstm": 4}  # Fig. 4.4(a): depth of the lowest validation MSE
+SWEEP_COLOURS = {"convlstm": "#1f77b4", "lstm": "#d62728", "cnnlstm": "#ff7f0e"}  # the thesis's blue, red, orange
+
+
+def layer_sweep(found) -> dict:
+    """{model: {layers: figures}} of the `sweep-MODEL` grids."""
+    sweep = {}
+    for (name, params), figures in found.items():
+        if name.startswith("sweep-") and "layers" in dict(params):
+            sweep.setdefault(name[len("sweep-"):], {})[dict(params)["layers"]] = figures
+    return sweep
+
+
+def sweep_section(sweep, page, figures_dir) -> list:
+    models = [m for m in SWEEP_MODELS if m in sweep] + sorted(set(sweep) - set(SWEEP_MODELS))
+    depths = sorted({k for m in models for k in sweep[m]})
+    best = {}
+    for model in models:
+        values = {k: get(f, "all", "val_mse_fold_mean") for k, f in sweep[model].items()}
+        values = {k: v for k, v in values.items() if not math.isnan(v)}
+        best[model] = min(values, key=values.get) if values else None
+    rows = []
+    for depth in depths:
+        cells = [str(depth)]
+        for model in models:
+            figures = sweep[model].get(depth)
+            value = get(figures, "all", "val_mse_fold_mean")
+            cell = f"{fmt(value)} ± {fmt(get(figures, 'all', 'val_mse_fold_sd'))}" if figures else "–"
+            cells.append(f"**{cell}**" if best[model] == depth else cell)
+            cells.append(fmt(get(figures, "all", "mse")) if figures else "–")
+        rows.append(cells)
+    header = ["layers"]
+    for model in models:
+        header += [f"{model} validation MSE (N²)", f"{model} test MSE"]
+    draw_sweep(sweep, models, figures_dir)
+    chosen = ", ".join(f"{m} {best[m]} layer{'s' if best[m] != 1 else ''} (thesis {THESIS_SWEEP_BEST.get(m, '–')})"
+                       for m in models)
+    return [
+        "#### Validation error against the number of hidden layers (thesis Fig. 4.4(a))",
+        "",
+        "Mean ± σ over the leave-one-out folds of the MSE on each fold's validation grasps (one per bolt "
+        "size, the early-stopping set; every frame with a measured force), at the weights early stopping "
+        "restored; the lowest per model in bold. Beside it, the pooled test MSE on the left-out grasps "
+        "(non-zero force). The thesis gives this figure as a plot only; it names the depths of its "
+        "minima: 4 layers for ConvLSTM and CNNLSTM, 6 for LSTM.",
+        "",
+        md_table(header, rows),
+        "",
+        f"Lowest validation error: {chosen}.",
+        "",
+        figure_link(page, figures_dir, "ch4-layers.png",
+                    "Mean validation MSE over folds against hidden layers: ConvLSTM (blue), LSTM (red), CNNLSTM (orange), as thesis Fig. 4.4(a)"),
+    ]
+
+
+def draw_sweep(sweep, models, figures_dir):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(figures_dir, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for index, model in enumerate(models):
+        depths = sorted(sweep[model])
+        shift = (index - (len(models) - 1) / 2) * 0.06  # side by side, so the error bars stay readable
+        means = [get(sweep[model][d], "all", "val_mse_fold_mean") for d in depths]
+        sds = [get(sweep[model][d], "all", "val_mse_fold_sd") for d in depths]
+        colour = SWEEP_COLOURS.get(model)
+        ax.errorbar([d + shift for d in depths], means, yerr=[0 if math.isnan(v) else v for v in sds], marker="o", capsize=3,
+                    color=colour, label=model, alpha=0.9)
+    ax.set_xlabel("hidden layers")
+    ax.set_title("validation error by depth (thesis Fig. 4.4(a))", fontsize=10)
+    ax.set_ylabel("validation MSE (N²), mean ± σ over folds")
+    ax.set_xticks(sorted({d for m in models for d in sweep[m]}))
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(pathlib.Path(figures_dir) / "ch4-layers.png", dpi=110)
+    plt.close(fig)
+
+
 def chapter4(folder, page, figures_dir, run) -> str:
     found = studies(folder)
     parts = [run, ""]
+    sweep = layer_sweep(found)
+    if sweep:
+        parts += sweep_section(sweep, page, figures_dir)
     rows = []
     for name in CH4_MODELS:
         figures = found.get((name, ()))

@@ -32,8 +32,9 @@ from typing import Callable
 
 from neurotac_cli.errors import NeurotacError
 
-# Bumped when the cache file layout changes, so old entries are never misread.
-CACHE_FORMAT = 1
+# Bumped when the cache file layout or a task's result changes, so old entries are never misread
+# (2: a cross-validation fold returns its validation figures beside its predictions).
+CACHE_FORMAT = 2
 # How long to wait for a Dask scheduler to answer before saying it cannot be reached.
 CONNECT_TIMEOUT = "20s"
 
@@ -635,3 +636,37 @@ def grid_metrics_table(rows, model: str):
         tables.append(table)
     merged = pa.concat_tables(tables, promote_options="permissive")
     return merged.replace_schema_metadata(tables[0].schema.metadata)
+
+
+def grid_points(specs, fixed: dict | None = None) -> list[dict]:
+    """The grid points of `--grid` specs, each with the `fixed` hyperparameters (options such as
+    `--epochs 30` given beside the grid) added; a name both fixed and varied is refused."""
+    points = parse_grid(specs)
+    fixed = {name: value for name, value in (fixed or {}).items() if value is not None}
+    both = sorted(fixed.keys() & set(points[0]))
+    if both:
+        raise StudyError(
+            f"{', '.join(both)} given both as an option and in --grid (give each hyperparameter once: "
+            f"a single value in --grid, e.g. --grid {both[0]}=30, fixes it)"
+        )
+    return [{**point, **fixed} for point in points]
+
+
+def grid_lines(rows, model: str) -> list[str]:
+    """One line per grid point for stderr: its parameters, its test score, its validation score."""
+    lines = []
+    for point, point_rows in rows:
+        figures = {metric: value for scope, metric, value in point_rows if scope == "all"}
+        shown = ", ".join(f"{name}={value}" for name, value in point.items()) or "(defaults)"
+        if "accuracy" in figures:
+            summary = f"accuracy {100 * figures['accuracy']:.1f}%"
+            validation = figures.get("val_accuracy_fold_mean", math.nan) * 100
+            if validation == validation:
+                summary += f", validation {validation:.1f}%"
+        else:
+            summary = f"MSE {figures.get('mse_fold_mean', math.nan):.4g} N² (fold mean)"
+            validation = figures.get("val_mse_fold_mean", math.nan)
+            if validation == validation:
+                summary += f", validation {validation:.4g} N²"
+        lines.append(f"{model} {shown}: {summary}")
+    return lines

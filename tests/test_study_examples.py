@@ -27,8 +27,10 @@ def write_metrics(path, rows):
     )
 
 
-def force_rows(mse):
+def force_rows(mse, val_mse=None):
     rows = [("all", "mse", mse), ("all", "mse_fold_mean", mse), ("all", "mse_fold_sd", mse / 2), ("all", "mae", mse / 2)]
+    if val_mse is not None:
+        rows += [("all", "val_mse_fold_mean", val_mse), ("all", "val_mse_fold_sd", val_mse / 4)]
     for phase in ("grasping", "holding", "releasing"):
         rows += [(f"phase:{phase}", "mse", mse), (f"phase:{phase}", "dtw_fold_mean", 1.0)]
     return rows
@@ -64,7 +66,8 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     text = page.read_text()
     assert "intro kept as written" in text and "engineer E's table, not ours" in text
     assert "\nold\n" not in text
-    assert "| k=4 | 0.250 (0.180) | 0.200 (0.160) |" in text  # ours (thesis Table 3.2)
+    assert "| k=4 | 0.250 (0.180) | **0.200** (0.160) |" in text  # ours (thesis Table 3.2), our lowest in bold
+    assert "| k=1 | 0.400 (0.160) | 0.300 (*0.150*) |" in text  # the thesis's lowest of the cells shown
     assert "Lowest: k=4, n=40: 0.200" in text
     assert "| material-dnn (k=2, n=30), events | 75.0 | 79.17 |" in text
     assert "25.0 points above the force-only classifier" in text
@@ -134,3 +137,37 @@ def test_a_grid_held_in_one_table_is_read_by_its_parameter_columns(tmp_path):
     points = results.grid(results.studies(tmp_path), "tdnn")
     assert {key: results.get(f, "all", "mse_fold_mean") for key, f in points.items()} == {
         (1, 5): 0.4, (1, 10): 0.3, (2, 5): 0.2, (2, 10): 0.1}
+
+
+def test_chapter3_validation_table_marks_the_lowest_beside_thesis_table_3_1(tmp_path):
+    results = load("chapters")
+    folder = tmp_path / "ch3"
+    folder.mkdir()
+    for k, n, val in ((1, 5, 0.5), (1, 40, 0.45), (4, 5, 0.35), (4, 40, 0.6)):
+        write_metrics(folder / f"tdnn@layers={k},units={n}.metrics.parquet", force_rows(0.3, val_mse=val))
+    page = tmp_path / "results.md"
+    results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
+    text = page.read_text()
+    assert "TDNN validation error, k layers × n units (thesis Table 3.1)" in text
+    assert "| k=4 | **0.350** (0.200) | 0.600 (*0.150*) |" in text
+    assert "Lowest validation error: k=4, n=5: 0.350 N² (thesis: k=4, n=40, 0.15)" in text
+
+
+def test_chapter4_layer_sweep_table_and_figure(tmp_path):
+    results = load("chapters")
+    folder, figures = tmp_path / "ch4", tmp_path / "figures"
+    folder.mkdir()
+    for model, values in (("convlstm", (0.5, 0.3, 0.4)), ("lstm", (0.6, 0.7, 0.2))):
+        table = pa.table({
+            "scope": ["all"] * 9, "metric": ["val_mse_fold_mean", "val_mse_fold_sd", "mse"] * 3,
+            "value": [v for value in values for v in (value, value / 10, 2 * value)], "model": [model] * 9,
+            "layers": [1, 1, 1, 2, 2, 2, 4, 4, 4], "epochs": [4] * 9,
+        })
+        pq.write_table(table, folder / f"sweep-{model}.metrics.parquet")
+    page = tmp_path / "results.md"
+    results.main(["ch4", str(folder), str(page), "--figures", str(figures), "--run", "Run: test."])
+    text = page.read_text()
+    assert "(thesis Fig. 4.4(a))" in text
+    assert "| 2 | **0.300 ± 0.030** | 0.600 | 0.700 ± 0.070 | 1.400 |" in text
+    assert "convlstm 2 layers (thesis 4), lstm 4 layers (thesis 6)" in text
+    assert (figures / "ch4-layers.png").stat().st_size > 1000 and "ch4-layers.png" in text

@@ -1,5 +1,6 @@
 import click
 
+from neurotac_cli.commands.study import GRID_HELP
 from neurotac_cli.commands.train import FORCE, MATERIAL, hyperparameter_options, hyperparameters, progress_printer
 from neurotac_cli.options import input_paths, output_option, seed_option, study_options
 
@@ -13,6 +14,9 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
               "label value; group:object=bolt12 holds out that object only) and score the out-of-fold predictions.")
 @click.option("--model-spec", type=click.Choice(FORCE + MATERIAL), default=None, help="With --cv: the model to train per fold (hyperparameters as in train).")
 @hyperparameter_options
+@click.option("--grid", "grid", multiple=True, metavar="NAME=VALUES",
+              help="With --cv: cross-validate --model-spec at every point of this grid, as `neurotac study` does "
+              "(metrics get one column per grid parameter; stderr one line per point). " + GRID_HELP)
 @click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True, help="With --cv: repeat every fold with this many seeds (thesis 10).")
 @click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
               help="With --cv: validation share of each fold's training trials, drawn per --val-per value (thesis: one per size).")
@@ -28,7 +32,7 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
 @click.option("--threads", type=int, default=2, show_default=True, help="CPU threads for torch.")
 @study_options
 @seed_option
-def command(paths, output, model_path, cv, model_spec, repeats, val_fraction, val_per, label, metrics_path, nonzero,
+def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fraction, val_per, label, metrics_path, nonzero,
             per_trial, plot, plot_trials, threads, jobs, scheduler, cache, seed, **options):
     """Score a model on frames: predictions on stdout, metrics with --metrics, a summary on stderr.
 
@@ -39,6 +43,8 @@ def command(paths, output, model_path, cv, model_spec, repeats, val_fraction, va
     \b
         neurotac eval --model force.model --metrics m.parquet --plot force.png < test.arrows > pred.arrows
         neurotac eval --cv group:object=bolt12 --model-spec ours --repeats 3 < frames.arrows > oof.arrows
+        neurotac eval --cv loo --model-spec tdnn --grid layers=1..5 --grid units=5,10,...,40 \\
+          --metrics grid.parquet --jobs 0 < ch3-frames.arrows > oof.arrows
     """
     import torch
 
@@ -48,10 +54,19 @@ def command(paths, output, model_path, cv, model_spec, repeats, val_fraction, va
     from neurotac_cli.metrics import metrics_table
     from neurotac_cli.model import evaluate
 
+    if grid and not cv:
+        raise click.UsageError("--grid needs --cv and --model-spec (a grid of cross-validated models)")
     if (model_path is None) == (cv is None):
         raise click.UsageError("give either --model FILE, or --cv with --model-spec NAME")
     if cv and not model_spec:
         raise click.UsageError("--cv needs --model-spec NAME (the model trained per fold)")
+    if grid and plot:
+        raise click.UsageError("--plot draws one model; drop --grid, or plot the chosen point with its options (--layers 4 ...)")
+    if grid:
+        from neurotac_cli.commands.study import run_grid
+
+        return run_grid(paths, output, model_spec, grid, hyperparameters(options), cv, repeats, val_fraction, val_per,
+                        label, nonzero, per_trial, metrics_path, jobs, scheduler, cache, seed, command="eval")
     torch.set_num_threads(max(1, threads))
     table = tables.read(paths, kind="frames")
     if cv:

@@ -17,7 +17,7 @@ HYPERPARAMETERS = [
     ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); ours, material-ours."),
     ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
     ("--hidden", "hidden", int, "ours: GRU units (default 32)."),
-    ("--grid", "grid", int, "ours: side of an optional coarse spatial layout grid (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
+    ("--layout-grid", "layout_grid", int, "ours: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
     ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
     ("--points", "points", int, "material models: samples each accumulation curve is resampled to (thesis 30)."),

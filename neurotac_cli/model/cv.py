@@ -59,7 +59,9 @@ def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fra
              label: str = "material"):
     """Train on every trial outside the fold's source groups, predict the fold's test trials.
 
-    Module-level and picklable (a task of `run_tasks`). Returns a predictions table.
+    Module-level and picklable (a task of `run_tasks`). Returns (predictions table, validation):
+    `validation` is what the fold's early stopping saw, scored with the weights it restored (see
+    `validation_figures`).
     """
     from neurotac_cli import model as models
 
@@ -73,8 +75,38 @@ def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fra
         raise ModelError("a fold leaves no training trials; use more folds or a different --cv")
     model = models.train(train_table, spec, val_fraction=val_fraction, per=per, seed=seed, label=label)
     if model.task == "material":
-        return models.classify_table(model, test_table)
-    return models.predict_table(model, test_table)
+        return models.classify_table(model, test_table), validation_figures(model, train_table)
+    return models.predict_table(model, test_table), validation_figures(model, train_table)
+
+
+def validation_figures(model, train_table: pa.Table) -> dict:
+    """The fold's validation score: its early-stopping trials predicted by the trained model, i.e. at
+    the restored best epoch. Force models: `val_mse` (N², every frame with a measured force, as the
+    early stopping watched it); classifiers: `val_accuracy`. Also `epochs` trained and `best_epoch`
+    (NaN where no validation or no gradient training). Thesis Tables 3.1 and 3.3, Fig. 4.4(a)."""
+    from neurotac_cli import metrics
+    from neurotac_cli import model as models
+
+    curve = model.training.get("curve") or []
+    watched = [row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"] for row in curve]
+    figures = {
+        "epochs": float(len(curve)) if curve else float("nan"),
+        "best_epoch": float(curve[int(np.argmin(watched))]["epoch"]) if curve else float("nan"),
+    }
+    trials = model.training.get("trials", {}).get("validation") or []
+    name = "val_accuracy" if model.task == "material" else "val_mse"
+    if not trials:
+        return {name: float("nan"), **figures}
+    held = train_table.filter(pc.is_in(train_table.column("trial"), value_set=pa.array(trials, pa.string())))
+    if model.task == "material":
+        predicted = models.classify_table(model, held)
+        label = model.training.get("label", "material")
+        true, guess = predicted.column(label).to_pylist(), predicted.column(f"{label}_pred").to_pylist()
+        return {name: float(np.mean([a == b for a, b in zip(true, guess)])), **figures}
+    predicted = models.predict_table(model, held)
+    scores = metrics.regression(predicted.column("force").to_numpy(zero_copy_only=False),
+                                predicted.column("force_pred").to_numpy(zero_copy_only=False))
+    return {name: scores.get("mse", float("nan")), **figures}
 
 
 def fold_tasks(data: shaping.Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,

@@ -42,7 +42,13 @@ def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
 def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, val_fraction=0.1, per=None,
                    label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None, cache=None, progress=None):
     """Out-of-fold predictions (columns `repeat`, `fold` added) and metric rows: pooled over all
-    out-of-fold predictions, per fold (scope `fold:R/F`), and mean / σ over folds."""
+    out-of-fold predictions, per fold (scope `fold:R/F`), and mean / σ over folds.
+
+    Each fold also reports its validation score (`cv.validation_figures`: `val_mse` in N² for force
+    models, `val_accuracy` for classifiers, `epochs`, `best_epoch`) in its `fold:R/F` scope; their
+    mean and σ over folds are `val_mse_fold_mean` / `val_mse_fold_sd` ... in scope `all` (the
+    thesis's model-selection tables 3.1 and 3.3 and Fig. 4.4(a)). There is no pooled validation
+    figure: the folds' validation trials overlap."""
     from neurotac_cli.study import run_tasks
 
     data = shaping.sequences(table)
@@ -52,9 +58,10 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
     results = run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
                         label=f"{spec['model']} folds", shared={"frames": table})
     parts, per_fold = [], []
-    for index, predictions in enumerate(results):
+    for index, (predictions, validation) in enumerate(results):
         repeat, fold = divmod(index, len(groups))
         rows = score(predictions, nonzero=nonzero, per_trial=False, label=label)
+        rows += [("all", name, float(value)) for name, value in validation.items()]
         per_fold.append(rows)
         n = predictions.num_rows
         parts.append(predictions.append_column("repeat", pa.array(np.full(n, repeat, np.int32)))
@@ -96,7 +103,7 @@ def summary(rows: list, title: str = "") -> str:
             lines.append(" " * width + "".join(f"{c:>{width}}" for c in matrix_classes))
             for a in matrix_classes:
                 lines.append(f"{a:<{width}}" + "".join(f"{int(by_scope[f'confusion:{a}'].get(f'pred:{b}', 0)):>{width}}" for b in matrix_classes))
-        return "\n".join(lines)
+        return "\n".join(lines + _validation_lines(figures))
     scopes = ["all"] + [s for s in by_scope if s.startswith("phase:")]
     metrics_here = [m for m in ORDER if any(m in by_scope.get(s, {}) for s in scopes)]
     header = f"{'scope':<18}" + "".join(f"{m:>15}" for m in metrics_here)
@@ -115,4 +122,20 @@ def summary(rows: list, title: str = "") -> str:
         lines.append(f"{scope:<18}" + "".join(cells))
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
+    lines += _validation_lines(by_scope.get("all", {}))
     return "\n".join(lines)
+
+
+def _validation_lines(figures: dict) -> list:
+    """`validation MSE 0.0123 ± 0.004 N² over 48 folds (early-stopping trials, best epoch 37 of 57 on average)`."""
+    lines = []
+    for metric, text, scale, unit in (("val_mse", "validation MSE", 1, " N²"), ("val_accuracy", "validation accuracy", 100, "%")):
+        mean = figures.get(f"{metric}_fold_mean")
+        if mean is None or not np.isfinite(mean):
+            continue
+        line = f"{text} {scale * mean:.4g} ± {scale * figures.get(f'{metric}_fold_sd', float('nan')):.3g}{unit} (mean ± σ over folds, early-stopping trials"
+        epochs, best = figures.get("epochs_fold_mean"), figures.get("best_epoch_fold_mean")
+        if epochs is not None and np.isfinite(epochs):
+            line += f"; best epoch {best:.0f} of {epochs:.0f} on average"
+        lines.append(line + ")")
+    return lines

@@ -13,7 +13,7 @@ force is better described by a few physical quantities that change smoothly with
   percentile on the training trials): the membrane's pixels saturate, so how much of the patch
   reaches which depth tells the force better than the patch's area (correlation with the holding
   force 0.4-0.7 against 0.2 for the area, measured on simulated ch4);
-- a coarse `grid` x `grid` layout of the deformation map and of the frame's events, as shares of
+- a coarse `layout_grid` x `layout_grid` layout of the deformation map and of the frame's events, as shares of
   their totals (so they do not scale with object size).
 
 The features are standardised with constants fitted on training trials, then a GRU of `hidden`
@@ -31,12 +31,16 @@ from torch import nn
 from neurotac_cli.model.base import ForceNet
 
 
+# Model files written before the rename name `layout_grid` `grid` (store.load reads them).
+RENAMED_FIELDS = {"grid": "layout_grid"}
+
+
 @dataclass(frozen=True)
 class Config:
     hidden: int = 32
     layers: int = 1
     levels: int = 8  # depth levels of the deformation map whose areas are features
-    grid: int = 0  # 4 adds a 4x4 layout: better on seen sizes, worse on an unseen size (measured)
+    layout_grid: int = 0  # 4 adds a 4x4 layout: better on seen sizes, worse on an unseen size (measured)
     dropout: float = 0.0
 
 
@@ -46,7 +50,7 @@ class Net(ForceNet):
         self.config = config
         _, height, width = shape
         self.shape = (height, width)
-        width_features = 10 + config.levels + 4 * config.grid * config.grid
+        width_features = 10 + config.levels + 4 * config.layout_grid * config.layout_grid
         self.register_buffer("feature_mean", torch.zeros(width_features))
         self.register_buffer("feature_std", torch.ones(width_features))
         self.register_buffer("level_unit", torch.ones(1))
@@ -90,7 +94,7 @@ class Net(ForceNet):
             steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32) / self.config.levels * self.level_unit
             above = (deformation.unsqueeze(2) >= steps.view(1, 1, -1, 1, 1)).sum(dim=(-1, -2)).float()
             parts.append(torch.log1p(above))
-        grid = self.config.grid
+        grid = self.config.layout_grid
         if grid:
             flat = lambda x: x.reshape(batch * length, -1, *self.shape)  # noqa: E731
             layout = torch.cat([flat(positive), flat(negative), flat(counts)], dim=1)

@@ -79,7 +79,10 @@ def load(path: str):
     module = _module(name)
     config_type = module.Config
     known = {f.name for f in dataclasses.fields(config_type)}
-    config = config_type(**{k: v for k, v in header["architecture"].items() if k in known})
+    # Config fields renamed since a file was written keep loading under their new names.
+    renamed = getattr(module, "RENAMED_FIELDS", {})
+    architecture = {renamed.get(k, k): v for k, v in header["architecture"].items()}
+    config = config_type(**{k: v for k, v in architecture.items() if k in known})
     spec = header["input"]
     if header["task"] == "material":
         net = module.Net(config, len(header["classes"]))

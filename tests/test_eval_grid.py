@@ -1,0 +1,96 @@
+"""`eval --cv` records each fold's validation error (thesis Table 3.1), and `eval --cv --grid` is the
+study `neurotac study` runs."""
+
+import math
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from click.testing import CliRunner
+
+torch = pytest.importorskip("torch")
+
+from neurotac_cli import model as models  # noqa: E402
+from neurotac_cli.model import cv as cross  # noqa: E402
+from tests.test_model_helpers import tiny_frames, write_stream  # noqa: E402
+
+
+def _run(args):
+    from neurotac_cli.cli import cli
+
+    return CliRunner().invoke(cli, args)
+
+
+def _rows(path):
+    table = pq.read_table(path)
+    names = table.schema.names
+    rows = zip(*(table.column(name).to_pylist() for name in names))
+    return names, sorted((tuple("nan" if v != v else v for v in row) for row in rows), key=str)
+
+
+@pytest.fixture(scope="module")
+def frames_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("frames") / "frames.arrows"
+    write_stream(tiny_frames(trials=5), path)
+    return str(path)
+
+
+def test_a_folds_validation_error_is_the_restored_best_epochs_mse_in_newtons_squared():
+    frames = tiny_frames(trials=6)
+    spec = models.make_spec("tdnn", layers=1, units=4, epochs=6, patience=2)
+    predictions, validation = cross.run_fold(frames, spec, ["t0"], seed=5, val_fraction=0.3, per=None)
+    assert set(predictions.column("trial").to_pylist()) == {"t0"}
+
+    # the same training by hand: the fold's early stopping watched this curve, in normalised units
+    train_table = frames.filter(np.asarray(frames.column("trial").to_pylist()) != "t0")
+    model = models.train(train_table, spec, val_fraction=0.3, seed=5)
+    curve = model.training["curve"]
+    best = min(row["val_loss"] for row in curve)
+    assert validation["val_mse"] == pytest.approx(best * model.force_scale**2, rel=1e-4)
+    assert validation["epochs"] == len(curve)
+    assert validation["best_epoch"] == min(curve, key=lambda row: row["val_loss"])["epoch"]
+
+
+def test_eval_cv_metrics_hold_validation_error_per_fold_and_its_mean_and_sd(frames_file, tmp_path):
+    done = _run(["eval", "--cv", "loo", "--model-spec", "tdnn", "--layers", "1", "--units", "3", "--epochs", "3",
+                 "--seed", "1", frames_file, "--metrics", str(tmp_path / "m.parquet"), "-o", str(tmp_path / "p.arrows")])
+    assert done.exit_code == 0, done.output
+    assert "validation MSE" in done.stderr
+    table = pq.read_table(tmp_path / "m.parquet")
+    figures = {(s, m): v for s, m, v in zip(*(table.column(c).to_pylist() for c in ("scope", "metric", "value")))}
+    folds = [v for (s, m), v in figures.items() if s.startswith("fold:") and m == "val_mse"]
+    assert len(folds) == 5 and all(v > 0 and math.isfinite(v) for v in folds)
+    assert figures[("all", "val_mse_fold_mean")] == pytest.approx(np.mean(folds))
+    assert figures[("all", "val_mse_fold_sd")] == pytest.approx(np.std(folds))
+    assert ("all", "val_mse") not in figures  # no pooled figure: the folds' validation trials overlap
+
+
+def test_classifier_folds_record_validation_accuracy():
+    frames = tiny_frames(trials=8)
+    spec = models.make_spec("material-dnn", layers=1, units=4, epochs=3)
+    _, validation = cross.run_fold(frames, spec, ["t0"], seed=1, val_fraction=0.3, per="material")
+    assert 0.0 <= validation["val_accuracy"] <= 1.0
+
+
+def test_eval_grid_is_the_study_of_neurotac_study(frames_file, tmp_path):
+    common = ["--model-spec", "tdnn", "--grid", "layers=1..2", "--units", "3", "--epochs", "2", "--seed", "4", frames_file]
+    via_eval = _run(["eval", "--cv", "loo", "--no-per-trial", *common, "--metrics", str(tmp_path / "e.parquet"),
+                     "-o", str(tmp_path / "e.arrows")])
+    via_study = _run(["study", "--cv", "loo", *common, "--metrics", str(tmp_path / "s.parquet"), "-o", str(tmp_path / "s.arrows")])
+    assert via_eval.exit_code == 0 and via_study.exit_code == 0, via_eval.output + via_study.output
+    names, rows = _rows(tmp_path / "e.parquet")
+    assert names == ["scope", "metric", "value", "model", "layers", "units", "epochs"]
+    assert (names, rows) == _rows(tmp_path / "s.parquet")
+    assert "tdnn layers=2, units=3, epochs=2: MSE" in via_eval.stderr and ", validation " in via_eval.stderr
+
+
+@pytest.mark.parametrize("args, code, words", [
+    (["--grid", "layers=1,2"], 2, "--grid needs --cv"),
+    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers=1,2", "--layers", "3"], 1, "given both as an option and in --grid"),
+    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers=1,2", "--plot", "x.png"], 2, "--plot draws one model"),
+    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers"], 1, "is not NAME=VALUES"),
+])
+def test_eval_grid_misuse_says_what_to_do(frames_file, args, code, words):
+    done = _run(["eval", *args, frames_file])
+    assert done.exit_code == code
+    assert words in done.output + done.stderr
