@@ -701,14 +701,14 @@ TITLES = {
 }
 
 
-def replace_section(text: str, chapter: str, body: str) -> str:
+def replace_section(text: str, chapter: str, body: str, title: str | None = None) -> str:
     start, end = f"<!-- results:{chapter}:start -->", f"<!-- results:{chapter}:end -->"
     block = f"{start}\n{body.strip()}\n{end}"
     if start in text and end in text:
         before, rest = text.split(start, 1)
         _, after = rest.split(end, 1)
         return before + block + after
-    return text.rstrip() + f"\n\n## {TITLES[chapter]}\n\n{block}\n"
+    return text.rstrip() + f"\n\n## {title or TITLES[chapter]}\n\n{block}\n"
 
 
 def main(argv=None):
@@ -718,6 +718,8 @@ def main(argv=None):
     parser.add_argument("page", help="the markdown page to update (created when missing)")
     parser.add_argument("--figures", default=None, help="folder of the chapter's PNGs (default: beside the page)")
     parser.add_argument("--run", default="", help="one line saying how the numbers were made (default: FOLDER/run.md)")
+    parser.add_argument("--section", default=None,
+                        help="the page's section to write, between <!-- results:SECTION:start/end --> (default: the chapter)")
     args = parser.parse_args(argv)
     page = pathlib.Path(args.page)
     figures = args.figures or str(page.parent)
@@ -728,9 +730,9 @@ def main(argv=None):
     text = page.read_text() if page.exists() else "# Reproduced results\n"
     page.parent.mkdir(parents=True, exist_ok=True)
     temporary = page.with_name(page.name + ".tmp")
-    temporary.write_text(replace_section(text, args.chapter, body))
+    temporary.write_text(replace_section(text, args.section or args.chapter, body, title=TITLES[args.chapter]))
     os.replace(temporary, page)
-    print(f"{page}: {TITLES[args.chapter]} updated", file=sys.stderr)
+    print(f"{page}: {TITLES[args.chapter]} updated (section {args.section or args.chapter})", file=sys.stderr)
 
 
 if __name__ == "__main__":
