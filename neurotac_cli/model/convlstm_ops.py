@@ -7,7 +7,7 @@ gate folded into its convolution (`gate_scale`). On this CPU build torch's sigmo
 and its tanh is not (measured: sigmoid of 105,800 x 12 floats 0.26 ms, tanh 1.7 ms on 2 threads).
 The per-pixel arithmetic between the sigmoids runs in small numba loops (one pass instead of a dozen
 torch operations on 3-channel strided slices); without numba (NEUROTAC_NO_NUMBA=1) the same
-arithmetic runs as torch operations.
+arithmetic runs as torch operations that autograd differentiates.
 """
 
 import os
@@ -91,41 +91,29 @@ class _Gates(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, z, c_prev):
-        filters = c_prev.shape[-1]
         act = torch.sigmoid(z)
-        if njit is not None:
-            c, tanh_c, h = torch.empty_like(c_prev), torch.empty_like(c_prev), torch.empty_like(c_prev)
-            _cell_state(_np(act), _np(c_prev), _np(c), _np(tanh_c))
-            torch.sigmoid(tanh_c, out=tanh_c)
-            _cell_output(_np(act), _np(tanh_c), _np(h))
-        else:
-            i, f, o, g2 = (act[:, k * filters : (k + 1) * filters] for k in range(4))
-            c = torch.addcmul(f * c_prev, i, g2 * 2.0 - 1.0)
-            tanh_c = torch.sigmoid(c * 2.0).mul_(2.0).sub_(1.0)
-            h = o * tanh_c
+        c, tanh_c, h = torch.empty_like(c_prev), torch.empty_like(c_prev), torch.empty_like(c_prev)
+        _cell_state(_np(act), _np(c_prev), _np(c), _np(tanh_c))
+        torch.sigmoid(tanh_c, out=tanh_c)
+        _cell_output(_np(act), _np(tanh_c), _np(h))
         ctx.save_for_backward(act, c_prev, tanh_c)
         return h, c
 
     @staticmethod
     def backward(ctx, dh, dc):
         act, c_prev, tanh_c = ctx.saved_tensors
-        filters = c_prev.shape[-1]
         dh = torch.zeros_like(c_prev) if dh is None else dh
         dc = torch.zeros_like(c_prev) if dc is None else dc
-        if njit is not None:
-            dz, dc_prev = torch.empty_like(act), torch.empty_like(c_prev)
-            _cell_backward(_np(act), _np(c_prev), _np(tanh_c), _np(dh), _np(dc), _np(dz), _np(dc_prev))
-            return dz, dc_prev
-        i, f, o, g2 = (act[:, k * filters : (k + 1) * filters] for k in range(4))
-        d_act = torch.empty_like(act)
-        di, df, do, dg2 = (d_act[:, k * filters : (k + 1) * filters] for k in range(4))
-        dc_total = dh * o * (1.0 - tanh_c * tanh_c) + dc
-        torch.mul(dh, tanh_c, out=do)
-        torch.mul(dc_total, g2 * 2.0 - 1.0, out=di)
-        torch.mul(dc_total, c_prev, out=df)
-        torch.mul(dc_total, i, out=dg2).mul_(2.0)
-        dz = d_act.mul_(torch.addcmul(act, act, act, value=-1.0))  # sigmoid' = a - a^2
-        return dz, dc_total * f
+        dz, dc_prev = torch.empty_like(act), torch.empty_like(c_prev)
+        _cell_backward(_np(act), _np(c_prev), _np(tanh_c), _np(dh), _np(dc), _np(dz), _np(dc_prev))
+        return dz, dc_prev
+
+
+def _torch_gates(z, c_prev):
+    """`_Gates` as torch operations, differentiated by autograd: the path without numba."""
+    i, f, o, g2 = torch.sigmoid(z).chunk(4, dim=-1)
+    c = torch.addcmul(f * c_prev, i, g2 * 2.0 - 1.0)
+    return o * (torch.sigmoid(c * 2.0) * 2.0 - 1.0), c
 
 
 class _Joint(torch.autograd.Function):
@@ -134,8 +122,6 @@ class _Joint(torch.autograd.Function):
     @staticmethod
     def forward(ctx, x, h):
         ctx.inputs = x.shape[-1]
-        if njit is None:
-            return torch.cat([x, h], dim=-1)
         out = torch.empty(x.shape[0], x.shape[1] + h.shape[1], dtype=x.dtype)
         _joint(_np(x), _np(h), _np(out))
         return out
@@ -149,12 +135,15 @@ def lstm_gates(z, c):
     """New (h, c) from scaled gate pre-activations (..., 4F) ordered i, f, o, 2g and the cell state (..., F)."""
     shape = c.shape
     filters = shape[-1]
-    h, c = _Gates.apply(z.reshape(-1, 4 * filters), c.reshape(-1, filters))
+    gates = _torch_gates if njit is None else _Gates.apply
+    h, c = gates(z.reshape(-1, 4 * filters), c.reshape(-1, filters))
     return h.view(shape), c.view(shape)
 
 
 def joint_input(x, h):
     """x (..., inputs) and h (..., F) side by side along channels, contiguous."""
+    if njit is None:
+        return torch.cat([x, h], dim=-1)
     shape = x.shape[:-1]
     out = _Joint.apply(x.reshape(-1, x.shape[-1]), h.reshape(-1, h.shape[-1]))
     return out.view(*shape, out.shape[-1])
