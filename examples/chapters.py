@@ -235,12 +235,18 @@ def ratio(ours, theirs) -> str:
     return f"{ours / theirs:.1f}×"
 
 
-def figure_link(page, figures_dir, name, caption) -> str:
+def figure_link(page, figures_dir, name, caption) -> str | None:
+    """A linked PNG with its caption; None when the chapter's script did not draw it."""
     path = pathlib.Path(figures_dir) / name
     if not path.is_file():
-        return ""
+        return None
     relative = os.path.relpath(path, pathlib.Path(page).parent)
     return f"![{caption}]({relative})\n\n*{caption}*\n"
+
+
+def section_text(parts) -> str:
+    """A chapter's lines, figures that were not drawn left out."""
+    return "\n".join(part for part in parts if part is not None)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -375,7 +381,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         "reports MSE with unit N; it is N² here." + first_frame_note(folder),
         "",
     ]
-    return "\n".join(part for part in parts if part is not None)
+    return section_text(parts)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -565,7 +571,7 @@ def chapter4(folder, page, figures_dir, run) -> str:
         "thesis writes N)." + first_frame_note(folder),
         "",
     ]
-    return "\n".join(parts)
+    return section_text(parts)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -645,7 +651,7 @@ def chapter5(folder, page, figures_dir, run) -> str:
         "methods is the comparable part. MSE is in N² (the thesis writes N)." + first_frame_note(folder, shifts=True),
         "",
     ]
-    return "\n".join(parts)
+    return section_text(parts)
 
 
 def draw_ch5(results, order, figures_dir):

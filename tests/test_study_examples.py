@@ -71,6 +71,7 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     assert "Lowest: k=4, n=40: 0.200" in text
     assert "| material-dnn (k=2, n=30), events | 75.0 | 79.17 |" in text
     assert "25.0 points above the force-only classifier" in text
+    assert "](" not in text and "\n\n\n" not in text  # figures not drawn: no link and no gap where they would be
 
     results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
     assert page.read_text() == text  # idempotent
