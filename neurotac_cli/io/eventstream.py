@@ -2,8 +2,8 @@
 ATIS types.
 
 Header: `Event Stream`, version (major, minor, patch), event type (1 = DVS, 2 = ATIS), width and
-height as little-endian uint16. Events are bytes (see kernels.decode_es_dvs / decode_es_atis; of
-ATIS events only the change detections are kept, as faery does). The format's origin is the
+height as little-endian uint16. Events are bytes (see kernels.decode_es; of ATIS events only the
+change detections are kept, as faery does). The format's origin is the
 bottom-left corner, so rows are flipped (row = height - 1 - y), as faery does.
 """
 
@@ -34,13 +34,13 @@ def open_es(path: str, head: bytes, sensor) -> Decoded:
     if width == 0 or height == 0:
         raise FormatError(f"the Event Stream header declares a {width}x{height} sensor")
 
-    decode = kernels.decode_es_dvs if event_type == 1 else kernels.decode_es_atis
+    atis = event_type == 2
 
     def chunks():
         state = kernels.es_state()
         for block in read_chunks(path, HEADER, 1):
-            t, x, y, p, bad = decode(np.frombuffer(block, dtype=np.uint8), width, height, state)
-            if bad >= 0:
+            t, x, y, p, outside = kernels.decode_es(np.frombuffer(block, dtype=np.uint8), width, height, atis, state)
+            if outside:
                 raise FormatError(f"an event lies outside the declared {width}x{height} sensor (damaged file)")
             yield t, x, (height - 1 - y.astype(np.int64)).astype(np.uint16), p
 

@@ -161,8 +161,8 @@ def decode_davis(data, height):
     return t, x, y, p, largest
 
 
-# Event Stream 2.x DVS state slots
-ES_T, ES_STEP, ES_ON, ES_X, ES_Y = range(5)
+# Event Stream 2.x state slots (FLAGS: bit 0 = ATIS threshold crossing, bit 1 = polarity)
+ES_T, ES_STEP, ES_FLAGS, ES_X, ES_Y = range(5)
 
 
 def es_state() -> np.ndarray:
@@ -170,27 +170,40 @@ def es_state() -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def decode_es_dvs(data, width, height, state):
-    """Event Stream 2.x DVS bytes -> (t, x, y_stored, p, bad): a byte 0xFF adds 127 µs, 0xFE is a
-    reset marker, any other byte starts an event (t += byte >> 1, polarity = byte & 1) followed by
-    x and y as little-endian uint16. `bad` is the first coordinate beyond the declared size, or -1."""
+def decode_es(data, width, height, atis, state):
+    """Event Stream 2.x DVS or ATIS bytes -> (t, x, y_stored, p, outside). An event is a head byte
+    followed by x and y as little-endian uint16. DVS head bytes: 0xFF adds 127 µs, 0xFE is a reset
+    marker, any other byte starts an event (t += byte >> 1, polarity = byte & 1). ATIS head bytes: 6
+    high bits set adds 63 µs times the 2 low bits, any other byte starts an event (t += byte >> 2,
+    polarity = bit 1, threshold crossing = bit 0); only change detections are kept, exposure
+    measurements (threshold crossings) are skipped. `outside`: some coordinate lies beyond the
+    declared size."""
     n = data.shape[0]
     t = np.empty(n // 5 + 1, np.int64)
     x = np.empty(n // 5 + 1, np.uint16)
     y = np.empty(n // 5 + 1, np.uint16)
     p = np.empty(n // 5 + 1, np.uint8)
-    time, step, on, cx, cy = state[0], state[1], state[2], state[3], state[4]
-    bad = -1
+    time, step, flags, cx, cy = state[0], state[1], state[2], state[3], state[4]
+    outside = False
     k = 0
     for i in range(n):
         byte = np.int64(data[i])
         if step == 0:
-            if byte == 0xFF:
-                time += 127
-            elif byte != 0xFE:
+            if atis:
+                if (byte & 0xFC) == 0xFC:
+                    time += 63 * (byte & 0x3)
+                    continue
+                time += byte >> 2
+                flags = byte & 0x3
+            else:
+                if byte == 0xFF:
+                    time += 127
+                    continue
+                if byte == 0xFE:
+                    continue
                 time += byte >> 1
-                on = byte & 1
-                step = 1
+                flags = (byte & 1) << 1
+            step = 1
         elif step == 1:
             cx = byte
             step = 2
@@ -203,15 +216,15 @@ def decode_es_dvs(data, width, height, state):
         else:
             cy |= byte << 8
             step = 0
-            if (cx >= width or cy >= height) and bad < 0:
-                bad = max(cx - width, cy - height) + max(width, height)
-            t[k] = time
-            x[k] = cx
-            y[k] = cy
-            p[k] = on
-            k += 1
-    state[0], state[1], state[2], state[3], state[4] = time, step, on, cx, cy
-    return t[:k], x[:k], y[:k], p[:k], bad
+            outside |= cx >= width or cy >= height
+            if (flags & 1) == 0:
+                t[k] = time
+                x[k] = cx
+                y[k] = cy
+                p[k] = flags >> 1
+                k += 1
+    state[0], state[1], state[2], state[3], state[4] = time, step, flags, cx, cy
+    return t[:k], x[:k], y[:k], p[:k], outside
 
 
 # ---------------------------------------------------------------- text
@@ -462,49 +475,3 @@ def has_kind(words, shift, kind):
         count += (words[i] >> shift) == kind
     return count > 0
 
-
-@njit(cache=True, nogil=True)
-def decode_es_atis(data, width, height, state):
-    """Event Stream 2.x ATIS bytes -> the change-detection events (t, x, y_stored, p, bad); exposure
-    measurements (threshold crossings) are skipped. A byte with its 6 high bits set adds 63 µs times
-    its 2 low bits; any other byte starts an event (t += byte >> 2, polarity = bit 1, threshold
-    crossing = bit 0) followed by x and y as little-endian uint16."""
-    n = data.shape[0]
-    t = np.empty(n // 5 + 1, np.int64)
-    x = np.empty(n // 5 + 1, np.uint16)
-    y = np.empty(n // 5 + 1, np.uint16)
-    p = np.empty(n // 5 + 1, np.uint8)
-    time, step, flags, cx, cy = state[0], state[1], state[2], state[3], state[4]
-    bad = -1
-    k = 0
-    for i in range(n):
-        byte = np.int64(data[i])
-        if step == 0:
-            if (byte & 0xFC) == 0xFC:
-                time += 63 * (byte & 0x3)
-            else:
-                time += byte >> 2
-                flags = byte & 0x3
-                step = 1
-        elif step == 1:
-            cx = byte
-            step = 2
-        elif step == 2:
-            cx |= byte << 8
-            step = 3
-        elif step == 3:
-            cy = byte
-            step = 4
-        else:
-            cy |= byte << 8
-            step = 0
-            if (cx >= width or cy >= height) and bad < 0:
-                bad = 1
-            if (flags & 1) == 0:
-                t[k] = time
-                x[k] = cx
-                y[k] = cy
-                p[k] = (flags >> 1) & 1
-                k += 1
-    state[0], state[1], state[2], state[3], state[4] = time, step, flags, cx, cy
-    return t[:k], x[:k], y[:k], p[:k], bad
