@@ -587,12 +587,9 @@ def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repe
     parameter added to both, in grid order.
 
     Every training of every point (points × folds × repeats) is one task of a single `run_tasks`
-    call, so a cluster works on all of them at once; each point is then scored by
-    `model.evaluate.cross_validate`, which finds its trainings in the cache (a temporary one when
-    `cache_dir` is None) and so scores exactly as `neurotac eval --cv` does.
+    call, so a cluster works on all of them at once; each point's trainings are then scored by
+    `model.evaluate.score_folds`, as `neurotac eval --cv` scores its own.
     """
-    import tempfile
-
     import pyarrow as pa
 
     from neurotac_cli import model as models
@@ -602,22 +599,19 @@ def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repe
 
     specs = [models.make_spec(model, **point) for point in points]  # refuses unknown names before any work
     data = shaping.sequences(frames)
-    tasks = []
-    for spec in specs:
-        tasks += cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)[1]
-    with tempfile.TemporaryDirectory(prefix="neurotac-study-") as scratch:
-        cache = cache_dir or scratch
-        run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
-                  label=f"{model} grid", shared={"frames": frames}, progress=progress)
-        parts, rows = [], []
-        for point, spec in zip(points, specs):
-            predictions, point_rows = evaluate.cross_validate(
-                frames, spec, cv, repeats=repeats, seed=seed, val_fraction=val_fraction, per=per, label=label,
-                nonzero=nonzero, per_trial=per_trial, cache=cache, progress=None)
-            for name, value in point.items():
-                predictions = predictions.append_column(name, pa.array([value] * predictions.num_rows))
-            parts.append(predictions)
-            rows.append((point, point_rows))
+    plans = [cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label) for spec in specs]
+    results = run_tasks(cross.run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
+                        scheduler=scheduler, cache_dir=cache_dir, label=f"{model} grid", shared={"frames": frames},
+                        progress=progress)
+    parts, rows, start = [], [], 0
+    for point, (groups, tasks) in zip(points, plans):
+        predictions, point_rows = evaluate.score_folds(results[start : start + len(tasks)], len(groups),
+                                                       nonzero=nonzero, per_trial=per_trial, label=label)
+        start += len(tasks)
+        for name, value in point.items():
+            predictions = predictions.append_column(name, pa.array([value] * predictions.num_rows))
+        parts.append(predictions)
+        rows.append((point, point_rows))
     merged = pa.concat_tables(parts, promote_options="permissive").replace_schema_metadata(parts[0].schema.metadata)
     return merged, rows
 

@@ -57,9 +57,15 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
         progress(f"cross-validation {cv}: {len(groups)} folds x {repeats} repeats = {len(tasks)} trainings of {spec['model']}")
     results = run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
                         label=f"{spec['model']} folds", shared={"frames": table})
+    return score_folds(results, len(groups), nonzero=nonzero, per_trial=per_trial, label=label)
+
+
+def score_folds(results: list, folds: int, *, nonzero=False, per_trial=True, label="material"):
+    """`cross_validate`'s predictions and rows from the results of `cv.run_fold` on the tasks of
+    `cv.fold_tasks` (in their order: repeat after repeat of `folds` folds)."""
     parts, per_fold = [], []
     for index, (predictions, validation) in enumerate(results):
-        repeat, fold = divmod(index, len(groups))
+        repeat, fold = divmod(index, folds)
         rows = score(predictions, nonzero=nonzero, per_trial=False, label=label)
         rows += [("all", name, float(value)) for name, value in validation.items()]
         per_fold.append(rows)
@@ -71,7 +77,7 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
     merged = merged.replace_schema_metadata(schema.metadata)
     rows = score(merged, nonzero=nonzero, per_trial=per_trial, label=label)
     for index, fold_rows in enumerate(per_fold):
-        repeat, fold = divmod(index, len(groups))
+        repeat, fold = divmod(index, folds)
         rows += [(f"fold:{repeat}/{fold}", metric, value) for scope, metric, value in fold_rows if scope == "all"]
     rows += metrics.fold_summary(per_fold)
     return merged, rows
