@@ -249,6 +249,13 @@ def section_text(parts) -> str:
     return "\n".join(part for part in parts if part is not None)
 
 
+def verdict(said, why) -> list:
+    """A chapter's closing paragraphs: what we found against the thesis (when anything was), then
+    where and why the numbers differ."""
+    compared = ["**Compared with the thesis:** " + "; ".join(said) + ".", ""] if said else []
+    return compared + ["**Where and why the numbers differ.** " + why, ""]
+
+
 # ------------------------------------------------------------------------------------------------
 # Chapter 3
 
@@ -369,18 +376,15 @@ def chapter3(folder, page, figures_dir, run) -> str:
         if force_only:
             gap = 100 * (value - get(force_only, "all", "accuracy"))
             said.append(f"{abs(gap):.1f} points {'above' if gap >= 0 else 'below'} the force-only classifier (thesis: 29.17 above)")
-    if said:
-        parts += ["**Compared with the thesis:** " + "; ".join(said) + ".", ""]
-    parts += [
-        "**Where and why the numbers differ.** The grasps are simulated (`neurotac simulate --preset ch3`):",
+    parts += verdict(said, "\n".join([
+        "The grasps are simulated (`neurotac simulate --preset ch3`):",
         "the simulator's membrane, DVS thresholds and noise are physical models with handbook parameters,",
         "not the thesis's rig, so event counts per newton and the spread between materials differ, and",
         "no FlexiForce hysteresis beyond the modelled one delays the reference. The thesis trained in",
         "MATLAB (scaled conjugate gradient, Levenberg-Marquardt, Bayesian-optimised GP) in double precision;",
         "we train with Adam in float32 and fit the GP by marginal likelihood with restarts. The thesis",
         "reports MSE with unit N; it is N² here." + first_frame_note(folder),
-        "",
-    ]
+    ]))
     return section_text(parts)
 
 
@@ -479,11 +483,9 @@ def chapter4(folder, page, figures_dir, run) -> str:
     sweep = layer_sweep(found)
     if sweep:
         parts += sweep_section(sweep, page, figures_dir)
+    models = {name: found[(name, ())] for name in CH4_MODELS if found.get((name, ()))}  # the leave-one-out studies run
     rows = []
-    for name in CH4_MODELS:
-        figures = found.get((name, ()))
-        if not figures:
-            continue
+    for name, figures in models.items():
         thesis = THESIS_TABLE_4_3.get(name)
         rows.append([
             name, f"{fmt(get(figures, 'all', 'mae'))} ({fmt(get(figures, 'all', 'mae_sd'))})",
@@ -501,10 +503,7 @@ def chapter4(folder, page, figures_dir, run) -> str:
             "",
         ]
     rows = []
-    for name in CH4_MODELS:
-        figures = found.get((name, ()))
-        if not figures:
-            continue
+    for name, figures in models.items():
         thesis = THESIS_TABLE_4_4.get(name)
         cells = [name]
         for i, phase in enumerate(PHASES):
@@ -517,9 +516,8 @@ def chapter4(folder, page, figures_dir, run) -> str:
             header += [f"{phase} MSE (σ)", "thesis"]
         parts += ["#### MSE per phase (thesis Table 4.4)", "", md_table(header, rows), ""]
     rows = []
-    for name in CH4_MODELS:
-        figures = found.get((name, ()))
-        if not figures or name == "tdnn":
+    for name, figures in models.items():
+        if name == "tdnn":
             continue
         thesis = THESIS_TABLE_4_5.get(name)
         cells = [name]
@@ -551,26 +549,25 @@ def chapter4(folder, page, figures_dir, run) -> str:
             "",
         ]
     parts.append(figure_link(page, figures_dir, "ch4-convlstm.png", "ConvLSTM: measured and estimated force, and per-phase scatter (thesis Fig. 4.5)"))
-    ours = {name: get(found.get((name, ())), "all", "mse") for name in THESIS_TABLE_4_3 if found.get((name, ()))}
+    ours = {name: get(models[name], "all", "mse") for name in THESIS_TABLE_4_3 if name in models}
+    said = []
     if ours:
         ranking = " < ".join(sorted(ours, key=ours.get))
         thesis_ranking = " < ".join(n for n in sorted(THESIS_TABLE_4_3, key=lambda n: THESIS_TABLE_4_3[n][2]) if n in ours)
-        said = [f"by overall MSE our models rank {ranking} (thesis: {thesis_ranking})"]
+        said.append(f"by overall MSE our models rank {ranking} (thesis: {thesis_ranking})")
         if "convlstm" in ours:
             said.append(f"our ConvLSTM's {fmt(ours['convlstm'])} N² is {ratio(ours['convlstm'], 0.145)} the thesis's 0.145")
         if held and "convlstm" in ours:
             said.append(f"on the unseen 12 mm bolt it scores {fmt(get(held, 'all', 'mse'))} N², "
                         f"{ratio(get(held, 'all', 'mse'), ours['convlstm'])} its leave-one-out error (thesis: 0.159 against 0.145)")
-        parts += ["**Compared with the thesis:** " + "; ".join(said) + ".", ""]
-    parts += [
-        "**Where and why the numbers differ.** Simulated grasps of 8, 12 and 16 mm bolts",
+    parts += verdict(said, "\n".join([
+        "Simulated grasps of 8, 12 and 16 mm bolts",
         "(`simulate --preset ch4`) replace the Baxter recordings: the simulated Nano17 reference carries",
         "only the vibration and membrane relaxation the simulator models, and its event counts per",
         "newton follow the simulator's DVS model, not the thesis's camera settings. The networks are the",
         "thesis's architectures in PyTorch (float32, CPU) rather than Keras on a GPU; MSE is in N² (the",
         "thesis writes N)." + first_frame_note(folder),
-        "",
-    ]
+    ]))
     return section_text(parts)
 
 
@@ -631,26 +628,25 @@ def chapter5(folder, page, figures_dir, run) -> str:
     parts.append(figure_link(page, figures_dir, "ch5-methods.png", "MSE per augmentation method, mean ± σ over seeds (thesis Figs. 5.6, 5.7, 5.11)"))
     parts.append(figure_link(page, figures_dir, "ch5-tes.png", "Temporal event shifting: MSE by shift j and share ζ (thesis Fig. 5.8)"))
     augmented_only = [n for n in order if n != "none"]
+    said = []
     if augmented_only and baseline == baseline:
         best = min(augmented_only, key=lambda n: results[n][0])
         better = [n for n in augmented_only if results[n][0] < baseline]
-        said = [f"our best method is {CH5_LABELS.get(best, ch5_method(best).upper())} at {fmt(results[best][0])} N², "
+        said += [f"our best method is {CH5_LABELS.get(best, ch5_method(best).upper())} at {fmt(results[best][0])} N², "
                 f"{(results[best][0] / baseline - 1) * 100:+.0f}% against no augmentation (thesis: FS-1, 5.51 against 7.89, -30%)",
                 f"{len(better)} of {len(augmented_only)} methods lower the error (thesis: every method it reports, the hybrid least, 7.20 against 7.89)"]
         if "independent" in results and "hybrid" in results:
             ind, hyb = results["independent"][0], results["hybrid"][0]
             said.append(f"independent combination {'beats' if ind < hyb else 'does not beat'} hybrid, "
                         f"{fmt(ind)} against {fmt(hyb)} (thesis: 5.71 against 7.20)")
-        parts += ["**Compared with the thesis:** " + "; ".join(said) + ".", ""]
-    parts += [
-        "**Where and why the numbers differ.** The 60 grasps are simulated (`simulate --preset ch5`:",
+    parts += verdict(said, "\n".join([
+        "The 60 grasps are simulated (`simulate --preset ch5`:",
         "bolts of 12, 15 and 18 mm, 8–25 N, two gripper settings, an 8 mm shore-50A membrane). The",
         "thesis attributes its 5.5–7.9 error over 0–25 N to the elastomer's elasticity and the DVS",
         "threshold; the simulator models its membrane's saturation (set at 30 N for this preset) and",
         "its DVS pixels with their own parameters, so absolute errors differ and the ranking of the",
         "methods is the comparable part. MSE is in N² (the thesis writes N)." + first_frame_note(folder, shifts=True),
-        "",
-    ]
+    ]))
     return section_text(parts)
 
 
