@@ -315,10 +315,8 @@ def conform(batch, kind: str):
     return batch
 
 
-def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True,
-                 backward_us: int = 0):
-    """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked; steps back of at
-    most `backward_us` are allowed, as some cameras write them)."""
+def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):
+    """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked)."""
     place = f" in {where}" if where else ""
     if sensor is not None and len(x):
         width, height = sensor
@@ -332,8 +330,8 @@ def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sen
         raise SchemaError(f"polarity{place} must be 0 (OFF) or 1 (ON), found {int(p.max())}")
     if sorted_time and len(t) > 1:
         steps = np.diff(t)
-        if steps.min() < -backward_us:
-            first = int(np.argmax(steps < -backward_us)) + 1
+        if steps.min() < 0:
+            first = int(np.argmax(steps < 0)) + 1
             raise SchemaError(
                 f"event time goes backwards{place} at row {first} ({int(t[first - 1])} -> {int(t[first])} µs); "
                 "sort the events by time"
