@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.commands.study import GRID_HELP
+from neurotac_cli.commands.study import GRID_HELP, fold_options
 from neurotac_cli.commands.train import FORCE, MATERIAL, hyperparameter_options, hyperparameters, progress_printer
 from neurotac_cli.options import input_paths, output_option, seed_option, study_options
 
@@ -17,12 +17,7 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
 @click.option("--grid", "grid", multiple=True, metavar="NAME=VALUES",
               help="With --cv: cross-validate --model-spec at every point of this grid, as `neurotac study` does "
               "(metrics get one column per grid parameter; stderr one line per point). " + GRID_HELP)
-@click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True, help="With --cv: repeat every fold with this many seeds (thesis 10).")
-@click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
-              help="With --cv: validation share of each fold's training trials, drawn per --val-per value (thesis: one per size).")
-@click.option("--val-per", default=None, metavar="LABEL",
-              help="With --cv: label whose values each get validation trials [default: object for force models, the class label for classifiers].")
-@click.option("--label", default="material", show_default=True, help="Classifiers: the label column.")
+@fold_options(prefix="With --cv: ")
 @click.option("--metrics", "metrics_path", type=click.Path(dir_okay=False), default=None, help="Write the metrics table (scope, metric, value, model) to this file.")
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=True, show_default=True, help="Add one metrics scope per trial.")

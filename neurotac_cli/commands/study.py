@@ -12,6 +12,31 @@ GRID_HELP = ("Hyperparameters to vary, as train's option names with _ for -: lay
              "in one quoted argument; a single value fixes a parameter (epochs=30), as does its option (--epochs 30).")
 
 
+def fold_options(prefix: str = ""):
+    """--repeats, --val-fraction, --val-per, --label: how `neurotac study` and `eval --cv` train each fold
+    (`prefix` starts the help of those that apply to --cv only, e.g. "With --cv: ")."""
+
+    def text(words: str) -> str:
+        return prefix + words if prefix else words[0].upper() + words[1:]
+
+    def decorate(function):
+        for option in reversed([
+            click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True,
+                         help=text("train every fold with this many seeds (thesis 10).")),
+            click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
+                         help=text("validation share of each fold's training trials, drawn per --val-per value "
+                                   "(thesis: one per size).")),
+            click.option("--val-per", default=None, metavar="LABEL",
+                         help=text("label whose values each get validation trials [default: object for force models, "
+                                   "the class label for classifiers].")),
+            click.option("--label", default="material", show_default=True, help="Classifiers: the label column."),
+        ]):
+            function = option(function)
+        return function
+
+    return decorate
+
+
 def run_grid(paths, output, model, grid, fixed, cv, repeats, val_fraction, val_per, label, nonzero, per_trial,
              metrics_path, jobs, scheduler, cache, seed, command="study"):
     """Read frames, cross-validate `model` at every grid point, write the out-of-fold predictions to
@@ -43,13 +68,7 @@ def run_grid(paths, output, model, grid, fixed, cv, repeats, val_fraction, val_p
 @hyperparameter_options
 @click.option("--cv", default="loo", show_default=True, metavar="loo|kfold:K|group:LABEL[=VALUE]",
               help="Folds, as in `neurotac eval --cv`.")
-@click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Train every fold with this many seeds (thesis 10).")
-@click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
-              help="Validation share of each fold's training trials, drawn per --val-per value.")
-@click.option("--val-per", default=None, metavar="LABEL",
-              help="Label whose values each get validation trials [default: the class label for classifiers, object for force models].")
-@click.option("--label", default="material", show_default=True, help="Classifiers: the label column.")
+@fold_options()
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=False, show_default=True, help="Add one metrics scope per trial and point.")
 @click.option("--metrics", "metrics_path", type=click.Path(dir_okay=False), default=None,
