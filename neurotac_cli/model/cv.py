@@ -82,8 +82,9 @@ def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fra
 def validation_figures(model, train_table: pa.Table) -> dict:
     """The fold's validation score: its early-stopping trials predicted by the trained model, i.e. at
     the restored best epoch. Force models: `val_mse` (N², every frame with a measured force, as the
-    early stopping watched it); classifiers: `val_accuracy`. Also `epochs` trained and `best_epoch`
-    (NaN where no validation or no gradient training). Thesis Tables 3.1 and 3.3, Fig. 4.4(a)."""
+    early stopping watched it); classifiers: `val_accuracy`; NaN without validation trials. Also
+    `epochs` trained and `best_epoch`, from the training curve (the GP's one-row curve: 1 and 0).
+    Thesis Tables 3.1 and 3.3, Fig. 4.4(a)."""
     from neurotac_cli import metrics
     from neurotac_cli import model as models
 
