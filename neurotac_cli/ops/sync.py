@@ -285,22 +285,27 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod) -> Instant:
     if not np.any(slope) or rate.std() == 0:
         raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
     rising = (slope > 0).astype(np.float64)
+    falling = 1.0 - rising
     peak_force = max(float(np.percentile(force, 99)), 1e-12)
     candidates = [tuple(method.sensor_lag_us)] if method.sensor_lag_us is not None else [
         (rise, fall) for rise in XCORR_SENSOR_LAGS_US for fall in XCORR_SENSOR_LAGS_US
     ]
+    # the rate through each time constant, and its sums for each side: once per tau, not per (rise, fall) pair
     lagged = {tau: _first_order_lag(rate, tau, bin_us) for tau in {tau for pair in candidates for tau in pair}}
+    on_rise = {rise: _SensorSide(lagged[rise], rising) for rise in {pair[0] for pair in candidates}}
+    on_fall = {fall: _SensorSide(lagged[fall], falling) for fall in {pair[1] for pair in candidates}}
     lags = np.arange(-len(grid) + 1, len(rate))
     overlap = np.minimum(len(rate), lags + len(grid)) - np.maximum(0, lags)
     valid = overlap >= len(grid) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
+    # the force the sensor was following, y + tau dy/dt smoothed, is linear in the taus: its parts are smoothed once
+    smoothed = [gaussian_filter1d(part, 8 * smooth) for part in (force, slope * rising / bin_us, slope * falling / bin_us)]
     fits = []
     for rise, fall in candidates:
         target = np.abs(slope)
         if method.saturation > 0:
-            # the force the sensor was following: its reading plus tau times its slope
-            followed = gaussian_filter1d(force + np.where(slope > 0, rise, fall) / bin_us * slope, 8 * smooth)
+            followed = smoothed[0] + rise * smoothed[1] + fall * smoothed[2]
             target = target / (1.0 + np.clip(followed, 0, None) / (method.saturation * peak_force))
-        corr = _pearson_by_lag(lagged[rise], lagged[fall], rising, target)
+        corr = _pearson_by_lag(overlap, on_rise[rise], on_fall[fall], target)
         corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
         best = int(np.argmax(corr))
         fits.append((float(corr[best]), rise, fall, best, corr))
@@ -345,22 +350,31 @@ def _first_order_lag(signal: np.ndarray, tau_us: float, bin_us: int) -> np.ndarr
     return filtered
 
 
-def _pearson_by_lag(rise: np.ndarray, fall: np.ndarray, rising: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pearson correlation, for every lag L, of a[L + j] with b[j] over their overlap, where
-    a[L + j] = rise[L + j] if rising[j] else fall[L + j] (the sensor's state is read on b's clock).
-    Every sum is a cross-correlation (FFT): rising is 0/1, so a² and a·b split the same way."""
+def _xc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """sum over j of u[L + j] v[j], for every lag L from -len(v) + 1 to len(u) - 1 (FFT)."""
     from scipy.signal import correlate
 
-    def xc(u, v):
-        return correlate(u, v, mode="full", method="fft")
+    return correlate(u, v, mode="full", method="fft")
 
-    falling = 1.0 - rising
-    ones_a, ones_b = np.ones(len(rise)), np.ones(len(b))
-    n = np.rint(xc(ones_a, ones_b))
-    s_a = xc(rise, rising) + xc(fall, falling)
-    s_aa = xc(rise * rise, rising) + xc(fall * fall, falling)
-    s_ab = xc(rise, rising * b) + xc(fall, falling * b)
-    s_b, s_bb = xc(ones_a, b), xc(ones_a, b * b)
+
+class _SensorSide:
+    """The event rate through one time constant, read where the sensor is in that state (mask, 0/1
+    on the force's clock), with its sums for every lag, which do not depend on the force side."""
+
+    def __init__(self, rate: np.ndarray, mask: np.ndarray):
+        self.rate, self.mask = rate, mask
+        self.s_a, self.s_aa = _xc(rate, mask), _xc(rate * rate, mask)
+
+
+def _pearson_by_lag(n: np.ndarray, rise: _SensorSide, fall: _SensorSide, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation, for every lag L, of a[L + j] with b[j] over their overlap (n values), where
+    a[L + j] = rise.rate[L + j] if rise.mask[j] else fall.rate[L + j] (the sensor's state is read on b's
+    clock). Every sum is a cross-correlation (FFT): the masks are 0/1 and complementary, so a, a² and
+    a·b split by side."""
+    ones = np.ones(len(rise.rate))
+    s_a, s_aa = rise.s_a + fall.s_a, rise.s_aa + fall.s_aa
+    s_ab = _xc(rise.rate, rise.mask * b) + _xc(fall.rate, fall.mask * b)
+    s_b, s_bb = _xc(ones, b), _xc(ones, b * b)
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = s_ab - s_a * s_b / n
         var = (s_aa - s_a * s_a / n) * (s_bb - s_b * s_b / n)
