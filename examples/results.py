@@ -13,16 +13,16 @@ import argparse
 import hashlib
 import os
 import pathlib
-import re
 import shutil
 import subprocess
 import sys
 import time
 
+from chapters import PHASES, md_table, replace_section  # beside this script
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-START, END = "<!-- results:issue6:start -->", "<!-- results:issue6:end -->"
+SECTION, TITLE = "issue6", "Models of this toolkit against the thesis's (issue 6)"
 FORCE_MODELS = ["tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours"]
-PHASES = ["grasping", "holding", "releasing"]
 
 
 def neurotac():
@@ -77,6 +77,22 @@ def fmt(value, digits=3):
     return "-" if value is None or value != value else f"{value:.{digits}f}"
 
 
+def errors(m) -> list:
+    """The MAE (σ) and MSE (σ) cells of a force table."""
+    return [f"{fmt(m.get(('all', e)))} ({fmt(m.get(('all', f'{e}_sd')))})" for e in ("mae", "mse")]
+
+
+def spread(m, metric) -> str:
+    """`mean ± σ` of a metric over folds or seeds."""
+    return f"{fmt(m.get(('all', f'{metric}_fold_mean')))} ± {fmt(m.get(('all', f'{metric}_fold_sd')))}"
+
+
+def accuracy(m) -> list:
+    """The accuracy and per-fold `mean ± σ` cells (%) of a classifier."""
+    return [fmt(100 * m[("all", "accuracy")], 1),
+            f"{fmt(100 * m[('all', 'accuracy_fold_mean')], 1)} ± {fmt(100 * m[('all', 'accuracy_fold_sd')], 1)}"]
+
+
 HELD_OUT = {
     # preset: (crop and pool, held-out object, the sentence describing the data set and the split)
     "ch4": ("--size 116x116 --center auto --pool 4x4", "bolt12",
@@ -108,22 +124,22 @@ def held_out_section(work, preset, repeats, timing) -> list:
         "Non-zero force only (thesis 4.6). Figures pooled over seeds; `± σ` is the standard deviation over seeds.",
         "Wall times: `neurotac eval` on a 2-core CPU shared with other jobs (indicative only).",
         "",
-        "| Network | MAE (σ) N | MSE (σ) N² | RMSE N | RMSE % range | R² | RMSE over seeds | wall time |",
-        "|---|---|---|---|---|---|---|---|",
+        md_table(["Network", "MAE (σ) N", "MSE (σ) N²", "RMSE N", "RMSE % range", "R²", "RMSE over seeds", "wall time"],
+                 [[name, *errors(m), fmt(m.get(("all", "rmse"))), fmt(m.get(("all", "rmse_pct_range")), 1), fmt(m.get(("all", "r2"))),
+                   spread(m, "rmse"), f"{timing.get(f'{preset}-{name}', float('nan')):.0f} s"] for name, m in results.items()]),
+        "",
+        "Per phase, MSE (N²) and σ (standard deviation of the squared error):",
+        "",
+        md_table(["Network", *(cell for p in PHASES for cell in (f"{p} MSE", "σ"))],
+                 [[name, *(fmt(m.get((f"phase:{p}", metric))) for p in PHASES for metric in ("mse", "mse_sd"))]
+                  for name, m in results.items()]),
+        "",
+        "Per phase, Bhattacharyya distance D_B and DTW distance D_W (N), averaged over test grasps:",
+        "",
+        md_table(["Network", *(cell for p in PHASES for cell in (f"{p} D_B", "D_W"))],
+                 [[name, *(fmt(m.get((f"phase:{p}", metric))) for p in PHASES for metric in ("bhattacharyya", "dtw"))]
+                  for name, m in results.items()]),
     ]
-    for name, m in results.items():
-        lines.append(
-            f"| {name} | {fmt(m.get(('all', 'mae')))} ({fmt(m.get(('all', 'mae_sd')))}) | {fmt(m.get(('all', 'mse')))} ({fmt(m.get(('all', 'mse_sd')))}) "
-            f"| {fmt(m.get(('all', 'rmse')))} | {fmt(m.get(('all', 'rmse_pct_range')), 1)} | {fmt(m.get(('all', 'r2')))} "
-            f"| {fmt(m.get(('all', 'rmse_fold_mean')))} ± {fmt(m.get(('all', 'rmse_fold_sd')))} | {timing.get(f'{preset}-{name}', float('nan')):.0f} s |")
-    lines += ["", "Per phase, MSE (N²) and σ (standard deviation of the squared error):", "",
-              "| Network | " + " | ".join(f"{p} MSE | σ" for p in PHASES) + " |", "|---|" + "---|---|" * len(PHASES)]
-    for name, m in results.items():
-        lines.append(f"| {name} | " + " | ".join(f"{fmt(m.get((f'phase:{p}', 'mse')))} | {fmt(m.get((f'phase:{p}', 'mse_sd')))}" for p in PHASES) + " |")
-    lines += ["", "Per phase, Bhattacharyya distance D_B and DTW distance D_W (N), averaged over test grasps:", "",
-              "| Network | " + " | ".join(f"{p} D_B | D_W" for p in PHASES) + " |", "|---|" + "---|---|" * len(PHASES)]
-    for name, m in results.items():
-        lines.append(f"| {name} | " + " | ".join(f"{fmt(m.get((f'phase:{p}', 'bhattacharyya')))} | {fmt(m.get((f'phase:{p}', 'dtw')))}" for p in PHASES) + " |")
     ours, conv = results["ours"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
     if ours and conv:
         lines += ["", f"Ours against the ConvLSTM on the unseen size: RMSE {ours:.3f} N vs {conv:.3f} N, "
@@ -144,15 +160,11 @@ def trials_section(work, repeats, timing) -> list:
         "",
         "Same frames; 3 folds over the 35 grasps (every size in training), non-zero force only; `± σ` over folds.",
         "",
-        "| Network | MAE (σ) N | MSE (σ) N² | RMSE N | R² | RMSE per fold | wall time |",
-        "|---|---|---|---|---|---|---|",
+        md_table(["Network", "MAE (σ) N", "MSE (σ) N²", "RMSE N", "R²", "RMSE per fold", "wall time"],
+                 [[name, *errors(m), fmt(m.get(("all", "rmse"))), fmt(m.get(("all", "r2"))), spread(m, "rmse"),
+                   f"{timing.get(f'ch4-kfold-{name}', float('nan')):.0f} s"] for name, m in results.items()]),
+        "",
     ]
-    for name, m in results.items():
-        lines.append(
-            f"| {name} | {fmt(m.get(('all', 'mae')))} ({fmt(m.get(('all', 'mae_sd')))}) | {fmt(m.get(('all', 'mse')))} ({fmt(m.get(('all', 'mse_sd')))}) "
-            f"| {fmt(m.get(('all', 'rmse')))} | {fmt(m.get(('all', 'r2')))} | {fmt(m.get(('all', 'rmse_fold_mean')))} ± {fmt(m.get(('all', 'rmse_fold_sd')))} "
-            f"| {timing.get(f'ch4-kfold-{name}', float('nan')):.0f} s |")
-    lines.append("")
     return lines
 
 
@@ -170,11 +182,11 @@ def latency_section() -> list:
     rows = []
     for module, name in [(convlstm, "convlstm"), (ours, "ours")]:
         latency = _latencies(_model(module, name), frames)
-        rows.append(f"| {name} | {np.percentile(latency, 50):.2f} | {np.percentile(latency, 99):.2f} |")
+        rows.append([name, f"{np.percentile(latency, 50):.2f}", f"{np.percentile(latency, 99):.2f}"])
     return ["### Streaming latency per 10 ms frame", "",
             "`neurotac predict`'s per-frame work (Arrow batch of one frame in, one recurrent step, Arrow batch out),",
             "115x115 frames, one CPU thread, 380 frames after 20 warm-up frames, on the shared 2-core machine:", "",
-            "| model | p50 ms | p99 ms |", "|---|---|---|", *rows, ""]
+            md_table(["model", "p50 ms", "p99 ms"], rows), ""]
 
 
 def material_section(work, quick, repeats, timing) -> list:
@@ -199,23 +211,21 @@ def material_section(work, quick, repeats, timing) -> list:
         "10% of each fold's training grasps per material for early stopping. Accuracy (%) on the held-out grasps of the",
         "thesis DNN (k layers x n sigmoid units on the 2 x 30 accumulation curves):",
         "",
-        "| k \\ n | " + " | ".join(f"n={n}" for n in units) + " |",
-        "|---|" + "---|" * len(units),
+        md_table(["k \\ n", *(f"n={n}" for n in units)],
+                 [[f"k={k}", *(fmt(100 * grid[(k, n)], 1) if grid[(k, n)] is not None else "-" for n in units)] for k in layers]),
     ]
-    for k in layers:
-        lines.append(f"| k={k} | " + " | ".join(fmt(100 * grid[(k, n)], 1) if grid[(k, n)] is not None else "-" for n in units) + " |")
     best = max((v for v in grid.values() if v is not None), default=float("nan"))
     lines += [
         "",
         "Deep sigmoid stacks (k >= 4) stay near chance (25%): with Adam at 1e-3 and early stopping after 20",
         "epochs they stop before leaving the sigmoid plateau (the thesis trained with scaled conjugate gradient).",
         "",
-        "| Classifier | accuracy % | per-fold mean ± σ % |",
-        "|---|---|---|",
-        f"| thesis DNN, k=2 n=30 | {fmt(100 * thesis[('all', 'accuracy')], 1)} | {fmt(100 * thesis[('all', 'accuracy_fold_mean')], 1)} ± {fmt(100 * thesis[('all', 'accuracy_fold_sd')], 1)} |",
-        f"| thesis DNN, best of the grid | {fmt(100 * best, 1)} | |",
-        f"| force only (piezo baseline) | {fmt(100 * force[('all', 'accuracy')], 1)} | {fmt(100 * force[('all', 'accuracy_fold_mean')], 1)} ± {fmt(100 * force[('all', 'accuracy_fold_sd')], 1)} |",
-        f"| ours (material-ours) | {fmt(100 * ours[('all', 'accuracy')], 1)} | {fmt(100 * ours[('all', 'accuracy_fold_mean')], 1)} ± {fmt(100 * ours[('all', 'accuracy_fold_sd')], 1)} |",
+        md_table(["Classifier", "accuracy %", "per-fold mean ± σ %"], [
+            ["thesis DNN, k=2 n=30", *accuracy(thesis)],
+            ["thesis DNN, best of the grid", fmt(100 * best, 1), ""],
+            ["force only (piezo baseline)", *accuracy(force)],
+            ["ours (material-ours)", *accuracy(ours)],
+        ]),
         "",
         "Recall per class, ours: " + ", ".join(f"{c} {fmt(100 * ours[(f'class:{c}', 'recall')], 0)}%" for c in ("foam", "rubber", "silicone", "steel") if (f"class:{c}", "recall") in ours),
         "",
@@ -227,13 +237,8 @@ def material_section(work, quick, repeats, timing) -> list:
 
 def write_section(lines: list):
     path = ROOT / "docs" / "results.md"
-    text = path.read_text() if path.exists() else "# Results\n\n"
-    block = START + "\n## Models of issue 6: force and materials\n\n" + "\n".join(lines) + "\n" + END
-    if START in text and END in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    path.write_text(text)
+    text = path.read_text() if path.exists() else "# Reproduced results\n"
+    path.write_text(replace_section(text, SECTION, "\n".join(lines), title=TITLE))
     print(f"wrote {path}", file=sys.stderr)
 
 

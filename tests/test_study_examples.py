@@ -172,3 +172,21 @@ def test_chapter4_layer_sweep_table_and_figure(tmp_path):
     assert "| 2 | **0.300 ± 0.030** | 0.600 | 0.700 ± 0.070 | 1.400 |" in text
     assert "convlstm 2 layers (thesis 4), lstm 4 layers (thesis 6)" in text
     assert (figures / "ch4-layers.png").stat().st_size > 1000 and "ch4-layers.png" in text
+
+
+def test_issue6_section_is_written_once_under_one_heading(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(EXAMPLES))  # results.py renders with chapters.py's helpers
+    results = load("results")
+    monkeypatch.setattr(results, "ROOT", tmp_path)
+    (tmp_path / "docs").mkdir()
+    page = tmp_path / "docs" / "results.md"
+    page.write_text(PAGE)
+    results.write_section(["### Latency", "", results.md_table(["model", "p50 ms"], [["ours", "0.59"]]), ""])
+    text = page.read_text()
+    assert "engineer E's table" not in text and "\nold\n" in text  # only its own section replaced
+    assert "<!-- results:issue6:start -->\n### Latency\n\n| model | p50 ms |\n|---|---|\n| ours | 0.59 |\n<!-- results:issue6:end -->" in text
+    page.write_text("# Reproduced results\n")
+    results.write_section(["### Latency"])
+    results.write_section(["### Latency"])
+    text = page.read_text()
+    assert text.count("## Models of this toolkit against the thesis's (issue 6)") == 1 and text.count("### Latency") == 1
