@@ -132,13 +132,11 @@ def _plan_one(config, rng, material, shape, labels, peak, index) -> Grasp:
     angle = rng.uniform(0, 2 * np.pi)
     settle = rng.uniform(0, 2 * np.pi)
     drift = rng.uniform(0, 2 * np.pi)
-    extra_labels = labels
-    labels = {"material": material, "object": shape.name, "size_mm": shape.size_label, **labels}
     return Grasp(
-        trial="-".join([material, shape.name, *extra_labels.values(), f"{index:02d}"]),
+        trial="-".join([material, shape.name, *labels.values(), f"{index:02d}"]),
         material=material,
         shape=shape,
-        labels=labels,
+        labels={"material": material, "object": shape.name, "size_mm": shape.size_label, **labels},
         peak_force_n=float(peak),
         contact_us=contact,
         loaded_us=loaded,
