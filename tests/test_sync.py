@@ -175,18 +175,22 @@ def test_trigger_and_offset_methods():
 # ---------------------------------------------------------------- simulated grasps
 
 
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory):
+def simulate_folders(tmp_path_factory, name, runs):
+    """`neurotac simulate --out` once per entry of runs ({folder name: simulate arguments}), in a fresh
+    temporary folder: {folder name: path}."""
     if shutil.which("neurotac", path=f"{BIN}:{os.environ['PATH']}") is None:
         pytest.skip("neurotac is not installed")
-    out = tmp_path_factory.mktemp("sim")
-    runs = {}
-    for name, extra in (("plain", []), ("noisy", ["--background-rate", "0.2"])):
-        folder = out / name
-        done = run(["simulate", "--preset", "ch4", "--trials", "3", "--seed", "7", "--out", str(folder), *extra])
+    out = tmp_path_factory.mktemp(name)
+    for folder, args in runs.items():
+        done = run(["simulate", *args, "--out", str(out / folder)])
         assert done.returncode == 0, done.stderr.decode()[-300:]
-        runs[name] = folder
-    return runs
+    return {folder: out / folder for folder in runs}
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    ch4 = ["--preset", "ch4", "--trials", "3", "--seed", "7"]
+    return simulate_folders(tmp_path_factory, "sim", {"plain": ch4, "noisy": [*ch4, "--background-rate", "0.2"]})
 
 
 def true_instants(folder):
@@ -288,16 +292,9 @@ XCORR_PRESET_TRIALS = 4
 
 @pytest.fixture(scope="module")
 def presets(tmp_path_factory):
-    if shutil.which("neurotac", path=f"{BIN}:{os.environ['PATH']}") is None:
-        pytest.skip("neurotac is not installed")
-    out = tmp_path_factory.mktemp("presets")
-    folders = {}
-    for preset in ("ch3", "ch4", "ch5"):
-        folder = out / preset
-        done = run(["simulate", "--preset", preset, "--trials", str(XCORR_PRESET_TRIALS), "--seed", "1", "--out", str(folder)])
-        assert done.returncode == 0, done.stderr.decode()[-300:]
-        folders[preset] = folder
-    return folders
+    return simulate_folders(tmp_path_factory, "presets", {
+        preset: ["--preset", preset, "--trials", str(XCORR_PRESET_TRIALS), "--seed", "1"] for preset in ("ch3", "ch4", "ch5")
+    })
 
 
 def xcorr_errors(folder, **options):
