@@ -18,7 +18,7 @@ from neurotac_cli import model as models
 from neurotac_cli import tables
 from neurotac_cli.model import cv as cross
 from neurotac_cli.model import data as shaping
-from neurotac_cli.study import _grid_values, _one_thread
+from neurotac_cli.study import _one_thread, parse_grid
 
 
 def main(argv=None):
@@ -32,10 +32,7 @@ def main(argv=None):
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="hyperparameters (as --grid, one value each)")
     parser.add_argument("--epochs", type=int, default=None, help="cap the epochs (seconds per epoch of a long training)")
     args = parser.parse_args(argv)
-    options = {}
-    for item in args.set:
-        name, _, text = item.partition("=")
-        options[name] = _grid_values(name, text)[0]
+    options = parse_grid(args.set)[0]  # the grid's grammar; a name with several values takes its first
     if args.epochs:
         options["epochs"] = args.epochs
     spec = models.make_spec(args.model, **options)
