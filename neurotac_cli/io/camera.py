@@ -20,6 +20,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, NeurotacError
+from neurotac_cli.tables import is_terminal
 
 CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
 
@@ -176,8 +177,6 @@ def _local_path(path) -> tuple[str, Callable[[], None]]:
             raise InputError(f"{path}: permission denied")
         return str(path), lambda: None
     source = getattr(sys.stdin, "buffer", sys.stdin)
-    from neurotac_cli.tables import is_terminal
-
     if source is None or is_terminal(source):
         raise InputError("no input: give a camera file, or pipe one into stdin")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
