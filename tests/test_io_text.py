@@ -147,7 +147,7 @@ def test_long_numbers_with_only_zeros_beyond_int64_are_fine(tmp_path):
     end=st.sampled_from(["", "\n", "\r\n"]),
 )
 def test_text_times_equal_exact_decimal_arithmetic(rows, digits, style, separator, end):
-    """The compiled parser against Python's Decimal: t scaled by 10**digits, rounded half up."""
+    """The compiled parser against Python's Decimal: t scaled by 10**digits, rounded half away from zero."""
     from decimal import ROUND_HALF_UP, Decimal
 
     from neurotac_cli.io import kernels
