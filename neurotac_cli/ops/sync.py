@@ -403,6 +403,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     p = _column(table, "p", np.uint8)
     logs = source.force
     count = len(logs)
+    forces = [condition_force(log, method.median_us) for log in logs]
     if method.method == "led":
         instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
     elif method.method == "trigger":
@@ -414,8 +415,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     else:
         if count > 1:
             raise SyncError(f"--method xcorr aligns one force trace, but the force log holds {count} trials; split the log")
-        conditioned = condition_force(logs[0], method.median_us)
-        instants = [xcorr_instant(t, x, y, logs[0].t, conditioned, method)]
+        instants = [xcorr_instant(t, x, y, logs[0].t, forces[0], method)]
     order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
     if order is not None:
         t, x, y, p = t[order], x[order], y[order], p[order]
@@ -427,7 +427,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         bounds.append(min(end, following.t0))
     cuts = [0] + [int(np.searchsorted(t, bound)) for bound in bounds] + [len(t)]
     trials, info = [], {}
-    for i, (instant, log) in enumerate(zip(instants, logs)):
+    for i, (instant, log, values) in enumerate(zip(instants, logs, forces)):
         name = source.trial if count == 1 else (log.trial or f"{source.trial}-{i + 1:02d}")
         a, b = cuts[i], cuts[i + 1]
         led_end = instant.details.get("led_end_us")
@@ -436,7 +436,6 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
             a_led = max(a, int(np.searchsorted(t, led_end)))
             instant.details["led_events_removed"] = a_led - a
             a = a_led
-        values = condition_force(log, method.median_us)
         trials.append(
             {
                 "trial": name,
