@@ -59,6 +59,9 @@ def test_tab_separated_text(tmp_path):
         ("# c\n0.1 1 2 1\n0.2 1 2 1\nnan 1 2 1\n", 4),
         ("t,x,y,p\n10,1,2,1\n10.5,1,2,1\n", 3),
         ("t,x,y,p\n10,-1,2,1\n", 2),
+        ("t,x,y,p\n10,1,2,1\n12 34,1,2,1\n", 3),
+        ("t,x,y,p\n10,1,2,1\n10,1 5,2,1\n", 3),
+        ("t,x,y,p\n10,1,2,1\n10,1e ,2,1\n", 3),
     ],
 )
 def test_a_bad_row_is_reported_with_its_line_number(tmp_path, text, line):
