@@ -86,8 +86,8 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     header = _read_header(path, head)
     chip = chip_of(header)
     declared = sensor_line(header) or sensor_of_chip(chip)
+    offset = len(header)
     if is_dvs128(chip):
-        offset = len(header)
 
         def dvs128_chunks():
             for block in read_chunks(path, offset, RECORD):
@@ -100,7 +100,6 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
             f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
             "(give it with --sensor WxH, e.g. --sensor 240x180)"
         )
-    offset = len(header)
 
     from neurotac_cli.io import kernels
 
