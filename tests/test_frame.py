@@ -111,6 +111,23 @@ def test_streamed_frames_equal_whole_frames_with_a_small_buffer(monkeypatch):
     assert np.array_equal(counts_of(streamed), fr.count_frames(t, x, y, p, 5_000, n, H, W, start=int(t[0])))
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), gaps=st.lists(st.integers(0, 80_000), min_size=0, max_size=4),
+       batch=st.sampled_from([1, 37, 500, 10_000]), frames=st.integers(2, 5))
+def test_reused_buffers_hold_no_stale_counts_across_gaps_and_batch_sizes(seed, gaps, batch, frames):
+    # frames are zeroed lazily as events reach them; buffers dropped downstream come back full of old counts
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(fr, "BUFFER_CELLS", 2 * H * W * frames)
+        t, x, y, p = random_events(seed, n=3000, span=300_000)
+        for position, gap in zip(np.random.default_rng(seed).integers(0, 3000, len(gaps)), gaps):
+            t[position:] += gap  # runs of empty windows, some longer than the buffer
+        table = sch.events_table(t, x, y, p, W, H)
+        schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=batch), fr.Framing(window_us=5_000),
+                                          fr.FramingReport())
+        streamed = np.concatenate([counts_of(pa.Table.from_batches([b])).copy() for b in batches])
+    assert np.array_equal(streamed, fr.count_frames(t, x, y, p, 5_000, len(streamed), H, W, start=int(t[0])))
+
+
 def test_buffers_are_reused_only_once_downstream_lets_go_of_their_frames(monkeypatch):
     monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 4)
     t, x, y, p = random_events(4, n=20_000, span=900_000)
@@ -150,7 +167,7 @@ def test_saturation_holds_at_65535_and_is_counted_in_both_kernels():
         if kernel is None:
             inside, saturated = fr.bin_into(t, x, y, p, 0, 10_000, 0, out)
         else:
-            inside, saturated, *_ = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out)
+            inside, saturated, *_ = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out, 1)
         assert out[0, 1, 2, 3] == 65535 and inside == n and saturated == n - 65535
 
 
@@ -161,7 +178,7 @@ def test_numpy_fallback_equals_compiled_kernel(seed, first):
     a = np.zeros((6, 2, H, W), np.uint16)
     b = np.zeros((6, 2, H, W), np.uint16)
     ra = fr.scan_into(t, x, y, p, 0, 10_000, first, a)
-    rb = fr._scan_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b)
+    rb = fr._scan_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b, 6)
     assert ra == rb and np.array_equal(a, b)
 
 
