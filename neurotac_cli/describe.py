@@ -192,12 +192,31 @@ class _Rows:
         self.has_trial = "trial" in schema.names
         self.trials = set()
         self.metrics = []
+        # predictions: force estimates against the measured force, classes against the true labels
+        self.force = self.kind == "predictions" and {"force", "force_pred"} <= set(schema.names)
+        self.squared = self.absolute = 0.0
+        self.scored = 0
+        self.classes = {name[: -len("_pred")]: [0, 0] for name in schema.names
+                        if self.kind == "predictions" and name.endswith("_pred") and name != "force_pred"
+                        and name[: -len("_pred")] in schema.names}
 
     def add(self, batch):
         if self.has_trial:
             self.trials.update(batch.column("trial").to_pylist())
         if self.kind == "metrics" and len(self.metrics) < 200:
             self.metrics += batch.slice(0, 200 - len(self.metrics)).to_pylist()
+        if self.force:
+            force = batch.column("force").to_numpy(zero_copy_only=False).astype(np.float64)
+            error = batch.column("force_pred").to_numpy(zero_copy_only=False).astype(np.float64) - force
+            known = np.isfinite(error)
+            self.squared += float(np.sum(error[known] ** 2))
+            self.absolute += float(np.sum(np.abs(error[known])))
+            self.scored += int(known.sum())
+        for name, counts in self.classes.items():
+            truth, guess = batch.column(name).to_pylist(), batch.column(f"{name}_pred").to_pylist()
+            known = [(t, g) for t, g in zip(truth, guess) if t is not None]
+            counts[0] += sum(t == g for t, g in known)
+            counts[1] += len(known)
 
     def result(self):
         out = {}
@@ -205,6 +224,12 @@ class _Rows:
             out["trials"] = len(self.trials)
         if self.kind == "metrics":
             out["metrics"] = self.metrics
+        if self.force and self.scored:
+            out["force_error"] = {"frames": self.scored, "rmse_n": (self.squared / self.scored) ** 0.5,
+                                  "mae_n": self.absolute / self.scored}
+        scored = {name: {"correct": c, "trials": n} for name, (c, n) in self.classes.items() if n}
+        if scored:
+            out["accuracy"] = scored
         return out
 
 
@@ -273,6 +298,11 @@ def format_text(info: dict) -> str:
         add("triggers", f"{t['count']:,}" + (f" ({', '.join(t['types'])})" if t["types"] else ""))
     if info.get("sync"):
         add("sync", _compact(info["sync"]))
+    if info.get("force_error"):
+        e = info["force_error"]
+        add("force error", f"RMSE {e['rmse_n']:.4g} N, MAE {e['mae_n']:.4g} N over {e['frames']:,} frames (force_pred - force)")
+    for name, a in (info.get("accuracy") or {}).items():
+        add(f"{name} accuracy", f"{100 * a['correct'] / a['trials']:.1f}% ({a['correct']} of {a['trials']} with a known {name})")
     for name, values in (info.get("labels") or {}).items():
         add(f"label {name}", ", ".join(map(str, values)) if values else "(none)")
     if info.get("per_trial"):

@@ -6,7 +6,15 @@ from neurotac_cli.errors import NeurotacError
 from neurotac_cli.units import parse_duration_us, parse_size
 
 
-class Duration(click.ParamType):
+class ParamType(click.ParamType):
+    """A parameter type whose name is shown in help as written: click upper-cases a type's name
+    (`WxH` -> `WXH`, `N|longest` -> `N|LONGEST`), which then reads as a value the type refuses."""
+
+    def get_metavar(self, param, ctx=None):
+        return self.name
+
+
+class Duration(ParamType):
     """A duration with its unit (`10ms`, `500us`, `1.5s`), as integer microseconds."""
 
     name = "DURATION"
@@ -20,7 +28,7 @@ class Duration(click.ParamType):
             self.fail(str(error), param, ctx)
 
 
-class Size(click.ParamType):
+class Size(ParamType):
     """`WIDTHxHEIGHT`, as a (width, height) tuple."""
 
     name = "WxH"
@@ -34,7 +42,7 @@ class Size(click.ParamType):
             self.fail(str(error), param, ctx)
 
 
-class KeyValue(click.ParamType):
+class KeyValue(ParamType):
     """`name=value`, as a (name, value) tuple."""
 
     name = "NAME=VALUE"

@@ -234,7 +234,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
                     count += batch.num_rows
                     yield batch
         if count == 0 and not allow_empty:
-            raise InputError(f"input {found or 'table'} is empty (no rows); did the command before it fail?")
+            raise InputError(f"input {found + ' table' if found else 'table'} has no rows (an empty recording, or the command before it failed)")
 
     return Input(schema=schema, batches=batches(), kind=found)
 
@@ -314,6 +314,17 @@ def output_format(path: str) -> str:
     return SUFFIXES[suffix]
 
 
+
+def temporary_beside(directory: str) -> str:
+    """A new empty file in `directory` to write into and then rename over the target (an atomic
+    write), with the permissions a file the shell creates gets (mkstemp's are 0600)."""
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
+    os.close(handle)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)
+    return temporary
+
 def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
     """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
 
@@ -341,8 +352,7 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
     directory = os.path.dirname(os.path.abspath(output))
     if not os.path.isdir(directory):
         raise NeurotacError(f"cannot write {output}: folder {directory} does not exist")
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
-    os.close(handle)
+    temporary = temporary_beside(directory)
     try:
         if fmt == "parquet":
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")

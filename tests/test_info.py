@@ -90,6 +90,18 @@ def test_predictions_and_metrics(tmp_path):
     assert "all  mse  0.17" in info_cli(tmp_path, metrics)
 
 
+def test_predictions_are_scored_against_the_truth_they_carry(tmp_path):
+    force = pa.table({"trial": ["a", "a", "b", "b"], "force": pa.array([1.0, 2.0, 0.0, 4.0], pa.float32()),
+                      "force_pred": pa.array([1.5, 2.0, 0.0, 3.5], pa.float32())})
+    force = force.replace_schema_metadata(sch.set_meta(force.schema, kind="predictions").metadata)
+    error = described(force)["force_error"]
+    assert error["frames"] == 4 and np.isclose(error["rmse_n"], np.sqrt(0.5 / 4)) and np.isclose(error["mae_n"], 0.25)
+    classes = pa.table({"trial": ["a", "b", "c"], "material": ["foam", "steel", None], "material_pred": ["foam", "foam", "steel"]})
+    classes = classes.replace_schema_metadata(sch.set_meta(classes.schema, kind="predictions").metadata)
+    assert described(classes)["accuracy"] == {"material": {"correct": 1, "trials": 2}}
+    assert "material accuracy 50.0% (1 of 2 with a known material)" in info_cli(tmp_path, classes)
+
+
 def test_a_camera_file_is_decoded_and_described(tmp_path):
     result = CliRunner().invoke(cli, ["info", str(real_file("prophesee_vga_faery.evt2.raw")), "--json"], catch_exceptions=False)
     assert result.exit_code == 0, result.output

@@ -35,6 +35,15 @@ def test_every_format_round_trips_with_metadata(tmp_path, suffix):
     assert schema.get_meta(back.schema, schema.HISTORY)[-1]["command"] == "test"
 
 
+def test_written_files_get_the_permissions_the_umask_gives(tmp_path):
+    old = os.umask(0o027)
+    try:
+        path = write_to(tmp_path / "e.arrows", events())
+    finally:
+        os.umask(old)
+    assert oct(path.stat().st_mode & 0o777) == oct(0o640)  # not mkstemp's 0600
+
+
 def test_several_paths_are_one_table_in_order(tmp_path):
     a, b = events(50, seed=1), events(70, seed=2)
     pa_, pb = write_to(tmp_path / "a.parquet", a), write_to(tmp_path / "b.arrows", b)
@@ -112,7 +121,7 @@ def test_a_table_with_no_rows_is_refused_unless_allowed(tmp_path):
 
 def test_wrong_kind_and_mistyped_columns_are_refused(tmp_path):
     path = write_to(tmp_path / "e.arrows", events())
-    with pytest.raises(SchemaError, match="expected a frames table, got 'events'.*neurotac frame"):
+    with pytest.raises(SchemaError, match="expected a frames table, got an? events table.*neurotac frame"):
         tables.read([str(path)], kind="frames")
     bad = pa.table({"t": pa.array(["a"]), "x": pa.array([1], pa.uint16()), "y": pa.array([1], pa.uint16()), "p": pa.array([1], pa.uint8())})
     pq.write_table(bad, tmp_path / "bad.parquet")

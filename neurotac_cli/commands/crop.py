@@ -1,9 +1,9 @@
 import click
 
-from neurotac_cli.options import Size, input_paths, output_option
+from neurotac_cli.options import ParamType, Size, input_paths, output_option
 
 
-class IntTuple(click.ParamType):
+class IntTuple(ParamType):
     def __init__(self, count: int, example: str, name: str):
         self.count, self.example, self.name = count, example, name
 
@@ -21,7 +21,7 @@ class IntTuple(click.ParamType):
         return parts
 
 
-class Pool(click.ParamType):
+class Pool(ParamType):
     name = "KxL|all"
 
     def convert(self, value, param, ctx):

@@ -1,9 +1,9 @@
 import click
 
-from neurotac_cli.options import Duration, Size, input_paths, output_option
+from neurotac_cli.options import Duration, ParamType, Size, input_paths, output_option
 
 
-class PadTo(click.ParamType):
+class PadTo(ParamType):
     name = "N|longest"
 
     def convert(self, value, param, ctx):

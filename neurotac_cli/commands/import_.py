@@ -36,4 +36,13 @@ def command(paths, output, sensor, fmt):
 
     schema, batches = import_files(paths, sensor=sensor, fmt=fmt)
     args = {"files": list(paths), "sensor": f"{sensor[0]}x{sensor[1]}" if sensor else None, "format": fmt}
-    tables.write(output, batches, schema=schema, step=("import", args))
+    rows = [0]
+
+    def counted():
+        for batch in batches:
+            rows[0] += batch.num_rows
+            yield batch
+
+    tables.write(output, counted(), schema=schema, step=("import", args))
+    if not rows[0]:
+        click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)

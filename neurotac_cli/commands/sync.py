@@ -1,9 +1,9 @@
 import click
 
-from neurotac_cli.options import Duration, KeyValue, Size, output_option
+from neurotac_cli.options import Duration, KeyValue, ParamType, Size, output_option
 
 
-class Region(click.ParamType):
+class Region(ParamType):
     name = "X,Y,W,H"
 
     def convert(self, value, param, ctx):
@@ -18,7 +18,7 @@ class Region(click.ParamType):
         return parts
 
 
-class SensorLag(click.ParamType):
+class SensorLag(ParamType):
     """RISE[,FALL]: the force sensor's first-order time constants, loading and unloading."""
 
     name = "RISE[,FALL]"

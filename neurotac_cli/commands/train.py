@@ -54,11 +54,16 @@ def validation_options(function):
     return function
 
 
-def progress_printer():
-    """Progress on stderr: every message on a terminal (overwriting epoch lines), every 25th epoch otherwise."""
+def progress_printer(every: int = 25, quiet_s: float = 30.0):
+    """Progress on stderr: every message on a terminal (overwriting epoch lines); otherwise the first
+    epoch, every 25th, and any epoch that ends 30 s or more after the last line shown (a slow model
+    shows it is alive), besides every message that is not an epoch line."""
+    import time
+
     from neurotac_cli.tables import is_terminal
 
     interactive = is_terminal(sys.stderr)
+    shown = [time.monotonic()]
 
     def show(message: str):
         if " epoch " in message:
@@ -66,11 +71,12 @@ def progress_printer():
             if interactive:
                 click.echo("\r" + message[:150].ljust(150), err=True, nl=False)
                 return
-            if epoch % 25:
+            if epoch != 1 and epoch % every and time.monotonic() - shown[0] < quiet_s:
                 return
         elif interactive:
             click.echo("", err=True)
         click.echo(message, err=True)
+        shown[0] = time.monotonic()
 
     return show
 

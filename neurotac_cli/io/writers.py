@@ -6,7 +6,6 @@ pointing up, so the row (origin top-left) is written as y = height - 1 - row.
 """
 
 import os
-import tempfile
 
 import numpy as np
 
@@ -51,11 +50,12 @@ def write_aedat2(path, t, x, y, p, width: int = 240, height: int = 180) -> None:
     """Write events (t µs, x, row from the top, p: 1 = ON) as AEDAT 2.0, atomically (temp file + rename)."""
     data = aedat2_bytes(t, x, y, p, width, height)
     directory = os.path.dirname(os.path.abspath(path))
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
+    from neurotac_cli.tables import temporary_beside
+
+    temporary = temporary_beside(directory)
     try:
-        with os.fdopen(handle, "wb") as sink:
+        with open(temporary, "wb") as sink:
             sink.write(data)
-        os.chmod(temporary, 0o644)
         os.replace(temporary, path)
     finally:
         if os.path.exists(temporary):

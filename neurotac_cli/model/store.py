@@ -4,9 +4,9 @@ arrays and JSON, builds the network from the header's config, and never executes
 import dataclasses
 import json
 import os
-import tempfile
 
 from neurotac_cli.errors import ModelError
+from neurotac_cli.tables import temporary_beside
 
 HEADER_KEY = "neurotac"
 
@@ -20,8 +20,7 @@ def save(model, path: str):
         raise ModelError(f"cannot write {path}: folder {directory} does not exist")
     tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
     header = json.dumps(model.header(), sort_keys=True, default=_json_default)
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
-    os.close(handle)
+    temporary = temporary_beside(directory)
     try:
         save_file(tensors, temporary, metadata={HEADER_KEY: header})
         os.replace(temporary, path)

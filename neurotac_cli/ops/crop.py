@@ -81,10 +81,10 @@ class CropReport:
     def warnings(self, threshold: float) -> list[str]:
         lines = []
         if self.cut and self.share_cut > threshold:
-            lines.append(
-                f"the crop cut away {self.cut} of {self.kept + self.cut} {self.unit} ({100 * self.share_cut:.1f}%); "
-                "check the box against `neurotac info`, or use --center auto"
-            )
+            advice = ("the activity is spread wider than the box (a real scene, not a membrane?): give a larger --size, "
+                      "or --box from `neurotac info`" if self.center_from == "auto"
+                      else "check the box against `neurotac info`, or use --center auto")
+            lines.append(f"the crop cut away {self.cut} of {self.kept + self.cut} {self.unit} ({100 * self.share_cut:.1f}%); {advice}")
         return lines
 
 
