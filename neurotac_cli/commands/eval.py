@@ -33,7 +33,8 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 
     Force models: MSE (N²), RMSE, MAE, RMSE as % of the force range, σ, R², overall and per phase,
     with DTW and Bhattacharyya distances per phase (definitions in docs/commands/eval.md).
-    Classifiers: accuracy, per-class recall and the confusion matrix.
+    Classifiers: accuracy, per-class recall and the confusion matrix. Model-spec defaults:
+    "(thesis X)" is the thesis's setting and the default; "(default X)" is ours where it gives none.
 
     \b
         neurotac eval --model force.model --metrics m.parquet --plot force.png < test.arrows > pred.arrows

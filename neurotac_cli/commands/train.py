@@ -101,6 +101,9 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     object; a trial and its augmented copies always stay on one side (a split that separates them is
     refused). Normalisation is fitted on the training trials only.
 
+    Defaults: "(thesis X)" is the thesis's setting and the default; "(default X)" is ours where the
+    thesis gives none.
+
     \b
         neurotac simulate --preset ch4 --seed 1 --synced | neurotac frame --window 10ms \\
           | neurotac crop --size 115x115 --center auto | neurotac train --model ours -o force.model
