@@ -52,13 +52,19 @@ class LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except NeurotacError as error:
-            _fail(f"neurotac {ctx.invoked_subcommand}: error: {error}")
+            _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:
             _quiet_exit()
         except KeyboardInterrupt:
-            _fail(f"neurotac {ctx.invoked_subcommand}: interrupted", code=130)
+            _fail(f"{_who(ctx)}: interrupted", code=130)
         except MemoryError:
-            _fail(f"neurotac {ctx.invoked_subcommand}: error: out of memory (process the input in smaller pieces)")
+            _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces)")
+
+
+def _who(ctx) -> str:
+    """`neurotac CMD` for messages; the subcommand is not known to click yet while its module loads."""
+    name = ctx.invoked_subcommand or next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
+    return f"neurotac {name}" if name else "neurotac"
 
 
 def _fail(message: str, code: int = 1):

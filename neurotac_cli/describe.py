@@ -308,8 +308,10 @@ def format_text(info: dict) -> str:
     if info.get("per_trial"):
         lines.append("")
         lines.append("per trial:")
-        for row in info["per_trial"][:TRIALS_SHOWN]:
-            parts = [str(row["trial"])]
+        shown = info["per_trial"][:TRIALS_SHOWN]
+        id_width = max(len(str(row["trial"])) for row in shown)
+        for row in shown:
+            parts = [str(row["trial"]).ljust(id_width)]
             if "frames" in row:
                 parts.append(f"{row['frames']} frames")
             if "events" in row:

@@ -133,3 +133,16 @@ def test_crop_command_records_the_auto_centre_in_history(tmp_path):
     done = subprocess.run(["neurotac", "crop", "--box", "0,0,4,4", "--warn-above", "0.5", str(source), "-o", str(tmp_path / "d.arrows")],
                           capture_output=True, env=env)
     assert done.returncode == 0 and b"warning: the crop cut away" in done.stderr
+
+
+def test_a_box_past_a_sensor_guessed_from_the_events_says_how_to_give_the_size(tmp_path):
+    t, x, y, p = np.arange(50), np.arange(50) % 20, np.arange(50) % 15, np.arange(50) % 2
+    events = sch.events_table(t, x, y, p, 20, 15)
+    events = events.replace_schema_metadata(sch.set_meta(events.schema, **{"source": {"format": "dat", "sensor_from": "events"}}).metadata)
+    source = tmp_path / "e.arrows"
+    tables.write(str(source), events)
+    env = {**os.environ, "PATH": f"{os.path.dirname(sys.executable)}:{os.environ['PATH']}"}
+    done = subprocess.run(["neurotac", "crop", "--size", "32x32", "--center", "10,7", str(source)], capture_output=True, env=env)
+    lines = done.stderr.decode().strip().splitlines()
+    assert done.returncode == 1 and len(lines) == 1
+    assert "larger than the 20x15 input" in lines[0] and "neurotac import --sensor WxH" in lines[0]

@@ -53,7 +53,8 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
         neurotac crop --size 140x150 --center auto --pool 2x2 < frames.arrows > small.arrows
         neurotac frame --window 7ms --accumulate < rec.arrows | neurotac crop --pool all > ch3.arrows
     """
-    from neurotac_cli import tables
+    from neurotac_cli import schema as sch, tables
+    from neurotac_cli.errors import NeurotacError
     from neurotac_cli.ops import crop as cr
 
     spec = cr.CropSpec(box=box, size=size, center=center, pool=pool)
@@ -62,17 +63,24 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
     args = {"box": list(box) if box else None, "size": list(size) if size else None,
             "center": center if center in (None, "auto") else list(center),
             "pool": pool if pool in (None, "all") else list(pool)}
-    if source.kind == "events" and center != "auto":  # a plain events stream: cropped batch by batch
-        schema = source.schema
-        crop_box = cr.resolve_box(spec, sensor or cr._sensor(schema))
-        report.box = list(crop_box) if crop_box else None
-        schema, batches = cr.crop_events_batches(schema, source.batches, crop_box, pool, report, sensor=sensor)
-        args["report"] = "streamed: the count of cut events is written to stderr"
-        tables.write(output, batches, step=("crop", args), schema=schema)
-        click.echo(f"neurotac crop: cut {report.cut} of {report.kept + report.cut} events", err=True)
-    else:
-        table = cr.crop_table(source.read_all(), spec, report, sensor=sensor)
-        args["report"] = report.as_dict()
-        tables.write(output, table, step=("crop", args))
+    try:
+        if source.kind == "events" and center != "auto":  # a plain events stream: cropped batch by batch
+            schema = source.schema
+            crop_box = cr.resolve_box(spec, sensor or cr._sensor(schema))
+            report.box = list(crop_box) if crop_box else None
+            schema, batches = cr.crop_events_batches(schema, source.batches, crop_box, pool, report, sensor=sensor)
+            args["report"] = "streamed: the count of cut events is written to stderr"
+            tables.write(output, batches, step=("crop", args), schema=schema)
+            click.echo(f"neurotac crop: cut {report.cut} of {report.kept + report.cut} events", err=True)
+        else:
+            table = cr.crop_table(source.read_all(), spec, report, sensor=sensor)
+            args["report"] = report.as_dict()
+            tables.write(output, table, step=("crop", args))
+    except NeurotacError as error:
+        camera = sch.get_meta(source.schema, "neurotac:source") or {}
+        if sensor is None and isinstance(camera, dict) and camera.get("sensor_from") == "events" and ("larger than" in str(error) or "reaches past" in str(error)):
+            raise NeurotacError(f"{error} (that size is the events' extent, the camera file does not give it: "
+                                "give the sensor's size to `neurotac import --sensor WxH`)") from None
+        raise
     for line in report.warnings(warn_above):
         click.echo(f"neurotac crop: warning: {line}", err=True)
