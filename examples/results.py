@@ -62,7 +62,7 @@ def frames(work: pathlib.Path, preset: str, pipeline: str) -> pathlib.Path:
 def evaluate(work, data, tag, args: str, timing: dict):
     """`neurotac eval ARGS < DATA`, kept in WORK under the tag and a digest of the arguments (a change of
     seeds or settings runs again)."""
-    key = f"{tag}-{hashlib.sha1(args.encode()).hexdigest()[:8]}"
+    key = f"{tag}-{hashlib.sha1(args.replace(str(ROOT), '<checkout>').encode()).hexdigest()[:8]}"  # any clone reuses it
     out = work / f"{key}.metrics.parquet"
     seconds_file = work / f"{key}.seconds"
     if not out.exists():
