@@ -1,5 +1,6 @@
 """`ours`'s coarse spatial layout is `--layout-grid` (it was `--grid`, now the study grid of eval):
-the option, the spec field, and model files written under the old name all still work."""
+the option, the spec field, and model files written under the old name all still work; so do files
+written before the depth-level features existed."""
 
 import json
 
@@ -41,6 +42,26 @@ def test_a_model_file_written_with_the_old_field_name_loads(tmp_path):
     save_file(load_file(str(path)), str(old), metadata={"neurotac": json.dumps(header)})
     loaded = models.load(str(old))
     assert loaded.config.layout_grid == 2
+
+
+def test_a_model_file_written_before_the_depth_levels_loads_and_predicts_the_same(tmp_path):
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("ours", levels=0, epochs=1), val_fraction=0.25)
+    path = tmp_path / "new.model"
+    models.save(model, str(path))
+    with safe_open(str(path), framework="pt") as handle:
+        header = json.loads(handle.metadata()["neurotac"])
+    del header["architecture"]["levels"]  # the header and tensors of a file from before the field
+    tensors = {name: tensor for name, tensor in load_file(str(path)).items() if name != "level_unit"}
+    old = tmp_path / "old.model"
+    save_file(tensors, str(old), metadata={"neurotac": json.dumps(header)})
+    loaded = models.load(str(old))
+    assert loaded.config.levels == 0
+    expected = models.predict_table(model, frames).column("force_pred")
+    assert models.predict_table(loaded, frames).column("force_pred").equals(expected)
 
 
 def test_the_spec_field_is_layout_grid():

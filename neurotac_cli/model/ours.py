@@ -33,6 +33,7 @@ from neurotac_cli.model.base import ForceNet
 
 # Model files written before the rename name `layout_grid` `grid` (store.load reads them).
 RENAMED_FIELDS = {"grid": "layout_grid"}
+ADDED_FIELDS = {"levels": 0}  # a file written before a field existed: the value that meant its absence
 
 
 @dataclass(frozen=True)
@@ -126,6 +127,10 @@ class Net(ForceNet):
         out, h = self.gru(x, state["h"])
         new["h"] = h
         return self.head(out).squeeze(-1), new
+
+    def prepare_for(self, tensors: dict):
+        if "level_unit" not in tensors:  # a file written before the depth levels: unused there (levels 0)
+            tensors["level_unit"] = self.level_unit.clone()
 
     def calibrate(self, counts, t_s):
         depths = [np.cumsum(c[:, 0].astype(np.float32) - c[:, 1], axis=0).ravel() for c in counts]

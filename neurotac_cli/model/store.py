@@ -81,6 +81,8 @@ def load(path: str):
     # Config fields renamed since a file was written keep loading under their new names.
     renamed = getattr(module, "RENAMED_FIELDS", {})
     architecture = {renamed.get(k, k): v for k, v in header["architecture"].items()}
+    for field, absent in getattr(module, "ADDED_FIELDS", {}).items():  # fields added since
+        architecture.setdefault(field, absent)
     config = config_type(**{k: v for k, v in architecture.items() if k in known})
     spec = header["input"]
     if header["task"] == "material":
