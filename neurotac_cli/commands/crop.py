@@ -53,7 +53,7 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
         neurotac crop --size 140x150 --center auto --pool 2x2 < frames.arrows > small.arrows
         neurotac frame --window 7ms --accumulate < rec.arrows | neurotac crop --pool all > ch3.arrows
     """
-    from neurotac_cli import schema as sch, tables
+    from neurotac_cli import tables
     from neurotac_cli.errors import NeurotacError
     from neurotac_cli.ops import crop as cr
 
@@ -77,10 +77,17 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
             args["report"] = report.as_dict()
             tables.write(output, table, step=("crop", args))
     except NeurotacError as error:
-        camera = sch.get_meta(source.schema, "neurotac:source") or {}
-        if sensor is None and isinstance(camera, dict) and camera.get("sensor_from") == "events" and ("larger than" in str(error) or "reaches past" in str(error)):
+        if sensor is None and _size_guessed(source.schema) and ("larger than" in str(error) or "reaches past" in str(error)):
             raise NeurotacError(f"{error} (that size is the events' extent, the camera file does not give it: "
                                 "give the sensor's size to `neurotac import --sensor WxH`)") from None
         raise
     for line in report.warnings(warn_above):
         click.echo(f"neurotac crop: warning: {line}", err=True)
+
+
+def _size_guessed(schema) -> bool:
+    """Whether the input's sensor size was read off the events' extent (a camera file that lacks it)."""
+    from neurotac_cli import schema as sch
+
+    camera = sch.get_meta(schema, "neurotac:source") or {}
+    return isinstance(camera, dict) and camera.get("sensor_from") == "events"

@@ -58,6 +58,7 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
     """Progress on stderr: every message on a terminal (overwriting epoch lines); otherwise the first
     epoch, every 25th, and any epoch that ends 30 s or more after the last line shown (a slow model
     shows it is alive), besides every message that is not an epoch line."""
+    import re
     import time
 
     from neurotac_cli.tables import is_terminal
@@ -66,8 +67,9 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
     shown = [time.monotonic()]
 
     def show(message: str):
-        if " epoch " in message:
-            epoch = int(message.split(" epoch ")[1].split()[0])
+        line = re.match(r"\S+: epoch (\d+) ", message)  # `fit`'s per-epoch line
+        if line:
+            epoch = int(line.group(1))
             if interactive:
                 click.echo("\r" + message[:150].ljust(150), err=True, nl=False)
                 return
