@@ -125,9 +125,10 @@ def scan_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarra
     these windows (of which `saturated` could not be, the pixel being at 65535), events before
     `start`, events of windows before `first` (late), events of windows past the buffer (beyond),
     the largest window index seen (-1 for none), and how many leading frames of `out` now hold counts.
-    Frames from `zeroed` on (by default none: all of `out` holds counts) hold garbage and are zeroed when an event first reaches
-    them (and every frame before it), so each is written while it is in the cache: framing a long
-    stream is bound by memory traffic, and zeroing a buffer ahead of time reads it from memory twice.
+    Frames from `zeroed` on (by default none: all of `out` holds counts) hold garbage and are zeroed
+    when an event first reaches them (and every frame before it), so each is written while it is in
+    the cache: framing a long stream is bound by memory traffic, and zeroing a buffer ahead of time
+    reads it from memory twice.
     Coordinates must lie inside the sensor and p in {0, 1}.
     """
     zeroed = out.shape[0] if zeroed is None else int(zeroed)
