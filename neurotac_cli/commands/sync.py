@@ -49,7 +49,7 @@ class SensorLag(ParamType):
 @click.option("--label", "labels", type=KeyValue(), multiple=True, help="A label of the trial, NAME=VALUE (repeatable): --label material=foam.")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="CSV with one row per recording: trial,events,force,<labels> (paths relative to it); true_* columns are ignored.")
 @click.option("--method", type=click.Choice(["led", "trigger", "offset", "xcorr"]), default="led", show_default=True,
-              help="led: LED-off spike of OFF events; trigger: AEDAT4 external triggers; offset: a known offset; xcorr: event rate vs |dF/dt|.")
+              help="led: LED-off spike of OFF events; trigger: AEDAT4 external triggers; offset: a known offset; xcorr: event rate vs |dF/dt| (the signed rate, OFF minus ON, vs dF/dt where the force sensor is slow to unload).")
 @click.option("--offset", type=Duration(), default=None, help="With --method offset: the camera time of the force log's zero, e.g. 1523.4ms.")
 @click.option("--region", type=Region(), default=None, help="Look for the LED (or the activity, for xcorr) only in this box X,Y,W,H.")
 @click.option("--latency", type=Duration(), default=None, help="The camera's delay: led, from LED switch-off to the OFF spike's onset [default: 170us]; xcorr, of the event "
