@@ -246,7 +246,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default="results-work", help="folder for frames and metrics (reused when present)")
     parser.add_argument("--repeats", type=int, default=3, help="seeds per force configuration")
-    parser.add_argument("--material-repeats", type=int, default=2, help="seeds per material configuration")
+    parser.add_argument("--material-repeats", type=int, default=10, help="seeds per material configuration (thesis 10)")
     parser.add_argument("--quick", action="store_true", help="a 2x2 DNN grid instead of 6x6")
     args = parser.parse_args()
     work = pathlib.Path(args.work)
