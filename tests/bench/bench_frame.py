@@ -5,7 +5,8 @@ Run on demand (not part of `make test`):
     .venv/bin/python -m pytest -q -s tests/bench/bench_frame.py -o addopts=""
     .venv/bin/python tests/bench/bench_frame.py            # the same, as a script
 
-Each tool gets the input it is made for and produces dense (frames, 2, 180, 240) counts:
+Each tool gets the input it is made for and produces dense (frames, 2, 180, 240) counts; each is
+called once untimed, then timed (best of three; evlib once):
 - neurotac: an Arrow events table in memory, fed to `frame_events` (the streaming path of `neurotac frame`)
   in batches of BATCH_EVENTS = 65,536 events, as `neurotac import` writes them to a pipe, and framed
   into Arrow frames batches (uint16 fixed-shape tensors); the same table as one batch is timed too;
@@ -41,6 +42,11 @@ def make_events(n, seed=0):
 
 
 def best_of(function, repeats=2):
+    """The shortest of `repeats` timed calls, after one untimed call. The warm-up matters on a virtual
+    machine: the first time a process touches fresh memory the host supplies it too, which made the
+    tool that happened to run first up to 2x slower (measured: neurotac's first three runs 0.29 s,
+    the next 0.12 s)."""
+    function()
     times, result = [], None
     for _ in range(repeats):
         start = time.perf_counter()
