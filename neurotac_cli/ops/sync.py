@@ -285,10 +285,12 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Inst
     if len(times) < 100 or len(force_t) < 10:
         raise SyncError("too few events or force samples to cross-correlate (need activity during the grasp)")
     origin = int(times.min())
-    rate = np.bincount((times - origin) // bin_us).astype(np.float64)
+    bins = (times - origin) // bin_us
+    rate = np.bincount(bins).astype(np.float64)
     # blinks and flicker: bins far above their surroundings are set to the surroundings' level
     local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
-    rate = gaussian_filter1d(np.where(rate > 10 * (local + 3), local, rate), smooth)
+    burst = rate > 10 * (local + 3)
+    rate = gaussian_filter1d(np.where(burst, local, rate), smooth)
     grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
     force = gaussian_filter1d(np.interp(grid, force_t, force_v), smooth)
     slope = np.gradient(force)  # N per bin
@@ -296,7 +298,7 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Inst
         raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
     fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
     signal = "rate"
-    signed_rate = None if p is None else _signed_rate(t[keep], x[keep], y[keep], p[keep], origin, len(rate), bin_us)
+    signed_rate = None if p is None else _signed_rate(bins, x[keep], y[keep], p[keep], burst)
     if signed_rate is not None:
         # the signed rate, OFF - k ON on the pixels that darken and recover, follows signed dF/dt, where
         # loading (darkening) and unloading (brightening) cannot be mistaken for each other; it is kept
@@ -331,20 +333,16 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Inst
     )
 
 
-def _signed_rate(t, x, y, p, origin: int, bins: int, bin_us: int):
+def _signed_rate(index, x, y, p, burst):
     """OFF - k ON events per bin on the pixels that both darken and recover (>= 2 OFF, >= 1 ON): the
-    membrane's darkening rate. Bursts (a blink: bins ten times above their surroundings, with their
-    neighbours) are left out; k balances the two polarities over the recording (the thresholds
-    differ). None when there is no such pixel."""
-    from scipy.ndimage import median_filter
-
-    index = (t - origin) // bin_us
-    total = np.bincount(index, minlength=bins).astype(np.float64)[:bins]
-    local = median_filter(total, size=(50_000 // bin_us) | 1, mode="nearest")
-    burst = total > 10 * (local + 3)
+    membrane's darkening rate. `index`: each event's bin; `burst`: the bins of a blink or flicker
+    (xcorr's rate), left out with their neighbours; k balances the two polarities over the recording
+    (the thresholds differ). None when there is no such pixel."""
+    bins = len(burst)
+    burst = burst.copy()
     burst[1:] |= burst[:-1].copy()
     burst[:-1] |= burst[1:].copy()
-    calm = ~burst[np.minimum(index, bins - 1)]
+    calm = ~burst[index]
     pixel = y.astype(np.int64) * 65536 + x
     _, owner = np.unique(pixel[calm], return_inverse=True)
     is_off = p[calm] == 0
