@@ -26,7 +26,6 @@ import pathlib
 import pickle
 import re
 import sys
-import tempfile
 import time
 from typing import Callable
 
@@ -398,18 +397,14 @@ class _Cache:
             return False, None  # unreadable entry: run the task again
 
     def put(self, key: str, value) -> None:
+        from neurotac_cli.tables import atomic_file
+
         target = self.path(key)
         target.parent.mkdir(parents=True, exist_ok=True)
-        handle = tempfile.NamedTemporaryFile(dir=target.parent, prefix=f".{key}.", suffix=".tmp", delete=False)
-        try:
-            with handle:
-                pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.replace(handle.name, target)
-        except BaseException:
-            pathlib.Path(handle.name).unlink(missing_ok=True)
-            raise
+        with atomic_file(str(target)) as temporary, open(temporary, "wb") as handle:
+            pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
+            handle.flush()
+            os.fsync(handle.fileno())
 
     def keys(self) -> set[str]:
         return {path.stem for path in self.folder.glob("*/*.pkl")}

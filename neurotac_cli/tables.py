@@ -12,6 +12,7 @@ import io
 import os
 import sys
 import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator
 
@@ -314,16 +315,23 @@ def output_format(path: str) -> str:
     return SUFFIXES[suffix]
 
 
-
-def temporary_beside(directory: str) -> str:
-    """A new empty file in `directory` to write into and then rename over the target (an atomic
-    write), with the permissions a file the shell creates gets (mkstemp's are 0600)."""
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=directory)
+@contextmanager
+def atomic_file(path: str):
+    """A temporary file beside `path` to write into: it replaces `path` when the block ends without
+    an error and is removed when it fails, so a failed run never leaves a half-written file that
+    looks whole. It gets the permissions a file the shell creates gets (mkstemp's are 0600)."""
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=os.path.dirname(os.path.abspath(path)))
     os.close(handle)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(temporary, 0o666 & ~umask)
-    return temporary
+    try:
+        yield temporary
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
 
 def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
     """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
@@ -352,8 +360,7 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
     directory = os.path.dirname(os.path.abspath(output))
     if not os.path.isdir(directory):
         raise NeurotacError(f"cannot write {output}: folder {directory} does not exist")
-    temporary = temporary_beside(directory)
-    try:
+    with atomic_file(output) as temporary:
         if fmt == "parquet":
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")
             for batch in batches:
@@ -365,10 +372,6 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
                 for batch in batches:
                     writer.write_batch(_with_schema(batch, schema))
                 writer.close()
-        os.replace(temporary, output)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
 
 
 def _with_schema(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:

@@ -5,8 +5,6 @@ big-endian uint32 timestamp in µs. DAVIS address: y << 22 | x << 12 | p << 11, 
 pointing up, so the row (origin top-left) is written as y = height - 1 - row.
 """
 
-import os
-
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError
@@ -48,15 +46,8 @@ def aedat2_bytes(t, x, y, p, width: int = 240, height: int = 180) -> bytes:
 
 def write_aedat2(path, t, x, y, p, width: int = 240, height: int = 180) -> None:
     """Write events (t µs, x, row from the top, p: 1 = ON) as AEDAT 2.0, atomically (temp file + rename)."""
-    data = aedat2_bytes(t, x, y, p, width, height)
-    directory = os.path.dirname(os.path.abspath(path))
-    from neurotac_cli.tables import temporary_beside
+    from neurotac_cli.tables import atomic_file
 
-    temporary = temporary_beside(directory)
-    try:
-        with open(temporary, "wb") as sink:
-            sink.write(data)
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+    data = aedat2_bytes(t, x, y, p, width, height)
+    with atomic_file(path) as temporary, open(temporary, "wb") as sink:
+        sink.write(data)

@@ -6,7 +6,7 @@ import json
 import os
 
 from neurotac_cli.errors import ModelError
-from neurotac_cli.tables import temporary_beside
+from neurotac_cli.tables import atomic_file
 
 HEADER_KEY = "neurotac"
 
@@ -20,13 +20,8 @@ def save(model, path: str):
         raise ModelError(f"cannot write {path}: folder {directory} does not exist")
     tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
     header = json.dumps(model.header(), sort_keys=True, default=_json_default)
-    temporary = temporary_beside(directory)
-    try:
+    with atomic_file(path) as temporary:
         save_file(tensors, temporary, metadata={HEADER_KEY: header})
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
 
 
 def _json_default(value):
