@@ -23,3 +23,7 @@ class SyncError(NeurotacError):
 
 class ModelError(NeurotacError):
     """A model file that cannot be used for this input, or a training request that cannot run."""
+
+
+class OutsideSensorError(NeurotacError):
+    """A crop box or size that does not fit the sensor (or the frames)."""

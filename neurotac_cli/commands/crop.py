@@ -54,7 +54,7 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
         neurotac frame --window 7ms --accumulate < rec.arrows | neurotac crop --pool all > ch3.arrows
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import NeurotacError, OutsideSensorError
     from neurotac_cli.ops import crop as cr
 
     spec = cr.CropSpec(box=box, size=size, center=center, pool=pool)
@@ -76,8 +76,8 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
             table = cr.crop_table(source.read_all(), spec, report, sensor=sensor)
             args["report"] = report.as_dict()
             tables.write(output, table, step=("crop", args))
-    except NeurotacError as error:
-        if sensor is None and _size_guessed(source.schema) and ("larger than" in str(error) or "reaches past" in str(error)):
+    except OutsideSensorError as error:
+        if sensor is None and _size_guessed(source.schema):
             raise NeurotacError(f"{error} (that size is the events' extent, the camera file does not give it: "
                                 "give the sensor's size to `neurotac import --sensor WxH`)") from None
         raise

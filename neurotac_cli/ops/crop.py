@@ -22,7 +22,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 
@@ -154,13 +154,13 @@ def resolve_box(spec: CropSpec, sensor: tuple[int, int], activity=None, report: 
     if spec.box is not None:
         box = tuple(int(v) for v in spec.box)
         if box[0] + box[2] > width or box[1] + box[3] > height:
-            raise NeurotacError(f"box {','.join(map(str, box))} reaches past the {width}x{height} sensor")
+            raise OutsideSensorError(f"box {','.join(map(str, box))} reaches past the {width}x{height} sensor")
         return box
     if spec.size is None:
         return None
     w, h = spec.size
     if w > width or h > height:
-        raise NeurotacError(f"crop size {w}x{h} is larger than the {width}x{height} input")
+        raise OutsideSensorError(f"crop size {w}x{h} is larger than the {width}x{height} input")
     if spec.center == "auto":
         cx, cy = contact_center(activity)
         source = "auto"
@@ -169,7 +169,7 @@ def resolve_box(spec: CropSpec, sensor: tuple[int, int], activity=None, report: 
         source = "given"
     x0, y0 = int(cx) - w // 2, int(cy) - h // 2
     if source == "given" and (x0 < 0 or y0 < 0 or x0 + w > width or y0 + h > height):
-        raise NeurotacError(f"a {w}x{h} box centred at {cx},{cy} reaches past the {width}x{height} sensor; move the centre")
+        raise OutsideSensorError(f"a {w}x{h} box centred at {cx},{cy} reaches past the {width}x{height} sensor; move the centre")
     x0 = min(max(x0, 0), width - w)
     y0 = min(max(y0, 0), height - h)
     if report is not None:
