@@ -253,10 +253,7 @@ def validate(schema: pa.Schema, kind) -> str:
                 f"{', '.join(schema.names) or 'none'} match no kind); make it with `neurotac import` or `neurotac sync`"
             )
     if found not in accepted:
-        wanted = " or ".join(accepted)
-        article = "an" if wanted[0] in "aeiou" else "a"
-        raise SchemaError(f"expected {article} {wanted} table, got {'an' if found[0] in 'aeiou' else 'a'} {found} table"
-                          f"{_hint(found, accepted)}")
+        raise SchemaError(f"expected {_a(' or '.join(accepted))} table, got {_a(found)} table{_hint(found, accepted)}")
     for name, typ in REQUIRED[found].items():
         if name not in schema.names:
             raise SchemaError(f"{found} table has no {name!r} column (columns: {', '.join(schema.names)})")
@@ -285,14 +282,17 @@ def _castable(actual: pa.DataType, expected: pa.DataType) -> bool:
     ) or (pa.types.is_large_string(actual) and pa.types.is_string(expected))
 
 
+def _a(words: str) -> str:
+    return f"{'an' if words[0] in 'aeiou' else 'a'} {words}"
+
+
 def _hint(found: str, accepted: tuple) -> str:
     if "frames" in accepted and found in ("events", "recordings"):
         return "; run `neurotac frame --window 10ms` first"
     if "recordings" in accepted and found == "events":
         return "; run `neurotac sync` first"
     if found in KINDS and all(kind in KINDS and KINDS.index(kind) < KINDS.index(found) for kind in accepted):
-        return ("; this command comes earlier in the pipeline (import, sync, frame, then crop, augment, train, eval): "
-                f"give it the {accepted[0]} table that step takes")
+        return "; this command comes earlier in the pipeline (import, sync, frame, then crop, augment, train, eval)"
     return ""
 
 
