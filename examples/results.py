@@ -108,6 +108,15 @@ HELD_OUT = {
 }
 
 
+def phase_table(results: dict, metrics: dict) -> str:
+    """One row per network, two columns per phase: `metrics` maps metric names to column headings
+    (the first heading carries the phase's name)."""
+    names = list(metrics)
+    header = [f"{p} {metrics[name]}" if i == 0 else metrics[name] for p in PHASES for i, name in enumerate(names)]
+    return md_table(["Network", *header], [[network, *(fmt(m.get((f"phase:{p}", name))) for p in PHASES for name in names)]
+                                           for network, m in results.items()])
+
+
 def held_out_section(work, preset, repeats, timing) -> list:
     crop, held, description = HELD_OUT[preset]
     data = frames(work, preset, f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {crop}")
@@ -130,15 +139,11 @@ def held_out_section(work, preset, repeats, timing) -> list:
         "",
         "Per phase, MSE (N²) and σ (standard deviation of the squared error):",
         "",
-        md_table(["Network", *(cell for p in PHASES for cell in (f"{p} MSE", "σ"))],
-                 [[name, *(fmt(m.get((f"phase:{p}", metric))) for p in PHASES for metric in ("mse", "mse_sd"))]
-                  for name, m in results.items()]),
+        phase_table(results, {"mse": "MSE", "mse_sd": "σ"}),
         "",
         "Per phase, Bhattacharyya distance D_B and DTW distance D_W (N), averaged over test grasps:",
         "",
-        md_table(["Network", *(cell for p in PHASES for cell in (f"{p} D_B", "D_W"))],
-                 [[name, *(fmt(m.get((f"phase:{p}", metric))) for p in PHASES for metric in ("bhattacharyya", "dtw"))]
-                  for name, m in results.items()]),
+        phase_table(results, {"bhattacharyya": "D_B", "dtw": "D_W"}),
     ]
     ours, conv = results["ours"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
     if ours and conv:
