@@ -137,4 +137,6 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     if plot:
         from neurotac_cli.model.plots import curve_figure
 
-        curve_figure(history, plot, title=f"{model_name} training curve")
+        loss = ("cross-entropy" if model.task == "material"
+                else "MSE of force / training max (dimensionless)")
+        curve_figure(history, plot, title=f"{model_name} training curve", loss=loss)

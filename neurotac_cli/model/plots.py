@@ -75,7 +75,7 @@ def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
     plt.close(fig)
 
 
-def curve_figure(curve: list, path: str, title: str = ""):
+def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
     plt = _pyplot()
     fig, axis = plt.subplots(figsize=(5.5, 3.6))
     epochs = [row["epoch"] for row in curve]
@@ -85,7 +85,7 @@ def curve_figure(curve: list, path: str, title: str = ""):
         axis.plot(epochs, val, label="validation")
     axis.set_yscale("log")
     axis.set_xlabel("epoch")
-    axis.set_ylabel("loss")
+    axis.set_ylabel(loss)
     axis.legend()
     axis.set_title(title)
     fig.tight_layout()
