@@ -309,7 +309,19 @@ def test_frame_command_streams_an_events_table_and_records_history(tmp_path):
     assert counts_of(frames).sum() == 3000 and frames.num_rows == 10
     step = sch.get_meta(frames.schema, sch.HISTORY)[-1]
     assert step["command"] == "frame" and step["args"]["window_us"] == 10_000
-    assert frames.column("trial").unique().to_pylist() == ["events"]
+    assert frames.column("trial").unique().to_pylist() == ["events"]  # no camera file recorded
+
+
+def test_frame_names_the_trial_after_the_imported_camera_file(tmp_path):
+    camera = tmp_path / "grasp-07.evt.csv"
+    camera.write_text("t_us,x,y,p\n" + "".join(f"{1000 * i},{i % 20},{i % 15},{i % 2}\n" for i in range(200)))
+    imported = tmp_path / "e.arrows"
+    assert run(["import", str(camera), "--sensor", "20x15", "-o", str(imported)]).returncode == 0
+    done = run(["frame", "--window", "10ms", str(imported), "-o", str(tmp_path / "f.arrows")])
+    assert done.returncode == 0, done.stderr
+    assert tables.read([str(tmp_path / "f.arrows")], kind="frames").column("trial").unique().to_pylist() == ["grasp-07"]
+    done = run(["frame", "--window", "10ms", "--trial", "g1", str(imported), "-o", str(tmp_path / "g.arrows")])
+    assert tables.read([str(tmp_path / "g.arrows")], kind="frames").column("trial").unique().to_pylist() == ["g1"]
 
 
 def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):

@@ -55,7 +55,12 @@ class PadTo(ParamType):
 )
 @click.option("--scale", default=None, metavar="N[,M]", help="With --dtype float32: divide OFF and ON counts by these, instead of their maxima.")
 @click.option("--start", type=Duration(), default=None, help="Plain events tables: frame from this camera time (e.g. 1500ms) instead of the first event.")
-@click.option("--trial", default="events", show_default=True, help="Plain events tables: the trial id of the frames.")
+@click.option(
+    "--trial",
+    default=None,
+    help="Plain events tables: the trial id of the frames.  [default: the camera file's name without its suffixes, "
+    "as `import` recorded it, else `events`]",
+)
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH, for tables that do not carry neurotac:sensor metadata.")
 def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor):
     """Bin each trial's events into two-channel count frames, with force and phase per frame.
@@ -82,12 +87,14 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         except ValueError:
             raise NeurotacError(f"cannot read --scale {scale!r} (one or two positive counts, e.g. 40 or 40,55)") from None
         scale = values * 2 if len(values) == 1 else values
+    source = tables.open_input(paths, kind=("recordings", "events"))
+    if trial is None:
+        trial = camera_file_stem(source.schema) or "events"
     framing = fr.Framing(
         window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases,
         accumulate=accumulate, dtype=dtype, scale=scale, start_us=start, trial=trial,
     )
     report = fr.FramingReport()
-    source = tables.open_input(paths, kind=("recordings", "events"))
     args = framing.args()
     if source.kind == "recordings":
         table = source.read_all()
@@ -113,3 +120,12 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             f"(before start {report.before_start}, after end {report.after_end}, out of time order {report.late})",
             err=True,
         )
+
+
+def camera_file_stem(schema) -> str | None:
+    """The name `import` recorded for a single camera file, without its suffixes (`rec.evt3.raw` -> `rec`)."""
+    from neurotac_cli import schema as sch
+
+    source = sch.get_meta(schema, "neurotac:source")
+    name = source.get("file") if isinstance(source, dict) else None
+    return str(name).split(".")[0] or None if name else None
