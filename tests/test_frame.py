@@ -313,7 +313,7 @@ def test_frame_command_streams_an_events_table_and_records_history(tmp_path):
 
 
 def test_frame_names_the_trial_after_the_imported_camera_file(tmp_path):
-    camera = tmp_path / "grasp-07.evt.csv"
+    camera = tmp_path / "grasp-07.csv"
     camera.write_text("t_us,x,y,p\n" + "".join(f"{1000 * i},{i % 20},{i % 15},{i % 2}\n" for i in range(200)))
     imported = tmp_path / "e.arrows"
     assert run(["import", str(camera), "--sensor", "20x15", "-o", str(imported)]).returncode == 0

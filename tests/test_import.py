@@ -141,3 +141,11 @@ def test_text_import_round_trips_through_csv(tmp_path):
     table = pq.read_table(out)
     assert sch.sensor_of(table.schema) == (240, 180)
     assert np.array_equal(table["t"].to_numpy(), t) and np.array_equal(table["y"].to_numpy(), y)
+
+
+@pytest.mark.parametrize("path, name", [("d/grasp.aedat4", "grasp"), ("rec.evt3.raw", "rec"), ("rec.EVT21.raw", "rec"),
+                                        ("g.v2.csv", "g.v2"), ("plain", "plain"), ("x.raw", "x")])
+def test_a_recording_names_its_trial_after_the_file(path, name):
+    from neurotac_cli.io.camera import trial_name
+
+    assert trial_name(path) == name

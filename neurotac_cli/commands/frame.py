@@ -58,7 +58,7 @@ class PadTo(ParamType):
 @click.option(
     "--trial",
     default=None,
-    help="Plain events tables: the trial id of the frames.  [default: the camera file's name without its suffixes, "
+    help="Plain events tables: the trial id of the frames.  [default: the camera file's name without its suffix (`rec.evt3.raw`: `rec`), "
     "as `import` recorded it, else `events`]",
 )
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH, for tables that do not carry neurotac:sensor metadata.")
@@ -123,9 +123,10 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
 
 
 def camera_file_stem(schema) -> str | None:
-    """The name `import` recorded for a single camera file, without its suffixes (`rec.evt3.raw` -> `rec`)."""
+    """The trial id of the single camera file `import` recorded (`rec.evt3.raw` -> `rec`), if any."""
     from neurotac_cli import schema as sch
+    from neurotac_cli.io.camera import trial_name
 
     source = sch.get_meta(schema, "neurotac:source")
     name = source.get("file") if isinstance(source, dict) else None
-    return str(name).split(".")[0] or None if name else None
+    return trial_name(name) or None if name else None

@@ -88,8 +88,9 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     """
     import os
 
-    from neurotac_cli import tables
+    from neurotac_cli import schema as sch, tables
     from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.io.camera import trial_name
     from neurotac_cli.ops import sync as sy
 
     force_options = sy.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
@@ -114,7 +115,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
             name = trial or "trial"
         else:
             table = sy.read_camera(events, sensor)
-            name = trial or os.path.splitext(os.path.basename(events))[0]
+            name = trial or trial_name(events)
         sources = [sy.Source(trial=name, events=table, force=force_options.read(force_path), labels=label_map)]
         origin = {"events": os.path.basename(events or "-"), "force": os.path.basename(force_path), "trial": name}
     recordings = sy.sync_sources(sources, spec)
@@ -122,3 +123,20 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     if label_map:
         args["labels"] = label_map
     tables.write(output, recordings, step=("sync", args))
+    if spec.method == "xcorr":
+        warn_uncertain(sch.get_meta(recordings.schema, sch.SYNC)["trials"])
+
+
+def warn_uncertain(trials: dict):
+    """One warning line for the trials whose xcorr offset is uncertain by more than XCORR_UNCERTAIN_US."""
+    from neurotac_cli.ops.sync import XCORR_UNCERTAIN_US
+
+    wide = {name: info["uncertainty_us"] for name, info in trials.items() if info.get("uncertainty_us", 0) > XCORR_UNCERTAIN_US}
+    if wide:
+        worst = max(wide, key=wide.get)
+        click.echo(
+            f"neurotac sync: warning: xcorr's offset is uncertain by more than ±{XCORR_UNCERTAIN_US / 1000:g} ms on "
+            f"{len(wide)} of {len(trials)} trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor?); "
+            "an LED blink (--method led) or a trigger aligns within 0.1 ms",
+            err=True,
+        )

@@ -65,6 +65,15 @@ class Decoded:
     meta: dict = field(default_factory=dict)
 
 
+def trial_name(path) -> str:
+    """A recording's default trial id: its file name without the suffix, and without an EVT marker
+    before `.raw` (`grasp.aedat4` -> `grasp`, `rec.evt3.raw` -> `rec`)."""
+    stem, suffix = os.path.splitext(os.path.basename(str(path)))
+    if suffix.lower() == ".raw" and os.path.splitext(stem)[1].lower() in (".evt2", ".evt21", ".evt3"):
+        stem = os.path.splitext(stem)[0]
+    return stem
+
+
 def is_table(path) -> bool:
     """True when `path` holds an Arrow IPC stream, Arrow file or Parquet table (stdin counts as a table)."""
     if path in (None, "-"):

@@ -68,6 +68,8 @@ XCORR_TIE = 0.01  # correlations this close are a tie: the faster sensor model w
 XCORR_SATURATION = 0.5  # membrane saturation force, as a share of the trace's peak force (0 = linear)
 XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 30_000, 40_000, 60_000, 80_000, 120_000)
 XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
+XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
+XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
 
 
 @dataclass(frozen=True)
@@ -314,6 +316,9 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Inst
         if denominator < 0:
             shift = 0.5 * (left - right) / denominator
     far = np.abs(lags - lags[best]) >= 20_000 // bin_us
+    below = np.flatnonzero(corr < peak - XCORR_NEAR)  # the run of near-best offsets around the best
+    low = below[below < best][-1] + 1 if (below < best).any() else 0
+    high = below[below > best][0] - 1 if (below > best).any() else len(corr) - 1
     second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
     t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
@@ -323,6 +328,7 @@ def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Inst
         details={
             "correlation": round(peak, 3),
             "margin": round(peak - second, 3),
+            "uncertainty_us": int((high - low) * bin_us // 2),
             "response_us": method.response_us,
             "sensor_rise_us": int(rise),
             "sensor_fall_us": int(fall),
