@@ -296,8 +296,10 @@ def format_text(info: dict) -> str:
     if "triggers" in info:
         t = info["triggers"]
         add("triggers", f"{t['count']:,}" + (f" ({', '.join(t['types'])})" if t["types"] else ""))
-    if info.get("sync"):
-        add("sync", _compact(info["sync"]))
+    sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
+    if sync:  # its settings; each trial's instant and score go on the trial's line
+        add("sync", _compact({key: value for key, value in sync.items() if key != "trials"}))
+    synced = sync.get("trials") or {}
     if info.get("force_error"):
         e = info["force_error"]
         add("force error", f"RMSE {e['rmse_n']:.4g} N, MAE {e['mae_n']:.4g} N over {e['frames']:,} frames (force_pred - force)")
@@ -320,6 +322,8 @@ def format_text(info: dict) -> str:
                 parts.append(_duration(row["span_us"]))
             if "force_max_n" in row:
                 parts.append(f"force max {row['force_max_n']:.3f} N")
+            if isinstance(synced.get(row["trial"]), dict):
+                parts.append(_sync_cell(synced[row["trial"]], sync.get("method")))
             parts += [f"{k}={v}" for k, v in row.get("labels", {}).items() if v is not None]
             lines.append("  " + "  ".join(parts))
         if len(info["per_trial"]) > TRIALS_SHOWN:
@@ -343,6 +347,17 @@ def format_text(info: dict) -> str:
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
     width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
     return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
+
+
+def _sync_cell(entry: dict, method) -> str:
+    """A trial's sync quality: the LED spike's z-score, or xcorr's correlation and uncertainty."""
+    score = entry.get("score")
+    text = f"sync {method}"
+    if isinstance(score, (int, float)):
+        text += f" r {score:.3g}" if method == "xcorr" else f" z {score:.0f}"
+    if entry.get("uncertainty_us") is not None:
+        text += f" ±{entry['uncertainty_us'] / 1000:.1f} ms"
+    return text
 
 
 def _compact(value) -> str:

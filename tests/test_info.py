@@ -52,6 +52,18 @@ def test_recordings_per_trial_events_force_and_labels(tmp_path):
     assert "label material" in text and re.search(r"a\s+3\ events", text) and "material=steel" in text
 
 
+def test_each_trial_shows_how_well_it_was_synced(tmp_path):
+    trials = [{"trial": name, "t0": 10, "events": ([0], [0], [0], [0]), "force": ([0], [0.0])} for name in ("a", "b")]
+    sync = {"method": "xcorr", "median_us": 10_000, "trials": {"a": {"t0": 10, "score": 0.8123, "uncertainty_us": 6500},
+                                                               "b": {"t0": 10, "score": 0.95, "uncertainty_us": 1875}}}
+    text = info_cli(tmp_path, sch.recordings_table(trials, width=4, height=2, sync=sync))
+    assert re.search(r"sync\s+\{\"median_us\":10000,\"method\":\"xcorr\"\}", text)  # settings; trials on their lines
+    assert re.search(r"\ba\s.*sync xcorr r 0\.812 ±6\.5 ms", text) and re.search(r"\bb\s.*sync xcorr r 0\.95 ±1\.9 ms", text)
+    led = {"method": "led", "trials": {"a": {"t0": 10, "score": 412.6}, "b": {"t0": 10, "score": 98.0}}}
+    text = info_cli(tmp_path, sch.recordings_table(trials, width=4, height=2, sync=led))
+    assert re.search(r"\ba\s.*sync led z 413", text) and "±" not in text
+
+
 def test_frames_per_trial_window_phases_and_counts(tmp_path):
     counts = np.zeros((5, 2, 3, 4), dtype=np.uint16)
     counts[:, 1] = 1  # 12 ON per frame

@@ -129,4 +129,4 @@ def camera_file_stem(schema) -> str | None:
 
     source = sch.get_meta(schema, "neurotac:source")
     name = source.get("file") if isinstance(source, dict) else None
-    return trial_name(name) or None if name else None
+    return trial_name(name) if name else None
