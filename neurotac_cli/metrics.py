@@ -73,15 +73,18 @@ def bhattacharyya(a, b, floor: float = 1e-4) -> float:
     return float(0.25 * np.log(0.25 * (va / vb + vb / va + 2)) + 0.25 * (a.mean() - b.mean()) ** 2 / (va + vb))
 
 
-def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True) -> list:
-    """(scope, metric, value) rows: overall, per phase, per trial; DTW and D_B per phase (mean over trials)."""
+def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, series=None) -> list:
+    """(scope, metric, value) rows: overall, per phase, per trial; DTW and D_B per phase (mean over
+    time series). `series`: which frames form one time series (default: the trial; cross-validation
+    repeats predict a trial once per seed, and each prediction is a series of its own)."""
     trial = np.asarray(trial, dtype=object)
+    series = trial if series is None else np.asarray(series, dtype=object)
     phase = np.asarray([p if p is not None else "none" for p in phase], dtype=object)
     true, pred = np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
     keep = ~np.isnan(true)
     if nonzero:
         keep &= np.abs(true) > 1e-9
-    trial, phase, true, pred = trial[keep], phase[keep], true[keep], pred[keep]
+    trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]
     rows = []
 
     def add(scope, figures):
@@ -92,8 +95,8 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True) -> li
         inside = phase == name
         figures = regression(true[inside], pred[inside])
         dtw, bhat = [], []
-        for one in dict.fromkeys(trial[inside]):
-            mask = inside & (trial == one)
+        for one in dict.fromkeys(series[inside]):
+            mask = inside & (series == one)
             dtw.append(dtw_distance(true[mask], pred[mask]))
             bhat.append(bhattacharyya(true[mask], pred[mask]))
         figures["dtw"] = float(np.nanmean(dtw)) if dtw else float("nan")

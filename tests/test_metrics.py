@@ -69,3 +69,18 @@ def test_confusion_and_recall():
     assert figures[("class:a", "recall")] == 0.5 and figures[("class:b", "recall")] == 1.0
     assert figures[("confusion:a", "pred:b")] == 1
     assert (metrics.confusion(["a", "b"], ["b", "b"], ["a", "b"]) == [[0, 1], [0, 1]]).all()
+
+
+def test_repeated_predictions_of_a_trial_are_separate_series():
+    """--repeats R predicts each trial R times: per-phase DTW and D_B average over the R series, they
+    are not computed on the R copies strung together (which made DTW grow with R)."""
+    true = np.array([0.0, 1.0, 2.0, 2.0, 1.0])
+    pred = np.array([0.0, 0.5, 2.5, 1.5, 1.0])
+    once = dict(((s, m), v) for s, m, v in metrics.force_rows(["a"] * 5, ["holding"] * 5, true, pred))
+    trial, phase = ["a"] * 15, ["holding"] * 15
+    thrice = metrics.force_rows(trial, phase, np.tile(true, 3), np.tile(pred, 3), series=[r for r in range(3) for _ in range(5)])
+    thrice = dict(((s, m), v) for s, m, v in thrice)
+    for metric in ("dtw", "bhattacharyya", "mse"):
+        assert np.isclose(thrice[("phase:holding", metric)], once[("phase:holding", metric)]), metric
+    strung = dict(((s, m), v) for s, m, v in metrics.force_rows(trial, phase, np.tile(true, 3), np.tile(pred, 3)))
+    assert strung[("phase:holding", "dtw")] > 2 * once[("phase:holding", "dtw")]

@@ -17,6 +17,8 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
             predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
             predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
             nonzero=nonzero, per_trial=per_trial,
+            series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
+            if "repeat" in names else None,
         )
     if label not in names:
         from neurotac_cli.errors import SchemaError
