@@ -332,8 +332,9 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
 
 
 def test_sync_warns_when_xcorr_is_uncertain_and_only_then(presets):
-    """The uncertainty is half the span of offsets within 0.02 of the best correlation: ±1.9-2.6 ms on
-    every ch4/ch5 trial at seeds 3 and 4, ±4-15 ms on ch3, where it covered the error of 90 of 96 trials."""
+    """The uncertainty is half the span of offsets within 0.02 of the best correlation: ±1.5-2.6 ms on
+    every ch4/ch5 trial at seeds 3 and 4, ±3.4-14.6 ms on ch3, where it covered the error of 87 of 96 trials
+    (examples/sync_accuracy.py)."""
     slow = run(["sync", "--manifest", str(presets["ch3"] / "manifest.csv"), "--method", "xcorr", "-o", str(presets["ch3"] / "s.arrows")])
     fast = run(["sync", "--manifest", str(presets["ch4"] / "manifest.csv"), "--method", "xcorr", "-o", str(presets["ch4"] / "s.arrows")])
     assert (slow.returncode, fast.returncode, fast.stderr) == (0, 0, b"")
