@@ -315,11 +315,22 @@ def output_format(path: str) -> str:
     return SUFFIXES[suffix]
 
 
+def check_folder(*paths) -> None:
+    """One clear error if the folder of any of `paths` does not exist (a command that runs for
+    minutes checks its outputs first, so its work is not lost at the end)."""
+    for path in paths:
+        directory = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(directory):
+            raise NeurotacError(f"cannot write {path}: folder {directory} does not exist")
+
+
 @contextmanager
 def atomic_file(path: str):
     """A temporary file beside `path` to write into: it replaces `path` when the block ends without
     an error and is removed when it fails, so a failed run never leaves a half-written file that
-    looks whole. It gets the permissions a file the shell creates gets (mkstemp's are 0600)."""
+    looks whole. It gets the permissions a file the shell creates gets (mkstemp's are 0600). A
+    missing folder is one clear error, not a traceback."""
+    check_folder(path)
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=os.path.dirname(os.path.abspath(path)))
     os.close(handle)
     umask = os.umask(0)
@@ -357,9 +368,6 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
         sink.flush()
         return
     fmt = output_format(output)
-    directory = os.path.dirname(os.path.abspath(output))
-    if not os.path.isdir(directory):
-        raise NeurotacError(f"cannot write {output}: folder {directory} does not exist")
     with atomic_file(output) as temporary:
         if fmt == "parquet":
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")

@@ -63,6 +63,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 
         return run_grid(paths, output, model_spec, grid, hyperparameters(options), cv, repeats, val_fraction, val_per,
                         label, nonzero, per_trial, metrics_path, jobs, scheduler, cache, seed, command="eval")
+    tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
     torch.set_num_threads(max(1, threads))
     table = tables.read(paths, kind="frames")
     if cv:

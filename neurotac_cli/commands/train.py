@@ -115,6 +115,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     from neurotac_cli import model as models
     from neurotac_cli import tables
 
+    tables.check_folder(*(path for path in (output, curve, plot) if path))
     torch.set_num_threads(max(1, threads))
     table = tables.read(paths, kind="frames")
     spec = models.make_spec(model_name, **hyperparameters(options))

@@ -15,9 +15,6 @@ def save(model, path: str):
     """Write `model` to `path` atomically (temporary file beside it, then rename)."""
     from safetensors.torch import save_file
 
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise ModelError(f"cannot write {path}: folder {directory} does not exist")
     tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
     header = json.dumps(model.header(), sort_keys=True, default=_json_default)
     with atomic_file(path) as temporary:
