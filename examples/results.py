@@ -59,10 +59,13 @@ def frames(work: pathlib.Path, preset: str, pipeline: str) -> pathlib.Path:
     return path
 
 
-def evaluate(work, data, tag, args: str, timing: dict):
-    """`neurotac eval ARGS < DATA`, kept in WORK under the tag and a digest of the arguments (a change of
-    seeds or settings runs again)."""
-    key = f"{tag}-{hashlib.sha1(args.replace(str(ROOT), '<checkout>').encode()).hexdigest()[:8]}"  # any clone reuses it
+FORCE_SCORING = "2: DTW and D_B per seed"  # changed whenever eval's force metrics change: cached ones are not reused
+
+
+def evaluate(work, data, tag, args: str, timing: dict, scoring: str = ""):
+    """`neurotac eval ARGS < DATA`, kept in WORK under the tag and a digest of the arguments and the
+    scoring revision (a change of seeds, settings or metric definitions runs again)."""
+    key = f"{tag}-{hashlib.sha1((args.replace(str(ROOT), '<checkout>') + scoring).encode()).hexdigest()[:8]}"  # any clone reuses it
     out = work / f"{key}.metrics.parquet"
     seconds_file = work / f"{key}.seconds"
     if not out.exists():
@@ -124,7 +127,8 @@ def held_out_section(work, preset, repeats, timing) -> list:
     for name in FORCE_MODELS:
         plot = f" --plot {ROOT}/docs/img/results_force_{name}.png" if preset == "ch4" and name in ("convlstm", "ours") else ""
         results[name] = evaluate(work, data, f"{preset}-{name}",
-                                 f"--cv group:object={held} --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1{plot}", timing)
+                                 f"--cv group:object={held} --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1{plot}", timing,
+                                 FORCE_SCORING)
     size = held.removeprefix("bolt")
     lines = [
         f"### Force: unseen object size, `{preset}` with the {size} mm bolt held out (thesis Tables 4.3, 4.4, 4.5 in shape)",
@@ -158,7 +162,7 @@ def trials_section(work, repeats, timing) -> list:
     """Held-out grasps of sizes seen in training: 3 folds over the ch4 grasps."""
     data = work / "ch4.arrows"
     results = {name: evaluate(work, data, f"ch4-kfold-{name}",
-                              f"--cv kfold:3 --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1", timing)
+                              f"--cv kfold:3 --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1", timing, FORCE_SCORING)
                for name in FORCE_MODELS}
     lines = [
         "### Force: held-out grasps of seen sizes",
