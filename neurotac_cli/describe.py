@@ -25,7 +25,7 @@ def describe(schema: pa.Schema, batches, camera: dict | None = None) -> dict:
         info["camera_file"] = camera
     if sensor:
         info["sensor"] = {"width": sensor[0], "height": sensor[1]}
-    source = sch.get_meta(schema, "neurotac:source")
+    source = sch.get_meta(schema, sch.SOURCE)
     if source:
         info["source"] = source
     triggers = sch.get_meta(schema, "neurotac:triggers")
@@ -402,7 +402,7 @@ def describe_paths(paths, sensor=None) -> dict:
     if len(paths) > 1:
         raise InputError("describe one camera file at a time, or import them into one table first")
     schema, batches = camera.read_events(paths[0], sensor)
-    fmt = (sch.get_meta(schema, "neurotac:source") or {}).get("format")
+    fmt = sch.camera_source(schema).get("format")
     return describe(schema, batches, camera={"format": fmt, "format_name": camera.FORMAT_NAMES.get(fmt, fmt)})
 
 

@@ -16,6 +16,7 @@ SENSOR = "neurotac:sensor"
 WINDOW = "neurotac:window_us"
 SYNC = "neurotac:sync"
 HISTORY = "neurotac:history"
+SOURCE = "neurotac:source"  # the camera file(s) `import` read: a dict, or a list of them
 
 KINDS = ("events", "recordings", "frames", "predictions", "metrics")
 
@@ -36,6 +37,13 @@ NOT_LABELS = {"trial", "phase", "source_trial", "augment", "scope", "metric", "m
 
 
 # ---------------------------------------------------------------- metadata
+
+
+def camera_source(schema: pa.Schema) -> dict:
+    """What `import` recorded of the one camera file behind a table (file, format, sensor_from);
+    empty for a table from several files or none."""
+    source = get_meta(schema, SOURCE)
+    return source if isinstance(source, dict) else {}
 
 
 def get_meta(schema: pa.Schema, key: str, default=None):

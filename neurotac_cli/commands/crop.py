@@ -89,5 +89,4 @@ def _size_guessed(schema) -> bool:
     """Whether the input's sensor size was read off the events' extent (a camera file that lacks it)."""
     from neurotac_cli import schema as sch
 
-    camera = sch.get_meta(schema, "neurotac:source") or {}
-    return isinstance(camera, dict) and camera.get("sensor_from") == "events"
+    return sch.camera_source(schema).get("sensor_from") == "events"

@@ -127,6 +127,5 @@ def camera_file_stem(schema) -> str | None:
     from neurotac_cli import schema as sch
     from neurotac_cli.io.camera import trial_name
 
-    source = sch.get_meta(schema, "neurotac:source")
-    name = source.get("file") if isinstance(source, dict) else None
+    name = sch.camera_source(schema).get("file")
     return trial_name(name) if name else None

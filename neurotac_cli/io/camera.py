@@ -333,7 +333,7 @@ def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema,
         listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, (sch.sensor_of(s) for s, _ in opened)))
         raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
     if len(opened) > 1:
-        sources = [sch.get_meta(s, "neurotac:source") for s, _ in opened]
+        sources = [sch.get_meta(s, sch.SOURCE) for s, _ in opened]
         triggers = [t for s, _ in opened for t in (sch.get_meta(s, "neurotac:triggers") or [])]
         schema = sch.set_meta(schema, source=sources, triggers=triggers if any(sch.get_meta(s, "neurotac:triggers") is not None for s, _ in opened) else None)
 
