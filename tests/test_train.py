@@ -77,14 +77,14 @@ def test_train_command_writes_model_curve_and_plot(tmp_path):
 
 
 @pytest.mark.parametrize("command", [
-    ["train", "--model", "tdnn", "--epochs", "3", "-o", "m.model", "--plot", "{missing}/curve.png"],
+    ["train", "--model", "tdnn", "--epochs", "3", "-o", "{tmp}/m.model", "--plot", "{missing}/curve.png"],
     ["train", "--model", "tdnn", "--epochs", "3", "-o", "{missing}/m.model"],
     ["eval", "--cv", "kfold:2", "--model-spec", "tdnn", "--epochs", "3", "--metrics", "{missing}/m.parquet"],
 ])
 def test_an_output_in_a_missing_folder_is_refused_before_any_training(tmp_path, command):
     path = write_stream(tiny_frames(trials=4), tmp_path / "f.arrows")
     with open(path, "rb") as stdin:
-        done = run([part.format(missing=tmp_path / "no-such") for part in command], stdin)
+        done = run([part.format(missing=tmp_path / "no-such", tmp=tmp_path) for part in command], stdin)
     lines = done.stderr.decode().splitlines()
     assert done.returncode == 1 and len(lines) == 1, done.stderr
     assert "folder" in lines[0] and "does not exist" in lines[0] and not any(p.suffix == ".model" for p in tmp_path.iterdir())
