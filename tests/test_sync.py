@@ -3,6 +3,7 @@
 import csv
 import json
 import os
+import pathlib
 import shutil
 import subprocess
 import sys
@@ -329,6 +330,23 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
     assert all(abs(error) <= 13_000 for error in errors.values()), errors
     assert np.mean([abs(error) for error in errors.values()]) <= 5_000, errors
     assert all(entry["signal"] == "signed" and entry["sensor_fall_us"] >= sy.XCORR_SLOW_FALL_US for entry in info.values())
+
+
+def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(presets):
+    """examples/sync_bound.py hands each trial's true force to a sensor model fitted with the offset:
+    with the FlexiForce's play among the models the log is within 1 ms, with a lag only the slowly
+    loaded foam trial is ~3 ms late (docs/commands/sync.md, "What bounds xcorr on ch3")."""
+    script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[1] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
+
+    def errors(play):
+        done = subprocess.run([*script, "--play", play], capture_output=True, text=True, check=True)
+        return {line.split()[0]: float(line.split()[1]) for line in done.stdout.splitlines() if " ms   rise " in line}
+
+    with_play, lag_only = errors("0,0.02"), errors("0")
+    assert len(with_play) == XCORR_PRESET_TRIALS and all(abs(error) <= 1.0 for error in with_play.values()), with_play
+    assert lag_only["foam-hex-01"] > 2.0 and lag_only["foam-hex-01"] > max(lag_only[t] for t in lag_only if t != "foam-hex-01"), lag_only
+    wrong = subprocess.run([*script[:-1], "2"], capture_output=True, text=True)
+    assert wrong.returncode == 1 and "was not simulated with --preset ch3 --seed 2" in wrong.stderr
 
 
 def test_sync_warns_when_xcorr_is_uncertain_and_only_then(presets):
