@@ -56,7 +56,9 @@ class SensorLag(ParamType):
               "rate behind the force [default: 1.6ms] (both measured on the simulated DAVIS240C rig).")
 @click.option("--sensor-lag", type=SensorLag(), default=None,
               help="xcorr: the force sensor's first-order time constants when loading and unloading, RISE[,FALL] "
-              "(e.g. 1ms for a strain-gauge cell, 25ms,75ms for a covered FlexiForce) [default: estimated with the offset].")
+              "(e.g. 1ms for a strain-gauge cell, 25ms,75ms for a covered FlexiForce) [default: estimated with the offset]. "
+              "Give it for a sensor slower than ~2 ms that does not unload slowly: there the estimate is 0 ms and the instant "
+              "comes about half the time constant early.")
 @click.option("--saturation", type=float, default=0.5, show_default=True,
               help="xcorr: the force, as a share of the trial's peak, at which the membrane's response to force has halved "
               "(|dF/dt| is weighted by 1/(1 + F/(share*peak)); 0 = a linear membrane).")
