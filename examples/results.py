@@ -120,6 +120,24 @@ def phase_table(results: dict, metrics: dict) -> str:
                                            for network, m in results.items()])
 
 
+def phase_frames(data) -> dict:
+    """Non-zero-force frames per grasp in each phase: phase -> (min, median, max) over grasps."""
+    import numpy as np
+    import pyarrow.compute as pc
+    import pyarrow.ipc as ipc
+
+    with ipc.open_stream(str(data)) as reader:
+        table = reader.read_all().select(["trial", "phase", "force"])
+    table = table.filter(pc.greater(pc.abs(table["force"]), 1e-9))
+    counts = table.group_by(["phase", "trial"]).aggregate([("force", "count")])
+    out = {}
+    for phase in PHASES:
+        n = counts.filter(pc.equal(counts["phase"], phase))["force_count"].to_numpy()
+        if len(n):
+            out[phase] = (int(n.min()), int(np.median(n)), int(n.max()))
+    return out
+
+
 def held_out_section(work, preset, repeats, timing) -> list:
     crop, held, description = HELD_OUT[preset]
     data = frames(work, preset, f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {crop}")
@@ -145,10 +163,17 @@ def held_out_section(work, preset, repeats, timing) -> list:
         "",
         phase_table(results, {"mse": "MSE", "mse_sd": "σ"}),
         "",
-        "Per phase, Bhattacharyya distance D_B and DTW distance D_W (N), averaged over test grasps:",
+        "Per phase, Bhattacharyya distance D_B and DTW distance D_W (N), averaged over test grasps and seeds (each seed's prediction of a grasp is one series):",
         "",
         phase_table(results, {"bhattacharyya": "D_B", "dtw": "D_W"}),
     ]
+    counts = phase_frames(data)
+    short = [p for p, (_, _, most) in counts.items() if most <= 5]
+    lines += ["", "Non-zero frames per grasp (min-median-max): " + ", ".join(f"{p} {a}-{m}-{b}" for p, (a, m, b) in counts.items()) + "."]
+    if short:
+        lines[-1] += (f" D_B fits a normal to each grasp's values of a phase, so in the {' and '.join(short)} phase{'s' if len(short) > 1 else ''} it rests on"
+                      f" at most {max(counts[p][2] for p in short)} values per grasp (a lone value's variance is the 1e-4 N² floor), and one grasp can dominate the mean:"
+                      " read D_B there as a rough ranking at best (D_W and the MSE tables have no such floor).")
     ours, conv = results["ours"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
     if ours and conv:
         lines += ["", f"Ours against the ConvLSTM on the unseen size: RMSE {ours:.3f} N vs {conv:.3f} N, "

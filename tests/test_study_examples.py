@@ -190,3 +190,18 @@ def test_issue6_section_is_written_once_under_one_heading(tmp_path, monkeypatch)
     results.write_section(["### Latency"])
     text = page.read_text()
     assert text.count("## Models of this toolkit against the thesis's (issue 6)") == 1 and text.count("### Latency") == 1
+
+
+def test_results_counts_the_nonzero_frames_of_each_phase_per_grasp(tmp_path, monkeypatch):
+    """The note under the D_B table rests on these counts: frames of zero force are not counted."""
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    results = load("results")
+    table = pa.table({
+        "trial": ["a"] * 6 + ["b"] * 4,
+        "phase": ["none", "grasping", "holding", "holding", "releasing", "releasing", "grasping", "grasping", "holding", "releasing"],
+        "force": [0.0, 1.0, 2.0, 2.1, 0.5, 0.0, 0.4, 1.2, 2.0, 0.3],
+    })
+    path = tmp_path / "f.arrows"
+    with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_stream(sink, table.schema) as writer:
+        writer.write_table(table)
+    assert results.phase_frames(path) == {"grasping": (1, 1, 2), "holding": (1, 1, 2), "releasing": (1, 1, 1)}
