@@ -121,21 +121,39 @@ def phase_table(results: dict, metrics: dict) -> str:
 
 
 def phase_frames(data) -> dict:
-    """Non-zero-force frames per grasp in each phase: phase -> (min, median, max) over grasps."""
+    """Frames per grasp in each phase that `eval --nonzero` scores: phase -> (min, median, max) over grasps."""
     import numpy as np
     import pyarrow.compute as pc
-    import pyarrow.ipc as ipc
 
-    with ipc.open_stream(str(data)) as reader:
-        table = reader.read_all().select(["trial", "phase", "force"])
-    table = table.filter(pc.greater(pc.abs(table["force"]), 1e-9))
+    from neurotac_cli import tables
+    from neurotac_cli.metrics import NONZERO_N
+
+    table = tables.read([str(data)]).select(["trial", "phase", "force"])
+    table = table.filter(pc.greater(pc.abs(table["force"]), NONZERO_N))
     counts = table.group_by(["phase", "trial"]).aggregate([("force", "count")])
     out = {}
     for phase in PHASES:
         n = counts.filter(pc.equal(counts["phase"], phase))["force_count"].to_numpy()
         if len(n):
-            out[phase] = (int(n.min()), int(np.median(n)), int(n.max()))
+            out[phase] = (int(n.min()), float(np.median(n)), int(n.max()))
     return out
+
+
+FEW_FRAMES = 5  # a phase with at most this many frames per grasp gets the D_B caveat
+
+
+def d_b_caveat(counts: dict) -> list:
+    """The line under a D_B/D_W table: frames per grasp in each phase, and what few of them do to D_B."""
+    from neurotac_cli.metrics import VARIANCE_FLOOR_N2
+
+    line = "Non-zero frames per grasp (min-median-max): " + ", ".join(f"{p} {a}-{m:g}-{b}" for p, (a, m, b) in counts.items()) + "."
+    short = [p for p, (_, _, most) in counts.items() if most <= FEW_FRAMES]
+    if short:
+        line += (f" D_B fits a normal to each grasp's values of a phase, so in the {' and '.join([', '.join(short[:-1]), short[-1]] if len(short) > 1 else short)} phase{'s' if len(short) > 1 else ''}"
+                 f" it rests on at most {max(counts[p][2] for p in short)} values per grasp (a lone value's variance is the"
+                 f" {VARIANCE_FLOOR_N2:g} N² floor), and one grasp can dominate the mean: read D_B there as a rough ranking at"
+                 " best (D_W and the MSE tables have no such floor).")
+    return [line]
 
 
 def held_out_section(work, preset, repeats, timing) -> list:
@@ -167,13 +185,7 @@ def held_out_section(work, preset, repeats, timing) -> list:
         "",
         phase_table(results, {"bhattacharyya": "D_B", "dtw": "D_W"}),
     ]
-    counts = phase_frames(data)
-    short = [p for p, (_, _, most) in counts.items() if most <= 5]
-    lines += ["", "Non-zero frames per grasp (min-median-max): " + ", ".join(f"{p} {a}-{m}-{b}" for p, (a, m, b) in counts.items()) + "."]
-    if short:
-        lines[-1] += (f" D_B fits a normal to each grasp's values of a phase, so in the {' and '.join(short)} phase{'s' if len(short) > 1 else ''} it rests on"
-                      f" at most {max(counts[p][2] for p in short)} values per grasp (a lone value's variance is the 1e-4 N² floor), and one grasp can dominate the mean:"
-                      " read D_B there as a rough ranking at best (D_W and the MSE tables have no such floor).")
+    lines += ["", *d_b_caveat(phase_frames(data))]
     ours, conv = results["ours"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
     if ours and conv:
         lines += ["", f"Ours against the ConvLSTM on the unseen size: RMSE {ours:.3f} N vs {conv:.3f} N, "

@@ -3,6 +3,7 @@
     neurotac simulate --preset ch3 --seed 3 --out sim3
     python examples/sync_accuracy.py sim3                    # xcorr, as sync runs it by default
     python examples/sync_accuracy.py sim3 --method led -v    # one line per trial as well
+    python examples/sync_accuracy.py sim3 --sensor-lag 25,75  # xcorr told the sensor's time constants (ms)
 
 For every simulated folder (its manifest.csv has each trial's true LED-off instant, `true_t0_us`),
 syncs every trial as `neurotac sync --manifest` does and prints, per folder: the number of trials,
@@ -21,10 +22,10 @@ from neurotac_cli import schema as sch
 from neurotac_cli.ops import sync as sy
 
 
-def measure(folder: pathlib.Path, method: str, verbose: bool) -> str:
+def measure(folder: pathlib.Path, method: str, verbose: bool, sensor_lag=None) -> str:
     manifest = folder / "manifest.csv"
     truth = {row["trial"]: int(row["true_t0_us"]) for row in csv.DictReader(open(manifest))}
-    table = sy.sync_sources(sy.manifest_sources(str(manifest), sy.ForceOptions()), sy.SyncMethod(method=method))
+    table = sy.sync_sources(sy.manifest_sources(str(manifest), sy.ForceOptions()), sy.SyncMethod(method=method, sensor_lag_us=sensor_lag))
     details = sch.get_meta(table.schema, sch.SYNC)["trials"]
     trials = table.column("trial").to_pylist()
     error = np.array([t0 - truth[trial] for trial, t0 in zip(trials, table.column("t0").to_pylist())]) / 1000
@@ -49,9 +50,14 @@ def main():
     parser.add_argument("folders", nargs="+", type=pathlib.Path, help="folders written by `neurotac simulate --out`")
     parser.add_argument("--method", default="xcorr", choices=["led", "xcorr"], help="sync method (default xcorr)")
     parser.add_argument("-v", "--verbose", action="store_true", help="one line per trial as well")
+    parser.add_argument("--sensor-lag", metavar="RISE[,FALL]", help="xcorr: the force sensor's time constants in ms, as sync --sensor-lag (default: estimated)")
     args = parser.parse_args()
+    lag = None
+    if args.sensor_lag:
+        rise, _, fall = args.sensor_lag.partition(",")
+        lag = (int(float(rise) * 1000), int(float(fall or rise) * 1000))
     for folder in args.folders:
-        print(measure(folder, args.method, args.verbose), flush=True)
+        print(measure(folder, args.method, args.verbose, lag), flush=True)
 
 
 if __name__ == "__main__":

@@ -64,7 +64,11 @@ def dtw_distance(a, b) -> float:
     return float(total[n, m])
 
 
-def bhattacharyya(a, b, floor: float = 1e-4) -> float:
+VARIANCE_FLOOR_N2 = 1e-4  # D_B's floor on each variance (a 0.01 N resolution): a flat phase does not blow up
+NONZERO_N = 1e-9  # --nonzero scores only frames whose true force exceeds this
+
+
+def bhattacharyya(a, b, floor: float = VARIANCE_FLOOR_N2) -> float:
     """Bhattacharyya distance between normal fits of two samples."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if len(a) == 0 or len(b) == 0:
@@ -83,7 +87,7 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
     true, pred = np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
     keep = ~np.isnan(true)
     if nonzero:
-        keep &= np.abs(true) > 1e-9
+        keep &= np.abs(true) > NONZERO_N
     trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]
     rows = []
 

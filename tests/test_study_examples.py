@@ -204,4 +204,9 @@ def test_results_counts_the_nonzero_frames_of_each_phase_per_grasp(tmp_path, mon
     path = tmp_path / "f.arrows"
     with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_stream(sink, table.schema) as writer:
         writer.write_table(table)
-    assert results.phase_frames(path) == {"grasping": (1, 1, 2), "holding": (1, 1, 2), "releasing": (1, 1, 1)}
+    counts = results.phase_frames(path)
+    assert counts == {"grasping": (1, 1.5, 2), "holding": (1, 1.5, 2), "releasing": (1, 1, 1)}
+    line = results.d_b_caveat(counts)[0]
+    assert line.startswith("Non-zero frames per grasp (min-median-max): grasping 1-1.5-2, holding 1-1.5-2, releasing 1-1-1.")
+    assert "in the grasping, holding and releasing phases it rests on at most 2 values" in line and "0.0001 N² floor" in line
+    assert "D_B fits" not in results.d_b_caveat({"holding": (22, 25, 29)})[0]
