@@ -244,6 +244,20 @@ def test_phases_follow_rise_plateau_and_fall_of_the_force():
     assert frames.column("force").null_count == 0
 
 
+def test_a_grasp_that_relaxes_while_held_keeps_holding_until_its_final_fall():
+    """ch3's foam loses ~15% of its force while held (viscoelastic), which left the plateau band 30
+    frames before the gripper opened: holding must last until the fall itself, and a fast fall after
+    a flat plateau keeps the plateau rule's frames exactly."""
+    rng = np.random.default_rng(0)
+    rise, hold, fall, after = np.linspace(0, 2.1, 10), np.linspace(2.1, 1.75, 60), 1.75 * np.exp(-np.arange(1, 16) / 5), np.zeros(10)
+    force = np.concatenate([np.zeros(5), rise, hold, fall, after]) + rng.normal(0, 0.01, 100)
+    labels = list(ph.detect_phases(force))
+    assert labels.index("releasing") in (75, 76, 77), labels.index("releasing")  # the fall starts at frame 75
+    assert set(labels[labels.index("holding"):75]) == {"holding"}
+    flat = np.concatenate([np.zeros(5), rise, np.full(30, 2.0), [1.0, 0.1], np.zeros(10)])
+    assert list(ph.detect_phases(flat)).index("releasing") == 45  # the first frame that reads below the plateau
+
+
 def test_phases_given_as_frame_ranges():
     assert ph.parse_ranges("0-21,22-121,122-143") == [(0, 21), (22, 121), (122, 143)]
     labels = ph.phases_from_ranges(6, [(0, 1), (2, 3), (4, 4)])

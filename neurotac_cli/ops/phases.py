@@ -22,7 +22,10 @@ def detect_phases(force: np.ndarray, contact_share: float = CONTACT_SHARE, plate
     """Label each frame from its force (read at the frame's end): `none` before contact and after
     release, `grasping` while the force rises to its plateau, `holding` from the first to the last
     frame on the plateau, `releasing` while it falls, up to and including the frame in which it
-    drops below the contact threshold.
+    drops below the contact threshold. A grasp whose force relaxes out of the plateau band while
+    it is held (a viscoelastic object: ch3's foam loses 15% in 300 ms) keeps holding until its final
+    fall, found as the knee of a hinge fitted to the force from the plateau's start to the fall's
+    midpoint.
 
     The baseline is the force's 5th percentile and the plateau level its 95th (robust to spikes);
     frames with a missing force count as below contact. A trace with no rise above the noise
@@ -43,11 +46,31 @@ def detect_phases(force: np.ndarray, contact_share: float = CONTACT_SHARE, plate
     plateau = np.flatnonzero(filled >= baseline + plateau_share * span)
     first_contact, last_contact = int(contact[0]), int(contact[-1])
     first_hold, last_hold = int(plateau[0]), int(plateau[-1])
+    release = last_hold + 1
+    # the final fall starts at the knee of a hinge (a line, then a line with a bend) fitted by least
+    # squares from the plateau's start to the first frame below half the range after the last above it
+    above = np.flatnonzero(filled[first_hold:] >= baseline + 0.5 * span)
+    end = first_hold + int(above[-1]) + 1
+    if end < len(filled) and end - last_hold > 3:  # a fall of 1-3 frames after the plateau: the plateau rule holds
+        release = max(release, _knee(filled[first_hold:end + 1]) + first_hold + 1)
     labels[first_contact:first_hold] = "grasping"
-    labels[first_hold:last_hold + 1] = "holding"
+    labels[first_hold:release] = "holding"
     # the frame whose end first reads below contact is the one the release finished in: releasing too
-    labels[last_hold + 1:last_contact + 2] = "releasing"
+    labels[release:last_contact + 2] = "releasing"
     return labels
+
+
+def _knee(y: np.ndarray) -> int:
+    """The index b of the best hinge fit y ~ a + c i + d max(0, i - b), over b = 1 .. len - 2."""
+    i = np.arange(len(y), dtype=np.float64)
+    best, knee = np.inf, len(y) - 2
+    for b in range(1, len(y) - 1):
+        basis = np.column_stack([np.ones_like(i), i, np.maximum(0.0, i - b)])
+        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+        sse = float(np.sum((basis @ coef - y) ** 2))
+        if sse < best:
+            best, knee = sse, b
+    return knee
 
 
 def parse_ranges(text: str) -> list[tuple[int, int]]:
