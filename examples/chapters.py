@@ -391,7 +391,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
 # ------------------------------------------------------------------------------------------------
 # Chapter 4
 
-CH4_MODELS = ("tdnn", "lstm", "cnnlstm", "convlstm", "ours")
+CH4_MODELS = ("tdnn", "lstm", "cnnlstm", "convlstm", "deform-gru")
 
 
 SWEEP_MODELS = ("convlstm", "lstm", "cnnlstm")

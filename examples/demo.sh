@@ -23,7 +23,7 @@ step "augment the training grasps: temporal event shifting, the thesis's best se
 neurotac augment --tes -2 0.5 --seed 1 < "$out/frames-train.arrows" > "$out/frames-train-aug.arrows"
 
 step "train our force model (validation: a share of grasps per bolt size)"
-neurotac train --model ours --seed 1 --val-fraction 0.15 --epochs 200 --plot "$out/force-training.png" \
+neurotac train --model deform-gru --seed 1 --val-fraction 0.15 --epochs 200 --plot "$out/force-training.png" \
   -o "$out/force.model" < "$out/frames-train-aug.arrows"
 
 step "force on the held-out grasps"
@@ -35,7 +35,7 @@ neurotac simulate --preset ch3 --seed 1 --synced \
   | neurotac frame --window 7ms --accumulate | neurotac crop --pool all -o "$out/materials-train.arrows"
 neurotac simulate --preset ch3 --seed 2 --trials 16 --synced \
   | neurotac frame --window 7ms --accumulate | neurotac crop --pool all -o "$out/materials-test.arrows"
-neurotac train --model material-ours --seed 1 --epochs 300 -o "$out/material.model" < "$out/materials-train.arrows"
+neurotac train --model material-curves --seed 1 --epochs 300 -o "$out/material.model" < "$out/materials-train.arrows"
 neurotac eval --model "$out/material.model" --metrics "$out/material-metrics.parquet" \
   --plot "$out/confusion.png" < "$out/materials-test.arrows" > "$out/material-predictions.arrows"
 neurotac classify --model "$out/material.model" < "$out/materials-test.arrows" | neurotac info - | head -8

@@ -22,7 +22,7 @@ from chapters import PHASES, md_table, replace_section  # beside this script
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SECTION, TITLE = "issue6", "Models of this toolkit against the thesis's (issue 6)"
-FORCE_MODELS = ["tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours"]
+FORCE_MODELS = ["tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru"]
 
 
 def neurotac():
@@ -161,7 +161,7 @@ def held_out_section(work, preset, repeats, timing) -> list:
     data = frames(work, preset, f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {crop}")
     results = {}
     for name in FORCE_MODELS:
-        plot = f" --plot {ROOT}/docs/img/results_force_{name}.png" if preset == "ch4" and name in ("convlstm", "ours") else ""
+        plot = f" --plot {ROOT}/docs/img/results_force_{name}.png" if preset == "ch4" and name in ("convlstm", "deform-gru") else ""
         results[name] = evaluate(work, data, f"{preset}-{name}",
                                  f"--cv group:object={held} --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1{plot}", timing,
                                  FORCE_SCORING)
@@ -186,7 +186,7 @@ def held_out_section(work, preset, repeats, timing) -> list:
         phase_table(results, {"bhattacharyya": "D_B", "dtw": "D_W"}),
     ]
     lines += ["", *d_b_caveat(phase_frames(data))]
-    ours, conv = results["ours"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
+    ours, conv = results["deform-gru"].get(("all", "rmse")), results["convlstm"].get(("all", "rmse"))
     if ours and conv:
         lines += ["", f"Ours against the ConvLSTM on the unseen size: RMSE {ours:.3f} N vs {conv:.3f} N, "
                   f"{100 * (1 - ours / conv):.0f}% lower."]
@@ -226,7 +226,7 @@ def latency_section() -> list:
     torch.set_num_threads(1)
     frames = _frames()
     rows = []
-    for module, name in [(convlstm, "convlstm"), (ours, "ours")]:
+    for module, name in [(convlstm, "convlstm"), (ours, "deform-gru")]:
         latency = _latencies(_model(module, name), frames)
         rows.append([name, f"{np.percentile(latency, 50):.2f}", f"{np.percentile(latency, 99):.2f}"])
     return ["### Streaming latency per 10 ms frame", "",
@@ -246,7 +246,7 @@ def material_section(work, quick, repeats, timing) -> list:
         for n in units:
             m = evaluate(work, data, f"ch3-dnn-k{k}-n{n}", f"--cv {folds} --model-spec material-dnn --layers {k} --units {n} --repeats {repeats} --seed 1", timing)
             grid[(k, n)] = m.get(("all", "accuracy"))
-    ours = evaluate(work, data, "ch3-ours", f"--cv {folds} --model-spec material-ours --repeats {repeats} --seed 1 --plot {ROOT}/docs/img/results_material_ours.png", timing)
+    ours = evaluate(work, data, "ch3-ours", f"--cv {folds} --model-spec material-curves --repeats {repeats} --seed 1 --plot {ROOT}/docs/img/results_material_ours.png", timing)
     force = evaluate(work, data, "ch3-force", f"--cv {folds} --model-spec material-force --repeats {repeats} --seed 1", timing)
     thesis = evaluate(work, data, "ch3-dnn-k2-n30", f"--cv {folds} --model-spec material-dnn --layers 2 --units 30 --repeats {repeats} --seed 1", timing)
     lines = [
@@ -270,7 +270,7 @@ def material_section(work, quick, repeats, timing) -> list:
             ["thesis DNN, k=2 n=30", *accuracy(thesis)],
             ["thesis DNN, best of the grid", fmt(100 * best, 1), ""],
             ["force only (piezo baseline)", *accuracy(force)],
-            ["ours (material-ours)", *accuracy(ours)],
+            ["ours (material-curves)", *accuracy(ours)],
         ]),
         "",
         "Recall per class, ours: " + ", ".join(f"{c} {fmt(100 * ours[(f'class:{c}', 'recall')], 0)}%" for c in ("foam", "rubber", "silicone", "steel") if (f"class:{c}", "recall") in ours),

@@ -98,7 +98,7 @@ def cli():
     \b
         neurotac simulate --preset ch4 --seed 1 --synced \\
           | neurotac frame --window 10ms | neurotac crop --size 115x115 --center auto \\
-          | neurotac train --model ours -o force.model
+          | neurotac train --model deform-gru -o force.model
 
     Shell completion: eval "$(_NEUROTAC_COMPLETE=bash_source neurotac)" (zsh_source, fish_source likewise).
     """

@@ -19,11 +19,11 @@ def test_train_layout_grid_option_reaches_the_model_file(tmp_path):
     from neurotac_cli.cli import cli
 
     frames = write_stream(tiny_frames(trials=4), tmp_path / "f.arrows")
-    done = CliRunner().invoke(cli, ["train", "--model", "ours", "--layout-grid", "2", "--epochs", "1", str(frames),
+    done = CliRunner().invoke(cli, ["train", "--model", "deform-gru", "--layout-grid", "2", "--epochs", "1", str(frames),
                                     "-o", str(tmp_path / "m.model")])
     assert done.exit_code == 0, done.output
     assert models.load(str(tmp_path / "m.model")).config.layout_grid == 2
-    old = CliRunner().invoke(cli, ["train", "--model", "ours", "--grid", "2", str(frames), "-o", str(tmp_path / "x.model")])
+    old = CliRunner().invoke(cli, ["train", "--model", "deform-gru", "--grid", "2", str(frames), "-o", str(tmp_path / "x.model")])
     assert old.exit_code == 2 and "--layout-grid" in old.output  # click suggests the new name
 
 
@@ -31,7 +31,7 @@ def test_a_model_file_written_with_the_old_field_name_loads(tmp_path):
     from safetensors import safe_open
     from safetensors.torch import load_file, save_file
 
-    model = models.train(tiny_frames(trials=4), models.make_spec("ours", layout_grid=2, epochs=1), val_fraction=0.25)
+    model = models.train(tiny_frames(trials=4), models.make_spec("deform-gru", layout_grid=2, epochs=1), val_fraction=0.25)
     path = tmp_path / "new.model"
     models.save(model, str(path))
     with safe_open(str(path), framework="pt") as handle:
@@ -49,7 +49,7 @@ def test_a_model_file_written_before_the_depth_levels_loads_and_predicts_the_sam
     from safetensors.torch import load_file, save_file
 
     frames = tiny_frames(trials=4)
-    model = models.train(frames, models.make_spec("ours", levels=0, epochs=1), val_fraction=0.25)
+    model = models.train(frames, models.make_spec("deform-gru", levels=0, epochs=1), val_fraction=0.25)
     path = tmp_path / "new.model"
     models.save(model, str(path))
     with safe_open(str(path), framework="pt") as handle:
@@ -65,6 +65,6 @@ def test_a_model_file_written_before_the_depth_levels_loads_and_predicts_the_sam
 
 
 def test_the_spec_field_is_layout_grid():
-    assert models.make_spec("ours", layout_grid=4)["layout_grid"] == 4
+    assert models.make_spec("deform-gru", layout_grid=4)["layout_grid"] == 4
     with pytest.raises(ModelError, match="no option 'grid'"):
-        models.make_spec("ours", grid=4)
+        models.make_spec("deform-gru", grid=4)

@@ -62,8 +62,8 @@ def test_gp_is_stored_as_arrays(frames, tmp_path):
 
 
 def test_same_seed_same_model(frames):
-    a = models.train(frames, models.make_spec("ours", **FAST), val_fraction=0.3, seed=5)
-    b = models.train(frames, models.make_spec("ours", **FAST), val_fraction=0.3, seed=5)
+    a = models.train(frames, models.make_spec("deform-gru", **FAST), val_fraction=0.3, seed=5)
+    b = models.train(frames, models.make_spec("deform-gru", **FAST), val_fraction=0.3, seed=5)
     np.testing.assert_array_equal(_outputs(a, frames), _outputs(b, frames))
 
 
@@ -77,7 +77,7 @@ def test_normalisation_is_fitted_on_training_trials_only(frames):
 
 
 def test_early_stopping_restores_best_weights(frames):
-    model = models.train(frames, models.make_spec("ours", epochs=40, patience=2, lr=0.05), val_fraction=0.3, seed=0)
+    model = models.train(frames, models.make_spec("deform-gru", epochs=40, patience=2, lr=0.05), val_fraction=0.3, seed=0)
     curve = model.training["curve"]
     best = min(row["val_loss"] for row in curve)
     assert len(curve) < 40 or curve[-1]["val_loss"] == best
@@ -102,9 +102,9 @@ def test_a_foreign_file_is_refused_clearly(tmp_path):
 def test_ours_trained_on_features_computed_once_equals_the_full_forward():
     import torch
 
-    from neurotac_cli.model import ours
+    from neurotac_cli.model import deform_gru
 
-    net = ours.Net(ours.Config(hidden=8), (2, 12, 10))
+    net = deform_gru.Net(deform_gru.Config(hidden=8), (2, 12, 10))
     generator = torch.Generator().manual_seed(3)
     counts = torch.poisson(torch.full((5, 7, 2, 12, 10), 0.7), generator=generator)
     t_s = torch.arange(7, dtype=torch.float64).repeat(5, 1) * 0.01

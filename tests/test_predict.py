@@ -15,7 +15,7 @@ def run(args, stdin):
     return subprocess.run([sys.executable, "-c", code, *args], stdin=stdin, capture_output=True)
 
 
-@pytest.mark.parametrize("name", ["ours", "convlstm", "tdnn", "gp", "lstm", "cnnlstm"])
+@pytest.mark.parametrize("name", ["deform-gru", "convlstm", "tdnn", "gp", "lstm", "cnnlstm"])
 def test_streaming_in_pieces_equals_eval(name):
     frames = tiny_frames(trials=4)
     options = {"epochs": 2} if name != "gp" else {"restarts": 0, "max_points": 100}
@@ -34,7 +34,7 @@ def test_streaming_in_pieces_equals_eval(name):
 
 def test_predict_command_streams_equal_to_eval_command(tmp_path):
     frames = tiny_frames(trials=3)
-    model = models.train(frames, models.make_spec("ours", epochs=2), seed=0)
+    model = models.train(frames, models.make_spec("deform-gru", epochs=2), seed=0)
     models.save(model, str(tmp_path / "m.model"))
     path = write_stream(frames, tmp_path / "f.arrows", chunk=1)
     with open(path, "rb") as stdin:
@@ -51,7 +51,7 @@ def test_predict_command_streams_equal_to_eval_command(tmp_path):
 def test_predict_writes_each_batch_before_reading_the_next(tmp_path):
     """A frame's estimate comes out while later frames have not been written yet (a live pipe)."""
     frames = tiny_frames(trials=1)
-    model = models.train(frames, models.make_spec("ours", epochs=1), seed=0)
+    model = models.train(frames, models.make_spec("deform-gru", epochs=1), seed=0)
     models.save(model, str(tmp_path / "m.model"))
     code = "from neurotac_cli.cli import main; main()"
     proc = subprocess.Popen([sys.executable, "-c", code, "predict", "--model", str(tmp_path / "m.model")],

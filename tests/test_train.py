@@ -19,12 +19,12 @@ def run(args, stdin=None):
 def test_split_that_separates_a_trial_from_its_augmented_copy_is_refused():
     frames = tiny_frames(trials=6, augmented_copies=1)
     with pytest.raises(ModelError, match="augmented copies fall on both sides"):
-        models.train(frames, models.make_spec("ours", epochs=1), val_trials=["t0"], seed=0)
+        models.train(frames, models.make_spec("deform-gru", epochs=1), val_trials=["t0"], seed=0)
 
 
 def test_fraction_split_keeps_copies_together():
     frames = tiny_frames(trials=6, augmented_copies=1)
-    model = models.train(frames, models.make_spec("ours", epochs=1), val_fraction=0.3, seed=0)
+    model = models.train(frames, models.make_spec("deform-gru", epochs=1), val_fraction=0.3, seed=0)
     val = set(model.training["trials"]["validation"])
     train = set(model.training["trials"]["train"])
     sources = lambda names: {n.split("~")[0] for n in names}  # noqa: E731
@@ -40,14 +40,14 @@ def test_val_where_picks_a_label_value():
 def test_leak_is_refused_on_the_command_line(tmp_path):
     path = write_stream(tiny_frames(trials=4, augmented_copies=1), tmp_path / "f.arrows")
     with open(path, "rb") as stdin:
-        done = run(["train", "--model", "ours", "--epochs", "1", "--val-trials", "t0", "-o", str(tmp_path / "m.model")], stdin)
+        done = run(["train", "--model", "deform-gru", "--epochs", "1", "--val-trials", "t0", "-o", str(tmp_path / "m.model")], stdin)
     assert done.returncode == 1
     assert b"neurotac train: error: trial 't0' and its augmented copies fall on both sides" in done.stderr
     assert b"Traceback" not in done.stderr
 
 
 def test_model_from_a_different_input_spec_is_refused(tmp_path):
-    model = models.train(tiny_frames(trials=4), models.make_spec("ours", epochs=1), seed=0)
+    model = models.train(tiny_frames(trials=4), models.make_spec("deform-gru", epochs=1), seed=0)
     path = tmp_path / "m.model"
     models.save(model, str(path))
     other = write_stream(tiny_frames(trials=2, size=(8, 9)), tmp_path / "small.arrows")
@@ -93,7 +93,7 @@ def test_an_output_in_a_missing_folder_is_refused_before_any_training(tmp_path, 
 def test_eval_cross_validation_folds_and_classification(tmp_path):
     path = write_stream(tiny_frames(trials=6), tmp_path / "f.arrows")
     with open(path, "rb") as stdin:
-        done = run(["eval", "--cv", "kfold:3", "--model-spec", "material-ours", "--epochs", "5",
+        done = run(["eval", "--cv", "kfold:3", "--model-spec", "material-curves", "--epochs", "5",
                     "--metrics", str(tmp_path / "m.parquet"), "--plot", str(tmp_path / "cm.png"), "-o", str(tmp_path / "oof.parquet")], stdin)
     assert done.returncode == 0, done.stderr
     assert b"confusion (rows true, columns predicted)" in done.stderr
@@ -111,7 +111,7 @@ def test_eval_cv_held_out_group_scores_only_that_group(tmp_path):
     frames = tiny_frames(trials=6)
     from neurotac_cli.model import evaluate
 
-    predictions, rows = evaluate.cross_validate(frames, models.make_spec("ours", epochs=2), "group:object=large", seed=0)
+    predictions, rows = evaluate.cross_validate(frames, models.make_spec("deform-gru", epochs=2), "group:object=large", seed=0)
     assert set(predictions.column("object").to_pylist()) == {"large"}
     figures = {(s, m): v for s, m, v in rows}
     assert np.isfinite(figures[("all", "rmse")]) and ("phase:holding", "dtw") in figures

@@ -38,7 +38,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 
     \b
         neurotac eval --model force.model --metrics m.parquet --plot force.png < test.arrows > pred.arrows
-        neurotac eval --cv group:object=bolt12 --model-spec ours --repeats 3 < frames.arrows > oof.arrows
+        neurotac eval --cv group:object=bolt12 --model-spec deform-gru --repeats 3 < frames.arrows > oof.arrows
         neurotac eval --cv loo --model-spec tdnn --grid layers=1..5 --grid units=5,10,...,40 \\
           --metrics grid.parquet --jobs 0 < ch3-frames.arrows > oof.arrows
     """

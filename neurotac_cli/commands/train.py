@@ -4,20 +4,20 @@ import click
 
 from neurotac_cli.options import input_paths, seed_option
 
-FORCE = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours")
-MATERIAL = ("material-dnn", "material-force", "material-ours")
+FORCE = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
+MATERIAL = ("material-dnn", "material-force", "material-curves")
 
 # (option, parameter, type, help); None defaults take each model's thesis value.
 HYPERPARAMETERS = [
-    ("--layers", "layers", int, "Hidden layers: tdnn k (thesis 4), lstm (6), cnnlstm conv layers (4), convlstm (4), ours GRU layers (1), material-dnn k (2)."),
+    ("--layers", "layers", int, "Hidden layers: tdnn k (thesis 4), lstm (6), cnnlstm conv layers (4), convlstm (4), deform-gru GRU layers (1), material-dnn k (2)."),
     ("--units", "units", int, "Units per layer: tdnn n (thesis 40), lstm (32), cnnlstm LSTM units (32), material-dnn n (30)."),
     ("--delays", "delays", int, "tdnn: previous frames fed with the current one (thesis 3)."),
     ("--filters", "filters", int, "cnnlstm, convlstm: filters per convolutional layer (thesis 3)."),
     ("--kernel", "kernel", int, "cnnlstm, convlstm: square kernel size (thesis 3, i.e. 3x3)."),
-    ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); ours, material-ours."),
+    ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); deform-gru, material-curves."),
     ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
-    ("--hidden", "hidden", int, "ours: GRU units (default 32)."),
-    ("--layout-grid", "layout_grid", int, "ours: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
+    ("--hidden", "hidden", int, "deform-gru: GRU units (default 32)."),
+    ("--layout-grid", "layout_grid", int, "deform-gru: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
     ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
     ("--points", "points", int, "material models: samples each accumulation curve is resampled to (thesis 30)."),
@@ -86,8 +86,8 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
 @click.command()
 @input_paths
 @click.option("--model", "model_name", type=click.Choice(FORCE + MATERIAL), required=True,
-              help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), ours; "
-              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-ours.")
+              help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), deform-gru (ours); "
+              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
 @hyperparameter_options
 @validation_options
@@ -108,7 +108,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     \b
         neurotac simulate --preset ch4 --seed 1 --synced | neurotac frame --window 10ms \\
-          | neurotac crop --size 115x115 --center auto | neurotac train --model ours -o force.model
+          | neurotac crop --size 115x115 --center auto | neurotac train --model deform-gru -o force.model
     """
     import torch
 

@@ -12,8 +12,8 @@ from neurotac_cli.errors import ModelError
 from neurotac_cli.model import data as shaping
 from neurotac_cli.model.fit import FitConfig, fit
 
-FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "ours")
-MATERIAL_MODELS = ("material-dnn", "material-force", "material-ours")
+FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
+MATERIAL_MODELS = ("material-dnn", "material-force", "material-curves")
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
 
@@ -22,7 +22,7 @@ def _module(name: str):
     if name in MATERIAL_MODELS:
         return importlib.import_module("neurotac_cli.model.material")
     if name in FORCE_MODELS:
-        return importlib.import_module(f"neurotac_cli.model.{name}")
+        return importlib.import_module(f"neurotac_cli.model.{name.replace('-', '_')}")
     raise ModelError(f"unknown model {name!r} (force: {', '.join(FORCE_MODELS)}; material: {', '.join(MATERIAL_MODELS)})")
 
 

@@ -5,7 +5,7 @@
   softmax. Thesis best: k=2, n=30.
 - `material-force` (the thesis's piezoresistive comparison): the same network on the measured force
   trace alone.
-- `material-ours`: the accumulation curves on a log scale (log1p) beside the same curves divided by
+- `material-curves`: the accumulation curves on a log scale (log1p) beside the same curves divided by
   their final totals (their shape: *when* each polarity's events came, which carries the stiffness,
   separated from *how many*, which mostly carries the force), into one layer of 30 sigmoid units.
   Measured on simulated ch3 (8-fold, 5 seeds): 82.9% mean accuracy vs 76.2% for the thesis DNN;
@@ -37,7 +37,7 @@ class Config:
 PRESETS = {
     "material-dnn": Config(),
     "material-force": Config(inputs="force"),
-    "material-ours": Config(inputs="curves", layers=1, units=30),
+    "material-curves": Config(inputs="curves", layers=1, units=30),
 }
 
 

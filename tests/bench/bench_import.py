@@ -102,7 +102,7 @@ def measure_file(name: str) -> dict:
     number of events) gets the reason instead of a time."""
     path = REAL / name
     rows = read_events_table(path).num_rows
-    result = {"ours": best_time(lambda: read_events_table(path)), "rows": rows, "peers": {}}
+    result = {"deform-gru": best_time(lambda: read_events_table(path)), "rows": rows, "peers": {}}
     for peer, read in PEERS[name].items():
         try:
             out = read(path)
@@ -128,13 +128,13 @@ def _count(out) -> int:
 def report(name: str, result: dict) -> float | None:
     """Print one file's line; return the ratio fastest-peer / ours, or None when no peer reads it."""
     timed = {peer: t for peer, t in result["peers"].items() if isinstance(t, float)}
-    parts = [f"ours {result['ours'] * 1e3:7.2f} ms"]
+    parts = [f"ours {result['deform-gru'] * 1e3:7.2f} ms"]
     for peer, value in result["peers"].items():
-        parts.append(f"{peer} {value * 1e3:.2f} ms (x{value / result['ours']:.2f})" if isinstance(value, float) else f"{peer}: {value}")
+        parts.append(f"{peer} {value * 1e3:.2f} ms (x{value / result['deform-gru']:.2f})" if isinstance(value, float) else f"{peer}: {value}")
     print(f"{name} ({result['rows']:,} events): " + "; ".join(parts))
     if not timed:
         return None
-    return min(timed.values()) / result["ours"]
+    return min(timed.values()) / result["deform-gru"]
 
 
 def measure_text(rows=300_000) -> dict:

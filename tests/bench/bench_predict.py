@@ -60,12 +60,12 @@ def test_streaming_latency_per_frame_one_thread():
     torch.set_num_threads(1)
     frames = _frames()
     results = {}
-    for module, name in [(convlstm, "convlstm"), (ours, "ours")]:
+    for module, name in [(convlstm, "convlstm"), (ours, "deform-gru")]:
         latency = _latencies(_model(module, name), frames)
         results[name] = (np.percentile(latency, 50), np.percentile(latency, 99))
         print(f"\n{name:9s} per-frame latency at {SIZE}x{SIZE}, 1 thread: p50 {results[name][0]:.3f} ms, p99 {results[name][1]:.3f} ms")
-    print(f"convlstm / ours: p50 x{results['convlstm'][0] / results['ours'][0]:.1f}, p99 x{results['convlstm'][1] / results['ours'][1]:.1f}")
-    assert results["ours"][0] < results["convlstm"][0]
+    print(f"convlstm / ours: p50 x{results['convlstm'][0] / results['deform-gru'][0]:.1f}, p99 x{results['convlstm'][1] / results['deform-gru'][1]:.1f}")
+    assert results["deform-gru"][0] < results["convlstm"][0]
 
 
 def _ch4_frames(tmp_path):
