@@ -1,6 +1,6 @@
-"""Results of the force models and material classifiers on simulated data (issue 6).
+"""Results of the force models and material classifiers on simulated data, ours beside the thesis's.
 
-Writes the section between `<!-- results:issue6:start -->` and `<!-- results:issue6:end -->` of
+Writes the section between `<!-- results:models:start -->` and `<!-- results:models:end -->` of
 docs/results.md: tables in the shape of thesis Tables 4.3, 4.4, 4.5 (force, held-out object size) and
 3.4 (materials). Every figure is read from the metrics tables that `neurotac eval` writes in the
 same run; intermediate files go to --work and are reused when present, so an interrupted run resumes.
@@ -21,7 +21,7 @@ import time
 from chapters import PHASES, md_table, replace_section  # beside this script
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-SECTION, TITLE = "issue6", "Models of this toolkit against the thesis's (issue 6)"
+SECTION, TITLE = "models", "Models of this toolkit against the thesis's"
 FORCE_MODELS = ["tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru"]
 
 
@@ -220,13 +220,13 @@ def latency_section() -> list:
     import numpy as np
     import torch
 
-    from neurotac_cli.model import convlstm, ours
+    from neurotac_cli.model import convlstm, deform_gru
     from tests.bench.bench_predict import _frames, _latencies, _model
 
     torch.set_num_threads(1)
     frames = _frames()
     rows = []
-    for module, name in [(convlstm, "convlstm"), (ours, "deform-gru")]:
+    for module, name in [(convlstm, "convlstm"), (deform_gru, "deform-gru")]:
         latency = _latencies(_model(module, name), frames)
         rows.append([name, f"{np.percentile(latency, 50):.2f}", f"{np.percentile(latency, 99):.2f}"])
     return ["### Streaming latency per 10 ms frame", "",

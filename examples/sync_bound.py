@@ -16,8 +16,8 @@ This is an upper bound for a method that derives the force's shape from the came
 exact shape. With --camera, the other side: a loading template (rate ~ u^e on [c, l], u = (t - c) /
 (l - c), e in 0, 0.25, 0.5, plus a constant) fitted by least squares to each trial's OFF-event rate
 on the pixels that both darken and recover, and its contact (c) and end-of-loading (l) instants
-compared with the simulator's: how late, and how variably, the camera shows the grasp. docs/design.md
-(sync, xcorr) quotes both for ch3's FlexiForce.
+compared with the simulator's: how late, and how variably, the camera shows the grasp. docs/journal.md
+("What bounds xcorr on ch3") quotes both for ch3's FlexiForce.
 """
 
 import argparse

@@ -2,7 +2,7 @@
 
 The event-level version lives here, as the reference for the measurement, not in the package: framed
 with the same window it gives the same frames in distribution as `augment --tes` (see
-docs/design.md, "augment"), so the command works on frames only.
+docs/design.md, "augment"; the figures in docs/journal.md), so the command works on frames only.
 """
 
 import numpy as np

@@ -44,9 +44,9 @@ intro kept as written
 old
 <!-- results:ch3:end -->
 
-<!-- results:issue6:start -->
+<!-- results:models:start -->
 engineer E's table, not ours
-<!-- results:issue6:end -->
+<!-- results:models:end -->
 """
 
 
@@ -174,7 +174,7 @@ def test_chapter4_layer_sweep_table_and_figure(tmp_path):
     assert (figures / "ch4-layers.png").stat().st_size > 1000 and "ch4-layers.png" in text
 
 
-def test_issue6_section_is_written_once_under_one_heading(tmp_path, monkeypatch):
+def test_models_section_is_written_once_under_one_heading(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(EXAMPLES))  # results.py renders with chapters.py's helpers
     results = load("results")
     monkeypatch.setattr(results, "ROOT", tmp_path)
@@ -184,12 +184,12 @@ def test_issue6_section_is_written_once_under_one_heading(tmp_path, monkeypatch)
     results.write_section(["### Latency", "", results.md_table(["model", "p50 ms"], [["deform-gru", "0.59"]]), ""])
     text = page.read_text()
     assert "engineer E's table" not in text and "\nold\n" in text  # only its own section replaced
-    assert "<!-- results:issue6:start -->\n### Latency\n\n| model | p50 ms |\n|---|---|\n| ours | 0.59 |\n<!-- results:issue6:end -->" in text
+    assert "<!-- results:models:start -->\n### Latency\n\n| model | p50 ms |\n|---|---|\n| deform-gru | 0.59 |\n<!-- results:models:end -->" in text
     page.write_text("# Reproduced results\n")
     results.write_section(["### Latency"])
     results.write_section(["### Latency"])
     text = page.read_text()
-    assert text.count("## Models of this toolkit against the thesis's (issue 6)") == 1 and text.count("### Latency") == 1
+    assert text.count("## Models of this toolkit against the thesis's") == 1 and text.count("### Latency") == 1
 
 
 def test_results_counts_the_nonzero_frames_of_each_phase_per_grasp(tmp_path, monkeypatch):

@@ -335,7 +335,7 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
 def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(presets):
     """examples/sync_bound.py hands each trial's true force to a sensor model fitted with the offset:
     with the FlexiForce's play among the models the log is within 1 ms, with a lag only the slowly
-    loaded foam trial is ~3 ms late (docs/commands/sync.md, "What bounds xcorr on ch3")."""
+    loaded foam trial is ~3 ms late (docs/journal.md, "What bounds xcorr on ch3")."""
     script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[1] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
 
     def errors(play):

@@ -40,9 +40,9 @@ FORMAT_NAMES = {
 def _keep_decoded_chunks_on_the_heap():
     """glibc hands blocks above its mmap threshold straight back to the OS when freed, and trims the
     heap top above its trim threshold, so decoding chunk after chunk (each chunk's output freed once
-    written) page-faults every output afresh: measured 6-10 ms instead of 1.7 ms for the 2 MB EVT 2.0
-    file. A fixed 32 MiB mmap threshold and a 128 MiB trim threshold keep chunk-sized blocks for
-    reuse. Linux/glibc only; elsewhere nothing changes."""
+    written) page-faults every output afresh, which on a small file costs several times the decoding
+    itself (docs/design.md, "Allocator thresholds"). A fixed 32 MiB mmap threshold and a 128 MiB trim
+    threshold keep chunk-sized blocks for reuse. Linux/glibc only; elsewhere nothing changes."""
     if not sys.platform.startswith("linux"):
         return
     try:

@@ -3,8 +3,8 @@
 each an autograd Function with a hand-written backward; and dropout keep-masks drawn cheaply.
 
 Every activation is a logistic sigmoid: tanh(x) = 2 sigmoid(2x) - 1, with the factor 2 of the g
-gate folded into its convolution (`gate_scale`). On this CPU build torch's sigmoid is vectorised
-and its tanh is not (measured: sigmoid of 105,800 x 12 floats 0.26 ms, tanh 1.7 ms on 2 threads).
+gate folded into its convolution (`gate_scale`), because on the CPU build torch's sigmoid is
+vectorised and its tanh is not (docs/design.md, "ConvLSTM on a CPU").
 The per-pixel arithmetic between the sigmoids runs in small numba loops (one pass instead of a dozen
 torch operations on 3-channel strided slices); without numba (NEUROTAC_NO_NUMBA=1) the same
 arithmetic runs as torch operations that autograd differentiates.
@@ -21,8 +21,9 @@ try:
 except ImportError:  # pragma: no cover - exercised with NEUROTAC_NO_NUMBA=1
     njit = None
 
-# numba's parallel loops are left out on purpose: a second OpenMP runtime beside torch's slowed
-# torch's own kernels tenfold (measured); the loops run on the calling thread.
+# numba's parallel loops are left out on purpose: they bring a second OpenMP runtime, whose threads
+# compete with torch's for the same cores and slow torch's own kernels; the loops run on the
+# calling thread.
 if njit is not None:
 
     @njit(cache=True, nogil=True)

@@ -10,9 +10,9 @@ force is better described by a few physical quantities that change smoothly with
   ON as it falls): its positive mass, its negative mass, the area where it is positive, and its
   radial extent (the second moment around its centroid), i.e. the contact patch's size;
 - the areas where the deformation map reaches each of `levels` depths (fractions of its 99.5th
-  percentile on the training trials): the membrane's pixels saturate, so how much of the patch
-  reaches which depth tells the force better than the patch's area (correlation with the holding
-  force 0.4-0.7 against 0.2 for the area, measured on simulated ch4);
+  percentile on the training trials): the membrane's pixels saturate, so the patch's area stops
+  growing with the force while how much of the patch reaches which depth keeps telling it
+  (docs/design.md has the correlations);
 - a coarse `layout_grid` x `layout_grid` layout of the deformation map and of the frame's events, as shares of
   their totals (so they do not scale with object size).
 
@@ -41,7 +41,7 @@ class Config:
     hidden: int = 32
     layers: int = 1
     levels: int = 8  # depth levels of the deformation map whose areas are features
-    layout_grid: int = 0  # 4 adds a 4x4 layout: better on seen sizes, worse on an unseen size (measured)
+    layout_grid: int = 0  # 0 = none: a layout learns where the seen sizes press, which an unseen size does not share
     dropout: float = 0.0
 
 

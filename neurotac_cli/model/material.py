@@ -8,8 +8,8 @@
 - `material-curves`: the accumulation curves on a log scale (log1p) beside the same curves divided by
   their final totals (their shape: *when* each polarity's events came, which carries the stiffness,
   separated from *how many*, which mostly carries the force), into one layer of 30 sigmoid units.
-  Measured on simulated ch3 (8-fold, 5 seeds): 82.9% mean accuracy vs 76.2% for the thesis DNN;
-  richer inputs (event rates, active areas: `inputs="rich"`) and ReLU/dropout networks did worse.
+  Separating the two lets the network weigh the stiffness apart from the force (its accuracy
+  against the thesis DNN's: docs/design.md).
 
 Inputs are standardised with constants fitted on training trials (buffers saved in the model file).
 """

@@ -33,9 +33,10 @@ Methods (each returns the sync instants t0 on the camera clock, one per force-lo
     unloaded, so the signed rate OFF - k ON (k balances the polarities over the recording; only
     pixels with >= 2 OFF and >= 1 ON, bursts left out) follows signed dF/dt. It is fitted too
     (finer tau grid, no tie rule, no saturation weighting) and kept when its sensor is slow to
-    unload (tau_fall >= 15 ms): with a FlexiForce under a cover (simulated ch3) it cuts the error
-    from max 20.3 / mean 7.9 ms to max 12.8 / mean 2.4 ms; with a fast cell the unsigned rate is
-    better (the signed fit sees tau_fall <= 5 ms there and is not used). Details: `signal`.
+    unload (tau_fall >= 15 ms): a slow, hysteretic sensor (a covered FlexiForce) otherwise lets the
+    unsigned fit match loading to unloading; with a fast cell the unsigned rate is the better fit,
+    and the signed fit sees tau_fall <= 5 ms there, so it is not used (figures: docs/design.md).
+    Details: `signal`.
   Among the offsets that keep the force log inside the recording (20 ms of slack at either end),
   the one of the highest Pearson correlation, refined by a parabola, less the camera's response
   delay `response_us` (the event rate follows the force ~1.6 ms late on the simulated rig:
