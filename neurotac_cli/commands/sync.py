@@ -125,8 +125,11 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     if label_map:
         args["labels"] = label_map
     tables.write(output, recordings, step=("sync", args))
+    synced = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
+    for line in [line for info in synced.values() for line in info.get("warnings", [])]:
+        click.echo(f"neurotac sync: warning: {line}", err=True)
     if spec.method == "xcorr":
-        warn_uncertain(sch.get_meta(recordings.schema, sch.SYNC)["trials"])
+        warn_uncertain(synced)
 
 
 def warn_uncertain(trials: dict):
