@@ -358,3 +358,70 @@ def check_force(values: np.ndarray, where: str = ""):
     if len(values) and bad.any():
         place = f" in {where}" if where else ""
         raise SchemaError(f"{int(bad.sum())} force values{place} are NaN or infinite; clean the force log first")
+
+
+class UniqueRows:
+    """Refuses a repeated trial (recordings) or (trial, frame) pair (frames) as batches flow past: the
+    same table given twice, or two recordings synced under one name, would otherwise be trained on
+    or scored twice. Memory: a byte per frame number from a trial's first to its last, or a set where
+    those lie more than DENSE_SPAN apart."""
+
+    KEYS = {"recordings": ("trial",), "frames": ("trial", "frame")}
+    DENSE_SPAN = 1 << 24
+
+    def __init__(self, kind: str | None):
+        self.keys = self.KEYS.get(kind)
+        self.seen: dict = {}  # trial -> (first frame number, flags from it) or (0, set of frame numbers)
+
+    def check(self, batch) -> None:
+        if self.keys is None or batch.num_rows == 0:
+            return
+        trials = batch.column(batch.schema.get_field_index("trial")).dictionary_encode()
+        names = trials.dictionary.to_pylist()
+        codes = trials.indices.to_numpy(zero_copy_only=False)
+        if self.keys == ("trial",):
+            frames = np.zeros(len(codes), dtype=np.int64)
+        else:
+            frames = batch.column(batch.schema.get_field_index("frame")).to_numpy(zero_copy_only=False).astype(np.int64)
+        order = np.argsort(codes, kind="stable")
+        bounds = np.flatnonzero(np.diff(codes[order])) + 1
+        for rows in np.split(order, bounds):
+            self._add(names[codes[rows[0]]], frames[rows])
+
+    def _add(self, trial, frames: np.ndarray) -> None:
+        low, high = int(frames.min()), int(frames.max())
+        base, flags = self.seen.get(trial, (low, np.zeros(0, dtype=bool)))
+        if isinstance(flags, set):
+            repeated = np.fromiter((f in flags for f in frames.tolist()), bool, len(frames)) | _repeated_within(frames)
+        else:
+            if low < base or high - base >= len(flags):
+                start, stop = min(base, low), max(high + 1, base + len(flags))
+                if stop - start > self.DENSE_SPAN:  # frame numbers far apart (forged?): a set, not flags
+                    self.seen[trial] = (0, set((np.flatnonzero(flags) + base).tolist()))
+                    return self._add(trial, frames)
+                grown = np.zeros(stop - start, dtype=bool)
+                grown[base - start : base - start + len(flags)] = flags
+                base, flags = start, grown
+            repeated = flags[frames - base] | _repeated_within(frames)
+        if repeated.any():
+            raise SchemaError(self._message(trial, int(frames[np.argmax(repeated)])))
+        if isinstance(flags, set):
+            flags.update(frames.tolist())
+        else:
+            flags[frames - base] = True
+        self.seen[trial] = (base, flags)
+
+    def _message(self, trial, frame: int) -> str:
+        what = f"trial {trial!r}" if self.keys == ("trial",) else f"frame {frame} of trial {trial!r}"
+        return (
+            f"{what} appears twice in the input (the same table given twice, or two recordings under one name); "
+            "give each its own trial name (neurotac sync --trial NAME, or a manifest row each) and pass each table once"
+        )
+
+
+def _repeated_within(index: np.ndarray) -> np.ndarray:
+    """True at each value already seen earlier in `index`."""
+    _, first = np.unique(index, return_index=True)
+    repeated = np.ones(len(index), dtype=bool)
+    repeated[first] = False
+    return repeated

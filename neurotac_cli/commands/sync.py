@@ -91,7 +91,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     import os
 
     from neurotac_cli import schema as sch, tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.io.camera import trial_name
     from neurotac_cli.ops import sync as sy
 
@@ -106,12 +106,12 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     label_map = dict(labels)
     if manifest:
         if events or force_path:
-            raise NeurotacError("give either --manifest or an events file with --force, not both")
+            raise UsageError("give either --manifest or an events file with --force, not both")
         sources = sy.manifest_sources(manifest, force_options, sensor, label_map)
         origin = {"manifest": os.path.basename(manifest)}
     else:
         if not force_path:
-            raise NeurotacError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
+            raise UsageError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
         if events in (None, "-"):
             table = tables.read(["-"], kind="events")
             name = trial or "trial"
