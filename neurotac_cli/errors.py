@@ -53,5 +53,5 @@ class OutputError(NeurotacError):
     @classmethod
     def from_os(cls, target: str, error: OSError, kept: bool = False) -> "OutputError":
         why, what_to_do = cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
-        previous = f"; the previous {target} is kept" if kept else ""
+        previous = "; the previous file is kept" if kept else ""
         return cls(f"cannot write {target} ({why}; {what_to_do}{previous})")

@@ -88,6 +88,8 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
     config = preset_config(preset, **overrides)
     if synced and output in (None, "-"):
         tables.refuse_terminal()  # before minutes of work, not after
+    elif synced:
+        tables.check_folder(output)
 
     from neurotac_cli.sim.run import prepare_folder, recordings, simulate, write_dataset
 
