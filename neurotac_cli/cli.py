@@ -61,6 +61,10 @@ class LazyGroup(click.Group):
             _fail(f"{_who(ctx)}: interrupted", code=130)
         except MemoryError:
             _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces)")
+        except RuntimeError as error:
+            if "can't allocate memory" not in str(error):  # torch's allocator says it so, not with MemoryError
+                raise
+            _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces, or a smaller model)")
         except OSError as error:
             if error.errno not in OutputError.WHY:
                 raise

@@ -32,6 +32,8 @@ REQUIRED = {
     "predictions": {"trial": pa.string()},
     "metrics": {"scope": pa.string(), "metric": pa.string(), "value": pa.float64()},
 }
+# Required columns that may hold nulls (a frame without a force reading or a phase).
+NULLABLE = {"frames": ("force", "phase")}
 # String columns that describe provenance rather than a label of the grasp.
 NOT_LABELS = {"trial", "phase", "source_trial", "augment", "scope", "metric", "model"}
 
@@ -79,7 +81,32 @@ def _json_default(value):
 
 
 def kind_of(schema: pa.Schema) -> str | None:
-    return get_meta(schema, KIND)
+    kind = get_meta(schema, KIND)
+    if kind is not None and not isinstance(kind, str):
+        raise SchemaError(f"metadata {KIND} is {kind!r}, not a kind name ({', '.join(KINDS)}); was the file written by another tool?")
+    return kind
+
+
+def check_header(schema: pa.Schema) -> None:
+    """Column names are unique and the neurotac metadata a command relies on has the shape it
+    expects: a forged or damaged file is one clear error at the door, not a crash deep inside."""
+    repeated = sorted({name for name in schema.names if schema.names.count(name) > 1})
+    if repeated:
+        raise SchemaError(f"the table has {len(repeated)} column name(s) twice ({', '.join(map(repr, repeated))}); rename or drop one of each")
+    kind_of(schema)
+    sensor = get_meta(schema, SENSOR)
+    if sensor is not None and not (isinstance(sensor, dict) and all(_positive_int(sensor.get(k)) for k in ("width", "height"))):
+        raise SchemaError(f"metadata {SENSOR} is {sensor!r}, not {{\"width\": W, \"height\": H}} in pixels; re-import the recording")
+    window = get_meta(schema, WINDOW)
+    if window is not None and not _positive_int(window):
+        raise SchemaError(f"metadata {WINDOW} is {window!r}, not a positive number of µs; frame the events again")
+    history = get_meta(schema, HISTORY)
+    if history is not None and not (isinstance(history, list) and all(isinstance(step, dict) for step in history)):
+        raise SchemaError(f"metadata {HISTORY} is not a list of steps; was the file written by another tool?")
+
+
+def _positive_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 < value < 2**31
 
 
 def sensor_of(schema: pa.Schema) -> tuple[int, int] | None:
@@ -314,7 +341,12 @@ def conform_schema(schema: pa.Schema, kind: str) -> pa.Schema:
 
 
 def conform(batch, kind: str):
-    """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars)."""
+    """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars),
+    and refuse nulls where every row needs a value."""
+    for name in REQUIRED[kind]:
+        if name not in NULLABLE.get(kind, ()) and batch.column(batch.schema.get_field_index(name)).null_count:
+            empty = batch.column(batch.schema.get_field_index(name)).null_count
+            raise SchemaError(f"{empty} rows of the {kind} table have no {name!r} (null); every row needs one: fix or drop those rows")
     for name, typ in REQUIRED[kind].items():
         if typ is None:
             continue

@@ -212,7 +212,11 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
         except StopIteration:
             raise InputError(f"{path}: no table in it") from None
     schema = opened[0][0][0]
+    for (other, _), _ in opened:
+        sch.check_header(other)
     found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
+    if not kind and found in sch.REQUIRED:
+        sch.validate(schema, found)  # a table that says what it is, but lacks its columns
     if found and sch.kind_of(schema) is None:
         schema = sch.set_meta(schema, kind=found)
     if found in sch.REQUIRED:
@@ -234,6 +238,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
                 count += batch.num_rows
                 yield batch
             for other, more in rest:
+                sch.check_header(other)
                 _check_compatible(schema, other, found)
                 for batch in _conformed(more, schema, found):
                     unique.check(batch)
