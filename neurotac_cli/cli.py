@@ -65,8 +65,8 @@ class LazyGroup(click.Group):
             if "can't allocate memory" not in str(error):  # torch's allocator says it so, not with MemoryError
                 raise
             _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces, or a smaller model)")
-        except OSError as error:
-            if error.errno not in OutputError.WHY:
+        except OSError as error:  # writing to stdout (`> file` on a full disk); -o is handled by tables.atomic_file
+            if error.errno not in OutputError.ONLY_WRITING:
                 raise
             _fail(f"{_who(ctx)}: error: {OutputError.from_os(error.filename or 'the output', error)}")
 

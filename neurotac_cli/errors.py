@@ -1,4 +1,5 @@
-"""User-facing errors. Raised where a problem is found; `cli.py` turns them into one line and exit 1."""
+"""User-facing errors. Raised where a problem is found; `cli.py` turns them into one line and exit 1
+(exit 2 for a UsageError)."""
 
 import errno
 
@@ -49,6 +50,7 @@ class OutputError(NeurotacError):
         errno.ENOENT: ("its folder vanished while writing", "make the folder again and re-run"),
         errno.EIO: ("input/output error", "check the disk or network share, and write elsewhere"),
     }
+    ONLY_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}  # errors that reading never gives
 
     @classmethod
     def from_os(cls, target: str, error: OSError, kept: bool = False) -> "OutputError":

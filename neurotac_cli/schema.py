@@ -400,6 +400,7 @@ class UniqueRows:
 
     KEYS = {"recordings": ("trial",), "frames": ("trial", "frame")}
     DENSE_SPAN = 1 << 24
+    SMALL = 32  # batches of up to this many rows are checked row by row
 
     def __init__(self, kind: str | None):
         self.keys = self.KEYS.get(kind)
@@ -407,6 +408,12 @@ class UniqueRows:
 
     def check(self, batch) -> None:
         if self.keys is None or batch.num_rows == 0:
+            return
+        if batch.num_rows <= self.SMALL:  # `predict` streams a frame at a time: no numpy per batch
+            trials = batch.column(batch.schema.get_field_index("trial")).to_pylist()
+            numbers = [0] * len(trials) if self.keys == ("trial",) else batch.column(batch.schema.get_field_index("frame")).to_pylist()
+            for trial, number in zip(trials, numbers):
+                self._add_one(trial, number)
             return
         trials = batch.column(batch.schema.get_field_index("trial")).dictionary_encode()
         names = trials.dictionary.to_pylist()
@@ -431,7 +438,8 @@ class UniqueRows:
                 if stop - start > self.DENSE_SPAN:  # frame numbers far apart (forged?): a set, not flags
                     self.seen[trial] = (0, set((np.flatnonzero(flags) + base).tolist()))
                     return self._add(trial, frames)
-                grown = np.zeros(stop - start, dtype=bool)
+                # room to double, so a trial streamed a frame at a time is not copied once per frame
+                grown = np.zeros(min(max(stop - start, 2 * len(flags)), self.DENSE_SPAN), dtype=bool)
                 grown[base - start : base - start + len(flags)] = flags
                 base, flags = start, grown
             repeated = flags[frames - base] | _repeated_within(frames)
@@ -442,6 +450,14 @@ class UniqueRows:
         else:
             flags[frames - base] = True
         self.seen[trial] = (base, flags)
+
+    def _add_one(self, trial, number: int) -> None:
+        base, flags = self.seen.get(trial, (number, None))
+        if isinstance(flags, set) or flags is None or not 0 <= number - base < len(flags):
+            return self._add(trial, np.array([number], dtype=np.int64))
+        if flags[number - base]:
+            raise SchemaError(self._message(trial, number))
+        flags[number - base] = True
 
     def _message(self, trial, frame: int) -> str:
         what = f"trial {trial!r}" if self.keys == ("trial",) else f"frame {frame} of trial {trial!r}"

@@ -236,3 +236,18 @@ def test_a_repeated_frame_within_one_batch_and_far_apart_frame_numbers():
     doubled = table.set_column(1, "frame", pa.array([7, 8, 7, 9], pa.int32())).set_column(0, "trial", pa.array(["d"] * 4))
     with pytest.raises(sch.SchemaError, match="frame 7 of trial 'd'"):
         sch.UniqueRows("frames").check(doubled.to_batches()[0])
+
+
+@pytest.mark.parametrize("rows_per_batch", [1, 7, 200])
+def test_row_by_row_and_batched_checks_find_the_same_repeat(rows_per_batch):
+    """Small batches (a streamed frame at a time) are checked row by row, large ones with numpy."""
+    import pyarrow as pa
+
+    trials = np.repeat(np.array(["a", "b", "c"]), 300)
+    frames = np.tile(np.arange(300), 3)
+    frames[700] = 50  # trial c (rows 600-899) has frame 50 at row 650 already
+    table = pa.table({"trial": trials, "frame": pa.array(frames, pa.int32())})
+    unique = sch.UniqueRows("frames")
+    with pytest.raises(sch.SchemaError, match="frame 50 of trial 'c'"):
+        for batch in table.to_batches(max_chunksize=rows_per_batch):
+            unique.check(batch)
