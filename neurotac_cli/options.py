@@ -1,5 +1,7 @@
 """Options shared by commands, as decorators, and the click parameter types for units."""
 
+import os
+
 import click
 
 from neurotac_cli.errors import NeurotacError
@@ -70,7 +72,7 @@ class TablePath(click.Path):
 
     def convert(self, value, param, ctx):
         path = super().convert(value, param, ctx)
-        if path != "-" and not str(path).lower().endswith(self.SUFFIXES):
+        if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
             self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)", param, ctx)
         return path
 
@@ -85,7 +87,7 @@ class PlotPath(click.Path):
 
     def convert(self, value, param, ctx):
         path = super().convert(value, param, ctx)
-        if not str(path).lower().endswith(self.SUFFIXES):
+        if os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
             self.fail(f"cannot tell the image format of {path!r} from its suffix (use {', '.join(self.SUFFIXES)})", param, ctx)
         return path
 
