@@ -251,3 +251,9 @@ def test_row_by_row_and_batched_checks_find_the_same_repeat(rows_per_batch):
     with pytest.raises(sch.SchemaError, match="frame 50 of trial 'c'"):
         for batch in table.to_batches(max_chunksize=rows_per_batch):
             unique.check(batch)
+
+
+@pytest.mark.parametrize("name", [".arrows", "out.ARROWS.bak", "out"])
+def test_an_output_named_without_a_table_suffix_is_a_usage_error(name, files):
+    code, stderr, _ = invoke(["crop", "--pool", "2x2", "-o", name, str(files / "f.arrows")])
+    assert code == 2 and "cannot tell the table format" in stderr
