@@ -88,7 +88,8 @@ def import_bytes(tmp_path: Path, name: str, data: bytes):
 @FUZZ
 @given(cut=st.floats(0, 1), flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(0, 7)), max_size=6))
 def test_import_of_a_truncated_or_bit_flipped_camera_file(tmp_path, name, cut, flips):
-    data = bytearray(camera_bytes(name)[: max(1, int(len(camera_bytes(name)) * cut))] if cut < 1 else camera_bytes(name))
+    whole = camera_bytes(name)
+    data = bytearray(whole[: max(1, int(len(whole) * cut))])
     for where, bit in flips:
         data[int(where * len(data))] ^= 1 << bit
     import_bytes(tmp_path, name, bytes(data))
