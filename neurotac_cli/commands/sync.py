@@ -81,7 +81,9 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     switch-off is a spike of OFF events. Each trial's instant goes into its t0 column, and the
     method, score and details per trial into the neurotac:sync metadata. A long session with
     several LED blinks is cut at each blink and matched to the force log's trials (a `trial`
-    column, or time restarting at 0).
+    column, or time restarting at 0). Each force log is checked against the recording: one that
+    does not overlap it, has fewer than 10 samples or a NaN or infinite value is refused; one
+    mostly outside it, negative throughout or beyond 450 N is warned about (docs/formats.md).
 
     \b
         neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
