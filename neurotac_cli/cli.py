@@ -8,7 +8,7 @@ import sys
 import click
 
 from neurotac_cli import __version__
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, OutputError, UsageError
 
 # name -> (module under neurotac_cli.commands, one-line help). Modules are imported only when run,
 # so `neurotac --help` needs neither pyarrow nor torch.
@@ -51,6 +51,8 @@ class LazyGroup(click.Group):
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except UsageError as error:
+            _fail(f"{_who(ctx)}: error: {error}", code=2)
         except NeurotacError as error:
             _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:
@@ -59,6 +61,14 @@ class LazyGroup(click.Group):
             _fail(f"{_who(ctx)}: interrupted", code=130)
         except MemoryError:
             _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces)")
+        except RuntimeError as error:
+            if "can't allocate memory" not in str(error):  # torch's allocator says it so, not with MemoryError
+                raise
+            _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces, or a smaller model)")
+        except OSError as error:  # writing to stdout (`> file` on a full disk); -o is handled by tables.atomic_file
+            if error.errno not in OutputError.ONLY_WRITING:
+                raise
+            _fail(f"{_who(ctx)}: error: {OutputError.from_os(error.filename or 'the output', error)}")
 
 
 def _who(ctx) -> str:

@@ -1,8 +1,16 @@
-"""User-facing errors. Raised where a problem is found; `cli.py` turns them into one line and exit 1."""
+"""User-facing errors. Raised where a problem is found; `cli.py` turns them into one line and exit 1
+(exit 2 for a UsageError)."""
+
+import errno
 
 
 class NeurotacError(Exception):
     """A problem with the user's input or request: say what, why, and what to do."""
+
+
+class UsageError(NeurotacError):
+    """Options that cannot work together or a value an option cannot take, found past click's own
+    parsing: exit 2, as click's usage errors."""
 
 
 class InputError(NeurotacError):
@@ -27,3 +35,25 @@ class ModelError(NeurotacError):
 
 class OutsideSensorError(NeurotacError):
     """A crop box or size that does not fit the sensor (or the frames)."""
+
+
+class OutputError(NeurotacError):
+    """An output that cannot be written: a full disk, a read-only or vanished folder."""
+
+    WHY = {
+        errno.ENOSPC: ("no space left on the device", "free some space or write elsewhere"),
+        errno.EDQUOT: ("disk quota exceeded", "free some space or write elsewhere"),
+        errno.EFBIG: ("file too large for its file system", "write it elsewhere, or as .parquet (compressed)"),
+        errno.EROFS: ("read-only file system", "write elsewhere"),
+        errno.EACCES: ("permission denied", "write elsewhere or change the folder's permissions"),
+        errno.EPERM: ("operation not permitted", "write elsewhere or change the folder's permissions"),
+        errno.ENOENT: ("its folder vanished while writing", "make the folder again and re-run"),
+        errno.EIO: ("input/output error", "check the disk or network share, and write elsewhere"),
+    }
+    ONLY_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}  # errors that reading never gives
+
+    @classmethod
+    def from_os(cls, target: str, error: OSError, kept: bool = False) -> "OutputError":
+        why, what_to_do = cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
+        previous = "; the previous file is kept" if kept else ""
+        return cls(f"cannot write {target} ({why}; {what_to_do}{previous})")

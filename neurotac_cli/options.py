@@ -1,5 +1,7 @@
 """Options shared by commands, as decorators, and the click parameter types for units."""
 
+import os
+
 import click
 
 from neurotac_cli.errors import NeurotacError
@@ -60,11 +62,41 @@ def input_paths(function):
     return click.argument("paths", nargs=-1, type=click.Path(dir_okay=False, allow_dash=True))(function)
 
 
+class TablePath(click.Path):
+    """A path to write a table to: its suffix names the format, so an unknown one is a usage error."""
+
+    SUFFIXES = (".parquet", ".pq", ".arrow", ".feather", ".arrows")
+
+    def __init__(self):
+        super().__init__(dir_okay=False, writable=True, allow_dash=True)
+
+    def convert(self, value, param, ctx):
+        path = super().convert(value, param, ctx)
+        if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
+            self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)", param, ctx)
+        return path
+
+
+class PlotPath(click.Path):
+    """A path to draw a figure to: its suffix names the image format."""
+
+    SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".eps")
+
+    def __init__(self):
+        super().__init__(dir_okay=False, writable=True)
+
+    def convert(self, value, param, ctx):
+        path = super().convert(value, param, ctx)
+        if os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
+            self.fail(f"cannot tell the image format of {path!r} from its suffix (use {', '.join(self.SUFFIXES)})", param, ctx)
+        return path
+
+
 def output_option(function):
     return click.option(
         "-o",
         "--output",
-        type=click.Path(dir_okay=False, writable=True),
+        type=TablePath(),
         default=None,
         help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix) instead of stdout.",
     )(function)

@@ -32,6 +32,8 @@ REQUIRED = {
     "predictions": {"trial": pa.string()},
     "metrics": {"scope": pa.string(), "metric": pa.string(), "value": pa.float64()},
 }
+# Required columns that may hold nulls (a frame without a force reading or a phase).
+NULLABLE = {"frames": ("force", "phase")}
 # String columns that describe provenance rather than a label of the grasp.
 NOT_LABELS = {"trial", "phase", "source_trial", "augment", "scope", "metric", "model"}
 
@@ -79,7 +81,32 @@ def _json_default(value):
 
 
 def kind_of(schema: pa.Schema) -> str | None:
-    return get_meta(schema, KIND)
+    kind = get_meta(schema, KIND)
+    if kind is not None and not isinstance(kind, str):
+        raise SchemaError(f"metadata {KIND} is {kind!r}, not a kind name ({', '.join(KINDS)}); was the file written by another tool?")
+    return kind
+
+
+def check_header(schema: pa.Schema) -> None:
+    """Column names are unique and the neurotac metadata a command relies on has the shape it
+    expects: a forged or damaged file is one clear error at the door, not a crash deep inside."""
+    repeated = sorted({name for name in schema.names if schema.names.count(name) > 1})
+    if repeated:
+        raise SchemaError(f"the table has {len(repeated)} column name(s) twice ({', '.join(map(repr, repeated))}); rename or drop one of each")
+    kind_of(schema)
+    sensor = get_meta(schema, SENSOR)
+    if sensor is not None and not (isinstance(sensor, dict) and all(_positive_int(sensor.get(k)) for k in ("width", "height"))):
+        raise SchemaError(f"metadata {SENSOR} is {sensor!r}, not {{\"width\": W, \"height\": H}} in pixels; re-import the recording")
+    window = get_meta(schema, WINDOW)
+    if window is not None and not _positive_int(window):
+        raise SchemaError(f"metadata {WINDOW} is {window!r}, not a positive number of µs; frame the events again")
+    history = get_meta(schema, HISTORY)
+    if history is not None and not (isinstance(history, list) and all(isinstance(step, dict) for step in history)):
+        raise SchemaError(f"metadata {HISTORY} is not a list of steps; was the file written by another tool?")
+
+
+def _positive_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 < value < 2**31
 
 
 def sensor_of(schema: pa.Schema) -> tuple[int, int] | None:
@@ -314,7 +341,12 @@ def conform_schema(schema: pa.Schema, kind: str) -> pa.Schema:
 
 
 def conform(batch, kind: str):
-    """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars)."""
+    """Cast lossless integer/float variants to the contract's types (tables from DuckDB or Polars),
+    and refuse nulls where every row needs a value."""
+    for name in REQUIRED[kind]:
+        if name not in NULLABLE.get(kind, ()) and batch.column(batch.schema.get_field_index(name)).null_count:
+            empty = batch.column(batch.schema.get_field_index(name)).null_count
+            raise SchemaError(f"{empty} rows of the {kind} table have no {name!r} (null); every row needs one: fix or drop those rows")
     for name, typ in REQUIRED[kind].items():
         if typ is None:
             continue
@@ -358,3 +390,86 @@ def check_force(values: np.ndarray, where: str = ""):
     if len(values) and bad.any():
         place = f" in {where}" if where else ""
         raise SchemaError(f"{int(bad.sum())} force values{place} are NaN or infinite; clean the force log first")
+
+
+class UniqueRows:
+    """Refuses a repeated trial (recordings) or (trial, frame) pair (frames) as batches flow past: the
+    same table given twice, or two recordings synced under one name, would otherwise be trained on
+    or scored twice. Memory: a byte per frame number from a trial's first to its last, or a set where
+    those lie more than DENSE_SPAN apart."""
+
+    KEYS = {"recordings": ("trial",), "frames": ("trial", "frame")}
+    DENSE_SPAN = 1 << 24
+    SMALL = 32  # batches of up to this many rows are checked row by row
+
+    def __init__(self, kind: str | None):
+        self.keys = self.KEYS.get(kind)
+        self.seen: dict = {}  # trial -> (first frame number, flags from it) or (0, set of frame numbers)
+
+    def check(self, batch) -> None:
+        if self.keys is None or batch.num_rows == 0:
+            return
+        if batch.num_rows <= self.SMALL:  # `predict` streams a frame at a time: no numpy per batch
+            trials = batch.column(batch.schema.get_field_index("trial")).to_pylist()
+            numbers = [0] * len(trials) if self.keys == ("trial",) else batch.column(batch.schema.get_field_index("frame")).to_pylist()
+            for trial, number in zip(trials, numbers):
+                self._add_one(trial, number)
+            return
+        trials = batch.column(batch.schema.get_field_index("trial")).dictionary_encode()
+        names = trials.dictionary.to_pylist()
+        codes = trials.indices.to_numpy(zero_copy_only=False)
+        if self.keys == ("trial",):
+            frames = np.zeros(len(codes), dtype=np.int64)
+        else:
+            frames = batch.column(batch.schema.get_field_index("frame")).to_numpy(zero_copy_only=False).astype(np.int64)
+        order = np.argsort(codes, kind="stable")
+        bounds = np.flatnonzero(np.diff(codes[order])) + 1
+        for rows in np.split(order, bounds):
+            self._add(names[codes[rows[0]]], frames[rows])
+
+    def _add(self, trial, frames: np.ndarray) -> None:
+        low, high = int(frames.min()), int(frames.max())
+        base, flags = self.seen.get(trial, (low, np.zeros(0, dtype=bool)))
+        if isinstance(flags, set):
+            repeated = np.fromiter((f in flags for f in frames.tolist()), bool, len(frames)) | _repeated_within(frames)
+        else:
+            if low < base or high - base >= len(flags):
+                start, stop = min(base, low), max(high + 1, base + len(flags))
+                if stop - start > self.DENSE_SPAN:  # frame numbers far apart (forged?): a set, not flags
+                    self.seen[trial] = (0, set((np.flatnonzero(flags) + base).tolist()))
+                    return self._add(trial, frames)
+                # room to double, so a trial streamed a frame at a time is not copied once per frame
+                grown = np.zeros(min(max(stop - start, 2 * len(flags)), self.DENSE_SPAN), dtype=bool)
+                grown[base - start : base - start + len(flags)] = flags
+                base, flags = start, grown
+            repeated = flags[frames - base] | _repeated_within(frames)
+        if repeated.any():
+            raise SchemaError(self._message(trial, int(frames[np.argmax(repeated)])))
+        if isinstance(flags, set):
+            flags.update(frames.tolist())
+        else:
+            flags[frames - base] = True
+        self.seen[trial] = (base, flags)
+
+    def _add_one(self, trial, number: int) -> None:
+        base, flags = self.seen.get(trial, (number, None))
+        if isinstance(flags, set) or flags is None or not 0 <= number - base < len(flags):
+            return self._add(trial, np.array([number], dtype=np.int64))
+        if flags[number - base]:
+            raise SchemaError(self._message(trial, number))
+        flags[number - base] = True
+
+    def _message(self, trial, frame: int) -> str:
+        what = f"trial {trial!r}" if self.keys == ("trial",) else f"frame {frame} of trial {trial!r}"
+        return (
+            f"{what} appears twice in the input (the same table given twice, or two recordings under one name); "
+            "give each its own trial name (neurotac sync --trial NAME, or a manifest row each) and pass each table once"
+        )
+
+
+def _repeated_within(index: np.ndarray) -> np.ndarray:
+    """True at each value already seen earlier in `index`."""
+    _, first = np.unique(index, return_index=True)
+    repeated = np.ones(len(index), dtype=bool)
+    repeated[first] = False
+    return repeated

@@ -29,7 +29,7 @@ import sys
 import time
 from typing import Callable
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, UsageError
 
 # Bumped when the cache file layout or a task's result changes, so old entries are never misread
 # (2: a cross-validation fold returns its validation figures beside its predictions).
@@ -76,7 +76,7 @@ def run_tasks(
     """
     tasks = list(tasks)
     if scheduler and jobs not in (None, 0, 1):
-        raise StudyError(
+        raise UsageError(
             f"--jobs {jobs} and --scheduler {scheduler} both given (the Dask cluster decides how many "
             "tasks run at once; pass one of them)"
         )
@@ -242,7 +242,7 @@ def _run_dask(function, pending: dict, shared: dict, scheduler, retries: int, la
         # SLURM/PBS where the scheduler's address is not known before its job starts.
         where = {"scheduler_file": str(scheduler)} if os.path.isfile(str(scheduler)) else {"address": scheduler}
         if "address" in where and not re.match(r"^([a-z]+://)?[^\s/:]+(:\d+)$|^[a-z]+://", str(scheduler)):
-            raise StudyError(
+            raise UsageError(
                 f"--scheduler {scheduler!r} is neither an address like tcp://HOST:8786 nor a scheduler file "
                 "(give the address `dask scheduler` printed, or the path of its --scheduler-file)"
             )
@@ -510,9 +510,9 @@ def parse_grid(specs) -> list[dict]:
             name, sep, text = item.partition("=")
             name = name.strip()
             if not sep or not _NAME.match(name):
-                raise StudyError(f"grid spec {item!r} is not NAME=VALUES (write e.g. --grid layers=1..5)")
+                raise UsageError(f"grid spec {item!r} is not NAME=VALUES (write e.g. --grid layers=1..5)")
             if name in axes:
-                raise StudyError(f"grid name {name!r} is given twice (give all its values at once: {name}=1,2,3)")
+                raise UsageError(f"grid name {name!r} is given twice (give all its values at once: {name}=1,2,3)")
             axes[name] = _grid_values(name, text)
     names = list(axes)
     return [dict(zip(names, point)) for point in itertools.product(*axes.values())]
@@ -521,19 +521,19 @@ def parse_grid(specs) -> list[dict]:
 def _grid_values(name: str, text: str) -> list:
     parts = [part.strip() for part in text.split(",")]
     if not text.strip() or any(part == "" for part in parts):
-        raise StudyError(f"grid {name}={text!r} has an empty value (write e.g. {name}=5,10,40)")
+        raise UsageError(f"grid {name}={text!r} has an empty value (write e.g. {name}=5,10,40)")
     values: list = []
     index = 0
     while index < len(parts):
         part = parts[index]
         if part == "...":
             if len(values) < 2 or index + 1 >= len(parts):
-                raise StudyError(
+                raise UsageError(
                     f"grid {name}={text}: `...` needs two values before it and one after (e.g. {name}=5,10,...,40)"
                 )
             first, second, last = values[-2], values[-1], _scalar(parts[index + 1])
             if not all(isinstance(v, (int, float)) for v in (first, second, last)):
-                raise StudyError(f"grid {name}={text}: `...` continues numbers only")
+                raise UsageError(f"grid {name}={text}: `...` continues numbers only")
             values.extend(_arange(second, last, second - first, name, text)[1:])
             index += 2
             continue
@@ -550,10 +550,10 @@ def _grid_values(name: str, text: str) -> list:
 
 def _arange(start, stop, step, name, text) -> list:
     if step == 0 or (stop - start) * step < 0:
-        raise StudyError(f"grid {name}={text}: the range {start}..{stop} with step {step} never reaches its end")
+        raise UsageError(f"grid {name}={text}: the range {start}..{stop} with step {step} never reaches its end")
     count = int(math.floor((stop - start) / step + 1e-9)) + 1
     if count > 100_000:
-        raise StudyError(f"grid {name}={text} has {count} values (more than 100000; use a larger step)")
+        raise UsageError(f"grid {name}={text} has {count} values (more than 100000; use a larger step)")
     if all(isinstance(v, int) for v in (start, stop, step)):
         return [start + i * step for i in range(count)]
     return [round(start + i * step, 12) for i in range(count)]
@@ -634,7 +634,7 @@ def grid_points(specs, fixed: dict | None = None) -> list[dict]:
     fixed = {name: value for name, value in (fixed or {}).items() if value is not None}
     both = sorted(fixed.keys() & set(points[0]))
     if both:
-        raise StudyError(
+        raise UsageError(
             f"{', '.join(both)} given both as an option and in --grid (give each hyperparameter once: "
             f"a single value in --grid, e.g. --grid {both[0]}=30, fixes it)"
         )

@@ -8,6 +8,7 @@ Writing: an IPC stream on stdout, or -o PATH by suffix, through a temporary file
 complete. Every write appends one entry to `neurotac:history`.
 """
 
+import errno
 import io
 import os
 import sys
@@ -21,7 +22,7 @@ import pyarrow.ipc as ipc
 import pyarrow.parquet as pq
 
 from neurotac_cli import __version__, schema as sch
-from neurotac_cli.errors import InputError, NeurotacError, SchemaError
+from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -211,7 +212,11 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
         except StopIteration:
             raise InputError(f"{path}: no table in it") from None
     schema = opened[0][0][0]
+    for (other, _), _ in opened:
+        sch.check_header(other)
     found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
+    if not kind and found in sch.REQUIRED:
+        sch.validate(schema, found)  # a table that says what it is, but lacks its columns
     if found and sch.kind_of(schema) is None:
         schema = sch.set_meta(schema, kind=found)
     if found in sch.REQUIRED:
@@ -223,15 +228,20 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
         if any(h != histories[0] for h in histories[1:]):
             schema = sch.set_meta(schema, history=[{"command": "concat", "args": {"inputs": histories}, "version": __version__}])
 
+    unique = sch.UniqueRows(found if kind else None)  # commands that group by trial; `info` only describes
+
     def batches():
         count = 0
         for (_, first), rest in opened:
             for batch in _conformed(first, schema, found):
+                unique.check(batch)
                 count += batch.num_rows
                 yield batch
             for other, more in rest:
+                sch.check_header(other)
                 _check_compatible(schema, other, found)
                 for batch in _conformed(more, schema, found):
+                    unique.check(batch)
                     count += batch.num_rows
                     yield batch
         if count == 0 and not allow_empty:
@@ -328,10 +338,14 @@ def check_folder(*paths) -> None:
 def atomic_file(path: str):
     """A temporary file beside `path` to write into: it replaces `path` when the block ends without
     an error and is removed when it fails, so a failed run never leaves a half-written file that
-    looks whole. It gets the permissions a file the shell creates gets (mkstemp's are 0600). A
-    missing folder is one clear error, not a traceback."""
+    looks whole and an existing `path` is kept. It gets the permissions a file the shell creates
+    gets (mkstemp's are 0600). A missing, full, read-only or vanished folder is one clear error."""
     check_folder(path)
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=os.path.dirname(os.path.abspath(path)))
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=folder)
+    except OSError as error:
+        raise OutputError.from_os(path, error) from None
     os.close(handle)
     umask = os.umask(0)
     os.umask(umask)
@@ -339,6 +353,11 @@ def atomic_file(path: str):
     try:
         yield temporary
         os.replace(temporary, path)
+    except OSError as error:
+        # the block also pulls the input: only an error of writing here is ours to describe
+        if error.errno not in OutputError.WHY or (error.errno == errno.ENOENT and os.path.isdir(folder)):
+            raise
+        raise OutputError.from_os(path, error, kept=os.path.exists(path)) from None
     finally:
         if os.path.exists(temporary):
             os.unlink(temporary)

@@ -86,9 +86,9 @@ def test_eval_grid_is_the_study_of_neurotac_study(frames_file, tmp_path):
 
 @pytest.mark.parametrize("args, code, words", [
     (["--grid", "layers=1,2"], 2, "--grid needs --cv"),
-    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers=1,2", "--layers", "3"], 1, "given both as an option and in --grid"),
+    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers=1,2", "--layers", "3"], 2, "given both as an option and in --grid"),
     (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers=1,2", "--plot", "x.png"], 2, "--plot draws one model"),
-    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers"], 1, "is not NAME=VALUES"),
+    (["--cv", "loo", "--model-spec", "tdnn", "--grid", "layers"], 2, "is not NAME=VALUES"),
 ])
 def test_eval_grid_misuse_says_what_to_do(frames_file, args, code, words):
     done = _run(["eval", *args, frames_file])

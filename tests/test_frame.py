@@ -344,4 +344,4 @@ def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
     source = tmp_path / "ev.arrows"
     tables.write(str(source), sch.events_table(t, x, y, p, W, H))
     done = run(["frame", "--window", "10ms", "--phases", "1-2", str(source)])
-    assert done.returncode == 1 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
+    assert done.returncode == 2 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()

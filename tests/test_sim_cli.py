@@ -150,8 +150,8 @@ def test_the_objects_option_and_labels(tmp_path):
         (["--out", "x", "-o", "y.arrows"], "-o writes the --synced table"),
     ],
 )
-def test_user_errors_are_one_line_and_exit_1(args, message, tmp_path):
+def test_bad_options_are_one_line_and_exit_2(args, message, tmp_path):
     result = CliRunner().invoke(cli, ["simulate", *args])
-    assert result.exit_code == 1, result.output
+    assert result.exit_code == 2, result.output
     assert message in result.output
     assert "Traceback" not in result.output

@@ -268,7 +268,7 @@ def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
 
 def test_sync_command_needs_a_force_log_or_a_manifest(tmp_path):
     done = run(["sync", "x.aedat"], cwd=tmp_path)
-    assert done.returncode == 1 and "--force" in done.stderr.decode()
+    assert done.returncode == 2 and "--force" in done.stderr.decode()
 
 
 def test_simulated_grasp_with_its_blink_cut_away_fails_led_and_syncs_by_xcorr(simulated):

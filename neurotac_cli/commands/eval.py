@@ -2,7 +2,7 @@ import click
 
 from neurotac_cli.commands.study import GRID_HELP, fold_options
 from neurotac_cli.commands.train import FORCE, MATERIAL, hyperparameter_options, hyperparameters, progress_printer
-from neurotac_cli.options import input_paths, output_option, seed_option, study_options
+from neurotac_cli.options import PlotPath, TablePath, input_paths, output_option, seed_option, study_options
 
 
 @click.command()
@@ -18,10 +18,10 @@ from neurotac_cli.options import input_paths, output_option, seed_option, study_
               help="With --cv: cross-validate --model-spec at every point of this grid, as `neurotac study` does "
               "(metrics get one column per grid parameter; stderr one line per point). " + GRID_HELP)
 @fold_options(prefix="With --cv: ")
-@click.option("--metrics", "metrics_path", type=click.Path(dir_okay=False), default=None, help="Write the metrics table (scope, metric, value, model) to this file.")
+@click.option("--metrics", "metrics_path", type=TablePath(), default=None, help="Write the metrics table (scope, metric, value, model) to this file.")
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=True, show_default=True, help="Add one metrics scope per trial.")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+@click.option("--plot", type=PlotPath(), default=None,
               help="PNG: force traces and per-phase scatter (force models), or the confusion matrix (classifiers).")
 @click.option("--plot-trials", default=None, metavar="ID,ID,...", help="Trials drawn in the force traces (default: the first three).")
 @click.option("--threads", type=int, default=2, show_default=True, help="CPU threads for torch.")
@@ -46,7 +46,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.metrics import metrics_table
     from neurotac_cli.model import evaluate
 
@@ -74,7 +74,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         name, step = model_spec, ("eval", {"cv": cv, "spec": spec, "repeats": repeats, "seed": seed, "nonzero": nonzero})
     else:
         if any(value is not None for value in hyperparameters(options).values()):
-            raise NeurotacError("hyperparameter options apply to --cv --model-spec only; a model file carries its own")
+            raise UsageError("hyperparameter options apply to --cv --model-spec only; a model file carries its own")
         model = models.load(model_path)
         predictions, rows = evaluate.evaluate_model(model, table, nonzero=nonzero, per_trial=per_trial)
         name, step = model.name, ("eval", {"model": model_path, "nonzero": nonzero})

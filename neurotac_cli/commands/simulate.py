@@ -64,14 +64,14 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
         neurotac simulate --preset ch3 --trials 8 --synced | neurotac frame --window 7ms
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.sim.config import parse_value, preset_config
     from neurotac_cli.units import parse_size
 
     if not out_dir and not synced:
-        raise NeurotacError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
+        raise UsageError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
     if output and not synced:
-        raise NeurotacError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
+        raise UsageError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
     overrides = {name: parse_value(name, value) for name, value in settings}
     if groups:
         overrides["groups"] = parse_value("groups", groups)
@@ -88,6 +88,8 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
     config = preset_config(preset, **overrides)
     if synced and output in (None, "-"):
         tables.refuse_terminal()  # before minutes of work, not after
+    elif synced:
+        tables.check_folder(output)
 
     from neurotac_cli.sim.run import prepare_folder, recordings, simulate, write_dataset
 
@@ -103,13 +105,13 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
 
 
 def _force_range(text):
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
 
     parts = str(text).replace("N", "").split("..")
     try:
         low, high = (float(part) for part in parts)
     except ValueError:
-        raise NeurotacError(f"cannot read force range {text!r} (write LOW..HIGH in newtons, e.g. 0.5..3.7)") from None
+        raise UsageError(f"cannot read force range {text!r} (write LOW..HIGH in newtons, e.g. 0.5..3.7)") from None
     return low, high
 
 

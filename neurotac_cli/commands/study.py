@@ -5,7 +5,7 @@
 import click
 
 from neurotac_cli.commands.train import FORCE, MATERIAL, hyperparameter_options, hyperparameters
-from neurotac_cli.options import input_paths, output_option, seed_option, study_options
+from neurotac_cli.options import TablePath, input_paths, output_option, seed_option, study_options
 
 GRID_HELP = ("Hyperparameters to vary, as train's option names with _ for -: layers=1..5, units=5,10,...,40, "
              "lr=1e-3,1e-2 (A..B inclusive, A..B:STEP, A,B,...,Z continues the step). Repeat it or put several "
@@ -71,7 +71,7 @@ def run_grid(paths, output, model, grid, fixed, cv, repeats, val_fraction, val_p
 @fold_options()
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=False, show_default=True, help="Add one metrics scope per trial and point.")
-@click.option("--metrics", "metrics_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--metrics", "metrics_path", type=TablePath(), default=None,
               help="Write the metrics of every grid point to this file: scope, metric, value, model, and one column "
               "per grid parameter.")
 @study_options

@@ -81,7 +81,9 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     switch-off is a spike of OFF events. Each trial's instant goes into its t0 column, and the
     method, score and details per trial into the neurotac:sync metadata. A long session with
     several LED blinks is cut at each blink and matched to the force log's trials (a `trial`
-    column, or time restarting at 0).
+    column, or time restarting at 0). Each force log is checked against the recording: one that
+    does not overlap it, has fewer than 10 samples or a NaN or infinite value is refused; one
+    mostly outside it, negative throughout or beyond 450 N is warned about (docs/formats.md).
 
     \b
         neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
@@ -91,7 +93,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     import os
 
     from neurotac_cli import schema as sch, tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.io.camera import trial_name
     from neurotac_cli.ops import sync as sy
 
@@ -106,12 +108,12 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     label_map = dict(labels)
     if manifest:
         if events or force_path:
-            raise NeurotacError("give either --manifest or an events file with --force, not both")
+            raise UsageError("give either --manifest or an events file with --force, not both")
         sources = sy.manifest_sources(manifest, force_options, sensor, label_map)
         origin = {"manifest": os.path.basename(manifest)}
     else:
         if not force_path:
-            raise NeurotacError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
+            raise UsageError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
         if events in (None, "-"):
             table = tables.read(["-"], kind="events")
             name = trial or "trial"
@@ -125,8 +127,11 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     if label_map:
         args["labels"] = label_map
     tables.write(output, recordings, step=("sync", args))
+    synced = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
+    for line in [line for info in synced.values() for line in info.get("warnings", [])]:
+        click.echo(f"neurotac sync: warning: {line}", err=True)
     if spec.method == "xcorr":
-        warn_uncertain(sch.get_meta(recordings.schema, sch.SYNC)["trials"])
+        warn_uncertain(synced)
 
 
 def warn_uncertain(trials: dict):

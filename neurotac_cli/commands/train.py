@@ -2,7 +2,7 @@ import sys
 
 import click
 
-from neurotac_cli.options import input_paths, seed_option
+from neurotac_cli.options import PlotPath, TablePath, input_paths, seed_option
 
 FORCE = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
 MATERIAL = ("material-dnn", "material-force", "material-curves")
@@ -92,8 +92,8 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
 @hyperparameter_options
 @validation_options
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
-@click.option("--curve", type=click.Path(dir_okay=False), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Draw the training curve to this PNG.")
+@click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
+@click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG.")
 @click.option("--threads", type=int, default=2, show_default=True, help="CPU threads for torch.")
 @seed_option
 def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, label, curve, plot, threads, seed, **options):

@@ -122,10 +122,10 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
         values = table.column(force_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         raise FormatError(f"{path}: time column {time_name!r} and force column {force_name!r} must be numbers") from None
-    if np.isnan(times).any():
-        raise FormatError(f"{path}: {int(np.isnan(times).sum())} empty or non-numeric times in column {time_name!r}")
-    if np.isnan(values).any():
-        raise FormatError(f"{path}: {int(np.isnan(values).sum())} force values are NaN or empty; clean the force log first")
+    if not np.isfinite(times).all():
+        raise FormatError(f"{path}: {int((~np.isfinite(times)).sum())} empty, infinite or non-numeric times in column {time_name!r}")
+    if not np.isfinite(values).all():
+        raise FormatError(f"{path}: {int((~np.isfinite(values)).sum())} force values are not numbers (NaN or empty, or inf); clean the force log first")
     t_us = np.round(times * TIME_UNITS_US[unit]).astype(np.int64)
     newtons = values * FORCE_UNITS_N[funit]
     if "trial" in table.column_names:

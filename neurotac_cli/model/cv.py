@@ -9,7 +9,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model import data as shaping
 
 
@@ -26,7 +26,7 @@ def folds(data: shaping.Sequences, cv: str, rng: np.random.Generator) -> list:
         try:
             k = int(argument)
         except ValueError:
-            raise ModelError(f"--cv kfold:K needs a whole number K, got {argument!r}") from None
+            raise UsageError(f"--cv kfold:K needs a whole number K, got {argument!r}") from None
         unique = sorted(set(sources))
         if not 2 <= k <= len(unique):
             raise ModelError(f"--cv kfold:{k} needs 2 <= K <= {len(unique)} (the number of source trials)")
@@ -43,7 +43,7 @@ def folds(data: shaping.Sequences, cv: str, rng: np.random.Generator) -> list:
             raise ModelError(f"--cv group:{label}={value}: no trial has {label}={value} (values: {', '.join(sorted(set(map(str, values))))})")
         groups = [[data.trials[i] for i, v in zip(originals, values) if v == w] for w in wanted]
     else:
-        raise ModelError(f"--cv must be loo, kfold:K, group:LABEL or group:LABEL=VALUE, got {cv!r}")
+        raise UsageError(f"--cv must be loo, kfold:K, group:LABEL or group:LABEL=VALUE, got {cv!r}")
     return [g for g in groups if g]
 
 

@@ -51,7 +51,7 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _save(fig, path)
     plt.close(fig)
 
 
@@ -71,7 +71,7 @@ def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
     accuracy = np.trace(matrix) / max(matrix.sum(), 1)
     axis.set_title(title or f"accuracy {100 * accuracy:.1f}%")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _save(fig, path)
     plt.close(fig)
 
 
@@ -89,5 +89,16 @@ def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
     axis.legend()
     axis.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _save(fig, path)
     plt.close(fig)
+
+
+def _save(fig, path: str):
+    """Through a temporary file, so a full disk leaves no half-drawn image (the format comes from
+    the path's suffix, which the temporary file lacks)."""
+    import os
+
+    from neurotac_cli.tables import atomic_file
+
+    with atomic_file(path) as temporary:
+        fig.savefig(temporary, dpi=110, format=os.path.splitext(path)[1].lstrip(".").lower())

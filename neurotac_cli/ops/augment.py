@@ -25,7 +25,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 
 COMBINES = ("independent", "hybrid")
 # Hybrid copies compose methods in this order: geometry first, then timing, and the sensor's
@@ -304,7 +304,7 @@ class Rotate:
 
     def __post_init__(self):
         if self.high is not None and self.high < self.low:
-            raise NeurotacError(f"rotation range {self.low:g}..{self.high:g} is empty (give the smaller angle first)")
+            raise UsageError(f"rotation range {self.low:g}..{self.high:g} is empty (give the smaller angle first)")
 
     def __call__(self, counts, rng):
         angle = self.low if self.high is None else float(rng.uniform(self.low, self.high))
@@ -325,7 +325,7 @@ class Resize:
 
     def __post_init__(self):
         if not self.beta > 0:
-            raise NeurotacError(f"resize factor must be positive, got {self.beta:g} (the thesis uses 1.25 and 0.83)")
+            raise UsageError(f"resize factor must be positive, got {self.beta:g} (the thesis uses 1.25 and 0.83)")
 
     def __call__(self, counts, rng):
         label = f"resize({_number(self.beta)})"
@@ -358,7 +358,7 @@ class EventShift:
 
     def __post_init__(self):
         if not 0 <= self.zeta <= 1:
-            raise NeurotacError(f"TES fraction must lie in [0, 1], got {self.zeta:g} (the thesis uses 0.25, 0.5, 0.75)")
+            raise UsageError(f"TES fraction must lie in [0, 1], got {self.zeta:g} (the thesis uses 0.25, 0.5, 0.75)")
 
     def __call__(self, counts, rng):
         result, moved, lost = temporal_event_shift(counts, self.shift, self.zeta, rng)
@@ -408,13 +408,13 @@ def augment_frames(
     values (thesis 5.5 resizes small objects by 1.25 and large ones by 0.83); the others pass unchanged.
     """
     if combine not in COMBINES:
-        raise NeurotacError(f"unknown combination {combine!r} (use independent or hybrid)")
+        raise UsageError(f"unknown combination {combine!r} (use independent or hybrid)")
     if not methods:
-        raise NeurotacError("no augmentation asked for (give --rotate, --resize, --noise, --fs or --tes)")
+        raise UsageError("no augmentation asked for (give --rotate, --resize, --noise, --fs or --tes)")
     if copies < 1:
-        raise NeurotacError(f"--copies must be at least 1, got {copies}")
+        raise UsageError(f"--copies must be at least 1, got {copies}")
     if seed < 0:
-        raise NeurotacError(f"--seed must be zero or positive, got {seed}")
+        raise UsageError(f"--seed must be zero or positive, got {seed}")
     methods = sorted(methods, key=lambda method: ORDER.index(method.name))
     counts = sch.counts_numpy(frames["counts"])
     trials, order = _trial_order(frames)

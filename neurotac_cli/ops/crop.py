@@ -22,7 +22,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError
+from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError, UsageError
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 
@@ -38,19 +38,19 @@ class CropSpec:
 
     def __post_init__(self):
         if self.box is not None and (self.size is not None or self.center is not None):
-            raise NeurotacError("give either --box or --size with --center, not both")
+            raise UsageError("give either --box or --size with --center, not both")
         if self.size is not None and self.center is None:
-            raise NeurotacError("--size needs --center X,Y or --center auto")
+            raise UsageError("--size needs --center X,Y or --center auto")
         if self.center is not None and self.size is None:
-            raise NeurotacError("--center needs --size WxH")
+            raise UsageError("--center needs --size WxH")
         if self.box is not None and (len(self.box) != 4 or self.box[2] <= 0 or self.box[3] <= 0 or min(self.box) < 0):
-            raise NeurotacError(f"box must be X,Y,W,H with X,Y >= 0 and W,H > 0, got {self.box}")
+            raise UsageError(f"box must be X,Y,W,H with X,Y >= 0 and W,H > 0, got {self.box}")
         if isinstance(self.pool, tuple) and (len(self.pool) != 2 or min(self.pool) <= 0):
-            raise NeurotacError(f"pool must be KxL with positive K and L, got {self.pool}")
+            raise UsageError(f"pool must be KxL with positive K and L, got {self.pool}")
         if self.pool is not None and not isinstance(self.pool, tuple) and self.pool != "all":
-            raise NeurotacError(f"pool must be KxL or all, got {self.pool!r}")
+            raise UsageError(f"pool must be KxL or all, got {self.pool!r}")
         if self.box is None and self.size is None and self.pool is None:
-            raise NeurotacError("nothing to do: give --box, --size with --center, or --pool")
+            raise UsageError("nothing to do: give --box, --size with --center, or --pool")
 
 
 @dataclass

@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import UsageError
 
 PHASES = ("grasping", "holding", "releasing")
 NONE = "none"
@@ -78,7 +78,7 @@ def parse_ranges(text: str) -> list[tuple[int, int]]:
     grasping, holding and releasing, in the 0-based numbering of the `frame` column."""
     parts = [part.strip() for part in str(text).split(",")]
     if len(parts) != 3:
-        raise NeurotacError(
+        raise UsageError(
             f"cannot read phases {text!r} (give three inclusive frame ranges for grasping, holding and releasing, "
             "e.g. 0-21,22-121,122-143, or `auto`)"
         )
@@ -86,11 +86,11 @@ def parse_ranges(text: str) -> list[tuple[int, int]]:
     for part in parts:
         match = re.match(r"^(\d+)\s*-\s*(\d+)$", part)
         if not match or int(match.group(1)) > int(match.group(2)):
-            raise NeurotacError(f"cannot read phase range {part!r} in {text!r} (write FIRST-LAST frame numbers, e.g. 22-121)")
+            raise UsageError(f"cannot read phase range {part!r} in {text!r} (write FIRST-LAST frame numbers, e.g. 22-121)")
         ranges.append((int(match.group(1)), int(match.group(2))))
     for (_, end), (start, _) in zip(ranges, ranges[1:]):
         if start <= end:
-            raise NeurotacError(f"phase ranges {text!r} overlap or are out of order (grasping, then holding, then releasing)")
+            raise UsageError(f"phase ranges {text!r} overlap or are out of order (grasping, then holding, then releasing)")
     return ranges
 
 

@@ -57,6 +57,7 @@ import pyarrow as pa
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import ForceLog
+from neurotac_cli.ops import forcelog
 
 METHODS = ("led", "trigger", "offset", "xcorr")
 LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
@@ -468,6 +469,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     p = _column(table, "p", np.uint8)
     logs = source.force
     count = len(logs)
+    forcelog.check_samples(logs, source.trial)
     forces = [condition_force(log, method.median_us) for log in logs]
     if method.method == "led":
         instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
@@ -481,6 +483,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         if count > 1:
             raise SyncError(f"--method xcorr aligns one force trace, but the force log holds {count} trials; split the log")
         instants = [xcorr_instant(t, x, y, logs[0].t, forces[0], method, p)]
+    forcelog.check_logs(t, instants, logs, source.trial)
     order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
     if order is not None:
         t, x, y, p = t[order], x[order], y[order], p[order]

@@ -7,7 +7,7 @@ in `_us` are durations (µs). Sources of the defaults are given in docs/simulato
 import dataclasses
 from dataclasses import dataclass
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, UsageError
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ def parse_object(text: str) -> ObjectShape:
             if size <= 0:
                 break
             return ObjectShape(text, face, size, length or size, f"{size:g}")
-    raise NeurotacError(f"unknown object {text!r} (use hex, hexSIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
+    raise UsageError(f"unknown object {text!r} (use hex, hexSIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
 
 
 @dataclass(frozen=True)
@@ -179,7 +179,7 @@ def field_names() -> list[str]:
 
 def preset_config(name: str, **overrides) -> SimConfig:
     if name not in PRESETS:
-        raise NeurotacError(f"unknown preset {name!r} (choose one of {', '.join(PRESETS)})")
+        raise UsageError(f"unknown preset {name!r} (choose one of {', '.join(PRESETS)})")
     values = dict(PRESETS[name], preset=name)
     overrides = {k: v for k, v in overrides.items() if v is not None}
     if "max_duration_us" not in overrides and {"grasp_us", "hold_us", "release_us", "tail_us"} & set(overrides):
@@ -187,7 +187,7 @@ def preset_config(name: str, **overrides) -> SimConfig:
     values.update(overrides)
     unknown = set(values) - set(field_names())
     if unknown:
-        raise NeurotacError(f"unknown simulator parameter(s) {', '.join(sorted(unknown))} (see docs/simulator.md for the list)")
+        raise UsageError(f"unknown simulator parameter(s) {', '.join(sorted(unknown))} (see docs/simulator.md for the list)")
     config = SimConfig(**values)
     validate(config)
     return config
@@ -199,7 +199,7 @@ def parse_value(name: str, text: str):
 
     fields = {f.name: f for f in dataclasses.fields(SimConfig)}
     if name not in fields:
-        raise NeurotacError(f"unknown simulator parameter {name!r} (see docs/simulator.md for the list)")
+        raise UsageError(f"unknown simulator parameter {name!r} (see docs/simulator.md for the list)")
     default = fields[name].default
     if name == "led_box":
         try:
@@ -207,12 +207,12 @@ def parse_value(name: str, text: str):
         except ValueError:
             box = (0,)
         if len(box) not in (0, 4) or any(v < 0 for v in box):
-            raise NeurotacError(f"led_box={text!r}: write X,Y,W,H in pixels, e.g. led_box=0,0,40,180")
+            raise UsageError(f"led_box={text!r}: write X,Y,W,H in pixels, e.g. led_box=0,0,40,180")
         return box
     if isinstance(default, tuple) and name != "groups":
         parts = str(text).split("..")
         if len(parts) != 2:
-            raise NeurotacError(f"{name} is a range: write LOW..HIGH, e.g. {name}=10ms..20ms")
+            raise UsageError(f"{name} is a range: write LOW..HIGH, e.g. {name}=10ms..20ms")
         return tuple(_scalar(name, part, default[0], parse_duration_us) for part in parts)
     if name == "groups":
         return tuple(part for part in str(text).split(",") if part)
@@ -222,13 +222,16 @@ def parse_value(name: str, text: str):
 def _scalar(name, text, default, parse_duration_us):
     text = str(text).strip()
     if name.endswith("_us"):
-        return parse_duration_us(text)
+        try:
+            return parse_duration_us(text)
+        except NeurotacError as error:
+            raise UsageError(f"{name}: {error}") from None
     if isinstance(default, str):
         return text
     try:
         value = float(text)
     except ValueError:
-        raise NeurotacError(f"{name}={text!r} is not a number") from None
+        raise UsageError(f"{name}={text!r} is not a number") from None
     return int(value) if isinstance(default, int) and value.is_integer() else value
 
 
@@ -254,4 +257,4 @@ def validate(config: SimConfig):
     if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
         problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
     if problems:
-        raise NeurotacError("bad simulator parameters: " + "; ".join(problems))
+        raise UsageError("bad simulator parameters: " + "; ".join(problems))

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import UsageError
 from neurotac_cli.sim.config import GRIPPER_FORCE_BANDS, MATERIALS, ObjectShape, SimConfig, parse_object
 
 
@@ -48,23 +48,23 @@ def parse_groups(groups) -> list[tuple]:
     for text in groups:
         parts = str(text).split(":")
         if len(parts) < 3:
-            raise NeurotacError(f"cannot read trial group {text!r} (write MATERIAL:OBJECT:COUNT, e.g. steel:bolt12:10)")
+            raise UsageError(f"cannot read trial group {text!r} (write MATERIAL:OBJECT:COUNT, e.g. steel:bolt12:10)")
         material, obj, count, *rest = parts
         if material not in MATERIALS:
-            raise NeurotacError(f"unknown material {material!r} in {text!r} (use {', '.join(MATERIALS)})")
+            raise UsageError(f"unknown material {material!r} in {text!r} (use {', '.join(MATERIALS)})")
         try:
             count = int(count)
         except ValueError:
-            raise NeurotacError(f"trial count {count!r} in {text!r} is not a whole number") from None
+            raise UsageError(f"trial count {count!r} in {text!r} is not a whole number") from None
         labels = {}
         for item in rest:
             name, sep, value = item.partition("=")
             if not sep:
-                raise NeurotacError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
+                raise UsageError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
             labels[name] = value
         parsed.append((material, parse_object(obj), count, labels))
     if not parsed:
-        raise NeurotacError("no trials to simulate (give --objects/--materials or a preset)")
+        raise UsageError("no trials to simulate (give --objects/--materials or a preset)")
     return parsed
 
 
@@ -81,7 +81,7 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
     if trials is not None:
         queue = queue[:trials]
     if not queue:
-        raise NeurotacError("no trials to simulate (every group has a count of 0)")
+        raise UsageError("no trials to simulate (every group has a count of 0)")
     counters: dict = {}
     grasps = []
     for material, shape, _, labels in queue:
