@@ -8,7 +8,7 @@ import sys
 import click
 
 from neurotac_cli import __version__
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, UsageError
 
 # name -> (module under neurotac_cli.commands, one-line help). Modules are imported only when run,
 # so `neurotac --help` needs neither pyarrow nor torch.
@@ -51,6 +51,8 @@ class LazyGroup(click.Group):
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except UsageError as error:
+            _fail(f"{_who(ctx)}: error: {error}", code=2)
         except NeurotacError as error:
             _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:

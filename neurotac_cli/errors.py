@@ -27,3 +27,7 @@ class ModelError(NeurotacError):
 
 class OutsideSensorError(NeurotacError):
     """A crop box or size that does not fit the sensor (or the frames)."""
+
+
+class UsageError(NeurotacError):
+    """Options that contradict each other: exit 2, as click's own usage errors."""

@@ -52,3 +52,64 @@ def test_every_command_module_keeps_heavy_imports_inside_functions():
                     assert name.split(".")[0] not in ("pyarrow", "torch", "numpy", "sklearn", "scipy", "matplotlib"), (
                         f"{path.name} imports {name} at module level"
                     )
+
+
+def _module_name(path: pathlib.Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph(package: pathlib.Path = PACKAGE) -> dict:
+    """module -> the neurotac_cli modules it imports, anywhere in its body (imports inside functions
+    count: a lazy import hides a circle from the interpreter, not from the reader)."""
+    modules = {_module_name(path): path for path in package.rglob("*.py")}
+    graph = {}
+    for name, path in modules.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                # `from package import module` imports the module; `from module import name` the module
+                targets.update(f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in modules else node.module
+                               for alias in node.names)
+        graph[name] = sorted(target for target in targets if target in modules and target != name)
+    return graph
+
+
+def find_cycle(graph: dict) -> list:
+    """One import circle of `graph` as [a, b, ..., a], or [] when there is none (depth-first search)."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for target in graph.get(node, ()):
+            if state.get(target) == "open":
+                return stack[stack.index(target):] + [target]
+            if target not in state:
+                found = visit(target)
+                if found:
+                    return found
+        state[node] = "done"
+        stack.pop()
+        return []
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return []
+
+
+def test_find_cycle_sees_a_circle_and_only_a_circle():
+    assert find_cycle({"a": ["b"], "b": ["c"], "c": ["a"]}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": ["b", "c"], "b": ["c"], "c": []}) == []
+
+
+def test_no_import_circle_inside_the_package():
+    graph = import_graph()
+    assert "neurotac_cli.io.camera" in graph and graph["neurotac_cli.io.camera"], "the import graph is empty"
+    cycle = find_cycle(graph)
+    assert not cycle, "import circle: " + " -> ".join(cycle)

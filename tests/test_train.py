@@ -154,11 +154,11 @@ def test_a_model_header_missing_a_part_is_one_clear_error(tmp_path):
 
 
 def test_progress_off_a_terminal_shows_the_first_epoch_every_25th_and_a_slow_one(monkeypatch, capsys):
-    from neurotac_cli.commands import train as command
+    from neurotac_cli.options import progress_printer
 
     clock = [0.0]
     monkeypatch.setattr("time.monotonic", lambda: clock[0])
-    show = command.progress_printer()
+    show = progress_printer()
     for epoch in range(1, 61):
         clock[0] += 40.0 if epoch == 33 else 1.0  # epoch 33 ends 40 s after the line before it
         show(f"m: epoch {epoch} loss 1 best 1 (0/20 without improvement, 1s)")

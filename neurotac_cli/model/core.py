@@ -11,9 +11,8 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model import data as shaping
 from neurotac_cli.model.fit import FitConfig, fit
+from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 
-FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
-MATERIAL_MODELS = ("material-dnn", "material-force", "material-curves")
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
 

@@ -11,6 +11,7 @@ import pyarrow.compute as pc
 
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model import data as shaping
+from neurotac_cli.model.fit import best_epoch
 
 
 def folds(data: shaping.Sequences, cv: str, rng: np.random.Generator) -> list:
@@ -89,10 +90,10 @@ def validation_figures(model, train_table: pa.Table) -> dict:
     from neurotac_cli import model as models
 
     curve = model.training.get("curve") or []
-    watched = [row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"] for row in curve]
+    best = best_epoch(curve)
     figures = {
         "epochs": float(len(curve)) if curve else float("nan"),
-        "best_epoch": float(curve[int(np.argmin(watched))]["epoch"]) if curve else float("nan"),
+        "best_epoch": float(best["epoch"]) if best else float("nan"),
     }
     trials = model.training.get("trials", {}).get("validation") or []
     name = "val_accuracy" if model.task == "material" else "val_mse"
