@@ -56,6 +56,24 @@ class KeyValue(ParamType):
         return name.strip(), text.strip()
 
 
+class IntTuple(ParamType):
+    """`count` comma-separated whole numbers >= 0 (`60,30,115,115`), as a tuple; `words` also accepted as they are."""
+
+    def __init__(self, count: int, example: str, name: str, words: tuple = ()):
+        self.count, self.example, self.name, self.words = count, example, name, words
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple) or value in self.words:
+            return value
+        try:
+            parts = tuple(int(v) for v in str(value).split(","))
+        except ValueError:
+            parts = ()
+        if len(parts) != self.count or min(parts) < 0:
+            self.fail(f"expected {self.name}, e.g. {self.example}, got {value!r}", param, ctx)
+        return parts
+
+
 def input_paths(function):
     return click.argument("paths", nargs=-1, type=click.Path(dir_okay=False, allow_dash=True))(function)
 
