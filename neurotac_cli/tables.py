@@ -344,11 +344,12 @@ def atomic_file(path: str):
             os.unlink(temporary)
 
 
-def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
+def write(output: str | None, data, step=None, schema: pa.Schema | None = None, flush_each: bool = False):
     """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
 
     `step = (command, args)` is appended to the history. With an iterable, batches are written
-    as they come, so memory does not grow with the input.
+    as they come, so memory does not grow with the input; `flush_each` hands each batch on stdout
+    to the reader at once (a live stream) rather than when the pipe's buffer fills.
     """
     if isinstance(data, pa.Table):
         schema = data.schema
@@ -364,6 +365,8 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
         writer = ipc.new_stream(sink, schema)
         for batch in batches:
             writer.write_batch(_with_schema(batch, schema))
+            if flush_each:
+                sink.flush()
         writer.close()
         sink.flush()
         return
