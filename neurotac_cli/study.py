@@ -311,13 +311,6 @@ def data_digest(data) -> str:
     return hasher.hexdigest()[:32]
 
 
-def task_seed(seed: int, *parts) -> int:
-    """A seed for one task derived from the study's seed and the task's coordinates (fold, repeat,
-    grid point): independent of the order tasks run in and of which worker runs them."""
-    text = json.dumps([seed, _canonical(list(parts))], sort_keys=True)
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "little")
-
-
 def _canonical(value):
     """`value` as JSON-able data that is equal exactly when the values are."""
     if value is None or isinstance(value, (bool, str)):

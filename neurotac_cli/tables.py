@@ -14,7 +14,7 @@ import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable, Iterable, Iterator
+from typing import Iterable, Iterator
 
 import pyarrow as pa
 import pyarrow.ipc as ipc
@@ -392,8 +392,3 @@ def _with_schema(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
         return pa.RecordBatch.from_arrays(batch.columns, schema=schema)
     except (pa.ArrowInvalid, TypeError):
         raise SchemaError(f"internal: batch columns {batch.schema.names} do not match {schema.names}") from None
-
-
-def map_batches(batches: Iterable[pa.RecordBatch], function: Callable) -> Iterator[pa.RecordBatch]:
-    for batch in batches:
-        yield function(batch)

@@ -121,18 +121,18 @@ def test_non_finite_force_in_frames_is_refused_but_null_is_unknown():
     import pyarrow as pa
 
     from neurotac_cli.errors import SchemaError
-    from neurotac_cli.model import data as shaping
+    from neurotac_cli.model.data import sequences
 
     table = tiny_frames()
     index = table.schema.get_field_index("force")
     force = table.column("force").to_numpy(zero_copy_only=False).copy()
     with_null = table.set_column(index, table.schema.field("force"), pa.array([None] + list(force[1:]), pa.float32()))
-    assert np.isnan(np.concatenate(shaping.sequences(with_null).force)).sum() == 1
+    assert np.isnan(np.concatenate(sequences(with_null).force)).sum() == 1
     for bad in (np.nan, np.inf):
         force[3] = bad
         broken = table.set_column(index, table.schema.field("force"), pa.array(force, pa.float32()))
         with pytest.raises(SchemaError, match="NaN or infinite"):
-            shaping.sequences(broken)
+            sequences(broken)
 
 
 def test_a_model_header_missing_a_part_is_one_clear_error(tmp_path):

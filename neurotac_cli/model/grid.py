@@ -6,7 +6,7 @@ import math
 import pyarrow as pa
 
 from neurotac_cli.metrics import metrics_table
-from neurotac_cli.model import cv as cv_folds
+from neurotac_cli.model.cv import fold_tasks, run_fold
 from neurotac_cli.model.core import make_spec
 from neurotac_cli.model.data import sequences
 from neurotac_cli.model.scoring import score_folds
@@ -25,8 +25,8 @@ def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repe
     """
     specs = [make_spec(model, **point) for point in points]  # refuses unknown names before any work
     data = sequences(frames)
-    plans = [cv_folds.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label) for spec in specs]
-    results = run_tasks(cv_folds.run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
+    plans = [fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label) for spec in specs]
+    results = run_tasks(run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
                         scheduler=scheduler, cache_dir=cache_dir, label=f"{model} grid", shared={"frames": frames},
                         progress=progress)
     parts, rows, start = [], [], 0
