@@ -85,12 +85,7 @@ def run_tasks(
     keys = [task_key(function, {**task, **common}) for task in tasks]
     cache = _Cache(cache_dir) if cache_dir else None
 
-    results: dict[str, object] = {}
-    if cache is not None:
-        for key in dict.fromkeys(keys):
-            found, value = cache.get(key)
-            if found:
-                results[key] = value
+    results = cache.found(keys) if cache is not None else {}
     # Identical tasks run once: the same inputs give the same result.
     pending = {key: task for key, task in zip(keys, tasks) if key not in results}
 
@@ -105,17 +100,22 @@ def run_tasks(
     meter.show()
     try:
         if pending:
-            if scheduler:
-                _run_dask(function, pending, shared, scheduler, retries, label, finished)
-            elif jobs is not None and jobs != 1:
-                workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
-                _run_pool(function, pending, shared, workers, retries, finished)
-            else:
-                for key, task in pending.items():
-                    finished(key, _call(function, task, shared))
+            _run_pending(function, pending, shared, jobs, scheduler, retries, label, finished)
     finally:
         meter.close()
     return [results[key] for key in keys]
+
+
+def _run_pending(function, pending: dict, shared: dict, jobs, scheduler, retries: int, label: str, finished):
+    """Every pending task on the Dask cluster, the local pool or here; `finished(key, result)` as each ends."""
+    if scheduler:
+        _run_dask(function, pending, shared, scheduler, retries, label, finished)
+    elif jobs is not None and jobs != 1:
+        workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
+        _run_pool(function, pending, shared, workers, retries, finished)
+    else:
+        for key, task in pending.items():
+            finished(key, _call(function, task, shared))
 
 
 # The `shared` arguments of the study a pool worker process serves, set once when it starts.
@@ -398,6 +398,15 @@ class _Cache:
             pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
             handle.flush()
             os.fsync(handle.fileno())
+
+    def found(self, keys) -> dict:
+        """{key: result} of the keys that have a readable entry."""
+        results = {}
+        for key in dict.fromkeys(keys):
+            found, value = self.get(key)
+            if found:
+                results[key] = value
+        return results
 
     def keys(self) -> set[str]:
         return {path.stem for path in self.folder.glob("*/*.pkl")}

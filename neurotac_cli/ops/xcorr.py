@@ -84,17 +84,7 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
         if signed_fit[2] >= XCORR_SLOW_FALL_US:
             fit, signal = signed_fit, "signed"
     peak, rise, fall, best, corr, lags, valid = fit
-    shift = 0.0
-    if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
-        left, right = corr[best - 1], corr[best + 1]
-        denominator = left - 2 * peak + right
-        if denominator < 0:
-            shift = 0.5 * (left - right) / denominator
-    far = np.abs(lags - lags[best]) >= 20_000 // bin_us
-    below = np.flatnonzero(corr < peak - XCORR_NEAR)  # the run of near-best offsets around the best
-    low = below[below < best][-1] + 1 if (below < best).any() else 0
-    high = below[below > best][0] - 1 if (below > best).any() else len(corr) - 1
-    second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
+    shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
     t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
     return Instant(
@@ -112,6 +102,23 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
             "signal": signal,
         },
     )
+
+
+def _around_the_peak(peak, best, corr, lags, valid, bin_us):
+    """(shift of the peak by a parabola through its neighbours, in bins; first and last index of the
+    run of near-best offsets around it; the best correlation 20 ms or more away)."""
+    shift = 0.0
+    if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
+        left, right = corr[best - 1], corr[best + 1]
+        denominator = left - 2 * peak + right
+        if denominator < 0:
+            shift = 0.5 * (left - right) / denominator
+    far = np.abs(lags - lags[best]) >= 20_000 // bin_us
+    below = np.flatnonzero(corr < peak - XCORR_NEAR)
+    low = below[below < best][-1] + 1 if (below < best).any() else 0
+    high = below[below > best][0] - 1 if (below > best).any() else len(corr) - 1
+    second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
+    return shift, low, high, second
 
 
 def _signed_rate(index, x, y, p, burst):
