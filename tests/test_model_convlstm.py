@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from neurotac_cli import model as models
+from neurotac_cli.model.data import sequences
 from neurotac_cli.model import convlstm
 from neurotac_cli.model import convlstm_ops as ops
 from tests.test_model_helpers import tiny_frames
@@ -110,7 +111,7 @@ def test_saved_model_predicts_as_the_plain_formulation(tmp_path):
     model = models.train(frames, models.make_spec("convlstm", epochs=1), seed=0)
     models.save(model, str(tmp_path / "c.model"))
     loaded = models.load(str(tmp_path / "c.model"))
-    data = models.core.shaping.sequences(frames)
+    data = sequences(frames)
     counts = torch.as_tensor(np.stack(data.counts), dtype=torch.float32)
     with torch.no_grad():
         ref, _ = convlstm.reference_forward(loaded.net, counts, torch.zeros(counts.shape[:2]))
