@@ -6,7 +6,7 @@ from click.testing import CliRunner
 from neurotac_cli import schema as sch
 from neurotac_cli import tables
 from neurotac_cli.cli import cli
-from tests.test_model_helpers import tiny_frames, write_stream
+from tests.model.helpers import tiny_frames, write_stream
 
 
 def test_history_holds_the_parameters_the_output_depends_on_and_not_where_it_went(tmp_path):

@@ -323,7 +323,7 @@ def _metrics(path):
 @pytest.fixture(scope="module")
 def tiny_frames_file(tmp_path_factory):
     pytest.importorskip("torch")
-    from tests.test_model_helpers import tiny_frames, write_stream
+    from tests.model.helpers import tiny_frames, write_stream
 
     path = tmp_path_factory.mktemp("frames") / "frames.arrows"
     write_stream(tiny_frames(trials=5), path)

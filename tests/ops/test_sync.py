@@ -338,7 +338,7 @@ def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(pres
     """examples/sync_bound.py hands each trial's true force to a sensor model fitted with the offset:
     with the FlexiForce's play among the models the log is within 1 ms, with a lag only the slowly
     loaded foam trial is ~3 ms late (docs/commands/sync.md, "What bounds xcorr on ch3")."""
-    script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[1] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
+    script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[2] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
 
     def errors(play):
         done = subprocess.run([*script, "--play", play], capture_output=True, text=True, check=True)

@@ -9,7 +9,7 @@ from click.testing import CliRunner  # noqa: E402
 
 from neurotac_cli import model as models  # noqa: E402
 from neurotac_cli.errors import ModelError  # noqa: E402
-from tests.test_model_helpers import tiny_frames, write_stream  # noqa: E402
+from tests.model.helpers import tiny_frames, write_stream  # noqa: E402
 
 
 def test_train_layout_grid_option_reaches_the_model_file(tmp_path):

@@ -12,7 +12,7 @@ torch = pytest.importorskip("torch")
 
 from neurotac_cli import model as models  # noqa: E402
 from neurotac_cli.model.cv import run_fold  # noqa: E402
-from tests.test_model_helpers import tiny_frames, write_stream  # noqa: E402
+from tests.model.helpers import tiny_frames, write_stream  # noqa: E402
 
 
 def _run(args):

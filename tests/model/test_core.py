@@ -6,7 +6,7 @@ import pytest
 from neurotac_cli import model as models
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model import store
-from tests.test_model_helpers import tiny_frames
+from tests.model.helpers import tiny_frames
 
 ALL = models.FORCE_MODELS + models.MATERIAL_MODELS
 FAST = {"epochs": 3, "batch_size": 4}

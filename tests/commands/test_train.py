@@ -6,7 +6,7 @@ import pytest
 
 from neurotac_cli import model as models
 from neurotac_cli.errors import ModelError
-from tests.test_model_helpers import tiny_frames, write_stream
+from tests.model.helpers import tiny_frames, write_stream
 
 NEUROTAC = [sys.executable, "-m", "neurotac_cli.cli"]
 

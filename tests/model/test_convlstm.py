@@ -9,7 +9,7 @@ from neurotac_cli import model as models
 from neurotac_cli.model.data import sequences
 from neurotac_cli.model import convlstm
 from neurotac_cli.model import convlstm_ops as ops
-from tests.test_model_helpers import tiny_frames
+from tests.model.helpers import tiny_frames
 
 SHAPE = (2, 9, 11)
 PARAMETER_NAMES = [  # the model file's tensor names: files written before the fast path still load
