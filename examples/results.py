@@ -220,13 +220,13 @@ def latency_section() -> list:
     import numpy as np
     import torch
 
-    from neurotac_cli.model import convlstm, ours
+    from neurotac_cli.model import convlstm, deform_gru
     from tests.bench.bench_predict import _frames, _latencies, _model
 
     torch.set_num_threads(1)
     frames = _frames()
     rows = []
-    for module, name in [(convlstm, "convlstm"), (ours, "deform-gru")]:
+    for module, name in [(convlstm, "convlstm"), (deform_gru, "deform-gru")]:
         latency = _latencies(_model(module, name), frames)
         rows.append([name, f"{np.percentile(latency, 50):.2f}", f"{np.percentile(latency, 99):.2f}"])
     return ["### Streaming latency per 10 ms frame", "",
