@@ -2,7 +2,7 @@
 # Thesis chapter 3 on simulated grasps: force from accumulated ON/OFF events (TDNN k x n grid and GP,
 # leave-one-out, Tables 3.1-3.2, Figs 3.9-3.10), materials from the same events (DNN k x n grid,
 # Tables 3.3-3.4, Fig. 3.13) and the force-sensor-only classifier.
-#   MODE=full|quick bash examples/ch3.sh        (see lib.sh for OUT, RESULTS, SEED, NEUROTAC_*)
+#   MODE=full|quick|tiny bash examples/ch3.sh        (see lib.sh for OUT, RESULTS, SEED, NEUROTAC_*)
 source "$(dirname "$0")/lib.sh"
 DIR=$OUT/ch3
 mkdir -p "$DIR"
@@ -15,6 +15,13 @@ if [[ $MODE == full ]]; then
   FIT=()                                     # the models' defaults: early stopping after 20 epochs
   GP_FIT=()                                  # 1500 frames, 3 restarts
   CV=loo
+elif [[ $MODE == tiny ]]; then
+  TRIALS=(--trials 8)
+  TDNN_LAYERS=(1); TDNN_UNITS=(5)
+  DNN_LAYERS=(1); DNN_UNITS=(5)
+  FIT=(--epochs 2 --patience 1)
+  GP_FIT=(--max-points 50 --restarts 0)
+  CV=kfold:2
 else
   TRIALS=(--trials 8)                        # two grasps per material
   TDNN_LAYERS=(1 4); TDNN_UNITS=(5 40)

@@ -1,7 +1,8 @@
 # Shared by ch3.sh, ch4.sh, ch5.sh (sourced, not run).
 #
 # Environment:
-#   MODE      full (the thesis's protocol) or quick (fewer grasps, smaller grids, few epochs)
+#   MODE      full (the thesis's protocol), quick (fewer grasps, smaller grids, few epochs) or tiny
+#             (ch3.sh only: one grid point, two epochs; the test suite runs it to check the script works)
 #   OUT       output folder (default examples/out or examples/out-quick); one subfolder per chapter
 #   RESULTS   the page the tables go into (full: docs/results.md; quick: $OUT/results.md)
 #   FIGURES   where the PNGs go (full: docs/results/; quick: $OUT/figures)
@@ -15,8 +16,8 @@ HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 MODE=${MODE:-quick}
 case $MODE in
   full) OUT=${OUT:-$HERE/out}; RESULTS=${RESULTS:-$HERE/../docs/results.md}; FIGURES=${FIGURES:-$HERE/../docs/results} ;;
-  quick) OUT=${OUT:-$HERE/out-quick}; RESULTS=${RESULTS:-$OUT/results.md}; FIGURES=${FIGURES:-$OUT/figures} ;;
-  *) echo "MODE must be full or quick, got $MODE" >&2; exit 2 ;;
+  quick|tiny) OUT=${OUT:-$HERE/out-$MODE}; RESULTS=${RESULTS:-$OUT/results.md}; FIGURES=${FIGURES:-$OUT/figures} ;;
+  *) echo "MODE must be full, quick or tiny, got $MODE" >&2; exit 2 ;;
 esac
 SEED=${SEED:-1}
 PYTHON=${PYTHON:-python}
@@ -63,7 +64,7 @@ join() { local IFS=,; echo "$*"; }
 # $DIR/run.md so `make publish-quick` can put the same tables into docs/results.md later).
 publish() {
   local run=$2
-  if [[ $MODE == quick ]]; then
+  if [[ $MODE != full ]]; then
     run="**Reduced run** (\`make reproduce-quick\`): it checks the whole pipeline in minutes; its figures are not the thesis's protocol and say little about the sensor. $run"
   fi
   printf '%s\n' "$run" > "$DIR/run.md"

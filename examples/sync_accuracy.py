@@ -19,13 +19,15 @@ import pathlib
 import numpy as np
 
 from neurotac_cli import schema as sch
+from neurotac_cli.io.manifest import ForceOptions, manifest_sources
 from neurotac_cli.ops import sync as sy
+from neurotac_cli.ops.xcorr import XCORR_UNCERTAIN_US
 
 
 def measure(folder: pathlib.Path, method: str, verbose: bool, sensor_lag=None) -> str:
     manifest = folder / "manifest.csv"
     truth = {row["trial"]: int(row["true_t0_us"]) for row in csv.DictReader(open(manifest))}
-    table = sy.sync_sources(sy.manifest_sources(str(manifest), sy.ForceOptions()), sy.SyncMethod(method=method, sensor_lag_us=sensor_lag))
+    table = sy.sync_sources(manifest_sources(str(manifest), ForceOptions()), sy.SyncMethod(method=method, sensor_lag_us=sensor_lag))
     details = sch.get_meta(table.schema, sch.SYNC)["trials"]
     trials = table.column("trial").to_pylist()
     error = np.array([t0 - truth[trial] for trial, t0 in zip(trials, table.column("t0").to_pylist())]) / 1000
@@ -38,7 +40,7 @@ def measure(folder: pathlib.Path, method: str, verbose: bool, sensor_lag=None) -
     if method == "xcorr" and all("uncertainty_us" in details[trial] for trial in trials):  # older builds lack it
         signals = [details[trial]["signal"] for trial in trials]
         spread = np.array([details[trial]["uncertainty_us"] for trial in trials]) / 1000
-        warned = spread > sy.XCORR_UNCERTAIN_US / 1000
+        warned = spread > XCORR_UNCERTAIN_US / 1000
         line += (f"; signal {', '.join(f'{s} {signals.count(s)}' for s in sorted(set(signals)))}"
                  f"; uncertainty ±{spread.min():.1f}-{spread.max():.1f} ms, holding {(size <= spread).sum()} errors"
                  f"; warned {warned.sum()}, of the {(size > 2).sum()} over 2 ms {(warned & (size > 2)).sum()}")

@@ -91,7 +91,7 @@ def best_offset(config, grasp, log_t, log_v, widths) -> tuple:
 
 def camera_loading(folder, grasp, bin_us: int = 500) -> tuple:
     """(c, l) errors in µs of the loading template fitted to the trial's OFF rate (see the module doc)."""
-    from neurotac_cli.ops.sync import read_camera
+    from neurotac_cli.io.manifest import read_camera
 
     table = read_camera(str(folder / f"{grasp.trial}.aedat"))
     t = table["t"].to_numpy().astype(np.int64) - grasp.led_off_camera_us

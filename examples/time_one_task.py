@@ -16,8 +16,8 @@ import time
 
 from neurotac_cli import model as models
 from neurotac_cli import tables
-from neurotac_cli.model import cv as cross
-from neurotac_cli.model import data as shaping
+from neurotac_cli.model.cv import fold_tasks, run_fold
+from neurotac_cli.model.data import sequences
 from neurotac_cli.study import _one_thread, parse_grid
 
 
@@ -37,11 +37,11 @@ def main(argv=None):
         options["epochs"] = args.epochs
     spec = models.make_spec(args.model, **options)
     frames = tables.read([args.frames], kind="frames")
-    groups, tasks = cross.fold_tasks(shaping.sequences(frames), spec, args.cv, 1, args.seed, 0.1, args.val_per)
+    groups, tasks = fold_tasks(sequences(frames), spec, args.cv, 1, args.seed, 0.1, args.val_per)
     task = tasks[args.fold]
     with _one_thread():
         started, cpu = time.monotonic(), resource.getrusage(resource.RUSAGE_SELF)
-        _, validation = cross.run_fold(frames, **task)
+        _, validation = run_fold(frames, **task)
         wall = time.monotonic() - started
         after = resource.getrusage(resource.RUSAGE_SELF)
     cpu_s = (after.ru_utime - cpu.ru_utime) + (after.ru_stime - cpu.ru_stime)

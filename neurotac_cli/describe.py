@@ -246,107 +246,113 @@ def _label_values(rows) -> dict:
 
 def format_text(info: dict) -> str:
     """The description as aligned `name  value` lines for a terminal."""
-    lines = []
+    sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
+    lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
+    lines += _trial_lines(info, sync) + _metric_lines(info) + _history_lines(info)
+    width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
+    return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
 
-    def add(name, value):
-        lines.append((name, value))  # aligned on the longest name at the end
 
-    kind = info["kind"]
+def _identity_pairs(info: dict) -> list:
+    """What the table is: file, kind, rows, trials, sensor, source, events."""
+    pairs = []
     if "camera_file" in info:
-        add("file", f"camera file ({info['camera_file'].get('format_name', info['camera_file'].get('format'))}), decoded; not imported yet")
-    add("kind", kind)
-    add("rows", f"{info['rows']:,}")
+        pairs.append(("file", f"camera file ({info['camera_file'].get('format_name', info['camera_file'].get('format'))}), decoded; not imported yet"))
+    pairs += [("kind", info["kind"]), ("rows", f"{info['rows']:,}")]
     if "trials" in info:
-        add("trials", f"{info['trials']:,}")
+        pairs.append(("trials", f"{info['trials']:,}"))
     if "sensor" in info:
         sensor = info["sensor"]
         origin = info.get("source", {}).get("sensor_from") if isinstance(info.get("source"), dict) else None
         if any(step.get("command") == "crop" for step in info.get("history") or []):
             origin = None  # the camera's size no longer: crop set this one
         note = {"file": " (from the file)", "option": " (from --sensor)", "events": " (extent of the events; the file does not say)"}.get(origin, "")
-        add("sensor", f"{sensor['width']}x{sensor['height']}{note}")
+        pairs.append(("sensor", f"{sensor['width']}x{sensor['height']}{note}"))
     source = info.get("source")
     if isinstance(source, dict):
         text = f"{source.get('format', '?')} {source.get('file', '')}".strip()
         if source.get("camera"):
             text += f" ({source['camera']})"
-        add("source", text)
-    if kind == "recordings":
-        add("events", f"{info['events']:,}")
-    if info.get("span_us") is not None:
-        add("time", f"{_us(info['t_first_us'])} .. {_us(info['t_last_us'])} ({_duration(info['span_us'])})")
-    if info.get("event_rate_per_s") is not None:
-        add("event rate", f"{_rate(info['event_rate_per_s'])} events/s")
-    if info.get("on_share") is not None:
-        add("ON share", f"{info['on_share']:.3f}")
-    if info.get("backward_steps"):
-        add("time order", f"{info['backward_steps']:,} backward steps (kept as the camera wrote them)")
-    if "window_us" in info:
-        add("window", _duration(info["window_us"]))
-    if info.get("frame_shape"):
-        add("frame shape", "x".join(str(n) for n in info["frame_shape"]) + " (channels x rows x columns)")
-    if info.get("frames_per_trial"):
-        f = info["frames_per_trial"]
-        add("frames/trial", f"{f['min']}..{f['max']} (mean {f['mean']:.1f})")
-    if info.get("phases"):
-        add("phases", ", ".join(f"{k} {v:,}" for k, v in info["phases"].items()))
-    if info.get("force_range_n"):
-        low, high = info["force_range_n"]
-        add("force", f"{low:.3f} .. {high:.3f} N")
-    if "triggers" in info:
-        t = info["triggers"]
-        add("triggers", f"{t['count']:,}" + (f" ({', '.join(t['types'])})" if t["types"] else ""))
-    sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
-    if sync:  # its settings; each trial's instant and score go on the trial's line
-        add("sync", _compact({key: value for key, value in sync.items() if key != "trials"}))
-    synced = sync.get("trials") or {}
-    if info.get("force_error"):
-        e = info["force_error"]
-        add("force error", f"RMSE {e['rmse_n']:.4g} N, MAE {e['mae_n']:.4g} N over {e['frames']:,} frames (force_pred - force)")
+        pairs.append(("source", text))
+    if info["kind"] == "recordings":
+        pairs.append(("events", f"{info['events']:,}"))
+    return pairs
+
+
+def _content_pairs(info: dict, sync: dict) -> list:
+    """What the table holds: time, rates, frames, phases, force, triggers, sync, scores, labels."""
+    shown = [
+        ("time", info.get("span_us") is not None, lambda: f"{_us(info['t_first_us'])} .. {_us(info['t_last_us'])} ({_duration(info['span_us'])})"),
+        ("event rate", info.get("event_rate_per_s") is not None, lambda: f"{_rate(info['event_rate_per_s'])} events/s"),
+        ("ON share", info.get("on_share") is not None, lambda: f"{info['on_share']:.3f}"),
+        ("time order", info.get("backward_steps"), lambda: f"{info['backward_steps']:,} backward steps (kept as the camera wrote them)"),
+        ("window", "window_us" in info, lambda: _duration(info["window_us"])),
+        ("frame shape", info.get("frame_shape"), lambda: "x".join(str(n) for n in info["frame_shape"]) + " (channels x rows x columns)"),
+        ("frames/trial", info.get("frames_per_trial"), lambda: "{min}..{max} (mean {mean:.1f})".format(**info["frames_per_trial"])),
+        ("phases", info.get("phases"), lambda: ", ".join(f"{k} {v:,}" for k, v in info["phases"].items())),
+        ("force", info.get("force_range_n"), lambda: "{:.3f} .. {:.3f} N".format(*info["force_range_n"])),
+        ("triggers", "triggers" in info, lambda: f"{info['triggers']['count']:,}"
+         + (f" ({', '.join(info['triggers']['types'])})" if info["triggers"]["types"] else "")),
+        # the sync settings; each trial's instant and score go on the trial's line
+        ("sync", sync, lambda: _compact({key: value for key, value in sync.items() if key != "trials"})),
+        ("force error", info.get("force_error"), lambda: "RMSE {rmse_n:.4g} N, MAE {mae_n:.4g} N over {frames:,} frames "
+         "(force_pred - force)".format(**info["force_error"])),
+    ]
+    pairs = [(name, text()) for name, present, text in shown if present]
     for name, a in (info.get("accuracy") or {}).items():
-        add(f"{name} accuracy", f"{100 * a['correct'] / a['trials']:.1f}% ({a['correct']} of {a['trials']} with a known {name})")
+        pairs.append((f"{name} accuracy", f"{100 * a['correct'] / a['trials']:.1f}% ({a['correct']} of {a['trials']} with a known {name})"))
     for name, values in (info.get("labels") or {}).items():
-        add(f"label {name}", ", ".join(map(str, values)) if values else "(none)")
-    if info.get("per_trial"):
-        lines.append("")
-        lines.append("per trial:")
-        shown = info["per_trial"][:TRIALS_SHOWN]
-        id_width = max(len(str(row["trial"])) for row in shown)
-        for row in shown:
-            parts = [str(row["trial"]).ljust(id_width)]
-            if "frames" in row:
-                parts.append(f"{row['frames']} frames")
-            if "events" in row:
-                parts.append(f"{row['events']:,} events")
-            if "span_us" in row:
-                parts.append(_duration(row["span_us"]))
-            if "force_max_n" in row:
-                parts.append(f"force max {row['force_max_n']:.3f} N")
-            if isinstance(synced.get(row["trial"]), dict):
-                parts.append(_sync_cell(synced[row["trial"]], sync.get("method")))
-            parts += [f"{k}={v}" for k, v in row.get("labels", {}).items() if v is not None]
-            lines.append("  " + "  ".join(parts))
-        if len(info["per_trial"]) > TRIALS_SHOWN:
-            lines.append(f"  ... and {len(info['per_trial']) - TRIALS_SHOWN} more (see --json)")
-    if info.get("metrics"):
-        lines.append("")
-        lines.append("metrics:")
-        for row in info["metrics"][:50]:
-            value = row.get("value")
-            text = f"{value:.6g}" if isinstance(value, float) else str(value)
-            lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
-    lines.append("")
-    add("columns:", ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))
+        pairs.append((f"label {name}", ", ".join(map(str, values)) if values else "(none)"))
+    return pairs
+
+
+def _trial_lines(info: dict, sync: dict) -> list:
+    """One line per trial (the first TRIALS_SHOWN): frames, events, span, force, sync, labels."""
+    if not info.get("per_trial"):
+        return []
+    synced = sync.get("trials") or {}
+    lines = ["", "per trial:"]
+    shown = info["per_trial"][:TRIALS_SHOWN]
+    id_width = max(len(str(row["trial"])) for row in shown)
+    for row in shown:
+        parts = [str(row["trial"]).ljust(id_width)]
+        if "frames" in row:
+            parts.append(f"{row['frames']} frames")
+        if "events" in row:
+            parts.append(f"{row['events']:,} events")
+        if "span_us" in row:
+            parts.append(_duration(row["span_us"]))
+        if "force_max_n" in row:
+            parts.append(f"force max {row['force_max_n']:.3f} N")
+        if isinstance(synced.get(row["trial"]), dict):
+            parts.append(_sync_cell(synced[row["trial"]], sync.get("method")))
+        parts += [f"{k}={v}" for k, v in row.get("labels", {}).items() if v is not None]
+        lines.append("  " + "  ".join(parts))
+    if len(info["per_trial"]) > TRIALS_SHOWN:
+        lines.append(f"  ... and {len(info['per_trial']) - TRIALS_SHOWN} more (see --json)")
+    return lines
+
+
+def _metric_lines(info: dict) -> list:
+    if not info.get("metrics"):
+        return []
+    lines = ["", "metrics:"]
+    for row in info["metrics"][:50]:
+        value = row.get("value")
+        text = f"{value:.6g}" if isinstance(value, float) else str(value)
+        lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
+    return lines
+
+
+def _history_lines(info: dict) -> list:
+    """The columns, then the history of commands that made the table."""
+    lines = ["", ("columns:", ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))]
     history = info.get("history") or []
-    if history:
-        lines.append("history:")
-    else:
-        add("history:", "(none)")
+    lines.append("history:" if history else ("history:", "(none)"))
     for step in history:
         args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
-    width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
-    return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
+    return lines
 
 
 def _sync_cell(entry: dict, method) -> str:

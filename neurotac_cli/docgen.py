@@ -3,7 +3,7 @@
 Each page holds the help text between `<!-- help:start -->` and `<!-- help:end -->`; the rest of the
 page (what the command is for, worked examples, pictures) is written by hand. Run
 `python -m neurotac_cli.docgen docs/commands` (or `make docs`) after changing an option;
-tests/test_docs.py fails when a page has drifted.
+tests/test_docgen.py fails when a page has drifted.
 """
 
 import pathlib

@@ -58,6 +58,24 @@ class KeyValue(ParamType):
         return name.strip(), text.strip()
 
 
+class IntTuple(ParamType):
+    """`count` comma-separated whole numbers >= 0 (`60,30,115,115`), as a tuple; `words` also accepted as they are."""
+
+    def __init__(self, count: int, example: str, name: str, words: tuple = ()):
+        self.count, self.example, self.name, self.words = count, example, name, words
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple) or value in self.words:
+            return value
+        try:
+            parts = tuple(int(v) for v in str(value).split(","))
+        except ValueError:
+            parts = ()
+        if len(parts) != self.count or min(parts) < 0:
+            self.fail(f"expected {self.name}, e.g. {self.example}, got {value!r}", param, ctx)
+        return parts
+
+
 def input_paths(function):
     return click.argument("paths", nargs=-1, type=click.Path(dir_okay=False, allow_dash=True))(function)
 
@@ -138,3 +156,151 @@ def study_options(function):
         "[env NEUROTAC_JOBS].",
     )(function)
     return function
+
+
+# --------------------------------------------------------------------------------------------------
+# History
+
+# Where a command's results go and how fast they are computed, not what they are: left out of the
+# history, so the same request writes the same bytes whatever the output paths or worker count.
+NOT_IN_HISTORY = frozenset({"output", "metrics_path", "plot", "plot_trials", "curve", "jobs", "scheduler", "cache", "threads"})
+
+
+def history(**extra) -> tuple[str, dict]:
+    """The history step `(command, args)` of the running command: every parsed parameter the output
+    depends on (none left out, None and unused repeatable options dropped), then `extra` (reports)."""
+    ctx = click.get_current_context()
+    args = {name: _plain(value) for name, value in ctx.params.items()
+            if name not in NOT_IN_HISTORY and value is not None and value != ()}
+    args.update({name: value for name, value in extra.items() if value is not None})
+    return ctx.info_name, args
+
+
+def _plain(value):
+    """A parameter as JSON: tuples become lists, (name, value) pairs `name=value`."""
+    if isinstance(value, tuple):
+        if value and all(isinstance(item, tuple) and len(item) == 2 for item in value):
+            return [f"{name}={text}" for name, text in value]
+        return [_plain(item) for item in value]
+    return value
+
+
+# --------------------------------------------------------------------------------------------------
+# Models: hyperparameters, validation, folds, progress
+
+# (option, parameter, type, help); None defaults take each model's thesis value.
+HYPERPARAMETERS = [
+    ("--layers", "layers", int, "Hidden layers: tdnn k (thesis 4), lstm (6), cnnlstm conv layers (4), convlstm (4), deform-gru GRU layers (1), material-dnn k (2)."),
+    ("--units", "units", int, "Units per layer: tdnn n (thesis 40), lstm (32), cnnlstm LSTM units (32), material-dnn n (30)."),
+    ("--delays", "delays", int, "tdnn: previous frames fed with the current one (thesis 3)."),
+    ("--filters", "filters", int, "cnnlstm, convlstm: filters per convolutional layer (thesis 3)."),
+    ("--kernel", "kernel", int, "cnnlstm, convlstm: square kernel size (thesis 3, i.e. 3x3)."),
+    ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); deform-gru, material-curves."),
+    ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
+    ("--hidden", "hidden", int, "deform-gru: GRU units (default 32)."),
+    ("--layout-grid", "layout_grid", int, "deform-gru: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
+    ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
+    ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
+    ("--points", "points", int, "material models: samples each accumulation curve is resampled to (thesis 30)."),
+    ("--lr", "lr", float, "Adam learning rate (thesis 0.001)."),
+    ("--beta1", "beta1", float, "Adam beta1 (thesis 0.9)."),
+    ("--beta2", "beta2", float, "Adam beta2 (thesis 0.999)."),
+    ("--batch-size", "batch_size", int, "Trials per minibatch (default 8)."),
+    ("--epochs", "epochs", int, "Most epochs (default 500); early stopping usually ends sooner."),
+    ("--patience", "patience", int, "Stop after this many epochs without validation improvement, restoring the best weights (thesis 20)."),
+    ("--weight-decay", "weight_decay", float, "Adam weight decay (default 0)."),
+]
+
+GRID_HELP = ("Hyperparameters to vary, as train's option names with _ for -: layers=1..5, units=5,10,...,40, "
+             "lr=1e-3,1e-2 (A..B inclusive, A..B:STEP, A,B,...,Z continues the step). Repeat it or put several "
+             "in one quoted argument; a single value fixes a parameter (epochs=30), as does its option (--epochs 30).")
+
+
+def hyperparameter_options(function):
+    for option, name, kind, text in reversed(HYPERPARAMETERS):
+        function = click.option(option, name, type=kind, default=None, help=text)(function)
+    return function
+
+
+def hyperparameters(values: dict) -> dict:
+    """The hyperparameter options among a command's parameters, by name (None where not given)."""
+    return {name: values.get(name) for _, name, _, _ in HYPERPARAMETERS}
+
+
+def validation_options(function):
+    function = click.option("--val-per", default=None, metavar="LABEL",
+                            help="With --val-fraction: draw validation trials per value of this label [default: object "
+                            "(the thesis: one per size) for force models, the class label for classifiers].")(function)
+    function = click.option("--val-where", default=None, metavar="LABEL=VALUE",
+                            help="Validate on the trials with this label value, e.g. object=bolt15.")(function)
+    function = click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=None,
+                            help="Validate on this fraction of source trials, drawn per --val-per value (default 0.1 when no other choice is given).")(function)
+    function = click.option("--val-trials", default=None, metavar="ID,ID,...",
+                            help="Validate on these trials (comma-separated ids).")(function)
+    return function
+
+
+def fold_options(prefix: str = ""):
+    """--repeats, --val-fraction, --val-per, --label: how `neurotac study` and `eval --cv` train each fold
+    (`prefix` starts the help of those that apply to --cv only, e.g. "With --cv: ")."""
+
+    def text(words: str) -> str:
+        return prefix + words if prefix else words[0].upper() + words[1:]
+
+    def decorate(function):
+        for option in reversed([
+            click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True,
+                         help=text("train every fold with this many seeds (thesis 10).")),
+            click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
+                         help=text("validation share of each fold's training trials, drawn per --val-per value "
+                                   "(thesis: one per size).")),
+            click.option("--val-per", default=None, metavar="LABEL",
+                         help=text("label whose values each get validation trials [default: object for force models, "
+                                   "the class label for classifiers].")),
+            click.option("--label", default="material", show_default=True, help="Classifiers: the label column."),
+        ]):
+            function = option(function)
+        return function
+
+    return decorate
+
+
+def threads_option(default: int, text: str = "CPU threads for torch."):
+    """`--threads`: how many CPU threads torch uses (parameter `threads`)."""
+    return click.option("--threads", type=int, default=default, show_default=True, help=text)
+
+
+def progress_printer(every: int = 25, quiet_s: float = 30.0):
+    """Progress on stderr: every message on a terminal (overwriting epoch lines); otherwise the first
+    epoch, every 25th, and any epoch that ends 30 s or more after the last line shown (a slow model
+    shows it is alive), besides every message that is not an epoch line."""
+    import re
+    import sys
+    import time
+
+    from neurotac_cli.tables import is_terminal
+
+    interactive = is_terminal(sys.stderr)
+    shown = [time.monotonic()]
+
+    def show(message: str):
+        line = re.match(r"\S+: epoch (\d+) ", message)  # `fit`'s per-epoch line
+        if line:
+            epoch = int(line.group(1))
+            if interactive:
+                click.echo("\r" + message[:150].ljust(150), err=True, nl=False)
+                return
+            if epoch != 1 and epoch % every and time.monotonic() - shown[0] < quiet_s:
+                return
+        elif interactive:
+            click.echo("", err=True)
+        click.echo(message, err=True)
+        shown[0] = time.monotonic()
+
+    return show
+
+
+def echo_lines(command: str, lines, prefix: str = "") -> None:
+    """Each line on stderr as `neurotac COMMAND: PREFIXline` (PREFIX e.g. `warning: `)."""
+    for line in lines:
+        click.echo(f"neurotac {command}: {prefix}{line}", err=True)

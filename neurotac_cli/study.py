@@ -85,12 +85,7 @@ def run_tasks(
     keys = [task_key(function, {**task, **common}) for task in tasks]
     cache = _Cache(cache_dir) if cache_dir else None
 
-    results: dict[str, object] = {}
-    if cache is not None:
-        for key in dict.fromkeys(keys):
-            found, value = cache.get(key)
-            if found:
-                results[key] = value
+    results = cache.found(keys) if cache is not None else {}
     # Identical tasks run once: the same inputs give the same result.
     pending = {key: task for key, task in zip(keys, tasks) if key not in results}
 
@@ -105,17 +100,22 @@ def run_tasks(
     meter.show()
     try:
         if pending:
-            if scheduler:
-                _run_dask(function, pending, shared, scheduler, retries, label, finished)
-            elif jobs is not None and jobs != 1:
-                workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
-                _run_pool(function, pending, shared, workers, retries, finished)
-            else:
-                for key, task in pending.items():
-                    finished(key, _call(function, task, shared))
+            _run_pending(function, pending, shared, jobs, scheduler, retries, label, finished)
     finally:
         meter.close()
     return [results[key] for key in keys]
+
+
+def _run_pending(function, pending: dict, shared: dict, jobs, scheduler, retries: int, label: str, finished):
+    """Every pending task on the Dask cluster, the local pool or here; `finished(key, result)` as each ends."""
+    if scheduler:
+        _run_dask(function, pending, shared, scheduler, retries, label, finished)
+    elif jobs is not None and jobs != 1:
+        workers = (os.cpu_count() or 1) if jobs <= 0 else jobs
+        _run_pool(function, pending, shared, workers, retries, finished)
+    else:
+        for key, task in pending.items():
+            finished(key, _call(function, task, shared))
 
 
 # The `shared` arguments of the study a pool worker process serves, set once when it starts.
@@ -311,13 +311,6 @@ def data_digest(data) -> str:
     return hasher.hexdigest()[:32]
 
 
-def task_seed(seed: int, *parts) -> int:
-    """A seed for one task derived from the study's seed and the task's coordinates (fold, repeat,
-    grid point): independent of the order tasks run in and of which worker runs them."""
-    text = json.dumps([seed, _canonical(list(parts))], sort_keys=True)
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "little")
-
-
 def _canonical(value):
     """`value` as JSON-able data that is equal exactly when the values are."""
     if value is None or isinstance(value, (bool, str)):
@@ -405,6 +398,15 @@ class _Cache:
             pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
             handle.flush()
             os.fsync(handle.fileno())
+
+    def found(self, keys) -> dict:
+        """{key: result} of the keys that have a readable entry."""
+        results = {}
+        for key in dict.fromkeys(keys):
+            found, value = self.get(key)
+            if found:
+                results[key] = value
+        return results
 
     def keys(self) -> set[str]:
         return {path.stem for path in self.folder.glob("*/*.pkl")}
@@ -571,62 +573,6 @@ def _scalar(text: str):
         return text
 
 
-# --------------------------------------------------------------------------------------------------
-# A grid of cross-validated models
-
-
-def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repeats=1, seed=0, val_fraction=0.1,
-                        per=None, label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None,
-                        cache_dir=None, progress=None):
-    """Cross-validate `model` at every grid point: (predictions, metric rows) with one column per grid
-    parameter added to both, in grid order.
-
-    Every training of every point (points × folds × repeats) is one task of a single `run_tasks`
-    call, so a cluster works on all of them at once; each point's trainings are then scored by
-    `model.evaluate.score_folds`, as `neurotac eval --cv` scores its own.
-    """
-    import pyarrow as pa
-
-    from neurotac_cli import model as models
-    from neurotac_cli.model import cv as cross
-    from neurotac_cli.model import data as shaping
-    from neurotac_cli.model import evaluate
-
-    specs = [models.make_spec(model, **point) for point in points]  # refuses unknown names before any work
-    data = shaping.sequences(frames)
-    plans = [cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label) for spec in specs]
-    results = run_tasks(cross.run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
-                        scheduler=scheduler, cache_dir=cache_dir, label=f"{model} grid", shared={"frames": frames},
-                        progress=progress)
-    parts, rows, start = [], [], 0
-    for point, (groups, tasks) in zip(points, plans):
-        predictions, point_rows = evaluate.score_folds(results[start : start + len(tasks)], len(groups),
-                                                       nonzero=nonzero, per_trial=per_trial, label=label)
-        start += len(tasks)
-        for name, value in point.items():
-            predictions = predictions.append_column(name, pa.array([value] * predictions.num_rows))
-        parts.append(predictions)
-        rows.append((point, point_rows))
-    merged = pa.concat_tables(parts, promote_options="permissive").replace_schema_metadata(parts[0].schema.metadata)
-    return merged, rows
-
-
-def grid_metrics_table(rows, model: str):
-    """One metrics table for a grid: scope, metric, value, model, then one column per grid parameter."""
-    import pyarrow as pa
-
-    from neurotac_cli.metrics import metrics_table
-
-    tables = []
-    for point, point_rows in rows:
-        table = metrics_table(point_rows, model)
-        for name, value in point.items():
-            table = table.append_column(name, pa.array([value] * table.num_rows))
-        tables.append(table)
-    merged = pa.concat_tables(tables, promote_options="permissive")
-    return merged.replace_schema_metadata(tables[0].schema.metadata)
-
-
 def grid_points(specs, fixed: dict | None = None) -> list[dict]:
     """The grid points of `--grid` specs, each with the `fixed` hyperparameters (options such as
     `--epochs 30` given beside the grid) added; a name both fixed and varied is refused."""
@@ -639,23 +585,3 @@ def grid_points(specs, fixed: dict | None = None) -> list[dict]:
             f"a single value in --grid, e.g. --grid {both[0]}=30, fixes it)"
         )
     return [{**point, **fixed} for point in points]
-
-
-def grid_lines(rows, model: str) -> list[str]:
-    """One line per grid point for stderr: its parameters, its test score, its validation score."""
-    lines = []
-    for point, point_rows in rows:
-        figures = {metric: value for scope, metric, value in point_rows if scope == "all"}
-        shown = ", ".join(f"{name}={value}" for name, value in point.items()) or "(defaults)"
-        if "accuracy" in figures:
-            summary = f"accuracy {100 * figures['accuracy']:.1f}%"
-            validation = figures.get("val_accuracy_fold_mean", math.nan) * 100
-            if validation == validation:
-                summary += f", validation {validation:.1f}%"
-        else:
-            summary = f"MSE {figures.get('mse_fold_mean', math.nan):.4g} N² (fold mean)"
-            validation = figures.get("val_mse_fold_mean", math.nan)
-            if validation == validation:
-                summary += f", validation {validation:.4g} N²"
-        lines.append(f"{model} {shown}: {summary}")
-    return lines

@@ -15,7 +15,7 @@ import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable, Iterable, Iterator
+from typing import Iterable, Iterator
 
 import pyarrow as pa
 import pyarrow.ipc as ipc
@@ -363,11 +363,12 @@ def atomic_file(path: str):
             os.unlink(temporary)
 
 
-def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
+def write(output: str | None, data, step=None, schema: pa.Schema | None = None, flush_each: bool = False):
     """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
 
     `step = (command, args)` is appended to the history. With an iterable, batches are written
-    as they come, so memory does not grow with the input.
+    as they come, so memory does not grow with the input; `flush_each` hands each batch on stdout
+    to the reader at once (a live stream) rather than when the pipe's buffer fills.
     """
     if isinstance(data, pa.Table):
         schema = data.schema
@@ -383,6 +384,8 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
         writer = ipc.new_stream(sink, schema)
         for batch in batches:
             writer.write_batch(_with_schema(batch, schema))
+            if flush_each:
+                sink.flush()
         writer.close()
         sink.flush()
         return
@@ -408,8 +411,3 @@ def _with_schema(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
         return pa.RecordBatch.from_arrays(batch.columns, schema=schema)
     except (pa.ArrowInvalid, TypeError):
         raise SchemaError(f"internal: batch columns {batch.schema.names} do not match {schema.names}") from None
-
-
-def map_batches(batches: Iterable[pa.RecordBatch], function: Callable) -> Iterator[pa.RecordBatch]:
-    for batch in batches:
-        yield function(batch)

@@ -21,14 +21,6 @@ def parse_duration_us(text: str) -> int:
     return int(round(value))
 
 
-def format_duration_us(us: int) -> str:
-    """10000 -> '10ms': the shortest exact spelling."""
-    for unit, factor in (("s", 1_000_000), ("ms", 1_000)):
-        if us and us % factor == 0:
-            return f"{us // factor}{unit}"
-    return f"{us}us"
-
-
 def parse_size(text: str) -> tuple[int, int]:
     """`115x115` -> (width, height)."""
     match = re.match(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$", str(text))

@@ -16,7 +16,10 @@ def test_version():
 def test_help_lists_the_commands():
     result = CliRunner().invoke(cli, ["--help"])
     assert result.exit_code == 0
-    assert "Commands" in result.output or not COMMANDS
+    assert COMMANDS, "no command is registered"
+    assert "Commands" in result.output
+    listed = result.output.split("Commands:", 1)[1]
+    assert all(f"  {name} " in listed for name in COMMANDS), listed
 
 
 def test_unknown_command_is_a_usage_error():

@@ -25,7 +25,7 @@ from neurotac_cli.cli import cli
 from neurotac_cli.io.writers import aedat2_bytes
 from tests.conftest import REAL_DATA
 from tests.test_exits import frames_table
-from tests.test_io_fuzz import REAL
+from tests.io.test_fuzz import REAL
 
 FUZZ = settings(max_examples=12, derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])

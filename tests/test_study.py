@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from neurotac_cli.errors import NeurotacError
 from neurotac_cli.options import study_options
-from neurotac_cli.study import cached_keys, data_digest, parse_grid, run_tasks, task_key, task_seed
+from neurotac_cli.study import cached_keys, data_digest, parse_grid, run_tasks, task_key
 
 TRIALS = 6
 
@@ -67,7 +67,7 @@ def weighted_sum(table, weight: float) -> float:
 
 
 def study_tasks(grid):
-    return [{**point, "fold": fold, "seed": task_seed(7, point, fold)} for point in grid for fold in range(TRIALS)]
+    return [{**point, "fold": fold, "seed": 7 + fold} for point in grid for fold in range(TRIALS)]
 
 
 # -- a real Dask cluster, shared by the tests of this module --------------------------------------
@@ -214,11 +214,6 @@ def test_data_digest_of_a_table_changes_with_its_content():
     assert data_digest(table) != data_digest(pa.table({"t": [1, 2, 4]}))
 
 
-def test_task_seed_depends_on_the_coordinates_only():
-    assert task_seed(1, {"units": 5}, 3) == task_seed(1, {"units": 5}, 3)
-    assert len({task_seed(1, {"units": 5}, fold) for fold in range(48)}) == 48
-
-
 def test_progress_goes_to_stderr_with_done_total(capsys):
     run_tasks(square, [{"x": x} for x in range(3)], progress=True, label="demo")
     captured = capsys.readouterr()
@@ -328,7 +323,7 @@ def _metrics(path):
 @pytest.fixture(scope="module")
 def tiny_frames_file(tmp_path_factory):
     pytest.importorskip("torch")
-    from tests.test_model_helpers import tiny_frames, write_stream
+    from tests.model.helpers import tiny_frames, write_stream
 
     path = tmp_path_factory.mktemp("frames") / "frames.arrows"
     write_stream(tiny_frames(trials=5), path)

@@ -2,9 +2,7 @@
 
 import click
 
-from neurotac_cli.options import KeyValue, input_paths, output_option, seed_option
-
-LOSS_WARNING = 0.05  # warn on stderr when a method pushes out more than this share of its input events
+from neurotac_cli.options import KeyValue, echo_lines, history, input_paths, output_option, seed_option
 
 
 @click.command()
@@ -14,12 +12,12 @@ LOSS_WARNING = 0.05  # warn on stderr when a method pushes out more than this sh
               help="Rotate every frame of a trial by DEG degrees about its contact centre (clockwise on screen).")
 @click.option("--rotate-range", "rotate_range", type=float, nargs=2, default=None, metavar="A B",
               help="Rotate each copy of a trial by one angle drawn uniformly from [A, B] degrees (thesis: 0 45).")
-@click.option("--resize", "beta", type=click.FloatRange(min=0, min_open=True), default=None, metavar="BETA",
+@click.option("--resize", "resize", type=click.FloatRange(min=0, min_open=True), default=None, metavar="BETA",
               help="Scale about the contact centre by BETA (>1 larger; thesis 1.25 small objects, 0.83 large), "
                    "bilinear, zero margin.")
 @click.option("--preserve-total", is_flag=True,
               help="After rotating or resizing, rescale each frame and channel to its original event count.")
-@click.option("--noise", "noise_path", type=click.Path(dir_okay=False, exists=True), default=None, metavar="FILE",
+@click.option("--noise", "noise", type=click.Path(dir_okay=False, exists=True), default=None, metavar="FILE",
               help="Add background-noise frames from FILE, a frames table of a still recording framed and cropped "
                    "like the input; a random stretch of it per copy.")
 @click.option("--fs", "fs", type=int, default=None, metavar="J",
@@ -36,7 +34,7 @@ LOSS_WARNING = 0.05  # warn on stderr when a method pushes out more than this sh
                    "the others pass unchanged.")
 @click.option("--only-augmented", is_flag=True, help="Write the copies only, not the original trials.")
 @seed_option
-def command(paths, output, rotate, rotate_range, beta, preserve_total, noise_path, fs, tes, combine, copies,
+def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, fs, tes, combine, copies,
             where, only_augmented, seed):
     """Make augmented copies of every trial of a frames table (thesis chapter 5).
 
@@ -52,43 +50,11 @@ def command(paths, output, rotate, rotate_range, beta, preserve_total, noise_pat
     from neurotac_cli import tables
     from neurotac_cli.ops import augment
 
-    if rotate is None and not rotate_range and beta is None and noise_path is None and fs is None and tes is None:
-        raise click.UsageError("give at least one of --rotate, --rotate-range, --resize, --noise, --fs, --tes")
-    if rotate is not None and rotate_range:
-        raise click.UsageError("give --rotate or --rotate-range, not both")
-    if rotate_range and rotate_range[1] < rotate_range[0]:
-        raise click.UsageError(f"--rotate-range {rotate_range[0]:g} {rotate_range[1]:g} is empty; give the smaller angle first")
-
-    methods = []
-    if rotate is not None:
-        methods.append(augment.Rotate(rotate, preserve_total=preserve_total))
-    if rotate_range:
-        methods.append(augment.Rotate(*rotate_range, preserve_total=preserve_total))
-    if beta is not None:
-        methods.append(augment.Resize(beta, preserve_total=preserve_total))
-    if fs is not None:
-        methods.append(augment.FrameShift(fs))
-    if tes is not None:
-        methods.append(augment.EventShift(*tes))
-
+    request = augment.Augmentation(rotate=rotate, rotate_range=rotate_range or None, resize=resize,
+                                   preserve_total=preserve_total, fs=fs, tes=tes, combine=combine, copies=copies,
+                                   where=where, keep_original=not only_augmented, seed=seed, noise=noise)
     frames = tables.read(paths, kind="frames")
-    if noise_path is not None:
-        noise = tables.read([noise_path], kind="frames")
-        methods.append(augment.Noise(tuple(augment.noise_pool(noise, frames.schema))))
-    result, counted = augment.augment_frames(
-        frames, methods, copies=copies, combine=combine, keep_original=not only_augmented, seed=seed,
-        where=list(where),
-    )
-    for name, entry in counted.items():
-        lost = entry.get("events_lost", 0)
-        if entry["events_in"] and lost > LOSS_WARNING * entry["events_in"]:
-            click.echo(
-                f"neurotac augment: warning: {name} pushed {lost} of {entry['events_in']} events out of the frames",
-                err=True,
-            )
-    args = {
-        "rotate": rotate, "rotate_range": list(rotate_range) if rotate_range else None, "resize": beta,
-        "preserve_total": preserve_total, "noise": noise_path, "fs": fs, "tes": list(tes) if tes else None,
-        "combine": combine, "copies": copies, "where": [f"{k}={v}" for k, v in where] or None, "only_augmented": only_augmented, "seed": seed, "counted": counted,
-    }
-    tables.write(output, result, step=("augment", {key: value for key, value in args.items() if value is not None}))
+    noise_frames = tables.read([noise], kind="frames") if noise else None
+    result, counted, warnings = augment.augment(frames, request, noise_frames)
+    echo_lines("augment", warnings, prefix="warning: ")
+    tables.write(output, result, step=history(counted=counted))

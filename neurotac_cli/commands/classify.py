@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import input_paths, output_option
+from neurotac_cli.options import history, input_paths, output_option
 
 
 @click.command()
@@ -18,4 +18,4 @@ def command(paths, output, model_path):
 
     model = models.load(model_path)
     table = tables.read(paths, kind="frames")
-    tables.write(output, models.classify_table(model, table), step=("classify", {"model": model_path}))
+    tables.write(output, models.classify_table(model, table), step=history())

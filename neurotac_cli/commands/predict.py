@@ -1,13 +1,13 @@
 import click
 
-from neurotac_cli.options import input_paths, output_option
+from neurotac_cli.options import history, input_paths, output_option, threads_option
 
 
 @click.command()
 @input_paths
 @output_option
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), required=True, help="A force model file from `neurotac train`.")
-@click.option("--threads", type=int, default=1, show_default=True, help="CPU threads for torch (1 gives the lowest latency per frame).")
+@threads_option(1, "CPU threads for torch (1 gives the lowest latency per frame).")
 def command(paths, output, model_path, threads):
     """Stream force estimates: read frames as they arrive, write each one's force as soon as it is computed.
 
@@ -18,8 +18,6 @@ def command(paths, output, model_path, threads):
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
     """
-    import sys
-
     import torch
 
     from neurotac_cli import model as models
@@ -29,11 +27,4 @@ def command(paths, output, model_path, threads):
     model = models.load(model_path)
     source = tables.open_input(paths, kind="frames")
     schema, batches = models.stream(model, source.schema, source.batches)
-
-    def flushed(batches):
-        for batch in batches:
-            yield batch
-            if output in (None, "-"):
-                sys.stdout.buffer.flush()
-
-    tables.write(output, flushed(batches), step=("predict", {"model": model_path}), schema=schema)
+    tables.write(output, batches, step=history(), schema=schema, flush_each=True)

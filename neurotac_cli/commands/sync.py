@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import Duration, KeyValue, ParamType, Size, output_option
+from neurotac_cli.options import Duration, KeyValue, ParamType, Size, echo_lines, history, output_option
 
 
 class Region(ParamType):
@@ -90,60 +90,16 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         neurotac sync --manifest sim/manifest.csv -o recordings.parquet
         neurotac import rec.aedat4 | neurotac sync --force f.csv --method trigger
     """
-    import os
+    from neurotac_cli import tables
+    from neurotac_cli.io import manifest as recordings_in
+    from neurotac_cli.ops import sync
 
-    from neurotac_cli import schema as sch, tables
-    from neurotac_cli.errors import UsageError
-    from neurotac_cli.io.camera import trial_name
-    from neurotac_cli.ops import sync as sy
-
-    force_options = sy.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
-    spec = sy.SyncMethod(
-        method=method, offset_us=offset, region=region,
-        latency_us=sy.LED_LATENCY_US if latency is None else latency,
-        response_us=sy.XCORR_RESPONSE_US if latency is None else latency, sensor_lag_us=sensor_lag, saturation=saturation,
-        min_z=min_score, min_coverage=min_coverage,
-        trigger_type=trigger_type, median_us=median_window, keep_led=keep_led,
-    )
-    label_map = dict(labels)
-    if manifest:
-        if events or force_path:
-            raise UsageError("give either --manifest or an events file with --force, not both")
-        sources = sy.manifest_sources(manifest, force_options, sensor, label_map)
-        origin = {"manifest": os.path.basename(manifest)}
-    else:
-        if not force_path:
-            raise UsageError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
-        if events in (None, "-"):
-            table = tables.read(["-"], kind="events")
-            name = trial or "trial"
-        else:
-            table = sy.read_camera(events, sensor)
-            name = trial or trial_name(events)
-        sources = [sy.Source(trial=name, events=table, force=force_options.read(force_path), labels=label_map)]
-        origin = {"events": os.path.basename(events or "-"), "force": os.path.basename(force_path), "trial": name}
-    recordings = sy.sync_sources(sources, spec)
-    args = dict(spec.args(), **origin)
-    if label_map:
-        args["labels"] = label_map
-    tables.write(output, recordings, step=("sync", args))
-    synced = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
-    for line in [line for info in synced.values() for line in info.get("warnings", [])]:
-        click.echo(f"neurotac sync: warning: {line}", err=True)
-    if spec.method == "xcorr":
-        warn_uncertain(synced)
-
-
-def warn_uncertain(trials: dict):
-    """One warning line for the trials whose xcorr offset is uncertain by more than XCORR_UNCERTAIN_US."""
-    from neurotac_cli.ops.sync import XCORR_UNCERTAIN_US
-
-    wide = {name: info["uncertainty_us"] for name, info in trials.items() if info.get("uncertainty_us", 0) > XCORR_UNCERTAIN_US}
-    if wide:
-        worst = max(wide, key=wide.get)
-        click.echo(
-            f"neurotac sync: warning: xcorr's offset is uncertain by more than ±{XCORR_UNCERTAIN_US / 1000:g} ms on "
-            f"{len(wide)} of {len(trials)} trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor?); "
-            "an LED blink (--method led) or a trigger aligns within 0.1 ms",
-            err=True,
-        )
+    spec = sync.sync_method(
+        method, latency, offset_us=offset, region=region, sensor_lag_us=sensor_lag, saturation=saturation, min_z=min_score,
+        min_coverage=min_coverage, trigger_type=trigger_type, median_us=median_window, keep_led=keep_led)
+    force_options = recordings_in.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
+    sources = recordings_in.recording_sources(events, force_path, manifest, trial=trial, labels=dict(labels),
+                                              force_options=force_options, sensor=sensor)
+    recordings, warnings = sync.sync(sources, spec)
+    tables.write(output, recordings, step=history())
+    echo_lines("sync", warnings, prefix="warning: ")

@@ -13,7 +13,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.camera import Decoded, read_chunks
+from neurotac_cli.io.reader import Decoded, read_chunks
 
 # AEChip class name (lowercase, a fragment of it) -> (width, height)
 CHIPS = [

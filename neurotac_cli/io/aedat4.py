@@ -12,7 +12,7 @@ import struct
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.camera import Decoded
+from neurotac_cli.io.reader import Decoded
 
 TRIGGER_TYPES = {
     0: "timestamp_reset",

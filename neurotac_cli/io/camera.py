@@ -12,7 +12,6 @@ import os
 import shutil
 import sys
 import tempfile
-from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 import numpy as np
@@ -20,9 +19,10 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, NeurotacError
+from neurotac_cli.io import reader
+from neurotac_cli.io.reader import Decoded
+from neurotac_cli.io.readers import OPENERS
 from neurotac_cli.tables import is_terminal
-
-CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
 
 FORMATS = ("aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
 FORMAT_NAMES = {
@@ -54,15 +54,6 @@ def _keep_decoded_chunks_on_the_heap():
 
 
 _keep_decoded_chunks_on_the_heap()
-
-
-@dataclass
-class Decoded:
-    """What a format module found: the declared sensor, a chunk source, and extra metadata."""
-
-    sensor: tuple[int, int] | None
-    chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
-    meta: dict = field(default_factory=dict)
 
 
 def trial_name(path) -> str:
@@ -156,23 +147,9 @@ def _first_data_line(head: bytes) -> str:
 
 
 def _decoder(fmt: str):
-    if fmt == "aedat2":
-        from neurotac_cli.io.aedat2 import open_aedat2 as opener
-    elif fmt == "aedat4":
-        from neurotac_cli.io.aedat4 import open_aedat4 as opener
-    elif fmt == "evt2":
-        from neurotac_cli.io.prophesee import open_evt2 as opener
-    elif fmt == "evt3":
-        from neurotac_cli.io.prophesee import open_evt3 as opener
-    elif fmt == "dat":
-        from neurotac_cli.io.prophesee import open_dat as opener
-    elif fmt == "es":
-        from neurotac_cli.io.eventstream import open_es as opener
-    elif fmt in ("csv", "text"):
-        from neurotac_cli.io.text import open_text as opener
-    else:
+    if fmt not in OPENERS:
         raise FormatError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
-    return opener
+    return OPENERS[fmt]
 
 
 def _local_path(path) -> tuple[str, Callable[[], None]]:
@@ -190,7 +167,7 @@ def _local_path(path) -> tuple[str, Callable[[], None]]:
         raise InputError("no input: give a camera file, or pipe one into stdin")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
     with os.fdopen(handle, "wb") as sink:
-        shutil.copyfileobj(source, sink, CHUNK_BYTES)
+        shutil.copyfileobj(source, sink, reader.CHUNK_BYTES)
     return temporary, lambda: os.path.exists(temporary) and os.unlink(temporary)
 
 
@@ -291,26 +268,6 @@ def _guarded(name, fmt, chunks):
 def _short(error: Exception) -> str:
     text = str(error).strip().splitlines()
     return text[0][:200] if text else type(error).__name__
-
-
-def read_chunks(path: str, offset: int, record: int) -> Iterator[bytes]:
-    """The bytes of `path` from `offset`, in chunks of whole `record`-byte records (a cut last record is dropped)."""
-    size = max(record, (CHUNK_BYTES // record) * record)
-    with open(path, "rb") as handle:
-        remaining = os.fstat(handle.fileno()).st_size - offset
-        handle.seek(offset)
-        rest = b""
-        while remaining > 0:
-            # never ask for more than is left: a read of n bytes allocates n bytes first
-            block = handle.read(min(size, remaining))
-            if not block:
-                return
-            remaining -= len(block)
-            data = rest + block if rest else block
-            usable = len(data) - len(data) % record
-            rest = data[usable:]
-            if usable:
-                yield data if usable == len(data) else data[:usable]
 
 
 def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:

@@ -12,7 +12,7 @@ import struct
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.camera import Decoded, read_chunks
+from neurotac_cli.io.reader import Decoded, read_chunks
 
 HEADER = 12 + 3 + 1 + 4
 TYPES = {0: "generic", 1: "DVS", 2: "ATIS", 4: "color"}

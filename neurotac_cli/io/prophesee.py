@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.camera import Decoded, read_chunks
+from neurotac_cli.io.reader import Decoded, read_chunks
 
 # plugin / sensor names in Prophesee headers -> (width, height)
 SENSORS = [
@@ -90,13 +90,13 @@ def open_evt3(path: str, head: bytes, sensor) -> Decoded:
 
 
 def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
-    from neurotac_cli.io import camera, kernels
+    from neurotac_cli.io import kernels, reader
 
     offset, fields = header_of(path, head)
     decode, fresh, dtype = (
         (kernels.decode_evt2, kernels.evt2_state, "<u4") if word_bytes == 4 else (kernels.decode_evt3, kernels.evt3_state, "<u2")
     )
-    if os.path.getsize(path) - offset <= camera.CHUNK_BYTES:
+    if os.path.getsize(path) - offset <= reader.CHUNK_BYTES:
         # one chunk: read it once, look for triggers in memory, decode it when the batches are asked for
         blocks = list(read_chunks(path, offset, word_bytes))
         triggers = _triggers(blocks, word_bytes)

@@ -14,8 +14,8 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io import camera
-from neurotac_cli.io.camera import Decoded
+from neurotac_cli.io import reader
+from neurotac_cli.io.reader import Decoded
 
 TIME_NAMES = {"t": None, "t_us": 1, "timestamp": 1, "ts": 1, "time": None, "t_ms": 1_000, "t_s": 1_000_000}
 POLARITY_NAMES = ("p", "polarity", "pol")
@@ -81,7 +81,7 @@ def _line_blocks(path: str, first_line: int):
         remaining = os.fstat(handle.fileno()).st_size - handle.tell()
         rest = b""
         while remaining > 0:
-            block = handle.read(min(max(camera.CHUNK_BYTES, 1 << 12), remaining))
+            block = handle.read(min(max(reader.CHUNK_BYTES, 1 << 12), remaining))
             if not block:
                 break
             remaining -= len(block)

@@ -9,17 +9,26 @@ Public API (used by the train, eval, classify and predict commands, and by studi
 - `predict_table(model, table) -> predictions`, `classify_table(model, table) -> predictions`,
   `stream(model, batches) -> iterator of predictions batches` (state carried per trial).
 - `check_input(model, schema)`: refuse frames whose window, crop or channels differ from training.
+
+The names are loaded when first used, so a command can list the model names (`model.names`)
+for its --help without importing torch.
 """
 
-from neurotac_cli.model.core import (  # noqa: F401
-    FORCE_MODELS,
-    MATERIAL_MODELS,
-    Model,
-    check_input,
-    classify_table,
-    make_spec,
-    predict_table,
-    stream,
-    train,
-)
-from neurotac_cli.model.store import load, save  # noqa: F401
+import importlib
+
+_HOMES = {
+    "FORCE_MODELS": "names", "MATERIAL_MODELS": "names",
+    "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core",
+    "predict_table": "core", "stream": "core", "train": "core",
+    "load": "store", "save": "store",
+}
+
+
+def __getattr__(name: str):
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_HOMES))

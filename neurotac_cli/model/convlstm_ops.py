@@ -6,71 +6,69 @@ Every activation is a logistic sigmoid: tanh(x) = 2 sigmoid(2x) - 1, with the fa
 gate folded into its convolution (`gate_scale`), because on the CPU build torch's sigmoid is
 vectorised and its tanh is not (docs/design.md, "ConvLSTM on a CPU").
 The per-pixel arithmetic between the sigmoids runs in small numba loops (one pass instead of a dozen
-torch operations on 3-channel strided slices); without numba (NEUROTAC_NO_NUMBA=1) the same
-arithmetic runs as torch operations that autograd differentiates.
+torch operations on 3-channel strided slices). The same arithmetic as torch operations that autograd
+differentiates (`KERNELS = False`) is the reference the tests check the loops and their hand-written
+backward against.
 """
 
-import os
-
 import torch
+from numba import njit
 
-try:
-    if os.environ.get("NEUROTAC_NO_NUMBA"):
-        raise ImportError
-    from numba import njit
-except ImportError:  # pragma: no cover - exercised with NEUROTAC_NO_NUMBA=1
-    njit = None
+KERNELS = True  # False: the gates and the joint input as plain torch operations (the reference)
 
 # numba's parallel loops are left out on purpose: they bring a second OpenMP runtime, whose threads
 # compete with torch's for the same cores and slow torch's own kernels; the loops run on the
 # calling thread.
-if njit is not None:
 
-    @njit(cache=True, nogil=True)
-    def _cell_state(act, c_prev, c, c_doubled):  # pragma: no cover - compiled
-        pixels, filters = c.shape
-        for p in range(pixels):
-            for k in range(filters):
-                value = act[p, filters + k] * c_prev[p, k] + act[p, k] * (2.0 * act[p, 3 * filters + k] - 1.0)
-                c[p, k] = value
-                c_doubled[p, k] = value + value
 
-    @njit(cache=True, nogil=True)
-    def _cell_output(act, tanh_c, h):  # pragma: no cover - compiled
-        """tanh_c holds sigmoid(2c) on entry, tanh(c) on return."""
-        pixels, filters = h.shape
-        for p in range(pixels):
-            for k in range(filters):
-                t = 2.0 * tanh_c[p, k] - 1.0
-                tanh_c[p, k] = t
-                h[p, k] = act[p, 2 * filters + k] * t
+@njit(cache=True, nogil=True)
+def _cell_state(act, c_prev, c, c_doubled):  # pragma: no cover - compiled
+    pixels, filters = c.shape
+    for p in range(pixels):
+        for k in range(filters):
+            value = act[p, filters + k] * c_prev[p, k] + act[p, k] * (2.0 * act[p, 3 * filters + k] - 1.0)
+            c[p, k] = value
+            c_doubled[p, k] = value + value
 
-    @njit(cache=True, nogil=True)
-    def _cell_backward(act, c_prev, tanh_c, dh, dc, dz, dc_prev):  # pragma: no cover - compiled
-        pixels, filters = c_prev.shape
-        for p in range(pixels):
-            for k in range(filters):
-                i = act[p, k]
-                f = act[p, filters + k]
-                o = act[p, 2 * filters + k]
-                g2 = act[p, 3 * filters + k]
-                t = tanh_c[p, k]
-                d = dc[p, k] + dh[p, k] * o * (1.0 - t * t)
-                dz[p, k] = d * (2.0 * g2 - 1.0) * i * (1.0 - i)
-                dz[p, filters + k] = d * c_prev[p, k] * f * (1.0 - f)
-                dz[p, 2 * filters + k] = dh[p, k] * t * o * (1.0 - o)
-                dz[p, 3 * filters + k] = 2.0 * d * i * g2 * (1.0 - g2)
-                dc_prev[p, k] = d * f
 
-    @njit(cache=True, nogil=True)
-    def _joint(x, h, out):  # pragma: no cover - compiled
-        pixels, inputs = x.shape
-        filters = h.shape[1]
-        for p in range(pixels):
-            for k in range(inputs):
-                out[p, k] = x[p, k]
-            for k in range(filters):
-                out[p, inputs + k] = h[p, k]
+@njit(cache=True, nogil=True)
+def _cell_output(act, tanh_c, h):  # pragma: no cover - compiled
+    """tanh_c holds sigmoid(2c) on entry, tanh(c) on return."""
+    pixels, filters = h.shape
+    for p in range(pixels):
+        for k in range(filters):
+            t = 2.0 * tanh_c[p, k] - 1.0
+            tanh_c[p, k] = t
+            h[p, k] = act[p, 2 * filters + k] * t
+
+
+@njit(cache=True, nogil=True)
+def _cell_backward(act, c_prev, tanh_c, dh, dc, dz, dc_prev):  # pragma: no cover - compiled
+    pixels, filters = c_prev.shape
+    for p in range(pixels):
+        for k in range(filters):
+            i = act[p, k]
+            f = act[p, filters + k]
+            o = act[p, 2 * filters + k]
+            g2 = act[p, 3 * filters + k]
+            t = tanh_c[p, k]
+            d = dc[p, k] + dh[p, k] * o * (1.0 - t * t)
+            dz[p, k] = d * (2.0 * g2 - 1.0) * i * (1.0 - i)
+            dz[p, filters + k] = d * c_prev[p, k] * f * (1.0 - f)
+            dz[p, 2 * filters + k] = dh[p, k] * t * o * (1.0 - o)
+            dz[p, 3 * filters + k] = 2.0 * d * i * g2 * (1.0 - g2)
+            dc_prev[p, k] = d * f
+
+
+@njit(cache=True, nogil=True)
+def _joint(x, h, out):  # pragma: no cover - compiled
+    pixels, inputs = x.shape
+    filters = h.shape[1]
+    for p in range(pixels):
+        for k in range(inputs):
+            out[p, k] = x[p, k]
+        for k in range(filters):
+            out[p, inputs + k] = h[p, k]
 
 
 def gate_scale(filters: int, like: torch.Tensor) -> torch.Tensor:
@@ -111,7 +109,7 @@ class _Gates(torch.autograd.Function):
 
 
 def _torch_gates(z, c_prev):
-    """`_Gates` as torch operations, differentiated by autograd: the path without numba."""
+    """`_Gates` as torch operations, differentiated by autograd: the reference."""
     i, f, o, g2 = torch.sigmoid(z).chunk(4, dim=-1)
     c = torch.addcmul(f * c_prev, i, g2 * 2.0 - 1.0)
     return o * (torch.sigmoid(c * 2.0) * 2.0 - 1.0), c
@@ -136,14 +134,14 @@ def lstm_gates(z, c):
     """New (h, c) from scaled gate pre-activations (..., 4F) ordered i, f, o, 2g and the cell state (..., F)."""
     shape = c.shape
     filters = shape[-1]
-    gates = _torch_gates if njit is None else _Gates.apply
+    gates = _Gates.apply if KERNELS else _torch_gates
     h, c = gates(z.reshape(-1, 4 * filters), c.reshape(-1, filters))
     return h.view(shape), c.view(shape)
 
 
 def joint_input(x, h):
     """x (..., inputs) and h (..., F) side by side along channels, contiguous."""
-    if njit is None:
+    if not KERNELS:
         return torch.cat([x, h], dim=-1)
     shape = x.shape[:-1]
     out = _Joint.apply(x.reshape(-1, x.shape[-1]), h.reshape(-1, h.shape[-1]))

@@ -9,11 +9,10 @@ import torch
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError
-from neurotac_cli.model import data as shaping
+from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit
+from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 
-FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
-MATERIAL_MODELS = ("material-dnn", "material-force", "material-curves")
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
 
@@ -79,9 +78,6 @@ class Model:
             "training": self.training,
         }
 
-    def init_state(self, batch: int = 1):
-        return self.net.init_state(batch)
-
     def step(self, counts: np.ndarray, t_us: np.ndarray, state=None):
         """Force (N) for frames (B, T, 2, H, W) at times (B, T) µs, continuing from `state`."""
         counts = np.asarray(counts, dtype=np.float32)
@@ -91,7 +87,7 @@ class Model:
             out, state = self.net(torch.from_numpy(counts), torch.as_tensor(t_us / 1e6), state)
         return out.numpy().astype(np.float32) * self.force_scale, state
 
-    def proba(self, data: shaping.Sequences) -> np.ndarray:
+    def proba(self, data: Sequences) -> np.ndarray:
         from neurotac_cli.model import material
 
         with torch.no_grad():
@@ -118,7 +114,7 @@ def input_spec_of(schema: pa.Schema, accumulated: bool) -> dict:
 def check_input(model: Model, schema: pa.Schema):
     """Refuse frames that differ from the training frames in window, crop or channels."""
     spec = model.input_spec
-    here = input_spec_of(schema, shaping.already_accumulated(schema))
+    here = input_spec_of(schema, already_accumulated(schema))
 
     def describe(s):
         window = f"{s['window_us'] / 1000:g} ms" if s.get("window_us") else "an unknown window"
@@ -153,12 +149,12 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     sch.validate(table.schema, "frames")
     name, config, fit_config = split_spec(spec)
     per = per or (label if name in MATERIAL_MODELS else "object")
-    data = shaping.sequences(table)
+    data = sequences(table)
     rng = np.random.default_rng(seed)
-    where = shaping.parse_where(val_where) if isinstance(val_where, str) else val_where
-    in_val = shaping.choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
+    where = parse_where(val_where) if isinstance(val_where, str) else val_where
+    in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
     train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
-    accumulated = shaping.already_accumulated(table.schema)
+    accumulated = already_accumulated(table.schema)
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
@@ -221,11 +217,11 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
 
 def _force_tensors(data, force_scale):
     length = data.max_length()
-    force = shaping.padded(data.force, length, fill=np.nan)
+    force = padded(data.force, length, fill=np.nan)
     mask = ~np.isnan(force)
     return {
-        "counts": torch.as_tensor(shaping.padded(data.counts, length)),
-        "t": torch.as_tensor(shaping.padded(_seconds(data), length, dtype=np.float64)),
+        "counts": torch.as_tensor(padded(data.counts, length)),
+        "t": torch.as_tensor(padded(_seconds(data), length, dtype=np.float64)),
         "force": torch.as_tensor(np.nan_to_num(force) / force_scale, dtype=torch.float32),
         "mask": torch.as_tensor(mask, dtype=torch.float32),
     }
@@ -297,12 +293,12 @@ def predict_table(model: Model, table: pa.Table) -> pa.Table:
     if model.task != "force":
         raise ModelError(f"model {model.name!r} classifies materials; use `neurotac classify` or `neurotac eval`")
     check_input(model, table.schema)
-    data = shaping.sequences(table)
+    data = sequences(table)
     outputs = []
     for start in range(0, len(data), EVAL_BATCH):
         part = data.subset(range(start, min(start + EVAL_BATCH, len(data))))
         length = part.max_length()
-        force, _ = model.step(shaping.padded(part.counts, length), shaping.padded(part.t, length, dtype=np.int64))
+        force, _ = model.step(padded(part.counts, length), padded(part.t, length, dtype=np.int64))
         outputs += [force[i, : len(c)] for i, c in enumerate(part.counts)]
     schema, labels = _predictions_schema(table.schema, FORCE_FIELDS, model)
     columns = {
@@ -361,7 +357,7 @@ def classify_table(model: Model, table: pa.Table) -> pa.Table:
     if model.task != "material":
         raise ModelError(f"model {model.name!r} estimates force; use `neurotac eval` or `neurotac predict`")
     check_input(model, table.schema)
-    data = shaping.sequences(table)
+    data = sequences(table)
     proba = model.proba(data)
     label = model.training.get("label", "material")
     fields = [("trial", pa.string())]

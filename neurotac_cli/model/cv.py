@@ -10,10 +10,11 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from neurotac_cli.errors import ModelError, UsageError
-from neurotac_cli.model import data as shaping
+from neurotac_cli.model.data import Sequences
+from neurotac_cli.model.fit import best_epoch
 
 
-def folds(data: shaping.Sequences, cv: str, rng: np.random.Generator) -> list:
+def folds(data: Sequences, cv: str, rng: np.random.Generator) -> list:
     """Test trials (originals only) of each fold for `loo`, `kfold:K`, `group:LABEL` or `group:LABEL=VALUE`."""
     originals = [i for i in range(len(data)) if not data.augmented[i]]
     if not originals:
@@ -89,10 +90,10 @@ def validation_figures(model, train_table: pa.Table) -> dict:
     from neurotac_cli import model as models
 
     curve = model.training.get("curve") or []
-    watched = [row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"] for row in curve]
+    best = best_epoch(curve)
     figures = {
         "epochs": float(len(curve)) if curve else float("nan"),
-        "best_epoch": float(curve[int(np.argmin(watched))]["epoch"]) if curve else float("nan"),
+        "best_epoch": float(best["epoch"]) if best else float("nan"),
     }
     trials = model.training.get("trials", {}).get("validation") or []
     name = "val_accuracy" if model.task == "material" else "val_mse"
@@ -110,7 +111,7 @@ def validation_figures(model, train_table: pa.Table) -> dict:
     return {name: scores.get("mse", float("nan")), **figures}
 
 
-def fold_tasks(data: shaping.Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
+def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
                per: str | None, label: str = "material"):
     """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
     rng = np.random.default_rng(seed)

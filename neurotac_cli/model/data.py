@@ -193,7 +193,7 @@ def resample(curve: np.ndarray, points: int) -> np.ndarray:
 
 
 def already_accumulated(schema: pa.Schema) -> bool:
-    """True when a step of the table's history accumulated counts since the trial start (crop --accumulate)."""
+    """True when a step of the table's history accumulated counts since the trial start (frame --accumulate)."""
     for step in sch.get_meta(schema, sch.HISTORY, []) or []:
         args = step.get("args", {}) if isinstance(step, dict) else {}
         if args.get("accumulate"):

@@ -31,11 +31,6 @@ from torch import nn
 from neurotac_cli.model.base import ForceNet
 
 
-# Model files written before the rename name `layout_grid` `grid` (store.load reads them).
-RENAMED_FIELDS = {"grid": "layout_grid"}
-ADDED_FIELDS = {"levels": 0}  # a file written before a field existed: the value that meant its absence
-
-
 @dataclass(frozen=True)
 class Config:
     hidden: int = 32

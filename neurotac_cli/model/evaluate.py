@@ -1,35 +1,101 @@
-"""Scoring a model on frames, and cross-validation through `neurotac_cli.study.run_tasks`."""
+"""`neurotac eval` and `neurotac study`: score a trained model on frames, cross-validate a model
+spec, or cross-validate it at every point of a hyperparameter grid."""
 
-import numpy as np
+from dataclasses import dataclass
+
 import pyarrow as pa
 
-from neurotac_cli import metrics
-from neurotac_cli.model import cv as cross
-from neurotac_cli.model import data as shaping
-from neurotac_cli.model.core import classify_table, predict_table
+from neurotac_cli.errors import UsageError
+from neurotac_cli.metrics import metrics_table
+from neurotac_cli.model.core import classify_table, make_spec, predict_table
+from neurotac_cli.model.cv import fold_tasks, run_fold
+from neurotac_cli.model.data import sequences
+from neurotac_cli.model.grid import cross_validate_grid, grid_lines, grid_metrics_table
+from neurotac_cli.model.scoring import score, score_folds, summary
+from neurotac_cli.model.store import load
+from neurotac_cli.study import grid_points, run_tasks
 
 
-def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material") -> list:
-    """Metric rows of a predictions table (force or material)."""
-    names = predictions.schema.names
-    if "force_pred" in names:
-        return metrics.force_rows(
-            predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
-            predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
-            nonzero=nonzero, per_trial=per_trial,
-            series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
-            if "repeat" in names else None,
-        )
-    if label not in names:
-        from neurotac_cli.errors import SchemaError
+@dataclass(frozen=True)
+class Folds:
+    """How a cross-validation trains each fold (see `cv.fold_tasks`)."""
 
-        raise SchemaError(f"the frames have no {label!r} column to score the classifier against (label columns: "
-                          f"{', '.join(n for n in names if not n.startswith('prob_') and n != f'{label}_pred') or 'none'}); "
-                          "use `neurotac classify` to predict without scoring")
-    true = predictions.column(label).to_pylist()
-    pred = predictions.column(f"{label}_pred").to_pylist()
-    classes = classes or [n[len("prob_"):] for n in names if n.startswith("prob_")]
-    return metrics.classification_rows(true, pred, classes)
+    cv: str
+    repeats: int = 1
+    seed: int = 0
+    val_fraction: float = 0.1
+    per: str | None = None
+    label: str = "material"
+
+
+@dataclass(frozen=True)
+class Runner:
+    """Where a study's tasks run (see `study.run_tasks`): results do not depend on it."""
+
+    jobs: int = 1
+    scheduler: str | None = None
+    cache: str | None = None
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What `evaluate` and `study` found: predictions, their metrics table, and a summary for people."""
+
+    name: str
+    predictions: pa.Table
+    metrics: pa.Table
+    summary: str
+    spec: dict | None = None
+
+
+def check_request(*, model_path=None, cv=None, model_spec=None, grid=(), plot=None, hyperparameters=None) -> None:
+    """Refuse a request whose options contradict each other, before any input is read."""
+    if grid and not cv:
+        raise UsageError("--grid needs --cv and --model-spec (a grid of cross-validated models)")
+    if (model_path is None) == (cv is None):
+        raise UsageError("give either --model FILE, or --cv with --model-spec NAME")
+    if cv and not model_spec:
+        raise UsageError("--cv needs --model-spec NAME (the model trained per fold)")
+    if grid and plot:
+        raise UsageError("--plot draws one model; drop --grid, or plot the chosen point with its options (--layers 4 ...)")
+    if model_path and any(value is not None for value in (hyperparameters or {}).values()):
+        raise UsageError("hyperparameter options apply to --cv --model-spec only; a model file carries its own")
+
+
+def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparameters=None, grid=(), folds=None,
+             nonzero=False, per_trial=True, runner=Runner(), progress=None) -> Evaluation:
+    """Score the model file `model_path` on `frames`, or cross-validate `model_spec` with `folds`
+    (at every point of `grid` when one is given: see `study`)."""
+    if grid:
+        return study(frames, model_spec, grid, hyperparameters, folds, nonzero=nonzero, per_trial=per_trial, runner=runner)
+    if folds is not None:
+        spec = make_spec(model_spec, **(hyperparameters or {}))
+        predictions, rows = cross_validate(
+            frames, spec, folds.cv, repeats=folds.repeats, seed=folds.seed, val_fraction=folds.val_fraction,
+            per=folds.per, label=folds.label, nonzero=nonzero, per_trial=per_trial, jobs=runner.jobs,
+            scheduler=runner.scheduler, cache=runner.cache, progress=progress)
+        name = model_spec
+    else:
+        model = load(model_path)
+        predictions, rows = evaluate_model(model, frames, nonzero=nonzero, per_trial=per_trial)
+        name, spec = model.name, None
+    trials = len(set(predictions.column("trial").to_pylist()))
+    title = f"{name} on {trials} trials" + (" (non-zero force only)" if nonzero else "")
+    return Evaluation(name, predictions, metrics_table(rows, name), summary(rows, title=title), spec)
+
+
+def study(frames: pa.Table, model_spec: str, grid, fixed: dict | None, folds: Folds, *, nonzero=False, per_trial=True,
+          runner=Runner()) -> Evaluation:
+    """Cross-validate `model_spec` at every point of the `--grid` specs `grid` (each with the `fixed`
+    hyperparameters): out-of-fold predictions and metrics with one column per grid parameter, and
+    one summary line per point."""
+    points = grid_points(grid, fixed)
+    predictions, rows = cross_validate_grid(
+        frames, model_spec, folds.cv, points, repeats=folds.repeats, seed=folds.seed, val_fraction=folds.val_fraction,
+        per=folds.per, label=folds.label, nonzero=nonzero, per_trial=per_trial, jobs=runner.jobs,
+        scheduler=runner.scheduler, cache_dir=runner.cache)
+    lines = "\n".join(grid_lines(rows, model_spec))
+    return Evaluation(model_spec, predictions, grid_metrics_table(rows, model_spec), lines)
 
 
 def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
@@ -51,99 +117,10 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
     mean and σ over folds are `val_mse_fold_mean` / `val_mse_fold_sd` ... in scope `all` (the
     thesis's model-selection tables 3.1 and 3.3 and Fig. 4.4(a)). There is no pooled validation
     figure: the folds' validation trials overlap."""
-    from neurotac_cli.study import run_tasks
-
-    data = shaping.sequences(table)
-    groups, tasks = cross.fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)
+    data = sequences(table)
+    groups, tasks = fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)
     if progress:
         progress(f"cross-validation {cv}: {len(groups)} folds x {repeats} repeats = {len(tasks)} trainings of {spec['model']}")
-    results = run_tasks(cross.run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
+    results = run_tasks(run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
                         label=f"{spec['model']} folds", shared={"frames": table})
     return score_folds(results, len(groups), nonzero=nonzero, per_trial=per_trial, label=label)
-
-
-def score_folds(results: list, folds: int, *, nonzero=False, per_trial=True, label="material"):
-    """`cross_validate`'s predictions and rows from the results of `cv.run_fold` on the tasks of
-    `cv.fold_tasks` (in their order: repeat after repeat of `folds` folds)."""
-    parts, per_fold = [], []
-    for index, (predictions, validation) in enumerate(results):
-        repeat, fold = divmod(index, folds)
-        rows = score(predictions, nonzero=nonzero, per_trial=False, label=label)
-        rows += [("all", name, float(value)) for name, value in validation.items()]
-        per_fold.append(rows)
-        n = predictions.num_rows
-        parts.append(predictions.append_column("repeat", pa.array(np.full(n, repeat, np.int32)))
-                     .append_column("fold", pa.array(np.full(n, fold, np.int32))))
-    schema = parts[0].schema
-    merged = pa.concat_tables([p.select(p.schema.names) for p in parts], promote_options="default")
-    merged = merged.replace_schema_metadata(schema.metadata)
-    rows = score(merged, nonzero=nonzero, per_trial=per_trial, label=label)
-    for index, fold_rows in enumerate(per_fold):
-        repeat, fold = divmod(index, folds)
-        rows += [(f"fold:{repeat}/{fold}", metric, value) for scope, metric, value in fold_rows if scope == "all"]
-    rows += metrics.fold_summary(per_fold)
-    return merged, rows
-
-
-ORDER = ("mse", "rmse", "mae", "rmse_pct_range", "mse_sd", "mae_sd", "r2", "dtw", "bhattacharyya", "n")
-
-
-def summary(rows: list, title: str = "") -> str:
-    """A readable table of the overall and per-phase figures (and fold mean ± σ when present)."""
-    by_scope = {}
-    for scope, metric, value in rows:
-        by_scope.setdefault(scope, {})[metric] = value
-    lines = [title] if title else []
-    if "accuracy" in by_scope.get("all", {}):
-        figures = by_scope["all"]
-        lines.append(f"accuracy {100 * figures['accuracy']:.1f}% over {int(figures.get('n', 0))} trials")
-        if "accuracy_fold_mean" in figures:
-            lines.append(f"accuracy per fold {100 * figures['accuracy_fold_mean']:.1f}% ± {100 * figures['accuracy_fold_sd']:.1f}%")
-        classes = [s[len("class:"):] for s in by_scope if s.startswith("class:")]
-        for name in classes:
-            recall = by_scope[f"class:{name}"].get("recall")
-            if recall is not None:
-                lines.append(f"  recall {name:<12} {100 * recall:.1f}%")
-        matrix_classes = [s[len("confusion:"):] for s in by_scope if s.startswith("confusion:")]
-        if matrix_classes:
-            width = max(8, *(len(c) + 1 for c in matrix_classes))
-            lines.append("confusion (rows true, columns predicted):")
-            lines.append(" " * width + "".join(f"{c:>{width}}" for c in matrix_classes))
-            for a in matrix_classes:
-                lines.append(f"{a:<{width}}" + "".join(f"{int(by_scope[f'confusion:{a}'].get(f'pred:{b}', 0)):>{width}}" for b in matrix_classes))
-        return "\n".join(lines + _validation_lines(figures))
-    scopes = ["all"] + [s for s in by_scope if s.startswith("phase:")]
-    metrics_here = [m for m in ORDER if any(m in by_scope.get(s, {}) for s in scopes)]
-    header = f"{'scope':<18}" + "".join(f"{m:>15}" for m in metrics_here)
-    lines.append(header)
-    for scope in scopes:
-        figures = by_scope.get(scope, {})
-        cells = []
-        for m in metrics_here:
-            value = figures.get(m)
-            if value is None or not np.isfinite(value):
-                cells.append(f"{'-':>15}")
-            elif f"{m}_fold_mean" in figures:
-                cells.append(f"{figures[f'{m}_fold_mean']:>8.4g}±{figures[f'{m}_fold_sd']:<6.3g}")
-            else:
-                cells.append(f"{value:>15.4g}" if m != "n" else f"{int(value):>15d}")
-        lines.append(f"{scope:<18}" + "".join(cells))
-    if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
-        lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
-    lines += _validation_lines(by_scope.get("all", {}))
-    return "\n".join(lines)
-
-
-def _validation_lines(figures: dict) -> list:
-    """`validation MSE 0.0123 ± 0.004 N² over 48 folds (early-stopping trials, best epoch 37 of 57 on average)`."""
-    lines = []
-    for metric, text, scale, unit in (("val_mse", "validation MSE", 1, " N²"), ("val_accuracy", "validation accuracy", 100, "%")):
-        mean = figures.get(f"{metric}_fold_mean")
-        if mean is None or not np.isfinite(mean):
-            continue
-        line = f"{text} {scale * mean:.4g} ± {scale * figures.get(f'{metric}_fold_sd', float('nan')):.3g}{unit} (mean ± σ over folds, early-stopping trials"
-        epochs, best = figures.get("epochs_fold_mean"), figures.get("best_epoch_fold_mean")
-        if epochs is not None and np.isfinite(epochs):
-            line += f"; best epoch {best:.0f} of {epochs:.0f} on average"
-        lines.append(line + ")")
-    return lines

@@ -62,3 +62,11 @@ def fit(net, batch_loss, n_train: int, val_loss, config: FitConfig, generator: t
     net.load_state_dict(best_state)
     net.eval()
     return curve
+
+
+def best_epoch(curve: list) -> dict | None:
+    """The curve's row with the lowest loss early stopping watched (validation, or training without
+    validation): the epoch whose weights `fit` restored. None for an empty curve."""
+    if not curve:
+        return None
+    return min(curve, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"])

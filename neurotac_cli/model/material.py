@@ -25,10 +25,9 @@ from neurotac_cli.model.data import Sequences, resample
 
 @dataclass(frozen=True)
 class Config:
-    inputs: str = "events"  # events | force | curves | rich
+    inputs: str = "events"  # events | force | curves
     layers: int = 2
     units: int = 30
-    activation: str = "sigmoid"
     points: int = 30
     dropout: float = 0.0
     accumulate: bool = True  # False when the input counts are already accumulated (frame --accumulate)
@@ -47,7 +46,7 @@ def features(data: Sequences, config: Config) -> np.ndarray:
 
 
 def feature_count(config: Config) -> int:
-    return {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points, "rich": 6 * config.points + 3}[config.inputs]
+    return {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points}[config.inputs]
 
 
 def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np.ndarray:
@@ -55,25 +54,12 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     if config.inputs == "force":
         return resample(np.nan_to_num(force.astype(np.float64)), points)
     sums = counts.reshape(len(counts), 2, -1).sum(axis=2).astype(np.float64)
-    if config.accumulate:
-        acc = np.cumsum(sums, axis=0)
-    else:
-        acc, sums = sums, np.diff(sums, axis=0, prepend=0.0)
+    acc = np.cumsum(sums, axis=0) if config.accumulate else sums
     if config.inputs == "events":
         return resample(acc, points).T.reshape(-1)
     totals = acc[-1] if len(acc) else np.zeros(2)
     shape = acc / np.maximum(totals, 1.0)
-    if config.inputs == "curves":
-        return np.concatenate([np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)])
-    active = (counts.reshape(len(counts), 2, -1) > 0).sum(axis=2).astype(np.float64)
-    parts = [
-        resample(shape, points).T.reshape(-1),
-        np.log1p(resample(sums, points)).T.reshape(-1),
-        np.log1p(resample(active, points)).T.reshape(-1),
-        np.log1p(totals),
-        [np.log((totals[1] + 1.0) / (totals[0] + 1.0))],
-    ]
-    return np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
+    return np.concatenate([np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)])
 
 
 class Net(nn.Module):
@@ -85,10 +71,9 @@ class Net(nn.Module):
         width = feature_count(config)
         self.register_buffer("feature_mean", torch.zeros(width))
         self.register_buffer("feature_std", torch.ones(width))
-        activation = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}[config.activation]
         layers = []
         for _ in range(config.layers):
-            layers += [nn.Linear(width, config.units), activation()]
+            layers += [nn.Linear(width, config.units), nn.Sigmoid()]
             if config.dropout:
                 layers.append(nn.Dropout(config.dropout))
             width = config.units

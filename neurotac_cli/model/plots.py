@@ -75,6 +75,19 @@ def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
     plt.close(fig)
 
 
+def evaluation_figure(predictions, path: str, *, name: str, label: str = "material", trials=None):
+    """`neurotac eval --plot`: force traces and per-phase scatter of a force model's predictions
+    (`trials`: ids drawn, default the first three), or a classifier's confusion matrix."""
+    if "force_pred" in predictions.schema.names:
+        force_figure(predictions, path, trials, title=name)
+        return
+    from neurotac_cli.metrics import confusion
+
+    classes = sorted(n[len("prob_"):] for n in predictions.schema.names if n.startswith("prob_"))
+    matrix = np.asarray(confusion(predictions.column(label).to_pylist(), predictions.column(f"{label}_pred").to_pylist(), classes))
+    confusion_figure(matrix, classes, path, title=f"{name}: accuracy {100 * np.trace(matrix) / max(matrix.sum(), 1):.1f}%")
+
+
 def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
     plt = _pyplot()
     fig, axis = plt.subplots(figsize=(5.5, 3.6))

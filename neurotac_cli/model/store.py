@@ -70,12 +70,7 @@ def load(path: str):
     module = _module(name)
     config_type = module.Config
     known = {f.name for f in dataclasses.fields(config_type)}
-    # Config fields renamed since a file was written keep loading under their new names.
-    renamed = getattr(module, "RENAMED_FIELDS", {})
-    architecture = {renamed.get(k, k): v for k, v in header["architecture"].items()}
-    for field, absent in getattr(module, "ADDED_FIELDS", {}).items():  # fields added since
-        architecture.setdefault(field, absent)
-    config = config_type(**{k: v for k, v in architecture.items() if k in known})
+    config = config_type(**{k: v for k, v in header["architecture"].items() if k in known})
     spec = header["input"]
     if header["task"] == "material":
         net = module.Net(config, len(header["classes"]))

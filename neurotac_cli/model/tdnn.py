@@ -19,7 +19,7 @@ class Config:
     delays: int = 3
     layers: int = 4
     units: int = 40
-    accumulate: bool = True  # False when the input counts are already accumulated (crop --accumulate)
+    accumulate: bool = True  # False when the input counts are already accumulated (frame --accumulate)
 
 
 class Net(ForceNet):

@@ -407,6 +407,38 @@ def augment_frames(
     `where` = [(column, value), ...]: augment only the trials whose column holds one of these
     values (thesis 5.5 resizes small objects by 1.25 and large ones by 0.83); the others pass unchanged.
     """
+    _check_request(methods, combine, copies, seed)
+    methods = sorted(methods, key=lambda method: ORDER.index(method.name))
+    counts = sch.counts_numpy(frames["counts"])
+    trials, order = _trial_order(frames)
+    bounds = np.flatnonzero(np.diff(trials[order])) + 1
+    trial_ids = frames["trial"].to_numpy(zero_copy_only=False)
+    source_ids = _column_or(frames, "source_trial", trial_ids)
+    done_before = _column_or(frames, "augment", np.full(frames.num_rows, "", dtype=object))
+    if any(method.name in ("fs", "tes") for method in methods):
+        _check_consecutive(frames["frame"].to_numpy(), order, bounds, trial_ids)
+    chosen = _chosen_rows(frames, where)
+    plans = [[method] for method in methods] if combine == "independent" else [methods]
+    stats = {}
+    out = _Pieces(counts, (int(keep_original) + len(plans) * copies) * len(counts))
+    seen = set(trial_ids.tolist())
+    for trial_rows in np.split(order, bounds):
+        first, trial_counts = trial_rows[0], counts[trial_rows]
+        if keep_original:
+            out.add(trial_rows, trial_counts, trial_ids[trial_rows], source_ids[trial_rows], done_before[trial_rows])
+        for plan in plans if chosen[first] else ():
+            for copy in range(1, copies + 1):
+                result, done = _run_plan(plan, trial_counts, trial_ids[first], copy, seed, combine, stats)
+                new_id = _unused_id(f"{trial_ids[first]}~{done}", seen)
+                earlier, count = done_before[first], len(trial_rows)
+                out.add(trial_rows, result, np.full(count, new_id, dtype=object),
+                        np.full(count, source_ids[first], dtype=object),
+                        np.full(count, f"{earlier}+{done}" if earlier else done, dtype=object))
+    stats = {method: {name: int(round(value)) for name, value in entry.items()} for method, entry in stats.items()}
+    return _assemble(frames, out.rows, out.counts[: out.filled], out.ids, out.sources, out.augment), stats
+
+
+def _check_request(methods, combine: str, copies: int, seed: int) -> None:
     if combine not in COMBINES:
         raise UsageError(f"unknown combination {combine!r} (use independent or hybrid)")
     if not methods:
@@ -415,68 +447,49 @@ def augment_frames(
         raise UsageError(f"--copies must be at least 1, got {copies}")
     if seed < 0:
         raise UsageError(f"--seed must be zero or positive, got {seed}")
-    methods = sorted(methods, key=lambda method: ORDER.index(method.name))
-    counts = sch.counts_numpy(frames["counts"])
-    trials, order = _trial_order(frames)
-    bounds = np.flatnonzero(np.diff(trials[order])) + 1
-    frame_numbers = frames["frame"].to_numpy()
-    trial_ids = frames["trial"].to_numpy(zero_copy_only=False)
-    source_ids = _column_or(frames, "source_trial", trial_ids)
-    done_before = _column_or(frames, "augment", np.full(frames.num_rows, "", dtype=object))
-    if any(method.name in ("fs", "tes") for method in methods):
-        _check_consecutive(frame_numbers, order, bounds, trial_ids)
-    chosen = _chosen_rows(frames, where)
 
-    plans = [[method] for method in methods] if combine == "independent" else [methods]
-    stats = {}
-    rows, new_ids, new_sources, new_augment = [], [], [], []
-    per_row = int(keep_original) + len(plans) * copies
-    out_counts = np.empty((per_row * len(counts), *counts.shape[1:]), dtype=counts.dtype)  # at most
-    filled = 0
-    seen = set(trial_ids.tolist())
-    for trial_rows in np.split(order, bounds):
-        trial = trial_ids[trial_rows[0]]
-        trial_counts = counts[trial_rows]
-        if keep_original:
-            rows.append(trial_rows)
-            out_counts[filled : filled + len(trial_rows)] = trial_counts
-            filled += len(trial_rows)
-            new_ids.append(trial_ids[trial_rows])
-            new_sources.append(source_ids[trial_rows])
-            new_augment.append(done_before[trial_rows])
-        for plan in plans if chosen[trial_rows[0]] else ():
-            for copy in range(1, copies + 1):
-                result, labels = trial_counts, []
-                for method in plan:
-                    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_key(trial, method.name, copy, combine)))
-                    entry = stats.setdefault(method.name, {"copies": 0, "events_in": 0})
-                    entry["copies"] += 1
-                    entry["events_in"] += float(result.sum(dtype=np.float64))
-                    result, label, counted = method(result, rng)
-                    labels.append(label)
-                    for name, value in counted.items():
-                        entry[name] = entry.get(name, 0) + value
-                done = f"{'+'.join(labels)}#{copy}"
-                new_id = f"{trial}~{done}"
-                if new_id in seen:
-                    raise NeurotacError(
-                        f"augmented trial id {new_id!r} is already taken (the input holds that copy already; "
-                        "augment the original trials, or use another method or --copies)"
-                    )
-                seen.add(new_id)
-                count = len(trial_rows)
-                earlier = done_before[trial_rows[0]]
-                rows.append(trial_rows)
-                out_counts[filled : filled + count] = result
-                filled += count
-                new_ids.append(np.full(count, new_id, dtype=object))
-                new_sources.append(np.full(count, source_ids[trial_rows[0]], dtype=object))
-                new_augment.append(np.full(count, f"{earlier}+{done}" if earlier else done, dtype=object))
-    for entry in stats.values():
-        for name, value in entry.items():
-            entry[name] = int(round(value))
-    table = _assemble(frames, rows, out_counts[:filled], new_ids, new_sources, new_augment)
-    return table, stats
+
+def _run_plan(plan, counts, trial: str, copy: int, seed: int, combine: str, stats: dict):
+    """One copy of a trial's counts through every method of `plan`: (counts, `what#copy`); `stats` counts."""
+    result, labels = counts, []
+    for method in plan:
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_key(trial, method.name, copy, combine)))
+        entry = stats.setdefault(method.name, {"copies": 0, "events_in": 0})
+        entry["copies"] += 1
+        entry["events_in"] += float(result.sum(dtype=np.float64))
+        result, label, counted = method(result, rng)
+        labels.append(label)
+        for name, value in counted.items():
+            entry[name] = entry.get(name, 0) + value
+    return result, f"{'+'.join(labels)}#{copy}"
+
+
+def _unused_id(new_id: str, seen: set) -> str:
+    if new_id in seen:
+        raise NeurotacError(
+            f"augmented trial id {new_id!r} is already taken (the input holds that copy already; "
+            "augment the original trials, or use another method or --copies)"
+        )
+    seen.add(new_id)
+    return new_id
+
+
+class _Pieces:
+    """The output trials as they are made: source rows, counts (into one array sized for the most
+    rows there can be), trial ids, source trials and what was done."""
+
+    def __init__(self, counts: np.ndarray, capacity: int):
+        self.counts = np.empty((capacity, *counts.shape[1:]), dtype=counts.dtype)
+        self.filled = 0
+        self.rows, self.ids, self.sources, self.augment = [], [], [], []
+
+    def add(self, rows, counts, ids, sources, augment):
+        self.rows.append(rows)
+        self.counts[self.filled : self.filled + len(rows)] = counts
+        self.filled += len(rows)
+        self.ids.append(ids)
+        self.sources.append(sources)
+        self.augment.append(augment)
 
 
 def _key(trial: str, method: str, copy: int, combine: str) -> tuple[int, int, int]:
@@ -563,3 +576,58 @@ def _as_dtype(values: np.ndarray, dtype) -> np.ndarray:
             )
         return values.astype(dtype)  # callers hand over whole numbers (rounded or integer arithmetic)
     return values.astype(dtype)
+
+
+# ---------------------------------------------------------------- the command's request
+
+LOSS_WARNING = 0.05  # warn when a method pushes out more than this share of its input events
+
+
+@dataclasses.dataclass(frozen=True)
+class Augmentation:
+    """What `neurotac augment` asks for: the methods' settings and how copies are made."""
+
+    rotate: float | None = None
+    rotate_range: tuple | None = None
+    resize: float | None = None
+    preserve_total: bool = False
+    fs: int | None = None
+    tes: tuple | None = None
+    combine: str = "independent"
+    copies: int = 1
+    where: tuple = ()
+    keep_original: bool = True
+    seed: int = 0
+    noise: str | None = None  # the background-noise file the command reads (see `augment`)
+
+    def __post_init__(self):
+        if all(value is None for value in (self.rotate, self.rotate_range, self.resize, self.fs, self.tes, self.noise)):
+            raise UsageError("give at least one of --rotate, --rotate-range, --resize, --noise, --fs, --tes")
+        if self.rotate is not None and self.rotate_range:
+            raise UsageError("give --rotate or --rotate-range, not both")
+        if self.rotate_range and self.rotate_range[1] < self.rotate_range[0]:
+            raise UsageError(f"--rotate-range {self.rotate_range[0]:g} {self.rotate_range[1]:g} is empty; give the smaller angle first")
+
+    def methods(self, noise_frames: tuple | None = None) -> list:
+        """The transforms asked for; `noise_frames` (see `noise_pool`) adds background noise."""
+        chosen = [
+            Rotate(self.rotate, preserve_total=self.preserve_total) if self.rotate is not None else None,
+            Rotate(*self.rotate_range, preserve_total=self.preserve_total) if self.rotate_range else None,
+            Resize(self.resize, preserve_total=self.preserve_total) if self.resize is not None else None,
+            FrameShift(self.fs) if self.fs is not None else None,
+            EventShift(*self.tes) if self.tes is not None else None,
+            Noise(tuple(noise_frames)) if noise_frames is not None else None,
+        ]
+        return [method for method in chosen if method is not None]
+
+
+def augment(frames: pa.Table, request: Augmentation, noise: pa.Table | None = None) -> tuple[pa.Table, dict, list]:
+    """`neurotac augment`: (augmented frames, what each method counted, warnings for stderr).
+    `noise`: a frames table of a still recording, framed and cropped like `frames`."""
+    pool = tuple(noise_pool(noise, frames.schema)) if noise is not None else None
+    table, counted = augment_frames(frames, request.methods(pool), copies=request.copies, combine=request.combine,
+                                    keep_original=request.keep_original, seed=request.seed, where=list(request.where))
+    warnings = [f"{name} pushed {entry.get('events_lost', 0)} of {entry['events_in']} events out of the frames"
+                for name, entry in counted.items()
+                if entry["events_in"] and entry.get("events_lost", 0) > LOSS_WARNING * entry["events_in"]]
+    return table, counted, warnings

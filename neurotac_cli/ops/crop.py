@@ -63,6 +63,7 @@ class CropReport:
     center_from: str | None = None
     pool: object = None
     widened: str | None = None
+    streamed: bool = False  # an events stream: the counts are known only once it has been written
 
     @property
     def share_cut(self) -> float:
@@ -77,6 +78,15 @@ class CropReport:
         if self.widened:
             out["widened_to"] = self.widened
         return out
+
+    def history(self):
+        """The report as the history records it: its figures, or a note for a stream still to run."""
+        return "streamed: the count of cut events is written to stderr" if self.streamed else self.as_dict()
+
+    def messages(self, threshold: float) -> list[str]:
+        """Lines for stderr once the output is written: a stream's cut count, then the warnings."""
+        counted = [f"cut {self.cut} of {self.kept + self.cut} events"] if self.streamed else []
+        return counted + [f"warning: {line}" for line in self.warnings(threshold)]
 
     def warnings(self, threshold: float) -> list[str]:
         lines = []
@@ -123,7 +133,7 @@ def activity_map(table: pa.Table) -> np.ndarray:
             counts = sch.counts_numpy(batch.column("counts"))
             total += counts.sum(axis=(0, 1), dtype=np.float64)
         return total
-    width, height = _sensor(table.schema)
+    width, height = sensor_size(table.schema)
     if kind == "recordings":
         values = pa.chunked_array([chunk.flatten() for chunk in table.column("events").chunks], type=sch.EVENT_STRUCT)
         t = np.concatenate([chunk.field("t").to_numpy(zero_copy_only=False) for chunk in values.chunks] or [np.zeros(0, np.int64)])
@@ -138,7 +148,8 @@ def activity_map(table: pa.Table) -> np.ndarray:
     return flat.reshape(height, width).astype(np.float64)
 
 
-def _sensor(schema: pa.Schema) -> tuple[int, int]:
+def sensor_size(schema: pa.Schema) -> tuple[int, int]:
+    """(W, H) of the input: its frames' shape, or its neurotac:sensor."""
     if sch.kind_of(schema) == "frames":
         height, width = sch.frames_shape(schema)
         return width, height
@@ -261,7 +272,7 @@ def crop_event_arrays(t, x, y, p, box, pool):
 
 def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropReport, sensor=None):
     """Crop an events stream batch by batch; returns (schema, iterator). The report fills as it runs."""
-    width, height = sensor or _sensor(schema)
+    width, height = sensor or sensor_size(schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
     out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
@@ -278,7 +289,7 @@ def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropRepor
 
 
 def crop_recordings(table: pa.Table, box, pool, report: CropReport, sensor=None) -> pa.Table:
-    width, height = sensor or _sensor(table.schema)
+    width, height = sensor or sensor_size(table.schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
     schema = sch.set_meta(table.schema, sensor=sch.sensor_meta(new_w, new_h))
@@ -312,7 +323,7 @@ def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None
     kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
     if sensor is not None and kind != "frames":
         table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
-    dims = _sensor(table.schema)
+    dims = sensor_size(table.schema)
     activity = activity_map(table) if spec.center == "auto" else None
     box = resolve_box(spec, dims, activity, report)
     report.box = list(box) if box is not None else None
@@ -323,3 +334,25 @@ def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None
         return crop_recordings(table, box, spec.pool, report)
     schema, batches = crop_events_batches(table.schema, table.to_batches(), box, spec.pool, report)
     return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Schema, object, CropReport]:
+    """`neurotac crop`: (schema, batches or table, report) of a frames, recordings or events input.
+
+    A plain events stream (no automatic centre) is cropped batch by batch, so memory does not grow
+    with it: its report fills as the batches are written. Anything else is read whole (the
+    automatic centre needs all of it) and cropped at once."""
+    report = CropReport()
+    try:
+        if sch.kind_of(schema) == "events" and spec.center != "auto":
+            box = resolve_box(spec, sensor or sensor_size(schema))
+            report.box, report.streamed = (list(box) if box else None), True
+            out_schema, out = crop_events_batches(schema, batches, box, spec.pool, report, sensor=sensor)
+            return out_schema, out, report
+        table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report, sensor=sensor)
+    except OutsideSensorError as error:
+        if sensor is None and sch.camera_source(schema).get("sensor_from") == "events":
+            raise OutsideSensorError(f"{error} (that size is the events' extent, the camera file does not give it: "
+                                     "give the sensor's size to `neurotac import --sensor WxH`)") from None
+        raise
+    return table.schema, table, report

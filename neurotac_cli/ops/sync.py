@@ -2,46 +2,11 @@
 
 Methods (each returns the sync instants t0 on the camera clock, one per force-log trial):
 
-- `led`: the LED is switched off before each grasp and the force log starts at that instant. The
-  switch-off is a spike of OFF events over much of the field. OFF events are counted in 1 ms bins;
-  each bin is compared with the running median of the 50 ms around it (robust to background noise
-  and to the slower OFF bursts of contact), as a Poisson z-score; a spike must also cover a share of
-  the pixels (contact is local, the LED lights the whole membrane). The instant is the spike's onset
-  (the 0.5% quantile of its OFF event times) less the camera's response latency `latency_us` (the
-  photoreceptor needs time to cross its OFF threshold: ~170 µs for the simulated DAVIS240C behind the
-  membrane; measure it once on a real rig, or use `trigger`).
+- `led`: the LED-off spike of OFF events (`ops.led`).
 - `trigger`: external trigger events of an AEDAT 4.0 file (schema metadata `neurotac:triggers`).
 - `offset`: a known clock offset: the force log's zero is camera time `offset_us`.
-- `xcorr`: no LED: the camera's event rate is cross-correlated with the force log's |dF/dt|, both
-  in 250 µs bins smoothed over 1 ms (bins ten times above their surroundings, such as a blink, are
-  set to the surroundings' level so a blink cannot dominate). Two pieces of physics sit between the
-  two signals and are modelled rather than ignored:
-  * the force sensor answers late: a first-order lag y' = (F - y) / tau, with its own tau when
-    loading (tau_rise) and when unloading (tau_fall), as strain-gauge cells (~1 ms) and
-    polymer-covered force-sensing resistors (tens of ms, slower to recover) do. Then dy/dt is dF/dt
-    through that lag, and sign(dy/dt) says which tau acts at each instant. The event rate, which
-    follows |dF/dt| with no such lag, is passed through the same lag (tau_rise where the log rises,
-    tau_fall where it falls) before it is compared: the clean camera signal is filtered, the noisy
-    force log is never differentiated twice. The two taus are given (`sensor_lag_us`) or estimated
-    jointly with the offset: every pair of a small geometric grid is tried, and of those within
-    `XCORR_TIE` of the best correlation the fastest sensor is kept (a longer lag only smooths, and
-    smoothing alone raises a correlation a little).
-  * the membrane saturates: a newton more changes the image less at high force (contact area and
-    contrast approach their limits), so |dF/dt| is weighted by 1 / (1 + F / (s F_peak)) with F the
-    force the sensor was following (y + tau dy/dt, smoothed) and s = `saturation` (0 = linear).
-  * polarity: the membrane darkens (OFF events) while it is loaded and brightens (ON) while it is
-    unloaded, so the signed rate OFF - k ON (k balances the polarities over the recording; only
-    pixels with >= 2 OFF and >= 1 ON, bursts left out) follows signed dF/dt. It is fitted too
-    (finer tau grid, no tie rule, no saturation weighting) and kept when its sensor is slow to
-    unload (tau_fall >= 15 ms): a slow, hysteretic sensor (a covered FlexiForce) otherwise lets the
-    unsigned fit match loading to unloading; with a fast cell the unsigned rate is the better fit,
-    and the signed fit sees tau_fall <= 5 ms there, so it is not used (figures: docs/design.md).
-    Details: `signal`.
-  Among the offsets that keep the force log inside the recording (20 ms of slack at either end),
-  the one of the highest Pearson correlation, refined by a parabola, less the camera's response
-  delay `response_us` (the event rate follows the force ~1.6 ms late on the simulated rig:
-  photoreceptor and membrane), is the instant. Confidence = the correlation at the peak and its
-  margin over the best offset 20 ms or more away, for the chosen sensor model.
+- `xcorr`: no LED: the event rate cross-correlated with the force log's |dF/dt| through a model of
+  the force sensor and the membrane (`ops.xcorr`).
 
 A long session (several force-log trials in one camera file) is cut into trials: trial i holds the
 events up to the end of its force log (or the next instant, if sooner); the events after that are
@@ -49,7 +14,7 @@ the next trial's lead-in, as in a file of one grasp (the first trial holds all t
 Force is conditioned as in the thesis: a median filter (window `median_us`), in newtons.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pyarrow as pa
@@ -58,20 +23,12 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
+from neurotac_cli.io.manifest import Source
+from neurotac_cli.ops.instant import Instant
+from neurotac_cli.ops.led import LED_LATENCY_US, find_led_spikes
+from neurotac_cli.ops.xcorr import XCORR_RESPONSE_US, XCORR_SATURATION, uncertainty_warnings, xcorr_instant
 
 METHODS = ("led", "trigger", "offset", "xcorr")
-LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
-XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
-XCORR_BIN_US = 250
-XCORR_SMOOTH_US = 1_000
-XCORR_SLACK_US = 20_000  # how far the force log may reach past the recording's ends
-XCORR_SENSOR_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 20_000, 40_000, 80_000)  # tau grid, rise x fall
-XCORR_TIE = 0.01  # correlations this close are a tie: the faster sensor model wins
-XCORR_SATURATION = 0.5  # membrane saturation force, as a share of the trace's peak force (0 = linear)
-XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 30_000, 40_000, 60_000, 80_000, 120_000)
-XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
-XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
-XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
 
 
 @dataclass(frozen=True)
@@ -123,11 +80,20 @@ class SyncMethod:
         return out
 
 
-@dataclass
-class Instant:
-    t0: int
-    score: float | None = None
-    details: dict = field(default_factory=dict)
+def sync_method(method: str = "led", latency_us: int | None = None, **settings) -> SyncMethod:
+    """A SyncMethod whose `latency_us`, when given, is the camera's delay of the chosen method: from
+    the LED's switch-off to the spike (led), or of the event rate behind the force (xcorr)."""
+    return SyncMethod(method=method, latency_us=LED_LATENCY_US if latency_us is None else latency_us,
+                      response_us=XCORR_RESPONSE_US if latency_us is None else latency_us, **settings)
+
+
+def sync(sources, method: SyncMethod) -> tuple[pa.Table, list[str]]:
+    """`neurotac sync`: every source (see `io.manifest.recording_sources`) synced into one recordings
+    table, and the warnings for stderr."""
+    recordings = sync_sources(sources, method)
+    trials = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
+    warnings = [line for info in trials.values() for line in info.get("warnings", [])]
+    return recordings, warnings + (uncertainty_warnings(trials) if method.method == "xcorr" else [])
 
 
 # ---------------------------------------------------------------- force conditioning
@@ -145,111 +111,6 @@ def condition_force(log: ForceLog, median_us: int) -> np.ndarray:
     from scipy.ndimage import median_filter
 
     return median_filter(values, size=size, mode="nearest")
-
-
-# ---------------------------------------------------------------- led
-
-
-def _in_region(x, y, region):
-    if region is None:
-        return np.ones(len(x), dtype=bool)
-    rx, ry, rw, rh = region
-    return (x >= rx) & (x < rx + rw) & (y >= ry) & (y < ry + rh)
-
-
-def find_led_spikes(t, x, y, p, method: SyncMethod, count: int, sensor=None) -> list[Instant]:
-    """The `count` strongest LED-off spikes, in time order; SyncError when fewer stand out."""
-    off = (p == 0) & _in_region(x, y, method.region)
-    times, off_x, off_y = t[off], x[off], y[off]
-    if len(times) > 1 and np.any(np.diff(times) < 0):
-        order = np.argsort(times, kind="stable")
-        times, off_x, off_y = times[order], off_x[order], off_y[order]
-    if len(times) == 0:
-        raise SyncError("no OFF events (in the region) to find an LED-off spike in (check --region, or use --method xcorr)")
-    bin_us = method.bin_us
-    origin = int(times.min())
-    index = (times - origin) // bin_us
-    counts = np.bincount(index).astype(np.float64)
-    from scipy.ndimage import median_filter
-
-    background = median_filter(counts, size=51, mode="nearest")
-    pair = counts + np.concatenate([counts[1:], [0.0]])  # a spike spreads over up to ~1.5 ms
-    excess = pair - 2 * background
-    z = excess / np.sqrt(2 * background + 1)
-    if sensor is not None:
-        width, height = sensor
-        pixels = width * height if method.region is None else method.region[2] * method.region[3]
-    else:
-        pixels = int((x.max() + 1) * (y.max() + 1)) if len(x) else 1
-    # candidates: local maxima of z, strongest first, at least 50 ms apart
-    order = np.argsort(-z, kind="stable")
-    chosen, rejected = [], []
-    taken = np.zeros(len(z), dtype=bool)
-    gap = max(1, 50_000 // bin_us)
-    for i in order[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
-        if taken[i] or z[i] <= 0:
-            continue
-        lo, hi = origin + i * bin_us, origin + (i + 2) * bin_us
-        a, b = np.searchsorted(times, [lo, hi])
-        pix = np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])
-        coverage = len(pix) / max(pixels, 1)
-        taken[max(0, i - gap): i + gap + 1] = True
-        if z[i] >= method.min_z and coverage >= method.min_coverage:
-            # the spike may start in the bin before the best pair: take its neighbours too
-            c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
-            spike = times[c:d]
-            onset = int(spike[min(len(spike) - 1, int(0.005 * len(spike)))])
-            chosen.append(
-                Instant(
-                    t0=onset - method.latency_us,
-                    score=float(round(z[i], 1)),
-                    details={
-                        "onset_us": onset,
-                        "coverage": round(coverage, 3),
-                        "spike_events": int(len(spike)),
-                        # the pair starting at bin i holds the spike: its end is counted from the fuller bin
-                        "led_end_us": origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us,
-                    },
-                )
-            )
-            if len(chosen) == count:
-                break
-        else:
-            rejected.append((float(z[i]), coverage, lo))
-    if len(chosen) < count:
-        best = max(rejected, default=None)
-        found = f"found {len(chosen)} of {count}; " if count > 1 else ""
-        detail = (
-            f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
-            if best
-            else "no OFF burst at all"
-        )
-        raise SyncError(
-            f"no LED-off spike stands out ({found}{detail}; a spike needs z >= {method.min_z:g} over "
-            f">= {100 * method.min_coverage:g}% of the pixels); check the LED is in view, give --region, "
-            "or use --method xcorr, trigger or offset"
-        )
-    return sorted(chosen, key=lambda instant: instant.t0)
-
-
-def _burst_end(counts: np.ndarray, background: np.ndarray, peak: int, longest_bins: int = 20) -> int:
-    """The first bin after `peak` whose OFF count is back within 5 sigma of the background."""
-    stop = min(len(counts), peak + longest_bins)
-    quiet = counts[peak:stop] <= background[peak:stop] + 5 * np.sqrt(background[peak:stop] + 1)
-    return peak + (int(np.argmax(quiet)) if quiet.any() else stop - peak)
-
-
-def led_burst_end_us(t_rel: np.ndarray, p: np.ndarray, bin_us: int = 1_000, around_us: int = 50_000) -> int:
-    """Where the switch-off burst of an LED that went dark at time 0 ends (times relative to it):
-    the first bin after its peak, within 2 bins of 0, whose OFF count is back to the background."""
-    off = t_rel[(p == 0) & (t_rel >= -around_us) & (t_rel < around_us)]
-    counts = np.bincount((off + around_us) // bin_us, minlength=2 * around_us // bin_us).astype(np.float64)
-    from scipy.ndimage import median_filter
-
-    background = median_filter(counts, size=51, mode="nearest")
-    start = around_us // bin_us
-    peak = start + int(np.argmax(counts[start : start + 3]))
-    return _burst_end(counts, background, peak) * bin_us - around_us
 
 
 # ---------------------------------------------------------------- trigger, offset
@@ -274,190 +135,9 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
     return [Instant(t0=int(item["t"]), details={"type": item.get("type"), "triggers": len(chosen)}) for item in chosen[:count]]
 
 
-# ---------------------------------------------------------------- xcorr
-
-
-def xcorr_instant(t, x, y, force_t, force_v, method: SyncMethod, p=None) -> Instant:
-    """Align the camera's event rate with |dF/dt| through a force-sensor model (see the module doc);
-    with polarities `p`, a slow sensor is aligned on the signed rate against signed dF/dt instead."""
-    from scipy.ndimage import gaussian_filter1d, median_filter
-
-    bin_us = XCORR_BIN_US
-    smooth = XCORR_SMOOTH_US / bin_us
-    keep = _in_region(x, y, method.region)
-    times = t[keep]
-    if len(times) < 100 or len(force_t) < 10:
-        raise SyncError("too few events or force samples to cross-correlate (need activity during the grasp)")
-    origin = int(times.min())
-    bins = (times - origin) // bin_us
-    rate = np.bincount(bins).astype(np.float64)
-    # blinks and flicker: bins far above their surroundings are set to the surroundings' level
-    local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
-    burst = rate > 10 * (local + 3)
-    rate = gaussian_filter1d(np.where(burst, local, rate), smooth)
-    grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
-    force = gaussian_filter1d(np.interp(grid, force_t, force_v), smooth)
-    slope = np.gradient(force)  # N per bin
-    if not np.any(slope) or rate.std() == 0:
-        raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
-    fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
-    signal = "rate"
-    signed_rate = None if p is None else _signed_rate(bins, x[keep], y[keep], p[keep], burst)
-    if signed_rate is not None:
-        # the signed rate, OFF - k ON on the pixels that darken and recover, follows signed dF/dt, where
-        # loading (darkening) and unloading (brightening) cannot be mistaken for each other; it is kept
-        # when it sees a sensor slow to unload (measured better there, worse with a fast cell)
-        signed_fit = _xcorr_fit(gaussian_filter1d(signed_rate, smooth), force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0, signed=True)
-        if signed_fit[2] >= XCORR_SLOW_FALL_US:
-            fit, signal = signed_fit, "signed"
-    peak, rise, fall, best, corr, lags, valid = fit
-    shift = 0.0
-    if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
-        left, right = corr[best - 1], corr[best + 1]
-        denominator = left - 2 * peak + right
-        if denominator < 0:
-            shift = 0.5 * (left - right) / denominator
-    far = np.abs(lags - lags[best]) >= 20_000 // bin_us
-    below = np.flatnonzero(corr < peak - XCORR_NEAR)  # the run of near-best offsets around the best
-    low = below[below < best][-1] + 1 if (below < best).any() else 0
-    high = below[below > best][0] - 1 if (below > best).any() else len(corr) - 1
-    second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
-    # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
-    t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
-    return Instant(
-        t0=int(round(t0)),
-        score=round(peak, 3),
-        details={
-            "correlation": round(peak, 3),
-            "margin": round(peak - second, 3),
-            "uncertainty_us": int((high - low) * bin_us // 2),
-            "response_us": method.response_us,
-            "sensor_rise_us": int(rise),
-            "sensor_fall_us": int(fall),
-            "sensor": "given" if method.sensor_lag_us is not None else "estimated",
-            "saturation": method.saturation if signal == "rate" else 0.0,
-            "signal": signal,
-        },
-    )
-
-
-def _signed_rate(index, x, y, p, burst):
-    """OFF - k ON events per bin on the pixels that both darken and recover (>= 2 OFF, >= 1 ON): the
-    membrane's darkening rate. `index`: each event's bin; `burst`: the bins of a blink or flicker
-    (xcorr's rate), left out with their neighbours; k balances the two polarities over the recording
-    (the thresholds differ). None when there is no such pixel."""
-    bins = len(burst)
-    burst = burst.copy()
-    burst[1:] |= burst[:-1].copy()
-    burst[:-1] |= burst[1:].copy()
-    calm = ~burst[index]
-    pixel = y.astype(np.int64) * 65536 + x
-    _, owner = np.unique(pixel[calm], return_inverse=True)
-    is_off = p[calm] == 0
-    offs = np.bincount(owner, weights=is_off)
-    ons = np.bincount(owner, weights=~is_off)
-    active = ((offs >= 2) & (ons >= 1))[owner]
-    off = np.bincount(index[calm][active & is_off], minlength=bins).astype(np.float64)[:bins]
-    on = np.bincount(index[calm][active & ~is_off], minlength=bins).astype(np.float64)[:bins]
-    if off.sum() == 0 or on.sum() == 0:
-        return None
-    return off - off.sum() / on.sum() * on
-
-
-def _xcorr_fit(rate, force, slope, grid, method: SyncMethod, lag_grid, tie: float, saturation: float, signed: bool):
-    """Every sensor model (given, or each pair of `lag_grid`) against every offset: (correlation, rise,
-    fall, best lag index, correlation by lag, lags, valid lags) of the chosen model. The target is
-    |dF/dt| (weighted by the membrane saturation) or, when `signed`, dF/dt itself."""
-    from scipy.ndimage import gaussian_filter1d
-
-    bin_us = XCORR_BIN_US
-    smooth = XCORR_SMOOTH_US / bin_us
-    rising = (slope > 0).astype(np.float64)
-    falling = 1.0 - rising
-    peak_force = max(float(np.percentile(force, 99)), 1e-12)
-    candidates = [tuple(method.sensor_lag_us)] if method.sensor_lag_us is not None else [
-        (rise, fall) for rise in lag_grid for fall in lag_grid
-    ]
-    # the rate through each time constant, and its sums for each side: once per tau, not per (rise, fall) pair
-    lagged = {tau: _first_order_lag(rate, tau, bin_us) for tau in {tau for pair in candidates for tau in pair}}
-    on_rise = {rise: _SensorSide(lagged[rise], rising) for rise in {pair[0] for pair in candidates}}
-    on_fall = {fall: _SensorSide(lagged[fall], falling) for fall in {pair[1] for pair in candidates}}
-    lags = np.arange(-len(grid) + 1, len(rate))
-    overlap = np.minimum(len(rate), lags + len(grid)) - np.maximum(0, lags)
-    valid = overlap >= len(grid) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
-    # the force the sensor was following, y + tau dy/dt smoothed, is linear in the taus: its parts are smoothed once
-    smoothed = [gaussian_filter1d(part, 8 * smooth) for part in (force, slope * rising / bin_us, slope * falling / bin_us)]
-    fits = []
-    for rise, fall in candidates:
-        target = slope if signed else np.abs(slope)
-        if saturation > 0:
-            followed = smoothed[0] + rise * smoothed[1] + fall * smoothed[2]
-            target = target / (1.0 + np.clip(followed, 0, None) / (saturation * peak_force))
-        corr = _pearson_by_lag(overlap, on_rise[rise], on_fall[fall], target)
-        corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
-        best = int(np.argmax(corr))
-        fits.append((float(corr[best]), rise, fall, best, corr))
-    top = max(fit[0] for fit in fits)
-    if not np.isfinite(top):
-        raise SyncError("the recording is shorter than the force log: nothing to cross-correlate")
-    # a slower sensor model also smooths, which alone lifts a correlation a little: near-ties go to the faster
-    peak, rise, fall, best, corr = min((fit for fit in fits if fit[0] >= top - tie), key=lambda fit: (fit[1] + fit[2], -fit[0]))
-    return peak, rise, fall, best, corr, lags, valid
-
-
-def _first_order_lag(signal: np.ndarray, tau_us: float, bin_us: int) -> np.ndarray:
-    """The signal through a first-order lag of time constant tau (starting settled at its first value)."""
-    if tau_us <= 0:
-        return signal
-    from scipy.signal import lfilter
-
-    alpha = 1.0 - np.exp(-bin_us / tau_us)
-    filtered, _ = lfilter([alpha], [1.0, alpha - 1.0], signal, zi=[(1.0 - alpha) * signal[0]])
-    return filtered
-
-
-def _xc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """sum over j of u[L + j] v[j], for every lag L from -len(v) + 1 to len(u) - 1 (FFT)."""
-    from scipy.signal import correlate
-
-    return correlate(u, v, mode="full", method="fft")
-
-
-class _SensorSide:
-    """The event rate through one time constant, read where the sensor is in that state (mask, 0/1
-    on the force's clock), with its sums for every lag, which do not depend on the force side."""
-
-    def __init__(self, rate: np.ndarray, mask: np.ndarray):
-        self.rate, self.mask = rate, mask
-        self.s_a, self.s_aa = _xc(rate, mask), _xc(rate * rate, mask)
-
-
-def _pearson_by_lag(n: np.ndarray, rise: _SensorSide, fall: _SensorSide, b: np.ndarray) -> np.ndarray:
-    """Pearson correlation, for every lag L, of a[L + j] with b[j] over their overlap (n values), where
-    a[L + j] = rise.rate[L + j] if rise.mask[j] else fall.rate[L + j] (the sensor's state is read on b's
-    clock). Every sum is a cross-correlation (FFT): the masks are 0/1 and complementary, so a, a² and
-    a·b split by side."""
-    ones = np.ones(len(rise.rate))
-    s_a, s_aa = rise.s_a + fall.s_a, rise.s_aa + fall.s_aa
-    s_ab = _xc(rise.rate, rise.mask * b) + _xc(fall.rate, fall.mask * b)
-    s_b, s_bb = _xc(ones, b), _xc(ones, b * b)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cov = s_ab - s_a * s_b / n
-        var = (s_aa - s_a * s_a / n) * (s_bb - s_b * s_b / n)
-        return np.where((n > 1) & (var > 1e-12 * np.maximum(s_aa * s_bb, 1e-300)), cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
-
-
 # ---------------------------------------------------------------- trials
 
 
-@dataclass
-class Source:
-    """One camera recording with its force log and labels (one manifest row, or the command line)."""
-
-    trial: str
-    events: pa.Table
-    force: list  # list[ForceLog]
-    labels: dict = field(default_factory=dict)
 
 
 def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
@@ -547,69 +227,3 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
     sync["trials"] = info
     width, height = sensor if sensor else (None, None)
     return sch.recordings_table(trials, width, height, sync=sync)
-
-
-# ---------------------------------------------------------------- inputs
-
-
-@dataclass(frozen=True)
-class ForceOptions:
-    time_column: str | None = None
-    force_column: str | None = None
-    time_unit: str | None = None
-    force_unit: str | None = None
-
-    def read(self, path: str) -> list:
-        from neurotac_cli.io.force import read_force_log
-
-        return read_force_log(path, self.time_column, self.force_column, self.time_unit, self.force_unit)
-
-
-def read_camera(path: str, sensor=None) -> pa.Table:
-    """A camera file in any format `import` reads, or an events table, as one events table."""
-    from neurotac_cli import tables
-    from neurotac_cli.io import is_table, read_events_table
-
-    if is_table(path):
-        table = tables.read([path], kind="events")
-        if sensor is not None:
-            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
-        return table
-    return read_events_table(path, sensor=sensor)
-
-
-MANIFEST_REQUIRED = ("trial", "events", "force")
-
-
-def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels: dict | None = None):
-    """Sources from a manifest CSV: one row per recording with columns trial, events, force (paths
-    relative to the manifest's folder) and label columns. Columns named `true_*` (ground truth of
-    simulated data) are neither used nor copied. Files are read one row at a time."""
-    import csv
-    import os
-
-    if not os.path.isfile(path):
-        raise NeurotacError(f"{path}: no such manifest")
-    with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    if not rows:
-        raise NeurotacError(f"{path}: the manifest has no rows")
-    missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]
-    if missing:
-        raise NeurotacError(
-            f"{path}: the manifest has no {', '.join(missing)} column (columns: {', '.join(rows[0])}; "
-            "expected trial,events,force,<labels>...)"
-        )
-    folder = os.path.dirname(os.path.abspath(path))
-    label_names = [name for name in rows[0] if name not in MANIFEST_REQUIRED and not name.startswith("true_") and name]
-    for number, row in enumerate(rows, start=2):
-        if not row["events"] or not row["force"] or not row["trial"]:
-            raise NeurotacError(f"{path}: line {number} lacks a trial, events or force entry")
-        row_labels = dict(labels or {})
-        row_labels.update({name: row[name] for name in label_names if row.get(name) not in (None, "")})
-        yield Source(
-            trial=row["trial"],
-            events=read_camera(os.path.join(folder, row["events"]), sensor),
-            force=force_options.read(os.path.join(folder, row["force"])),
-            labels=row_labels,
-        )

@@ -89,8 +89,3 @@ def flat_force_table(apothem_mm, tilt, tilt_dir, stiffness, cap, pitch_mm, level
         pressure, coverage = flat_pressure(u, v, apothem_mm, tilt, tilt_dir, approach, stiffness, cap, pitch_mm)
         forces[index] = float((pressure * coverage).sum() * area)
     return approaches, np.maximum.accumulate(forces)
-
-
-def visibility(pressure, coverage, pressure_scale):
-    """How far a pixel darkens towards the object's contrast: s = (1 - exp(-p / p_s)) * coverage."""
-    return -np.expm1(-pressure / pressure_scale) * coverage

@@ -174,7 +174,7 @@ def recordings(simulation: Simulation, keep_led: bool = False):
     """The `recordings` table: each trial's events and measured force relative to the true LED-off instant."""
     from neurotac_cli import schema
 
-    from neurotac_cli.ops.sync import led_burst_end_us
+    from neurotac_cli.ops.led import led_burst_end_us
 
     config = simulation.config
     rows = []

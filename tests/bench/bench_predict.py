@@ -20,7 +20,7 @@ import torch
 
 from neurotac_cli import model as models
 from neurotac_cli import schema as sch
-from neurotac_cli.model import convlstm, ours
+from neurotac_cli.model import convlstm, deform_gru
 from neurotac_cli.model.core import Model
 
 SIZE = 115
@@ -60,7 +60,7 @@ def test_streaming_latency_per_frame_one_thread():
     torch.set_num_threads(1)
     frames = _frames()
     results = {}
-    for module, name in [(convlstm, "convlstm"), (ours, "deform-gru")]:
+    for module, name in [(convlstm, "convlstm"), (deform_gru, "deform-gru")]:
         latency = _latencies(_model(module, name), frames)
         results[name] = (np.percentile(latency, 50), np.percentile(latency, 99))
         print(f"\n{name:9s} per-frame latency at {SIZE}x{SIZE}, 1 thread: p50 {results[name][0]:.3f} ms, p99 {results[name][1]:.3f} ms")

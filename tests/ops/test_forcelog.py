@@ -8,7 +8,7 @@ import pytest
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import read_force_log
 from neurotac_cli.ops import sync as sy
-from tests.test_sync import force_log, synthetic_recording
+from tests.ops.test_sync import force_log, synthetic_recording
 
 RECORDING = synthetic_recording(6, led_off=None)  # events from 3.0 s to 3.4 s on the camera clock
 AT = sy.SyncMethod(method="offset", offset_us=3_001_000)

@@ -6,9 +6,10 @@ import pytest
 import torch
 
 from neurotac_cli import model as models
+from neurotac_cli.model.data import sequences
 from neurotac_cli.model import convlstm
 from neurotac_cli.model import convlstm_ops as ops
-from tests.test_model_helpers import tiny_frames
+from tests.model.helpers import tiny_frames
 
 SHAPE = (2, 9, 11)
 PARAMETER_NAMES = [  # the model file's tensor names: files written before the fast path still load
@@ -77,7 +78,7 @@ def test_kernels_and_their_torch_fallback_agree(monkeypatch):
     counts, t_s = _counts(), torch.zeros(3, 6)
     out, _ = net(counts, t_s)
     grads = torch.autograd.grad(out.square().sum(), list(net.parameters()))
-    monkeypatch.setattr(ops, "njit", None)
+    monkeypatch.setattr(ops, "KERNELS", False)
     plain, _ = net(counts, t_s)
     plain_grads = torch.autograd.grad(plain.square().sum(), list(net.parameters()))
     _close(out, plain, rtol=1e-5, atol=1e-7)
@@ -110,7 +111,7 @@ def test_saved_model_predicts_as_the_plain_formulation(tmp_path):
     model = models.train(frames, models.make_spec("convlstm", epochs=1), seed=0)
     models.save(model, str(tmp_path / "c.model"))
     loaded = models.load(str(tmp_path / "c.model"))
-    data = models.core.shaping.sequences(frames)
+    data = sequences(frames)
     counts = torch.as_tensor(np.stack(data.counts), dtype=torch.float32)
     with torch.no_grad():
         ref, _ = convlstm.reference_forward(loaded.net, counts, torch.zeros(counts.shape[:2]))

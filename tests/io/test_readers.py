@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from neurotac_cli import schema as sch
-from neurotac_cli.io import camera, read_events, read_events_table
+from neurotac_cli.io import camera, read_events, read_events_table, reader
 from tests.conftest import real_file
 
 warnings.filterwarnings("ignore", category=DeprecationWarning)
@@ -249,7 +249,7 @@ def test_es_matches_faery_with_the_bottom_left_origin_flipped():
 def test_small_chunks_give_the_same_events_as_one_chunk(name, monkeypatch):
     path = real_file(name)
     whole = read_events_table(path)
-    monkeypatch.setattr(camera, "CHUNK_BYTES", 4099)
+    monkeypatch.setattr(reader, "CHUNK_BYTES", 4099)
     schema, batches = read_events(path)
     parts = list(batches)
     assert len(parts) > 3

@@ -11,8 +11,8 @@ from click.testing import CliRunner
 torch = pytest.importorskip("torch")
 
 from neurotac_cli import model as models  # noqa: E402
-from neurotac_cli.model import cv as cross  # noqa: E402
-from tests.test_model_helpers import tiny_frames, write_stream  # noqa: E402
+from neurotac_cli.model.cv import run_fold  # noqa: E402
+from tests.model.helpers import tiny_frames, write_stream  # noqa: E402
 
 
 def _run(args):
@@ -38,7 +38,7 @@ def frames_file(tmp_path_factory):
 def test_a_folds_validation_error_is_the_restored_best_epochs_mse_in_newtons_squared():
     frames = tiny_frames(trials=6)
     spec = models.make_spec("tdnn", layers=1, units=4, epochs=6, patience=2)
-    predictions, validation = cross.run_fold(frames, spec, ["t0"], seed=5, val_fraction=0.3, per=None)
+    predictions, validation = run_fold(frames, spec, ["t0"], seed=5, val_fraction=0.3, per=None)
     assert set(predictions.column("trial").to_pylist()) == {"t0"}
 
     # the same training by hand: the fold's early stopping watched this curve, in normalised units
@@ -68,7 +68,7 @@ def test_eval_cv_metrics_hold_validation_error_per_fold_and_its_mean_and_sd(fram
 def test_classifier_folds_record_validation_accuracy():
     frames = tiny_frames(trials=8)
     spec = models.make_spec("material-dnn", layers=1, units=4, epochs=3)
-    _, validation = cross.run_fold(frames, spec, ["t0"], seed=1, val_fraction=0.3, per="material")
+    _, validation = run_fold(frames, spec, ["t0"], seed=1, val_fraction=0.3, per="material")
     assert 0.0 <= validation["val_accuracy"] <= 1.0
 
 

@@ -6,7 +6,7 @@ import pytest
 from neurotac_cli import model as models
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model import store
-from tests.test_model_helpers import tiny_frames
+from tests.model.helpers import tiny_frames
 
 ALL = models.FORCE_MODELS + models.MATERIAL_MODELS
 FAST = {"epochs": 3, "batch_size": 4}
@@ -68,7 +68,9 @@ def test_same_seed_same_model(frames):
 
 
 def test_normalisation_is_fitted_on_training_trials_only(frames):
-    data = models.core.shaping.sequences(frames)
+    from neurotac_cli.model.data import sequences
+
+    data = sequences(frames)
     model = models.train(frames, models.make_spec("convlstm", epochs=1), val_trials=["t0", "t1"], seed=0)
     train = [c for c, trial in zip(data.counts, data.trials) if trial not in ("t0", "t1")]
     expected = np.max([c.reshape(len(c), 2, -1).max(axis=(0, 2)) for c in train], axis=0)
@@ -77,12 +79,22 @@ def test_normalisation_is_fitted_on_training_trials_only(frames):
 
 
 def test_early_stopping_restores_best_weights(frames):
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
     model = models.train(frames, models.make_spec("deform-gru", epochs=40, patience=2, lr=0.05), val_fraction=0.3, seed=0)
     curve = model.training["curve"]
     best = min(row["val_loss"] for row in curve)
     assert len(curve) < 40 or curve[-1]["val_loss"] == best
     predictions = models.predict_table(model, frames)
     assert predictions.num_rows == frames.num_rows
+    # the weights kept score the validation trials as the best epoch did, not as the last one did
+    assert curve[-1]["val_loss"] > best * 1.01, "this run never got worse after its best epoch: nothing to restore"
+    held = predictions.filter(pc.is_in(predictions.column("trial"), value_set=pa.array(model.training["trials"]["validation"])))
+    force, estimate = (held.column(name).to_numpy(zero_copy_only=False) for name in ("force", "force_pred"))
+    measured = ~np.isnan(force)
+    restored = np.mean(((estimate[measured] - force[measured]) / model.force_scale) ** 2)
+    assert restored == pytest.approx(best, rel=1e-4)
 
 
 def test_unknown_option_and_model_are_refused():

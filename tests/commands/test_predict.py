@@ -7,7 +7,7 @@ import pytest
 
 from neurotac_cli import model as models
 from neurotac_cli import tables
-from tests.test_model_helpers import tiny_frames, write_stream
+from tests.model.helpers import tiny_frames, write_stream
 
 
 def run(args, stdin):

@@ -93,14 +93,14 @@ def test_csv_round_trips_any_events(tmp_path_factory, rows):
 
 
 def test_large_text_is_read_in_several_batches(tmp_path, monkeypatch):
-    from neurotac_cli.io import camera, read_events
+    from neurotac_cli.io import read_events, reader
 
     n = 20_000
     rng = np.random.default_rng(1)
     t = np.sort(rng.integers(0, 10**9, n))
     body = "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(t, rng.integers(0, 240, n), rng.integers(0, 180, n), rng.integers(0, 2, n)))
     path = write(tmp_path, "big.csv", "t,x,y,p\n" + body)
-    monkeypatch.setattr(camera, "CHUNK_BYTES", 1 << 14)
+    monkeypatch.setattr(reader, "CHUNK_BYTES", 1 << 14)
     schema, batches = read_events(path)
     parts = list(batches)
     assert len(parts) > 3

@@ -16,7 +16,9 @@ import pytest
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import read_force_log
+from neurotac_cli.io import manifest
 from neurotac_cli.ops import sync as sy
+from neurotac_cli.ops import xcorr
 
 W, H = 40, 30
 BIN = os.path.dirname(sys.executable)
@@ -102,7 +104,7 @@ def test_median_filter_removes_a_single_sample_spike():
 def test_led_finds_the_switch_off_despite_noise_and_contact(seed):
     led_off = 3_000_000 + 50_000 + 37 * seed
     table = synthetic_recording(seed, led_off=led_off, noise_hz=5.0)
-    source = sy.Source(trial="g", events=table, force=[force_log()])
+    source = manifest.Source(trial="g", events=table, force=[force_log()])
     trials, info = sy.sync_source(source, sy.SyncMethod())
     assert abs(trials[0]["t0"] - led_off) <= 100
     assert info["g"]["score"] >= 10 and info["g"]["coverage"] > 0.5
@@ -111,14 +113,14 @@ def test_led_finds_the_switch_off_despite_noise_and_contact(seed):
 def test_led_within_a_region():
     led_off = 3_100_000
     table = synthetic_recording(1, led_off=led_off)
-    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(region=(0, 0, 10, 10)))
+    trials, info = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(region=(0, 0, 10, 10)))
     assert abs(trials[0]["t0"] - led_off) <= 100
 
 
 def test_no_led_fails_with_one_clear_message():
     table = synthetic_recording(2, led_off=None)
     with pytest.raises(SyncError, match="no LED-off spike stands out") as caught:
-        sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod())
+        sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod())
     assert "\n" not in str(caught.value) and "--method xcorr" in str(caught.value)
 
 
@@ -128,7 +130,7 @@ def test_a_session_is_cut_at_each_blink_and_matched_to_the_force_trials():
     session = pa.concat_tables([first, shifted])
     logs = [force_log(), force_log()]
     logs[0].trial, logs[1].trial = "a", "b"
-    trials, info = sy.sync_source(sy.Source("s", session, logs), sy.SyncMethod())
+    trials, info = sy.sync_source(manifest.Source("s", session, logs), sy.SyncMethod())
     assert [t["trial"] for t in trials] == ["a", "b"]
     assert abs(trials[0]["t0"] - 3_050_000) <= 100 and abs(trials[1]["t0"] - 4_050_000) <= 100
     removed = sum(entry["led_events_removed"] for entry in info.values())
@@ -138,8 +140,8 @@ def test_a_session_is_cut_at_each_blink_and_matched_to_the_force_trials():
 
 def test_the_blink_burst_is_left_out_of_the_trial_and_counted_unless_kept():
     table = synthetic_recording(7, led_off=3_050_000)
-    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod())
-    kept, kept_info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(keep_led=True))
+    trials, info = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod())
+    kept, kept_info = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(keep_led=True))
     t, _, _, p = trials[0]["events"]
     removed = info["g"]["led_events_removed"]
     assert removed > 0 and "led_events_removed" not in kept_info["g"]
@@ -153,7 +155,7 @@ def test_the_blink_burst_is_left_out_of_the_trial_and_counted_unless_kept():
 def test_a_session_with_fewer_blinks_than_force_trials_fails():
     table = synthetic_recording(5, led_off=3_050_000)
     with pytest.raises(SyncError, match="found 1 of 2"):
-        sy.sync_source(sy.Source("s", table, [force_log(), force_log()]), sy.SyncMethod())
+        sy.sync_source(manifest.Source("s", table, [force_log(), force_log()]), sy.SyncMethod())
 
 
 # ---------------------------------------------------------------- trigger, offset
@@ -164,13 +166,13 @@ def test_trigger_and_offset_methods():
     schema = table.schema.with_metadata({**table.schema.metadata, b"neurotac:triggers": json.dumps(
         [{"t": 3_010_000, "type": "rising"}, {"t": 3_020_000, "type": "falling"}]).encode()})
     table = table.replace_schema_metadata(schema.metadata)
-    trials, info = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_type="falling"))
+    trials, info = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_type="falling"))
     assert trials[0]["t0"] == 3_020_000 and info["g"]["type"] == "falling"
-    trials, _ = sy.sync_source(sy.Source("g", table, [force_log()]), sy.SyncMethod(method="offset", offset_us=3_001_000))
+    trials, _ = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="offset", offset_us=3_001_000))
     assert trials[0]["t0"] == 3_001_000
     assert (trials[0]["events"][0] == table.column("t").to_numpy() - 3_001_000).all()
     with pytest.raises(SyncError, match="no external trigger"):
-        sy.sync_source(sy.Source("g", synthetic_recording(6), [force_log()]), sy.SyncMethod(method="trigger"))
+        sy.sync_source(manifest.Source("g", synthetic_recording(6), [force_log()]), sy.SyncMethod(method="trigger"))
 
 
 # ---------------------------------------------------------------- simulated grasps
@@ -202,7 +204,7 @@ def true_instants(folder):
 @pytest.mark.parametrize("noise", ["plain", "noisy"])
 def test_led_sync_of_simulated_grasps_within_100us(simulated, noise):
     folder = simulated[noise]
-    table = sy.sync_sources(sy.manifest_sources(str(folder / "manifest.csv"), sy.ForceOptions()), sy.SyncMethod())
+    table = sy.sync_sources(manifest.manifest_sources(str(folder / "manifest.csv"), manifest.ForceOptions()), sy.SyncMethod())
     truth = true_instants(folder)
     for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()):
         assert abs(t0 - truth[trial]) <= 100, (trial, t0 - truth[trial])
@@ -212,7 +214,7 @@ def test_led_sync_of_simulated_grasps_within_100us(simulated, noise):
 
 def test_xcorr_sync_of_simulated_grasps_within_2ms(simulated):
     folder = simulated["plain"]
-    table = sy.sync_sources(sy.manifest_sources(str(folder / "manifest.csv"), sy.ForceOptions()), sy.SyncMethod(method="xcorr"))
+    table = sy.sync_sources(manifest.manifest_sources(str(folder / "manifest.csv"), manifest.ForceOptions()), sy.SyncMethod(method="xcorr"))
     truth = true_instants(folder)
     for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()):
         assert abs(t0 - truth[trial]) <= 2000, (trial, t0 - truth[trial])
@@ -277,12 +279,12 @@ def test_simulated_grasp_with_its_blink_cut_away_fails_led_and_syncs_by_xcorr(si
     folder = simulated["plain"]
     truth = true_instants(folder)
     trial = sorted(truth)[0]
-    events = sy.read_camera(str(folder / f"{trial}.aedat"))
+    events = manifest.read_camera(str(folder / f"{trial}.aedat"))
     no_blink = events.filter(pc.greater(events.column("t"), truth[trial] + 3000))  # contact events only
-    force = sy.ForceOptions().read(str(folder / f"{trial}_force.csv"))
+    force = manifest.ForceOptions().read(str(folder / f"{trial}_force.csv"))
     with pytest.raises(SyncError, match="no LED-off spike stands out"):
-        sy.sync_source(sy.Source(trial, no_blink, force), sy.SyncMethod())
-    trials, info = sy.sync_source(sy.Source(trial, no_blink, force), sy.SyncMethod(method="xcorr"))
+        sy.sync_source(manifest.Source(trial, no_blink, force), sy.SyncMethod())
+    trials, info = sy.sync_source(manifest.Source(trial, no_blink, force), sy.SyncMethod(method="xcorr"))
     assert abs(trials[0]["t0"] - truth[trial]) <= 2000 and info[trial]["correlation"] > 0.3
 
 
@@ -300,7 +302,7 @@ def presets(tmp_path_factory):
 
 def xcorr_errors(folder, **options):
     """(error in µs per trial, sync details per trial) of xcorr against the simulator's true instant."""
-    table = sy.sync_sources(sy.manifest_sources(str(folder / "manifest.csv"), sy.ForceOptions()), sy.SyncMethod(method="xcorr", **options))
+    table = sy.sync_sources(manifest.manifest_sources(str(folder / "manifest.csv"), manifest.ForceOptions()), sy.SyncMethod(method="xcorr", **options))
     truth = true_instants(folder)
     errors = {trial: t0 - truth[trial] for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist())}
     return errors, sch.get_meta(table.schema, sch.SYNC)["trials"]
@@ -315,7 +317,7 @@ def test_xcorr_finds_every_trial_within_2ms_with_a_fast_force_cell(presets, pres
         assert entry["sensor"] == "estimated" and entry["sensor_rise_us"] <= 2000 and entry["sensor_fall_us"] <= 2000
         assert entry["correlation"] > 0.4 and entry["margin"] > 0.2
         assert entry["signal"] == "rate"  # a fast cell keeps the unsigned rate
-        assert 0 < entry["uncertainty_us"] <= sy.XCORR_UNCERTAIN_US
+        assert 0 < entry["uncertainty_us"] <= xcorr.XCORR_UNCERTAIN_US
     assert all(abs(errors[trial]) <= info[trial]["uncertainty_us"] for trial in errors), (errors, info)
 
 
@@ -329,14 +331,14 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
     assert len(errors) == XCORR_PRESET_TRIALS
     assert all(abs(error) <= 13_000 for error in errors.values()), errors
     assert np.mean([abs(error) for error in errors.values()]) <= 5_000, errors
-    assert all(entry["signal"] == "signed" and entry["sensor_fall_us"] >= sy.XCORR_SLOW_FALL_US for entry in info.values())
+    assert all(entry["signal"] == "signed" and entry["sensor_fall_us"] >= xcorr.XCORR_SLOW_FALL_US for entry in info.values())
 
 
 def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(presets):
     """examples/sync_bound.py hands each trial's true force to a sensor model fitted with the offset:
     with the FlexiForce's play among the models the log is within 1 ms, with a lag only the slowly
     loaded foam trial is ~3 ms late (docs/journal.md, "What bounds xcorr on ch3")."""
-    script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[1] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
+    script = [sys.executable, str(pathlib.Path(__file__).resolve().parents[2] / "examples" / "sync_bound.py"), str(presets["ch3"]), "--seed", "1"]
 
     def errors(play):
         done = subprocess.run([*script, "--play", play], capture_output=True, text=True, check=True)
@@ -371,11 +373,11 @@ def test_xcorr_confidence_drops_for_a_force_log_of_another_grasp(presets):
     folder = presets["ch4"]
     truth = true_instants(folder)
     first, second = sorted(truth)[:2]
-    events = sy.read_camera(str(folder / f"{first}.aedat"))
-    own = sy.ForceOptions().read(str(folder / f"{first}_force.csv"))
-    other = sy.ForceOptions().read(str(folder / f"{second}_force.csv"))
-    _, matched = sy.sync_source(sy.Source(first, events, own), sy.SyncMethod(method="xcorr"))
-    _, mismatched = sy.sync_source(sy.Source(first, events, other), sy.SyncMethod(method="xcorr"))
+    events = manifest.read_camera(str(folder / f"{first}.aedat"))
+    own = manifest.ForceOptions().read(str(folder / f"{first}_force.csv"))
+    other = manifest.ForceOptions().read(str(folder / f"{second}_force.csv"))
+    _, matched = sy.sync_source(manifest.Source(first, events, own), sy.SyncMethod(method="xcorr"))
+    _, mismatched = sy.sync_source(manifest.Source(first, events, other), sy.SyncMethod(method="xcorr"))
     assert matched[first]["correlation"] > mismatched[first]["correlation"] + 0.1
 
 

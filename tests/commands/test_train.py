@@ -6,7 +6,7 @@ import pytest
 
 from neurotac_cli import model as models
 from neurotac_cli.errors import ModelError
-from tests.test_model_helpers import tiny_frames, write_stream
+from tests.model.helpers import tiny_frames, write_stream
 
 NEUROTAC = [sys.executable, "-m", "neurotac_cli.cli"]
 
@@ -121,18 +121,18 @@ def test_non_finite_force_in_frames_is_refused_but_null_is_unknown():
     import pyarrow as pa
 
     from neurotac_cli.errors import SchemaError
-    from neurotac_cli.model import data as shaping
+    from neurotac_cli.model.data import sequences
 
     table = tiny_frames()
     index = table.schema.get_field_index("force")
     force = table.column("force").to_numpy(zero_copy_only=False).copy()
     with_null = table.set_column(index, table.schema.field("force"), pa.array([None] + list(force[1:]), pa.float32()))
-    assert np.isnan(np.concatenate(shaping.sequences(with_null).force)).sum() == 1
+    assert np.isnan(np.concatenate(sequences(with_null).force)).sum() == 1
     for bad in (np.nan, np.inf):
         force[3] = bad
         broken = table.set_column(index, table.schema.field("force"), pa.array(force, pa.float32()))
         with pytest.raises(SchemaError, match="NaN or infinite"):
-            shaping.sequences(broken)
+            sequences(broken)
 
 
 def test_a_model_header_missing_a_part_is_one_clear_error(tmp_path):
@@ -154,11 +154,11 @@ def test_a_model_header_missing_a_part_is_one_clear_error(tmp_path):
 
 
 def test_progress_off_a_terminal_shows_the_first_epoch_every_25th_and_a_slow_one(monkeypatch, capsys):
-    from neurotac_cli.commands import train as command
+    from neurotac_cli.options import progress_printer
 
     clock = [0.0]
     monkeypatch.setattr("time.monotonic", lambda: clock[0])
-    show = command.progress_printer()
+    show = progress_printer()
     for epoch in range(1, 61):
         clock[0] += 40.0 if epoch == 33 else 1.0  # epoch 33 ends 40 s after the line before it
         show(f"m: epoch {epoch} loss 1 best 1 (0/20 without improvement, 1s)")

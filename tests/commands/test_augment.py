@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from neurotac_cli import schema as sch
 from neurotac_cli.cli import cli
-from tests.test_augment import make_frames
+from tests.ops.test_augment import make_frames
 
 
 @pytest.fixture

@@ -1,5 +1,6 @@
 """The reproduction scripts' helpers: results pages written beside the thesis's numbers without
-touching anyone else's section, and the frames tool; the scripts at least parse."""
+touching anyone else's section, and the frames tool; every script parses, and chapter 3's runs end
+to end at a tiny size."""
 
 import importlib.util
 import pathlib
@@ -126,6 +127,26 @@ def test_frames_tool_selects_by_label_and_stacks_originals_with_copies(tmp_path)
 def test_the_chapter_scripts_parse(script):
     done = subprocess.run(["bash", "-n", str(EXAMPLES / script)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+@pytest.mark.slow
+def test_the_chapter_3_script_runs_end_to_end_at_a_tiny_size(tmp_path):
+    """Simulate, sync, frame, crop, the TDNN and DNN grids, the GP, the figures and the results page:
+    every step of examples/ch3.sh, with one grid point, two epochs and two folds."""
+    import os
+
+    env = dict(os.environ, MODE="tiny", OUT=str(tmp_path), NEUROTAC_JOBS="1")
+    env.pop("NEUROTAC_SCHEDULER", None)
+    env.pop("NEUROTAC_CACHE", None)
+    done = subprocess.run(["bash", str(EXAMPLES / "ch3.sh")], capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    page = (tmp_path / "results.md").read_text()
+    assert "<!-- results:ch3:start -->" in page and "<!-- results:ch3:end -->" in page
+    assert "| k=1 | **" in page and "| gp | " in page
+    for figure in ("ch3-tdnn.png", "ch3-gp.png", "ch3-confusion.png"):
+        assert (tmp_path / "figures" / figure).stat().st_size > 0
+    for study in ("tdnn", "gp", "material-dnn", "material-force"):
+        assert (tmp_path / "ch3" / f"{study}.metrics.parquet").stat().st_size > 0
 
 
 def test_a_grid_held_in_one_table_is_read_by_its_parameter_columns(tmp_path):

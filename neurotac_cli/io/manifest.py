@@ -1,0 +1,96 @@
+"""Recordings to sync: camera files (or events tables) with their force logs and labels, from the
+command line or from a manifest CSV."""
+
+import csv
+import os
+from dataclasses import dataclass, field
+
+import pyarrow as pa
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.errors import NeurotacError, UsageError
+from neurotac_cli.io.camera import is_table, read_events_table, trial_name
+from neurotac_cli.io.force import read_force_log
+
+
+@dataclass
+class Source:
+    """One camera recording with its force log and labels (one manifest row, or the command line)."""
+
+    trial: str
+    events: pa.Table
+    force: list  # list[ForceLog]
+    labels: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ForceOptions:
+    time_column: str | None = None
+    force_column: str | None = None
+    time_unit: str | None = None
+    force_unit: str | None = None
+
+    def read(self, path: str) -> list:
+        return read_force_log(path, self.time_column, self.force_column, self.time_unit, self.force_unit)
+
+
+def read_camera(path: str, sensor=None) -> pa.Table:
+    """A camera file in any format `import` reads, or an events table, as one events table."""
+    if is_table(path):
+        table = tables.read([path], kind="events")
+        if sensor is not None:
+            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+        return table
+    return read_events_table(path, sensor=sensor)
+
+
+MANIFEST_REQUIRED = ("trial", "events", "force")
+
+
+def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels: dict | None = None):
+    """Sources from a manifest CSV: one row per recording with columns trial, events, force (paths
+    relative to the manifest's folder) and label columns. Columns named `true_*` (ground truth of
+    simulated data) are neither used nor copied. Files are read one row at a time."""
+    if not os.path.isfile(path):
+        raise NeurotacError(f"{path}: no such manifest")
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows:
+        raise NeurotacError(f"{path}: the manifest has no rows")
+    missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]
+    if missing:
+        raise NeurotacError(
+            f"{path}: the manifest has no {', '.join(missing)} column (columns: {', '.join(rows[0])}; "
+            "expected trial,events,force,<labels>...)"
+        )
+    folder = os.path.dirname(os.path.abspath(path))
+    label_names = [name for name in rows[0] if name not in MANIFEST_REQUIRED and not name.startswith("true_") and name]
+    for number, row in enumerate(rows, start=2):
+        if not row["events"] or not row["force"] or not row["trial"]:
+            raise NeurotacError(f"{path}: line {number} lacks a trial, events or force entry")
+        row_labels = dict(labels or {})
+        row_labels.update({name: row[name] for name in label_names if row.get(name) not in (None, "")})
+        yield Source(
+            trial=row["trial"],
+            events=read_camera(os.path.join(folder, row["events"]), sensor),
+            force=force_options.read(os.path.join(folder, row["force"])),
+            labels=row_labels,
+        )
+
+
+def recording_sources(events=None, force=None, manifest=None, *, trial=None, labels=None,
+                      force_options: ForceOptions = ForceOptions(), sensor=None):
+    """The recordings `neurotac sync` is given: a manifest's rows, or one events file (or an events
+    table on stdin, `-`) with its force log; `labels` are given to every trial."""
+    labels = dict(labels or {})
+    if manifest:
+        if events or force:
+            raise UsageError("give either --manifest or an events file with --force, not both")
+        return manifest_sources(manifest, force_options, sensor, labels)
+    if not force:
+        raise UsageError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
+    if events in (None, "-"):
+        table, name = tables.read(["-"], kind="events"), trial or "trial"
+    else:
+        table, name = read_camera(events, sensor), trial or trial_name(events)
+    return [Source(trial=name, events=table, force=force_options.read(force), labels=labels)]

@@ -1,0 +1,42 @@
+"""What every camera-format reader shares: the `Decoded` it returns and how it reads a file in chunks.
+
+A format module exposes `open_<format>(path, head, sensor) -> Decoded`; `io.readers.OPENERS` lists
+them by format name and `io.camera` turns their chunks into `events` batches.
+"""
+
+import os
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
+
+
+@dataclass
+class Decoded:
+    """What a format module found: the declared sensor, a chunk source, and extra metadata."""
+
+    sensor: tuple[int, int] | None
+    chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
+    meta: dict = field(default_factory=dict)
+
+
+def read_chunks(path: str, offset: int, record: int) -> Iterator[bytes]:
+    """The bytes of `path` from `offset`, in chunks of whole `record`-byte records (a cut last record is dropped)."""
+    size = max(record, (CHUNK_BYTES // record) * record)
+    with open(path, "rb") as handle:
+        remaining = os.fstat(handle.fileno()).st_size - offset
+        handle.seek(offset)
+        rest = b""
+        while remaining > 0:
+            # never ask for more than is left: a read of n bytes allocates n bytes first
+            block = handle.read(min(size, remaining))
+            if not block:
+                return
+            remaining -= len(block)
+            data = rest + block if rest else block
+            usable = len(data) - len(data) % record
+            rest = data[usable:]
+            if usable:
+                yield data if usable == len(data) else data[:usable]

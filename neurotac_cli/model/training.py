@@ -1,0 +1,40 @@
+"""`neurotac train`: a model trained on frames as the command asks, and what it reports about it."""
+
+from dataclasses import dataclass
+
+import pyarrow as pa
+
+from neurotac_cli.metrics import metrics_table
+from neurotac_cli.model.core import Model, make_spec, train
+from neurotac_cli.model.fit import best_epoch
+
+DEFAULT_VAL_FRACTION = 0.1  # validation share when the command is given no other choice
+
+
+@dataclass(frozen=True)
+class Trained:
+    """A trained model, one summary line for stderr, and its training curve as a metrics table."""
+
+    model: Model
+    summary: str
+    curve: pa.Table
+    loss: str  # what the curve's loss is, for its plot
+
+
+def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trials: str | None = None,
+                val_fraction=None, val_where=None, per=None, seed=0, label="material", progress=None) -> Trained:
+    """Train model `name` with `hyperparameters` (None: the model's default). Validation trials:
+    `val_trials` (comma-separated ids), `val_where` (LABEL=VALUE) or `val_fraction` per `per` value,
+    DEFAULT_VAL_FRACTION when none is given."""
+    if val_trials is None and val_where is None and val_fraction is None:
+        val_fraction = DEFAULT_VAL_FRACTION
+    trials = [t.strip() for t in val_trials.split(",") if t.strip()] if val_trials else None
+    model = train(frames, make_spec(name, **hyperparameters), val_trials=trials, val_fraction=val_fraction,
+                  val_where=val_where, per=per, seed=seed, progress=progress, label=label)
+    curve = model.training.get("curve", [])
+    best = best_epoch(curve)
+    summary = (f"{name}: {len(curve)} epochs, best epoch {best['epoch']} "
+               f"(train {best['train_loss']:.4g}, validation {best['val_loss']:.4g})") if best else ""
+    rows = [(f"epoch:{row['epoch']}", key, row[key]) for row in curve for key in ("train_loss", "val_loss")]
+    loss = "cross-entropy" if model.task == "material" else "MSE of force / training max (dimensionless)"
+    return Trained(model, summary, metrics_table(rows, name), loss)

@@ -1,0 +1,126 @@
+"""The `led` sync method (thesis 3.6.1): the LED-off spike of OFF events.
+
+The LED is switched off before each grasp and the force log starts at that instant. The
+switch-off is a spike of OFF events over much of the field. OFF events are counted in 1 ms bins;
+each bin is compared with the running median of the 50 ms around it (robust to background noise
+and to the slower OFF bursts of contact), as a Poisson z-score; a spike must also cover a share of
+the pixels (contact is local, the LED lights the whole membrane). The instant is the spike's onset
+(the 0.5% quantile of its OFF event times) less the camera's response latency `latency_us` (the
+photoreceptor needs time to cross its OFF threshold: ~170 µs for the simulated DAVIS240C behind the
+membrane; measure it once on a real rig, or use `trigger`).
+"""
+
+import numpy as np
+
+from neurotac_cli.errors import SyncError
+from neurotac_cli.ops.instant import Instant
+
+LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
+
+
+def in_region(x, y, region):
+    if region is None:
+        return np.ones(len(x), dtype=bool)
+    rx, ry, rw, rh = region
+    return (x >= rx) & (x < rx + rw) & (y >= ry) & (y < ry + rh)
+
+
+def find_led_spikes(t, x, y, p, method, count: int, sensor=None) -> list[Instant]:
+    """The `count` strongest LED-off spikes of a sync.SyncMethod's settings, in time order;
+    SyncError when fewer stand out."""
+    times, off_x, off_y = _off_events(t, x, y, p, method.region)
+    bin_us = method.bin_us
+    origin = int(times.min())
+    counts = np.bincount((times - origin) // bin_us).astype(np.float64)
+    from scipy.ndimage import median_filter
+
+    background = median_filter(counts, size=51, mode="nearest")
+    pair = counts + np.concatenate([counts[1:], [0.0]])  # a spike spreads over up to ~1.5 ms
+    z = (pair - 2 * background) / np.sqrt(2 * background + 1)
+    pixels = _pixels_seen(x, y, sensor, method.region)
+    # candidates: local maxima of z, strongest first, at least 50 ms apart
+    chosen, rejected = [], []
+    taken = np.zeros(len(z), dtype=bool)
+    gap = max(1, 50_000 // bin_us)
+    for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
+        if taken[i] or z[i] <= 0:
+            continue
+        lo, hi = origin + i * bin_us, origin + (i + 2) * bin_us
+        a, b = np.searchsorted(times, [lo, hi])
+        coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
+        taken[max(0, i - gap): i + gap + 1] = True
+        if not (z[i] >= method.min_z and coverage >= method.min_coverage):
+            rejected.append((float(z[i]), coverage, lo))
+            continue
+        # the spike may start in the bin before the best pair: take its neighbours too
+        c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
+        # the pair starting at bin i holds the spike: its end is counted from the fuller bin
+        end_us = origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us
+        chosen.append(_spike_instant(times[c:d], z[i], coverage, end_us, method.latency_us))
+        if len(chosen) == count:
+            break
+    if len(chosen) < count:
+        raise _no_spike(len(chosen), count, max(rejected, default=None), method)
+    return sorted(chosen, key=lambda instant: instant.t0)
+
+
+def _off_events(t, x, y, p, region):
+    """Times (in order), x and y of the OFF events in `region`; SyncError when there are none."""
+    off = (p == 0) & in_region(x, y, region)
+    times, off_x, off_y = t[off], x[off], y[off]
+    if len(times) > 1 and np.any(np.diff(times) < 0):
+        order = np.argsort(times, kind="stable")
+        times, off_x, off_y = times[order], off_x[order], off_y[order]
+    if len(times) == 0:
+        raise SyncError("no OFF events (in the region) to find an LED-off spike in (check --region, or use --method xcorr)")
+    return times, off_x, off_y
+
+
+def _pixels_seen(x, y, sensor, region) -> int:
+    """How many pixels the LED could light: the region's, the sensor's, or the events' extent."""
+    if sensor is not None:
+        width, height = sensor
+        return width * height if region is None else region[2] * region[3]
+    return int((x.max() + 1) * (y.max() + 1)) if len(x) else 1
+
+
+def _spike_instant(spike: np.ndarray, z: float, coverage: float, end_us: int, latency_us: int) -> Instant:
+    """The instant of a spike's OFF event times: its onset (0.5% quantile) less the camera's latency."""
+    onset = int(spike[min(len(spike) - 1, int(0.005 * len(spike)))])
+    return Instant(
+        t0=onset - latency_us,
+        score=float(round(z, 1)),
+        details={"onset_us": onset, "coverage": round(coverage, 3), "spike_events": int(len(spike)), "led_end_us": end_us},
+    )
+
+
+def _no_spike(found: int, count: int, best, method) -> SyncError:
+    """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time) of the best rejected burst."""
+    found_text = f"found {found} of {count}; " if count > 1 else ""
+    detail = (f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
+              if best else "no OFF burst at all")
+    return SyncError(
+        f"no LED-off spike stands out ({found_text}{detail}; a spike needs z >= {method.min_z:g} over "
+        f">= {100 * method.min_coverage:g}% of the pixels); check the LED is in view, give --region, "
+        "or use --method xcorr, trigger or offset"
+    )
+
+
+def _burst_end(counts: np.ndarray, background: np.ndarray, peak: int, longest_bins: int = 20) -> int:
+    """The first bin after `peak` whose OFF count is back within 5 sigma of the background."""
+    stop = min(len(counts), peak + longest_bins)
+    quiet = counts[peak:stop] <= background[peak:stop] + 5 * np.sqrt(background[peak:stop] + 1)
+    return peak + (int(np.argmax(quiet)) if quiet.any() else stop - peak)
+
+
+def led_burst_end_us(t_rel: np.ndarray, p: np.ndarray, bin_us: int = 1_000, around_us: int = 50_000) -> int:
+    """Where the switch-off burst of an LED that went dark at time 0 ends (times relative to it):
+    the first bin after its peak, within 2 bins of 0, whose OFF count is back to the background."""
+    off = t_rel[(p == 0) & (t_rel >= -around_us) & (t_rel < around_us)]
+    counts = np.bincount((off + around_us) // bin_us, minlength=2 * around_us // bin_us).astype(np.float64)
+    from scipy.ndimage import median_filter
+
+    background = median_filter(counts, size=51, mode="nearest")
+    start = around_us // bin_us
+    peak = start + int(np.argmax(counts[start : start + 3]))
+    return _burst_end(counts, background, peak) * bin_us - around_us

@@ -1,0 +1,239 @@
+"""The `xcorr` sync method: no LED, the camera's event rate cross-correlated with the force log.
+
+No LED: the camera's event rate is cross-correlated with the force log's |dF/dt|, both
+in 250 µs bins smoothed over 1 ms (bins ten times above their surroundings, such as a blink, are
+set to the surroundings' level so a blink cannot dominate). Two pieces of physics sit between the
+two signals and are modelled rather than ignored:
+* the force sensor answers late: a first-order lag y' = (F - y) / tau, with its own tau when
+  loading (tau_rise) and when unloading (tau_fall), as strain-gauge cells (~1 ms) and
+  polymer-covered force-sensing resistors (tens of ms, slower to recover) do. Then dy/dt is dF/dt
+  through that lag, and sign(dy/dt) says which tau acts at each instant. The event rate, which
+  follows |dF/dt| with no such lag, is passed through the same lag (tau_rise where the log rises,
+  tau_fall where it falls) before it is compared: the clean camera signal is filtered, the noisy
+  force log is never differentiated twice. The two taus are given (`sensor_lag_us`) or estimated
+  jointly with the offset: every pair of a small geometric grid is tried, and of those within
+  `XCORR_TIE` of the best correlation the fastest sensor is kept (a longer lag only smooths, and
+  smoothing alone raises a correlation a little).
+* the membrane saturates: a newton more changes the image less at high force (contact area and
+  contrast approach their limits), so |dF/dt| is weighted by 1 / (1 + F / (s F_peak)) with F the
+  force the sensor was following (y + tau dy/dt, smoothed) and s = `saturation` (0 = linear).
+* polarity: the membrane darkens (OFF events) while it is loaded and brightens (ON) while it is
+  unloaded, so the signed rate OFF - k ON (k balances the polarities over the recording; only
+  pixels with >= 2 OFF and >= 1 ON, bursts left out) follows signed dF/dt. It is fitted too
+  (finer tau grid, no tie rule, no saturation weighting) and kept when its sensor is slow to
+  unload (tau_fall >= 15 ms): with a FlexiForce under a cover (simulated ch3) it cuts the error
+  from max 20.3 / mean 7.9 ms to max 12.8 / mean 2.4 ms; with a fast cell the unsigned rate is
+  better (the signed fit sees tau_fall <= 5 ms there and is not used). Details: `signal`.
+Among the offsets that keep the force log inside the recording (20 ms of slack at either end),
+the one of the highest Pearson correlation, refined by a parabola, less the camera's response
+delay `response_us` (the event rate follows the force ~1.6 ms late on the simulated rig:
+photoreceptor and membrane), is the instant. Confidence = the correlation at the peak and its
+margin over the best offset 20 ms or more away, for the chosen sensor model.
+"""
+
+import numpy as np
+
+from neurotac_cli.errors import SyncError
+from neurotac_cli.ops.instant import Instant
+from neurotac_cli.ops.led import in_region
+
+XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
+XCORR_BIN_US = 250
+XCORR_SMOOTH_US = 1_000
+XCORR_SLACK_US = 20_000  # how far the force log may reach past the recording's ends
+XCORR_SENSOR_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 20_000, 40_000, 80_000)  # tau grid, rise x fall
+XCORR_TIE = 0.01  # correlations this close are a tie: the faster sensor model wins
+XCORR_SATURATION = 0.5  # membrane saturation force, as a share of the trace's peak force (0 = linear)
+XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 30_000, 40_000, 60_000, 80_000, 120_000)
+XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
+XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
+XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
+
+
+def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
+    """Align the camera's event rate with |dF/dt| through a force-sensor model (see the module doc);
+    with polarities `p`, a slow sensor is aligned on the signed rate against signed dF/dt instead."""
+    from scipy.ndimage import gaussian_filter1d, median_filter
+
+    bin_us = XCORR_BIN_US
+    smooth = XCORR_SMOOTH_US / bin_us
+    keep = in_region(x, y, method.region)
+    times = t[keep]
+    if len(times) < 100 or len(force_t) < 10:
+        raise SyncError("too few events or force samples to cross-correlate (need activity during the grasp)")
+    origin = int(times.min())
+    bins = (times - origin) // bin_us
+    rate = np.bincount(bins).astype(np.float64)
+    # blinks and flicker: bins far above their surroundings are set to the surroundings' level
+    local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
+    burst = rate > 10 * (local + 3)
+    rate = gaussian_filter1d(np.where(burst, local, rate), smooth)
+    grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
+    force = gaussian_filter1d(np.interp(grid, force_t, force_v), smooth)
+    slope = np.gradient(force)  # N per bin
+    if not np.any(slope) or rate.std() == 0:
+        raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
+    fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
+    signal = "rate"
+    signed_rate = None if p is None else _signed_rate(bins, x[keep], y[keep], p[keep], burst)
+    if signed_rate is not None:
+        # the signed rate, OFF - k ON on the pixels that darken and recover, follows signed dF/dt, where
+        # loading (darkening) and unloading (brightening) cannot be mistaken for each other; it is kept
+        # when it sees a sensor slow to unload (measured better there, worse with a fast cell)
+        signed_fit = _xcorr_fit(gaussian_filter1d(signed_rate, smooth), force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0, signed=True)
+        if signed_fit[2] >= XCORR_SLOW_FALL_US:
+            fit, signal = signed_fit, "signed"
+    peak, rise, fall, best, corr, lags, valid = fit
+    shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
+    # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
+    t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
+    return Instant(
+        t0=int(round(t0)),
+        score=round(peak, 3),
+        details={
+            "correlation": round(peak, 3),
+            "margin": round(peak - second, 3),
+            "uncertainty_us": int((high - low) * bin_us // 2),
+            "response_us": method.response_us,
+            "sensor_rise_us": int(rise),
+            "sensor_fall_us": int(fall),
+            "sensor": "given" if method.sensor_lag_us is not None else "estimated",
+            "saturation": method.saturation if signal == "rate" else 0.0,
+            "signal": signal,
+        },
+    )
+
+
+def _around_the_peak(peak, best, corr, lags, valid, bin_us):
+    """(shift of the peak by a parabola through its neighbours, in bins; first and last index of the
+    run of near-best offsets around it; the best correlation 20 ms or more away)."""
+    shift = 0.0
+    if 0 < best < len(corr) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
+        left, right = corr[best - 1], corr[best + 1]
+        denominator = left - 2 * peak + right
+        if denominator < 0:
+            shift = 0.5 * (left - right) / denominator
+    far = np.abs(lags - lags[best]) >= 20_000 // bin_us
+    below = np.flatnonzero(corr < peak - XCORR_NEAR)
+    low = below[below < best][-1] + 1 if (below < best).any() else 0
+    high = below[below > best][0] - 1 if (below > best).any() else len(corr) - 1
+    second = float(np.max(corr[far & valid])) if (far & valid).any() else 0.0
+    return shift, low, high, second
+
+
+def _signed_rate(index, x, y, p, burst):
+    """OFF - k ON events per bin on the pixels that both darken and recover (>= 2 OFF, >= 1 ON): the
+    membrane's darkening rate. `index`: each event's bin; `burst`: the bins of a blink or flicker
+    (xcorr's rate), left out with their neighbours; k balances the two polarities over the recording
+    (the thresholds differ). None when there is no such pixel."""
+    bins = len(burst)
+    burst = burst.copy()
+    burst[1:] |= burst[:-1].copy()
+    burst[:-1] |= burst[1:].copy()
+    calm = ~burst[index]
+    pixel = y.astype(np.int64) * 65536 + x
+    _, owner = np.unique(pixel[calm], return_inverse=True)
+    is_off = p[calm] == 0
+    offs = np.bincount(owner, weights=is_off)
+    ons = np.bincount(owner, weights=~is_off)
+    active = ((offs >= 2) & (ons >= 1))[owner]
+    off = np.bincount(index[calm][active & is_off], minlength=bins).astype(np.float64)[:bins]
+    on = np.bincount(index[calm][active & ~is_off], minlength=bins).astype(np.float64)[:bins]
+    if off.sum() == 0 or on.sum() == 0:
+        return None
+    return off - off.sum() / on.sum() * on
+
+
+def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturation: float, signed: bool):
+    """Every sensor model (given, or each pair of `lag_grid`) against every offset: (correlation, rise,
+    fall, best lag index, correlation by lag, lags, valid lags) of the chosen model. The target is
+    |dF/dt| (weighted by the membrane saturation) or, when `signed`, dF/dt itself."""
+    from scipy.ndimage import gaussian_filter1d
+
+    bin_us = XCORR_BIN_US
+    smooth = XCORR_SMOOTH_US / bin_us
+    rising = (slope > 0).astype(np.float64)
+    falling = 1.0 - rising
+    peak_force = max(float(np.percentile(force, 99)), 1e-12)
+    candidates = [tuple(method.sensor_lag_us)] if method.sensor_lag_us is not None else [
+        (rise, fall) for rise in lag_grid for fall in lag_grid
+    ]
+    # the rate through each time constant, and its sums for each side: once per tau, not per (rise, fall) pair
+    lagged = {tau: _first_order_lag(rate, tau, bin_us) for tau in {tau for pair in candidates for tau in pair}}
+    on_rise = {rise: _SensorSide(lagged[rise], rising) for rise in {pair[0] for pair in candidates}}
+    on_fall = {fall: _SensorSide(lagged[fall], falling) for fall in {pair[1] for pair in candidates}}
+    lags = np.arange(-len(grid) + 1, len(rate))
+    overlap = np.minimum(len(rate), lags + len(grid)) - np.maximum(0, lags)
+    valid = overlap >= len(grid) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
+    # the force the sensor was following, y + tau dy/dt smoothed, is linear in the taus: its parts are smoothed once
+    smoothed = [gaussian_filter1d(part, 8 * smooth) for part in (force, slope * rising / bin_us, slope * falling / bin_us)]
+    fits = []
+    for rise, fall in candidates:
+        target = slope if signed else np.abs(slope)
+        if saturation > 0:
+            followed = smoothed[0] + rise * smoothed[1] + fall * smoothed[2]
+            target = target / (1.0 + np.clip(followed, 0, None) / (saturation * peak_force))
+        corr = _pearson_by_lag(overlap, on_rise[rise], on_fall[fall], target)
+        corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
+        best = int(np.argmax(corr))
+        fits.append((float(corr[best]), rise, fall, best, corr))
+    top = max(fit[0] for fit in fits)
+    if not np.isfinite(top):
+        raise SyncError("the recording is shorter than the force log: nothing to cross-correlate")
+    # a slower sensor model also smooths, which alone lifts a correlation a little: near-ties go to the faster
+    peak, rise, fall, best, corr = min((fit for fit in fits if fit[0] >= top - tie), key=lambda fit: (fit[1] + fit[2], -fit[0]))
+    return peak, rise, fall, best, corr, lags, valid
+
+
+def _first_order_lag(signal: np.ndarray, tau_us: float, bin_us: int) -> np.ndarray:
+    """The signal through a first-order lag of time constant tau (starting settled at its first value)."""
+    if tau_us <= 0:
+        return signal
+    from scipy.signal import lfilter
+
+    alpha = 1.0 - np.exp(-bin_us / tau_us)
+    filtered, _ = lfilter([alpha], [1.0, alpha - 1.0], signal, zi=[(1.0 - alpha) * signal[0]])
+    return filtered
+
+
+def _xc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """sum over j of u[L + j] v[j], for every lag L from -len(v) + 1 to len(u) - 1 (FFT)."""
+    from scipy.signal import correlate
+
+    return correlate(u, v, mode="full", method="fft")
+
+
+class _SensorSide:
+    """The event rate through one time constant, read where the sensor is in that state (mask, 0/1
+    on the force's clock), with its sums for every lag, which do not depend on the force side."""
+
+    def __init__(self, rate: np.ndarray, mask: np.ndarray):
+        self.rate, self.mask = rate, mask
+        self.s_a, self.s_aa = _xc(rate, mask), _xc(rate * rate, mask)
+
+
+def _pearson_by_lag(n: np.ndarray, rise: _SensorSide, fall: _SensorSide, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation, for every lag L, of a[L + j] with b[j] over their overlap (n values), where
+    a[L + j] = rise.rate[L + j] if rise.mask[j] else fall.rate[L + j] (the sensor's state is read on b's
+    clock). Every sum is a cross-correlation (FFT): the masks are 0/1 and complementary, so a, a² and
+    a·b split by side."""
+    ones = np.ones(len(rise.rate))
+    s_a, s_aa = rise.s_a + fall.s_a, rise.s_aa + fall.s_aa
+    s_ab = _xc(rise.rate, rise.mask * b) + _xc(fall.rate, fall.mask * b)
+    s_b, s_bb = _xc(ones, b), _xc(ones, b * b)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = s_ab - s_a * s_b / n
+        var = (s_aa - s_a * s_a / n) * (s_bb - s_b * s_b / n)
+        return np.where((n > 1) & (var > 1e-12 * np.maximum(s_aa * s_bb, 1e-300)), cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
+
+
+def uncertainty_warnings(trials: dict) -> list[str]:
+    """One warning for the trials (sync metadata per trial) whose offset is uncertain by more than
+    XCORR_UNCERTAIN_US; none when every trial is sure enough."""
+    wide = {name: info["uncertainty_us"] for name, info in trials.items() if info.get("uncertainty_us", 0) > XCORR_UNCERTAIN_US}
+    if not wide:
+        return []
+    worst = max(wide, key=wide.get)
+    return [f"xcorr's offset is uncertain by more than ±{XCORR_UNCERTAIN_US / 1000:g} ms on {len(wide)} of {len(trials)} "
+            f"trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor?); an LED blink (--method led) "
+            "or a trigger aligns within 0.1 ms"]

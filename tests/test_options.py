@@ -1,0 +1,30 @@
+"""Shared options: the history a command records comes from its parsed parameters, and contradicting
+options are one usage line with exit 2."""
+
+from click.testing import CliRunner
+
+from neurotac_cli import schema as sch
+from neurotac_cli import tables
+from neurotac_cli.cli import cli
+from tests.model.helpers import tiny_frames, write_stream
+
+
+def test_history_holds_the_parameters_the_output_depends_on_and_not_where_it_went(tmp_path):
+    frames = write_stream(tiny_frames(trials=2), tmp_path / "f.arrows")
+    written = []
+    for name in ("a.arrows", "b.arrows"):
+        done = CliRunner().invoke(cli, ["crop", "--pool", "all", "--box", "1,1,6,6", str(frames), "-o", str(tmp_path / name)])
+        assert done.exit_code == 0, done.output
+        written.append(sch.get_meta(tables.read([str(tmp_path / name)]).schema, sch.HISTORY)[-1])
+    step = written[0]
+    assert step["command"] == "crop" and written[0]["args"] == written[1]["args"]
+    assert step["args"]["pool"] == "all" and step["args"]["box"] == [1, 1, 6, 6] and step["args"]["warn_above"] == 0.9
+    assert step["args"]["report"]["kept"] + step["args"]["report"]["cut"] > 0
+    assert "output" not in step["args"] and "center" not in step["args"]  # where it went; an option not given
+
+
+def test_contradicting_options_are_one_usage_line_and_exit_2():
+    done = CliRunner().invoke(cli, ["eval", "--grid", "layers=1,2"])
+    assert done.exit_code == 2
+    assert done.output.strip().splitlines() == [
+        "neurotac eval: error: --grid needs --cv and --model-spec (a grid of cross-validated models)"]
