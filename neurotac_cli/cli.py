@@ -25,6 +25,8 @@ COMMANDS = {
     "classify": ("classify", "Predict each trial's material with a trained classifier."),
     "predict": ("predict", "Stream force estimates frame by frame, as frames arrive."),
     "study": ("study", "Run a grid x folds x seeds study, locally or on a Dask cluster."),
+    # data: seeing and carrying tables
+    "render": ("render", "Draw events, frames, a crop box or augmented copies as PNG, GIF or MP4."),
 }
 
 
