@@ -66,7 +66,8 @@ def output_option(function):
         "--output",
         type=click.Path(dir_okay=False, writable=True),
         default=None,
-        help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix) instead of stdout.",
+        help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix; .csv, .json or .ndjson for "
+        "tables without tensors) instead of stdout.",
     )(function)
 
 

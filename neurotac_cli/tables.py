@@ -26,7 +26,8 @@ from neurotac_cli.errors import InputError, NeurotacError, SchemaError
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
 PARQUET_MAGIC = b"PAR1"
-SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream"}
+SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream",
+            ".csv": "csv", ".json": "json", ".ndjson": "ndjson"}  # text: neurotac_cli/textout.py
 TRUNCATED = "input ended mid-table; did the command before it fail?"
 
 
@@ -311,7 +312,7 @@ def refuse_terminal():
 def output_format(path: str) -> str:
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in SUFFIXES:
-        raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)")
+        raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)")
     return SUFFIXES[suffix]
 
 
@@ -369,7 +370,11 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None):
         return
     fmt = output_format(output)
     with atomic_file(output) as temporary:
-        if fmt == "parquet":
+        if fmt in ("csv", "json", "ndjson"):
+            from neurotac_cli.textout import write_text
+
+            write_text(temporary, fmt, schema, batches)
+        elif fmt == "parquet":
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")
             for batch in batches:
                 writer.write_batch(_with_schema(batch, schema))
