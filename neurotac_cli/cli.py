@@ -91,6 +91,9 @@ def _quiet_exit():
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="neurotac")
+@click.option("--frame-size", metavar="WxH", default=None, callback=lambda ctx, param, value: _frame_size(value), expose_value=False,
+              is_eager=True, help="Frame size of frames tables whose counts came back from another tool as flat lists "
+              "without neurotac's metadata (DuckDB `COPY ... TO`, Polars) [env NEUROTAC_FRAME_SIZE].")
 def cli():
     """Event-camera tactile sensing: from a camera file and a force log to force estimates and materials.
 
@@ -104,6 +107,18 @@ def cli():
 
     Shell completion: eval "$(_NEUROTAC_COMPLETE=bash_source neurotac)" (zsh_source, fish_source likewise).
     """
+
+
+def _frame_size(value):
+    """Hand --frame-size to the table reader (neurotac_cli.bridges), which reads it from the environment."""
+    if value:
+        from neurotac_cli.units import parse_size
+
+        try:
+            parse_size(value)
+        except NeurotacError as error:
+            raise click.BadParameter(str(error), param_hint="--frame-size") from None
+        os.environ["NEUROTAC_FRAME_SIZE"] = value
 
 
 def main():

@@ -20,7 +20,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 import pyarrow.parquet as pq
 
-from neurotac_cli import __version__, schema as sch
+from neurotac_cli import __version__, bridges, schema as sch
 from neurotac_cli.errors import InputError, NeurotacError, SchemaError
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
@@ -211,14 +211,16 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
             opened.append((next(tables), tables))
         except StopIteration:
             raise InputError(f"{path}: no table in it") from None
-    schema = opened[0][0][0]
+    (schema, first_batches), first_rest = opened[0]
+    schema, first_batches = bridges.accept(schema, first_batches)  # DuckDB/Polars/evlib layouts
+    opened[0] = ((schema, first_batches), first_rest)
     found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
     if found and sch.kind_of(schema) is None:
         schema = sch.set_meta(schema, kind=found)
     if found in sch.REQUIRED:
         schema = sch.conform_schema(schema, found)
     for (other, _), _ in opened[1:]:
-        _check_compatible(schema, other, found)
+        _check_compatible(schema, bridges.accept(other)[0], found)
     if len(opened) > 1:
         histories = [sch.get_meta(other, sch.HISTORY, []) for (other, _), _ in opened]
         if any(h != histories[0] for h in histories[1:]):
@@ -231,7 +233,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
                 count += batch.num_rows
                 yield batch
             for other, more in rest:
-                _check_compatible(schema, other, found)
+                _check_compatible(schema, bridges.accept(other)[0], found)
                 for batch in _conformed(more, schema, found):
                     count += batch.num_rows
                     yield batch
@@ -243,6 +245,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
 
 def _conformed(batches, schema: pa.Schema, kind: str | None):
     for batch in batches:
+        batch = bridges.conform_batch(batch, schema)
         if kind in sch.REQUIRED:
             batch = sch.conform(batch, kind)
         if not batch.schema.equals(schema, check_metadata=False):
@@ -339,6 +342,7 @@ def atomic_file(path: str):
     os.chmod(temporary, 0o666 & ~umask)
     try:
         yield temporary
+        os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
         os.replace(temporary, path)
     finally:
         if os.path.exists(temporary):

@@ -90,7 +90,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     """
     import os
 
-    from neurotac_cli import schema as sch, tables
+    from neurotac_cli import provenance, schema as sch, tables
     from neurotac_cli.errors import NeurotacError
     from neurotac_cli.io.camera import trial_name
     from neurotac_cli.ops import sync as sy
@@ -114,7 +114,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
             raise NeurotacError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
         if events in (None, "-"):
             table = tables.read(["-"], kind="events")
-            name = trial or "trial"
+            name = trial or trial_name(sch.camera_source(table.schema).get("file") or "trial")
         else:
             table = sy.read_camera(events, sensor)
             name = trial or trial_name(events)
@@ -122,11 +122,28 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         origin = {"events": os.path.basename(events or "-"), "force": os.path.basename(force_path), "trial": name}
     recordings = sy.sync_sources(sources, spec)
     args = dict(spec.args(), **origin)
+    args["camera"] = provenance.checksums(recordings.schema)
     if label_map:
         args["labels"] = label_map
     tables.write(output, recordings, step=("sync", args))
     if spec.method == "xcorr":
         warn_uncertain(sch.get_meta(recordings.schema, sch.SYNC)["trials"])
+        warn_unrelated(sch.get_meta(recordings.schema, sch.SYNC)["trials"])
+
+
+def warn_unrelated(trials: dict):
+    """One warning line for the trials whose event rate and force log hardly correlate at any offset."""
+    from neurotac_cli.ops.sync import XCORR_MIN_CORRELATION
+
+    low = {name: info["correlation"] for name, info in trials.items() if info.get("correlation", 1.0) < XCORR_MIN_CORRELATION}
+    if low:
+        worst = min(low, key=low.get)
+        click.echo(
+            f"neurotac sync: warning: on {len(low)} of {len(trials)} trial(s) the event rate and the force log correlate "
+            f"below {XCORR_MIN_CORRELATION} at their best offset (lowest r {low[worst]:.3f}, {worst}): are they of the same "
+            "grasp? Check the pairing; an LED blink (--method led) or a trigger does not depend on it",
+            err=True,
+        )
 
 
 def warn_uncertain(trials: dict):

@@ -20,6 +20,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, NeurotacError
+from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
 CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
@@ -220,7 +221,8 @@ def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, I
         cleanup()
         raise
     schema = sch.events_schema(*declared)
-    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoded.meta.pop("source", {})}}
+    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, "sha256": file_sha256(local),
+                          **decoded.meta.pop("source", {})}}
     entries.update(decoded.meta)
     schema = sch.set_meta(schema, **entries)
     return schema, _batches(name, fmt, decoded, declared, schema, cleanup)

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyarrow as pa
 
-from neurotac_cli import schema as sch
+from neurotac_cli import provenance, schema as sch
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import ForceLog
 
@@ -70,6 +70,9 @@ XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 
 XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
 XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
 XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
+# below this best correlation sync warns that camera and force log may not belong together; a warning, not a
+# refusal: simulated grasps matched 0.43-0.88, mismatched 0.45-0.89 (examples/sync_mismatch.py, docs/journal.md)
+XCORR_MIN_CORRELATION = 0.5
 
 
 @dataclass(frozen=True)
@@ -523,8 +526,9 @@ def _column(table: pa.Table, name: str, dtype) -> np.ndarray:
 
 def sync_sources(sources, method: SyncMethod) -> pa.Table:
     """Sync every source (an iterable, read one at a time) into one recordings table."""
-    trials, info, sensor = [], {}, None
+    trials, info, sensor, inputs = [], {}, None, []
     for source in sources:
+        inputs.append(source.events.schema)
         found = sch.sensor_of(source.events.schema)
         if sensor is None:
             sensor = found
@@ -542,7 +546,7 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
     sync = dict(method.args())
     sync["trials"] = info
     width, height = sensor if sensor else (None, None)
-    return sch.recordings_table(trials, width, height, sync=sync)
+    return provenance.carry(sch.recordings_table(trials, width, height, sync=sync), inputs)
 
 
 # ---------------------------------------------------------------- inputs
