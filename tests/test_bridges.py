@@ -114,3 +114,12 @@ def test_an_evlib_events_file_frames_from_the_command_line(tmp_path):
                            "-o", str(tmp_path / "f.arrows")], capture_output=True)
     assert done.returncode == 0, done.stderr
     assert counts_of(tables.read([str(tmp_path / "f.arrows")])).sum() == 200
+
+
+def test_faery_csv_with_its_sensor_in_the_header_and_crlf_lines(tmp_path):
+    from neurotac_cli.io.camera import read_events_table
+
+    (tmp_path / "faery.csv").write_bytes(b"t,x@346,y@260,on\r\n10,1,2,1\r\n20,345,259,0\r\n35,3,4,1\r\n")
+    events = read_events_table(str(tmp_path / "faery.csv"))
+    assert sch.sensor_of(events.schema) == (346, 260)
+    assert [events.column(n).to_pylist() for n in "txyp"] == [[10, 20, 35], [1, 345, 3], [2, 259, 4], [1, 0, 1]]
