@@ -27,6 +27,9 @@ COMMANDS = {
     "study": ("study", "Run a grid x folds x seeds study, locally or on a Dask cluster."),
     # data: seeing and carrying tables
     "render": ("render", "Draw events, frames, a crop box or augmented copies as PNG, GIF or MP4."),
+    "select": ("select", "Keep the rows for which a condition holds (SQL): trials, labels, phases, times."),
+    "concat": ("concat", "Concatenate tables of one kind, refusing trial ids they share."),
+    "split": ("split", "Split into training and test tables by whole trials, seeded."),
 }
 
 
