@@ -30,7 +30,7 @@ COMMANDS = {
     "select": ("select", "Keep the rows for which a condition holds (SQL): trials, labels, phases, times."),
     "concat": ("concat", "Concatenate tables of one kind, refusing trial ids they share."),
     "split": ("split", "Split into training and test tables by whole trials, seeded."),
-    "export": ("export", "Write events as a camera file: EVT 3.0 (.raw) or AEDAT 2.0 (.aedat)."),
+    "export": ("export", "Write events as a camera file: EVT 3.0, AEDAT 4.0 or AEDAT 2.0."),
 }
 
 

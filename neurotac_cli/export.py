@@ -1,5 +1,5 @@
-"""Events tables back into camera files, for the vendors' tools: Prophesee EVT 3.0 (.raw) and jAER
-AEDAT 2.0 (.aedat, io/writers.py).
+"""Events tables back into camera files, for the vendors' tools: Prophesee EVT 3.0 (.raw), iniVation
+AEDAT 4.0 (.aedat4, `aedat4_bytes`) and jAER AEDAT 2.0 (.aedat, io/writers.py).
 
 EVT 3.0 is 16-bit little-endian words after a `%` header (`% evt 3.0`, `% format EVT3;height=H;width=W`,
 `% geometry WxH`, `% end`). Time is a 24-bit µs counter: TIME_HIGH (0x8) holds bits 12-23, TIME_LOW
@@ -12,6 +12,8 @@ AEDAT 4.0 writes) is written from the 2^24 µs loop of its first event instead, 
 earlier by whole loops (`shift_us` in the report). Events must be in time order, as EVT 3.0 cannot go back in time.
 """
 
+import struct
+
 import numpy as np
 import pyarrow as pa
 
@@ -20,7 +22,9 @@ from neurotac_cli.errors import NeurotacError
 
 EVT3_LOOP_US = 1 << 24
 WALK_LIMIT_US = 600_000_000  # first events up to 10 min in: TIME_HIGH walked from 0 (146k words at most)
-FORMATS = {".raw": "evt3", ".aedat": "aedat2"}
+FORMATS = {".raw": "evt3", ".aedat": "aedat2", ".aedat4": "aedat4"}
+AEDAT4_PACKET_EVENTS = 1 << 15
+AEDAT4_EVENT = np.dtype({"names": ["t", "x", "y", "on"], "formats": ["<i8", "<i2", "<i2", "u1"], "offsets": [0, 8, 10, 12], "itemsize": 16})
 
 
 def export_format(path: str) -> str:
@@ -28,7 +32,7 @@ def export_format(path: str) -> str:
 
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in FORMATS:
-        raise NeurotacError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat for AEDAT 2.0)")
+        raise NeurotacError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat4 for AEDAT 4.0, .aedat for AEDAT 2.0)")
     return FORMATS[suffix]
 
 
@@ -64,6 +68,43 @@ def evt3_bytes(t, x, y, p, width: int, height: int) -> tuple[bytes, int]:
     at = at + new_row
     out[at] = (0x2 << 12) | ((np.asarray(p, dtype=np.int64) & 1) << 11) | (np.asarray(x, dtype=np.int64) & 0x7FF)
     return header + out.astype("<u2").tobytes(), shift
+
+
+def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
+    """The bytes of an AEDAT 4.0 file: one uncompressed events stream (id 0), as dv writes it.
+
+    After `#!AER-DAT4.0\\r\\n`, the IOHeader flatbuffer (compression none, no file data table, the
+    stream described in dv's XML with sizeX/sizeY) with its length before it, then packets:
+    stream id, length, and a size-prefixed EventPacket flatbuffer (identifier EVTS) of 16-byte
+    Event structs (t int64 µs, x int16, y int16, on bool). The flatbuffers are laid out by hand:
+    fixed tables, offsets pointing forward, the struct vector 8-byte aligned."""
+    description = (
+        '<dv version="2.0"><node name="outInfo" path="/mainloop/neurotac/outInfo/">'
+        '<node name="0" path="/mainloop/neurotac/outInfo/0/">'
+        '<attr key="compression" type="string">NONE</attr>'
+        '<attr key="originalModuleName" type="string">neurotac</attr>'
+        '<attr key="originalOutputName" type="string">events</attr>'
+        '<attr key="typeDescription" type="string">Array of events (polarity ON/OFF).</attr>'
+        '<attr key="typeIdentifier" type="string">EVTS</attr>'
+        '<node name="info" path="/mainloop/neurotac/outInfo/0/info/">'
+        f'<attr key="sizeX" type="int">{int(width)}</attr><attr key="sizeY" type="int">{int(height)}</attr>'
+        '<attr key="source" type="string">neurotac</attr></node></node></node></dv>'
+    ).encode()
+    # IOHeader: root offset, "IOHE", vtable (10 bytes) at 8, table at 24: soffset, compression at +4,
+    # file_data_position (int64, 8-aligned) at +8, description offset at +16 -> string at 44
+    header = struct.pack("<I4sHHHHH6xiiqI", 24, b"IOHE", 10, 20, 4, 8, 16, 16, 0, -1, 4)
+    header += struct.pack("<I", len(description)) + description + b"\0"
+    header += b"\0" * (-len(header) % 4)
+    out = [b"#!AER-DAT4.0\r\n", struct.pack("<I", len(header)), header]
+    events = np.zeros(len(t), dtype=AEDAT4_EVENT)
+    events["t"], events["x"], events["y"], events["on"] = t, x, y, np.asarray(p) > 0
+    for start in range(0, len(events), AEDAT4_PACKET_EVENTS):
+        part = events[start : start + AEDAT4_PACKET_EVENTS]
+        # size prefix, root offset (table at 20), "EVTS", vtable (6 bytes) at 12, table: soffset 8 and
+        # the vector's offset (to 28), vector length at 28, elements from 32
+        packet = struct.pack("<II4sHHH2xiII", 28 + 16 * len(part), 16, b"EVTS", 6, 8, 4, 8, 4, len(part)) + part.tobytes()
+        out += [struct.pack("<II", 0, len(packet)), packet]
+    return b"".join(out)
 
 
 def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
@@ -104,6 +145,8 @@ def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
     t, x, y, p, width, height = events_arrays(table, trial)
     if fmt == "evt3":
         data, shift = evt3_bytes(t, x, y, p, width, height)
+    elif fmt == "aedat4":
+        data, shift = aedat4_bytes(t, x, y, p, width, height), 0
     else:
         if len(t) and (t.min() < 0 or t.max() >= 1 << 32):
             raise NeurotacError("AEDAT 2.0 holds times from 0 to 71 minutes in µs; these events lie outside (use .raw)")

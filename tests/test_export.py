@@ -22,7 +22,7 @@ def columns(table):
     return [table.column(name).to_numpy().astype(np.int64) for name in ("t", "x", "y", "p")]
 
 
-@pytest.mark.parametrize("suffix", [".raw", ".aedat"])
+@pytest.mark.parametrize("suffix", [".raw", ".aedat", ".aedat4"])
 def test_written_files_read_back_equal(tmp_path, suffix):
     table = events(width=240, height=180)
     path = str(tmp_path / f"e{suffix}")
@@ -55,7 +55,7 @@ def test_refusals(tmp_path):
     source = str(tmp_path / "e.arrows")
     tables.write(source, events())
     result = CliRunner().invoke(cli, ["export", source, "-o", str(tmp_path / "e.dat")])
-    assert result.exit_code == 1 and "use .raw for EVT 3.0, .aedat for AEDAT 2.0" in result.output
+    assert result.exit_code == 1 and "use .raw for EVT 3.0, .aedat4 for AEDAT 4.0" in result.output
 
 
 def test_a_trial_of_recordings_goes_back_on_the_camera_clock(tmp_path):
@@ -66,3 +66,14 @@ def test_a_trial_of_recordings_goes_back_on_the_camera_clock(tmp_path):
     result = CliRunner().invoke(cli, ["export", source, "-o", str(tmp_path / "g.raw")])
     assert result.exit_code == 0, result.output
     assert read_events_table(str(tmp_path / "g.raw")).column("t").to_pylist() == [999_950, 1_000_000, 1_000_010]
+
+
+def test_aedat4_is_read_by_the_reference_decoder(tmp_path):
+    aedat = pytest.importorskip("aedat")
+    table = events(n=70_000, width=346, height=260)  # three packets
+    export(table, str(tmp_path / "e.aedat4"))
+    decoder = aedat.Decoder(str(tmp_path / "e.aedat4"))
+    assert decoder.id_to_stream() == {0: {"type": "events", "width": 346, "height": 260}}
+    decoded = np.concatenate([packet["events"] for packet in decoder])
+    for name, column in zip(("t", "x", "y", "on"), columns(table)):
+        np.testing.assert_array_equal(decoded[name].astype(np.int64), column)
