@@ -66,3 +66,40 @@ def recordings_per_file(paths: list[str], sensor=None, fmt: str | None = None) -
     width, height = next(iter(sizes))
     table = sch.recordings_table(rows, width, height, sync={"method": "first event", "note": "t0 = each file's first event; no force"})
     return provenance.carry(table, sources)
+
+
+FORCE_NAMES = ("{stem}_force.csv", "{stem}-force.csv", "{stem}.force.csv", "{stem}_force.parquet")
+MANIFEST = "manifest.csv"
+
+
+def folder_manifest(folder: str) -> tuple[str, str]:
+    """(the manifest of a folder of camera files and force logs, what was done): the folder's
+    manifest.csv when it has one, else one written there pairing each camera file with the force
+    log named after it (`grasp-01.aedat` with `grasp-01_force.csv`), for the user to edit (labels
+    are columns after trial,events,force)."""
+    import csv
+
+    from neurotac_cli.io.camera import trial_name
+
+    path = os.path.join(folder, MANIFEST)
+    if os.path.isfile(path):
+        return path, f"using {path} (delete it to pair the folder's files by name again)"
+    cameras = [name for name in sorted(os.listdir(folder)) if name.lower().endswith(CAMERA_SUFFIXES)]
+    if not cameras:
+        raise InputError(f"{folder} holds no camera files ({', '.join(CAMERA_SUFFIXES)}) and no {MANIFEST}")
+    rows, alone = [], []
+    for name in cameras:
+        stem = trial_name(name)
+        force = next((f.format(stem=stem) for f in FORCE_NAMES if os.path.isfile(os.path.join(folder, f.format(stem=stem)))), None)
+        (rows.append([stem, name, force]) if force else alone.append(name))
+    if alone:
+        raise InputError(f"no force log for {len(alone)} camera file(s) in {folder} ({', '.join(alone[:3])}"
+                         f"{', ...' if len(alone) > 3 else ''}); name each {FORCE_NAMES[0].format(stem='<name>')}, "
+                         f"or write {path} yourself (trial,events,force,<labels>)")
+    from neurotac_cli.tables import atomic_file
+
+    with atomic_file(path) as temporary, open(temporary, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["trial", "events", "force"])
+        writer.writerows(rows)
+    return path, f"wrote {path} pairing {len(rows)} camera files with their force logs (add label columns to it, then sync again)"

@@ -60,3 +60,31 @@ def test_trials_named_alike_and_empty_folders_are_refused(folder, tmp_path):
     empty.mkdir()
     result = run("import", str(empty), "-o", str(tmp_path / "x.arrows"))
     assert result.exit_code == 1 and "holds no camera files" in result.output
+
+
+def test_a_folder_of_camera_files_and_force_logs_syncs_in_one_command(tmp_path):
+    import shutil
+    import subprocess
+
+    sim = tmp_path / "sim"
+    subprocess.run(["neurotac", "simulate", "--preset", "ch4", "--trials", "2", "--seed", "6", "--out", str(sim)],
+                   check=True, capture_output=True)
+    folder = tmp_path / "grasps"
+    folder.mkdir()
+    for path in sim.iterdir():
+        if path.name.endswith(("-01.aedat", "-01_force.csv")):
+            shutil.copy(path, folder / path.name)
+    first = run("sync", str(folder), "-o", str(tmp_path / "r.arrows"))
+    assert first.exit_code == 0, first.output
+    assert "wrote" in first.output and (folder / "manifest.csv").read_text().splitlines()[0] == "trial,events,force"
+    assert sorted(tables.read([str(tmp_path / "r.arrows")]).column("trial").to_pylist()) == sorted(
+        p.stem for p in folder.glob("*.aedat"))
+    (folder / "manifest.csv").write_text((folder / "manifest.csv").read_text().replace("trial,events,force", "trial,events,force,material", 1)
+                                         .replace(".csv\n", ".csv,steel\n"))
+    again = run("sync", str(folder), "-o", str(tmp_path / "r2.arrows"))
+    assert again.exit_code == 0 and "using" in again.output
+    assert set(tables.read([str(tmp_path / "r2.arrows")]).column("material").to_pylist()) == {"steel"}
+    (folder / "manifest.csv").unlink()
+    next(folder.glob("*_force.csv")).unlink()
+    refused = run("sync", str(folder), "-o", str(tmp_path / "r3.arrows"))
+    assert refused.exit_code == 1 and "no force log for 1 camera file(s)" in refused.output

@@ -42,7 +42,7 @@ class SensorLag(ParamType):
 
 
 @click.command()
-@click.argument("events", required=False, type=click.Path(dir_okay=False, allow_dash=True))
+@click.argument("events", required=False, type=click.Path(allow_dash=True))
 @output_option
 @click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV or Parquet): time and force columns, e.g. t_ms,force_N.")
 @click.option("--trial", default=None, help="Trial id (default: the events file's name); a session's trials are numbered after it.")
@@ -86,6 +86,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     \b
         neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
         neurotac sync --manifest sim/manifest.csv -o recordings.parquet
+        neurotac sync recordings/ -o recordings.parquet   # pairs grasp.aedat with grasp_force.csv
         neurotac import rec.aedat4 | neurotac sync --force f.csv --method trigger
     """
     import os
@@ -104,6 +105,12 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         trigger_type=trigger_type, median_us=median_window, keep_led=keep_led,
     )
     label_map = dict(labels)
+    if events not in (None, "-") and os.path.isdir(events) and not manifest and not force_path:
+        from neurotac_cli.datasets import folder_manifest  # a folder: camera files paired with force logs by name
+
+        manifest, note = folder_manifest(events)
+        events = None
+        click.echo(f"neurotac sync: {note}", err=True)
     if manifest:
         if events or force_path:
             raise NeurotacError("give either --manifest or an events file with --force, not both")
