@@ -339,17 +339,7 @@ def format_text(info: dict, everything: bool = False) -> str:
         if len(info["per_trial"]) > len(shown):
             lines.append(f"  ... {len(shown)} of {len(info['per_trial'])} trials shown (all of them: --all)")
     if info.get("metrics"):
-        lines.append("")
-        lines.append("metrics:")
-        rows = info["metrics"] if everything else info["metrics"][:METRICS_SHOWN]
-        for row in rows:
-            value = row.get("value")
-            text = f"{value:.6g}" if isinstance(value, float) else str(value)
-            lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
-        total = info.get("metrics_rows", len(info["metrics"]))
-        if total > len(rows):
-            lines.append(f"  ... {len(rows)} of {total} rows shown (all of them: --all; as a file for a spreadsheet: "
-                         "-o metrics.csv on the command that made them)")
+        lines += _metric_lines(info, everything)
     lines.append("")
     add("columns:", ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))
     history = info.get("history") or []
@@ -362,6 +352,21 @@ def format_text(info: dict, everything: bool = False) -> str:
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
     width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
     return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
+
+
+def _metric_lines(info: dict, everything: bool) -> list[str]:
+    """The metric rows (the first METRICS_SHOWN unless `everything`), saying when some are left out."""
+    lines = ["", "metrics:"]
+    rows = info["metrics"] if everything else info["metrics"][:METRICS_SHOWN]
+    for row in rows:
+        value = row.get("value")
+        text = f"{value:.6g}" if isinstance(value, float) else str(value)
+        lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
+    total = info.get("metrics_rows", len(info["metrics"]))
+    if total > len(rows):
+        lines.append(f"  ... {len(rows)} of {total} rows shown (all of them: --all; as a file for a spreadsheet: "
+                     "-o metrics.csv on the command that made them)")
+    return lines
 
 
 def _sync_cell(entry: dict, method) -> str:

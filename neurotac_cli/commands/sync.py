@@ -105,12 +105,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         trigger_type=trigger_type, median_us=median_window, keep_led=keep_led,
     )
     label_map = dict(labels)
-    if events not in (None, "-") and os.path.isdir(events) and not manifest and not force_path:
-        from neurotac_cli.datasets import folder_manifest  # a folder: camera files paired with force logs by name
-
-        manifest, note = folder_manifest(events)
-        events = None
-        click.echo(f"neurotac sync: {note}", err=True)
+    events, manifest = folder_as_manifest(events, manifest, force_path)
     if manifest:
         if events or force_path:
             raise NeurotacError("give either --manifest or an events file with --force, not both")
@@ -151,6 +146,19 @@ def warn_unrelated(trials: dict):
             "grasp? Check the pairing; an LED blink (--method led) or a trigger does not depend on it",
             err=True,
         )
+
+
+def folder_as_manifest(events, manifest, force_path):
+    """A folder given as EVENTS: its manifest (written by pairing files by name when it has none)."""
+    import os
+
+    if events in (None, "-") or not os.path.isdir(events) or manifest or force_path:
+        return events, manifest
+    from neurotac_cli.datasets import folder_manifest
+
+    manifest, note = folder_manifest(events)
+    click.echo(f"neurotac sync: {note}", err=True)
+    return None, manifest
 
 
 def warn_uncertain(trials: dict):
