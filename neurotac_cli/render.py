@@ -115,7 +115,8 @@ def steps_of(table: pa.Table, trial: str, spec: RenderSpec) -> Steps:
         return steps
     if kind == "events":
         t, x, y, p = (table.column(name).to_numpy() for name in ("t", "x", "y", "p"))
-        return _slice_steps(trial, t - (t.min() if len(t) else 0), x, y, p, _sensor(table.schema, x, y), spec)
+        name = sch.camera_source(table.schema).get("file") or trial  # times from the first event
+        return _slice_steps(name, t - (t.min() if len(t) else 0), x, y, p, _sensor(table.schema, x, y), spec)
     raise SchemaError(f"render draws events, recordings or frames tables, got {kind or 'an unknown'} table"
                       " (predictions and metrics are drawn by `neurotac eval --plot`)")
 
