@@ -18,9 +18,11 @@ from neurotac_cli.io.force import read_force_log
 from neurotac_cli.ops import sync as sy
 
 
-def correlation(events, force) -> float:
+def correlation(events, force) -> tuple[float, float]:
+    """(best correlation, its margin over the best offset 20 ms or more away)."""
     table = sy.sync_sources([sy.Source(trial="t", events=events, force=force, labels={})], sy.SyncMethod(method="xcorr"))
-    return float(sch.get_meta(table.schema, sch.SYNC)["trials"]["t"]["correlation"])
+    found = sch.get_meta(table.schema, sch.SYNC)["trials"]["t"]
+    return float(found["correlation"]), float(found["margin"])
 
 
 def measure(preset: str, trials: int, seed: int, folder: str) -> tuple[list, list]:
@@ -35,7 +37,7 @@ def measure(preset: str, trials: int, seed: int, folder: str) -> tuple[list, lis
             try:
                 r = correlation(events[camera], forces[log])
             except sy.SyncError:
-                r = float("nan")
+                r = (float("nan"), float("nan"))
             (matched if camera == log else mismatched).append(r)
     return matched, mismatched
 
@@ -52,11 +54,12 @@ def main():
             matched, mismatched = measure(preset, args.trials, args.seed, folder)
             everything["matched"] += matched
             everything["mismatched"] += mismatched
-            for name, values in (("matched", matched), ("mismatched", mismatched)):
-                values = np.asarray(values)
-                print(f"{preset} {name:10s} n={len(values):3d} min {np.nanmin(values):.3f} median {np.nanmedian(values):.3f} "
-                      f"max {np.nanmax(values):.3f} failed {int(np.isnan(values).sum())}")
-    matched, mismatched = (np.asarray(everything[k]) for k in ("matched", "mismatched"))
+            for name, pairs in (("matched", matched), ("mismatched", mismatched)):
+                for column, what in enumerate(("r", "margin")):
+                    values = np.asarray(pairs)[:, column]
+                    print(f"{preset} {name:10s} {what:6s} n={len(values):3d} min {np.nanmin(values):.3f} "
+                          f"median {np.nanmedian(values):.3f} max {np.nanmax(values):.3f} failed {int(np.isnan(values).sum())}")
+    matched, mismatched = (np.asarray(everything[k])[:, 0] for k in ("matched", "mismatched"))
     threshold = sy.XCORR_MIN_CORRELATION
     print(f"all matched: min {np.nanmin(matched):.3f}; all mismatched: max {np.nanmax(mismatched):.3f}, "
           f"99th percentile {np.nanpercentile(mismatched, 99):.3f}")
