@@ -25,6 +25,12 @@ COMMANDS = {
     "classify": ("classify", "Predict each trial's material with a trained classifier."),
     "predict": ("predict", "Stream force estimates frame by frame, as frames arrive."),
     "study": ("study", "Run a grid x folds x seeds study, locally or on a Dask cluster."),
+    # data: seeing and carrying tables
+    "render": ("render", "Draw events, frames, a crop box or augmented copies as PNG, GIF or MP4."),
+    "select": ("select", "Keep the rows for which a condition holds (SQL): trials, labels, phases, times."),
+    "concat": ("concat", "Concatenate tables of one kind, refusing trial ids they share."),
+    "split": ("split", "Split into training and test tables by whole trials, seeded."),
+    "export": ("export", "Write events as a camera file: EVT 3.0, AEDAT 4.0 or AEDAT 2.0."),
 }
 
 
@@ -99,6 +105,9 @@ def _quiet_exit():
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="neurotac")
+@click.option("--frame-size", metavar="WxH", default=None, callback=lambda ctx, param, value: _frame_size(value), expose_value=False,
+              is_eager=True, help="Frame size of frames tables whose counts came back from another tool as flat lists "
+              "without neurotac's metadata (DuckDB `COPY ... TO`, Polars) [env NEUROTAC_FRAME_SIZE].")
 def cli():
     """Event-camera tactile sensing: from a camera file and a force log to force estimates and materials.
 
@@ -112,6 +121,18 @@ def cli():
 
     Shell completion: eval "$(_NEUROTAC_COMPLETE=bash_source neurotac)" (zsh_source, fish_source likewise).
     """
+
+
+def _frame_size(value):
+    """Hand --frame-size to the table reader (neurotac_cli.bridges), which reads it from the environment."""
+    if value:
+        from neurotac_cli.units import parse_size
+
+        try:
+            parse_size(value)
+        except NeurotacError as error:
+            raise click.BadParameter(str(error), param_hint="--frame-size") from None
+        os.environ["NEUROTAC_FRAME_SIZE"] = value
 
 
 def main():

@@ -13,11 +13,13 @@ import pyarrow.compute as pc
 from neurotac_cli import schema as sch
 
 TRIALS_SHOWN = 20
+METRICS_SHOWN = 50  # metric rows in the text; METRICS_KEPT in --json (every one with --all)
+METRICS_KEPT = 200
 
 
-def describe(schema: pa.Schema, batches, camera: dict | None = None) -> dict:
+def describe(schema: pa.Schema, batches, camera: dict | None = None, everything: bool = False) -> dict:
     """A dict describing the table `schema` + `batches`. `camera` = {"format": ...} for a camera file
-    decoded on the fly (not imported yet)."""
+    decoded on the fly (not imported yet). `everything`: keep every metric row, not the first METRICS_KEPT."""
     kind = sch.kind_of(schema) or sch._guess_kind(schema)
     sensor = sch.sensor_of(schema)
     info = {"kind": kind or "unknown", "rows": 0}
@@ -38,6 +40,8 @@ def describe(schema: pa.Schema, batches, camera: dict | None = None) -> dict:
     if sync is not None:
         info["sync"] = sync
     summary = {"events": _Events, "recordings": _Recordings, "frames": _Frames}.get(kind, _Rows)(schema)
+    if everything and isinstance(summary, _Rows):
+        summary.keep = None
     for batch in batches:
         info["rows"] += batch.num_rows
         summary.add(batch)
@@ -192,6 +196,8 @@ class _Rows:
         self.has_trial = "trial" in schema.names
         self.trials = set()
         self.metrics = []
+        self.metric_rows = 0
+        self.keep = METRICS_KEPT
         # predictions: force estimates against the measured force, classes against the true labels
         self.force = self.kind == "predictions" and {"force", "force_pred"} <= set(schema.names)
         self.squared = self.absolute = 0.0
@@ -203,8 +209,10 @@ class _Rows:
     def add(self, batch):
         if self.has_trial:
             self.trials.update(batch.column("trial").to_pylist())
-        if self.kind == "metrics" and len(self.metrics) < 200:
-            self.metrics += batch.slice(0, 200 - len(self.metrics)).to_pylist()
+        if self.kind == "metrics":
+            self.metric_rows += batch.num_rows
+            room = batch.num_rows if self.keep is None else max(self.keep - len(self.metrics), 0)
+            self.metrics += batch.slice(0, room).to_pylist()
         if self.force:
             force = batch.column("force").to_numpy(zero_copy_only=False).astype(np.float64)
             error = batch.column("force_pred").to_numpy(zero_copy_only=False).astype(np.float64) - force
@@ -224,6 +232,7 @@ class _Rows:
             out["trials"] = len(self.trials)
         if self.kind == "metrics":
             out["metrics"] = self.metrics
+            out["metrics_rows"] = self.metric_rows
         if self.force and self.scored:
             out["force_error"] = {"frames": self.scored, "rmse_n": (self.squared / self.scored) ** 0.5,
                                   "mae_n": self.absolute / self.scored}
@@ -244,11 +253,12 @@ def _label_values(rows) -> dict:
 # ---------------------------------------------------------------- text
 
 
-def format_text(info: dict) -> str:
-    """The description as aligned `name  value` lines for a terminal."""
+def format_text(info: dict, everything: bool = False) -> str:
+    """The description as aligned `name  value` lines for a terminal; `everything`: every trial and
+    metric row, not the first TRIALS_SHOWN and METRICS_SHOWN."""
     sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
     lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
-    lines += _trial_lines(info, sync) + _metric_lines(info) + _history_lines(info)
+    lines += _trial_lines(info, sync, everything) + _metric_lines(info, everything) + _history_lines(info)
     width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
     return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
 
@@ -306,13 +316,14 @@ def _content_pairs(info: dict, sync: dict) -> list:
     return pairs
 
 
-def _trial_lines(info: dict, sync: dict) -> list:
-    """One line per trial (the first TRIALS_SHOWN): frames, events, span, force, sync, labels."""
+def _trial_lines(info: dict, sync: dict, everything: bool = False) -> list:
+    """One line per trial (the first TRIALS_SHOWN unless `everything`): frames, events, span, force,
+    sync, labels."""
     if not info.get("per_trial"):
         return []
     synced = sync.get("trials") or {}
     lines = ["", "per trial:"]
-    shown = info["per_trial"][:TRIALS_SHOWN]
+    shown = info["per_trial"] if everything else info["per_trial"][:TRIALS_SHOWN]
     id_width = max(len(str(row["trial"])) for row in shown)
     for row in shown:
         parts = [str(row["trial"]).ljust(id_width)]
@@ -328,19 +339,25 @@ def _trial_lines(info: dict, sync: dict) -> list:
             parts.append(_sync_cell(synced[row["trial"]], sync.get("method")))
         parts += [f"{k}={v}" for k, v in row.get("labels", {}).items() if v is not None]
         lines.append("  " + "  ".join(parts))
-    if len(info["per_trial"]) > TRIALS_SHOWN:
-        lines.append(f"  ... and {len(info['per_trial']) - TRIALS_SHOWN} more (see --json)")
+    if len(info["per_trial"]) > len(shown):
+        lines.append(f"  ... {len(shown)} of {len(info['per_trial'])} trials shown (all of them: --all)")
     return lines
 
 
-def _metric_lines(info: dict) -> list:
+def _metric_lines(info: dict, everything: bool = False) -> list:
+    """The metric rows (the first METRICS_SHOWN unless `everything`), saying when some are left out."""
     if not info.get("metrics"):
         return []
     lines = ["", "metrics:"]
-    for row in info["metrics"][:50]:
+    rows = info["metrics"] if everything else info["metrics"][:METRICS_SHOWN]
+    for row in rows:
         value = row.get("value")
         text = f"{value:.6g}" if isinstance(value, float) else str(value)
         lines.append(f"  {row.get('scope', '')}  {row.get('metric', '')}  {text}" + (f"  ({row['model']})" if row.get("model") else ""))
+    total = info.get("metrics_rows", len(info["metrics"]))
+    if total > len(rows):
+        lines.append(f"  ... {len(rows)} of {total} rows shown (all of them: --all; as a file for a spreadsheet: "
+                     "-o metrics.csv on the command that made them)")
     return lines
 
 
@@ -394,7 +411,7 @@ def _rate(rate: float) -> str:
     return f"{rate:.1f}"
 
 
-def describe_paths(paths, sensor=None) -> dict:
+def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     """Describe tables (read as one, as every command does) or one camera file (decoded on the fly)."""
     from neurotac_cli import tables
     from neurotac_cli.errors import InputError
@@ -404,7 +421,7 @@ def describe_paths(paths, sensor=None) -> dict:
     is_tables = [camera.is_table(path) or not _exists(path) for path in paths]
     if all(is_tables):
         opened = tables.open_input(paths, allow_empty=True)
-        return describe(opened.schema, opened.batches)
+        return describe(opened.schema, opened.batches, everything=everything)
     if len(paths) > 1:
         raise InputError("describe one camera file at a time, or import them into one table first")
     schema, batches = camera.read_events(paths[0], sensor)

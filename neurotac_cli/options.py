@@ -83,7 +83,7 @@ def input_paths(function):
 class TablePath(click.Path):
     """A path to write a table to: its suffix names the format, so an unknown one is a usage error."""
 
-    SUFFIXES = (".parquet", ".pq", ".arrow", ".feather", ".arrows")
+    SUFFIXES = (".parquet", ".pq", ".arrow", ".feather", ".arrows", ".csv", ".json", ".ndjson")  # as tables.SUFFIXES
 
     def __init__(self):
         super().__init__(dir_okay=False, writable=True, allow_dash=True)
@@ -91,7 +91,7 @@ class TablePath(click.Path):
     def convert(self, value, param, ctx):
         path = super().convert(value, param, ctx)
         if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
-            self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)", param, ctx)
+            self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)", param, ctx)
         return path
 
 
@@ -116,7 +116,8 @@ def output_option(function):
         "--output",
         type=TablePath(),
         default=None,
-        help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix) instead of stdout.",
+        help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix; .csv, .json or .ndjson for "
+        "tables without tensors) instead of stdout.",
     )(function)
 
 

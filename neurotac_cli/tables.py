@@ -21,13 +21,14 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 import pyarrow.parquet as pq
 
-from neurotac_cli import __version__, schema as sch
+from neurotac_cli import __version__, bridges, schema as sch
 from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
 PARQUET_MAGIC = b"PAR1"
-SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream"}
+SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream",
+            ".csv": "csv", ".json": "json", ".ndjson": "ndjson"}  # text: neurotac_cli/textout.py
 TRUNCATED = "input ended mid-table; did the command before it fail?"
 
 
@@ -211,9 +212,11 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
             opened.append((next(tables), tables))
         except StopIteration:
             raise InputError(f"{path}: no table in it") from None
-    schema = opened[0][0][0]
     for (other, _), _ in opened:
         sch.check_header(other)
+    (schema, first_batches), first_rest = opened[0]
+    schema, first_batches = bridges.accept(schema, first_batches)  # DuckDB/Polars/evlib layouts
+    opened[0] = ((schema, first_batches), first_rest)
     found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
     if not kind and found in sch.REQUIRED:
         sch.validate(schema, found)  # a table that says what it is, but lacks its columns
@@ -222,7 +225,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
     if found in sch.REQUIRED:
         schema = sch.conform_schema(schema, found)
     for (other, _), _ in opened[1:]:
-        _check_compatible(schema, other, found)
+        _check_compatible(schema, bridges.accept(other)[0], found)
     if len(opened) > 1:
         histories = [sch.get_meta(other, sch.HISTORY, []) for (other, _), _ in opened]
         if any(h != histories[0] for h in histories[1:]):
@@ -239,7 +242,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
                 yield batch
             for other, more in rest:
                 sch.check_header(other)
-                _check_compatible(schema, other, found)
+                _check_compatible(schema, bridges.accept(other)[0], found)
                 for batch in _conformed(more, schema, found):
                     unique.check(batch)
                     count += batch.num_rows
@@ -252,6 +255,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
 
 def _conformed(batches, schema: pa.Schema, kind: str | None):
     for batch in batches:
+        batch = bridges.conform_batch(batch, schema)
         if kind in sch.REQUIRED:
             batch = sch.conform(batch, kind)
         if not batch.schema.equals(schema, check_metadata=False):
@@ -321,7 +325,7 @@ def refuse_terminal():
 def output_format(path: str) -> str:
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in SUFFIXES:
-        raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows)")
+        raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)")
     return SUFFIXES[suffix]
 
 
@@ -352,6 +356,7 @@ def atomic_file(path: str):
     os.chmod(temporary, 0o666 & ~umask)
     try:
         yield temporary
+        os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
         os.replace(temporary, path)
     except OSError as error:
         # the block also pulls the input: only an error of writing here is ours to describe
@@ -391,7 +396,11 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
         return
     fmt = output_format(output)
     with atomic_file(output) as temporary:
-        if fmt == "parquet":
+        if fmt in ("csv", "json", "ndjson"):
+            from neurotac_cli.textout import write_text
+
+            write_text(temporary, fmt, schema, batches)
+        elif fmt == "parquet":
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")
             for batch in batches:
                 writer.write_batch(_with_schema(batch, schema))

@@ -28,3 +28,10 @@ def test_contradicting_options_are_one_usage_line_and_exit_2():
     assert done.exit_code == 2
     assert done.output.strip().splitlines() == [
         "neurotac eval: error: --grid needs --cv and --model-spec (a grid of cross-validated models)"]
+
+
+def test_an_output_path_accepts_every_suffix_the_writer_writes():
+    from neurotac_cli import tables
+    from neurotac_cli.options import TablePath
+
+    assert set(TablePath.SUFFIXES) == set(tables.SUFFIXES)

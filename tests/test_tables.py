@@ -154,7 +154,7 @@ def test_failed_write_leaves_no_file(tmp_path):
 
 def test_unknown_output_suffix_is_refused(tmp_path):
     with pytest.raises(NeurotacError, match="suffix"):
-        tables.write(str(tmp_path / "out.csv"), events())
+        tables.write(str(tmp_path / "out.xlsx"), events())
 
 
 def test_counts_round_trip_as_a_canonical_tensor(tmp_path):

@@ -18,24 +18,33 @@ FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"
     default=None,
     help="Read the files as this format instead of telling it from their first bytes.",
 )
-def command(paths, output, sensor, fmt):
+@click.option("--one-stream", is_flag=True, help="Several files: read them in order as one events table instead of one "
+              "trial per file.")
+def command(paths, output, sensor, fmt, one_stream):
     """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
 
     Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
     APS/IMU words skipped), AEDAT 4.0, Prophesee EVT 2.0 and EVT 3.0 .raw and .dat, Event Stream .es, CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
     whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them; external
-    trigger events (AEDAT 4.0, EVT 2.0/3.0) go into the metadata for `sync --method trigger`. Several
-    files are read in order as one table; `-` reads a file from stdin.
+    trigger events (AEDAT 4.0, EVT 2.0/3.0) go into the metadata for `sync --method trigger`; `-`
+    reads a file from stdin. Several files, a directory or a glob give a recordings table with one
+    trial per file, named after it, each starting at its first event (--one-stream: one events table).
 
     \b
         neurotac import recording.aedat -o events.parquet
         neurotac import events.txt --sensor 240x180 | neurotac info -
+        neurotac import recordings/ | neurotac frame --window 10ms > frames.arrows
     """
     from neurotac_cli import tables
     from neurotac_cli.io import import_files
 
-    schema, batches = import_files(paths, sensor=sensor, fmt=fmt)
     args = {"files": list(paths), "sensor": f"{sensor[0]}x{sensor[1]}" if sensor else None, "format": fmt}
+    from neurotac_cli import datasets  # several files, a directory or a glob: one trial per file
+
+    files = datasets.expand(paths)
+    if len(files) > 1 and not one_stream:
+        return tables.write(output, datasets.recordings_per_file(files, sensor, fmt), step=("import", dict(args, files=files)))
+    schema, batches = import_files(files, sensor=sensor, fmt=fmt)
     rows = [0]
 
     def counted():

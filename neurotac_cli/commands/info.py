@@ -8,8 +8,10 @@ from neurotac_cli.options import Size
 @click.command()
 @click.argument("paths", nargs=-1, metavar="FILE|-")
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON (for scripts) instead of text.")
+@click.option("--all", "everything", is_flag=True, help="Show every trial and every metric row (the text shows the first 20 "
+              "trials and 50 metric rows, --json the first 200 metric rows).")
 @click.option("--sensor", type=Size(), default=None, help="For camera files that do not say their sensor size (DAT, text).")
-def command(paths, as_json, sensor):
+def command(paths, as_json, everything, sensor):
     """Describe a table or camera file: kind, rows, trials, sensor, time span, event rate, ON share,
     labels per trial, frames per trial and window, and the history of commands that made it.
 
@@ -24,8 +26,8 @@ def command(paths, as_json, sensor):
 
     from neurotac_cli.describe import describe_paths, format_text
 
-    info = describe_paths(paths, sensor=sensor)
+    info = describe_paths(paths, sensor=sensor, everything=everything)
     if as_json:
         click.echo(json.dumps(info, indent=2, sort_keys=True, ensure_ascii=False))
     else:
-        click.echo(format_text(info), nl=False)
+        click.echo(format_text(info, everything), nl=False)

@@ -42,7 +42,7 @@ class SensorLag(ParamType):
 
 
 @click.command()
-@click.argument("events", required=False, type=click.Path(dir_okay=False, allow_dash=True))
+@click.argument("events", required=False, type=click.Path(allow_dash=True))
 @output_option
 @click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV or Parquet): time and force columns, e.g. t_ms,force_N.")
 @click.option("--trial", default=None, help="Trial id (default: the events file's name); a session's trials are numbered after it.")
@@ -88,9 +88,10 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     \b
         neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
         neurotac sync --manifest sim/manifest.csv -o recordings.parquet
+        neurotac sync recordings/ -o recordings.parquet   # pairs grasp.aedat with grasp_force.csv
         neurotac import rec.aedat4 | neurotac sync --force f.csv --method trigger
     """
-    from neurotac_cli import tables
+    from neurotac_cli import provenance, tables
     from neurotac_cli.io import manifest as recordings_in
     from neurotac_cli.ops import sync
 
@@ -98,8 +99,10 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
         method, latency, offset_us=offset, region=region, sensor_lag_us=sensor_lag, saturation=saturation, min_z=min_score,
         min_coverage=min_coverage, trigger_type=trigger_type, median_us=median_window, keep_led=keep_led)
     force_options = recordings_in.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
+    events, manifest, note = recordings_in.folder_as_manifest(events, manifest, force_path)
+    echo_lines("sync", [note] if note else [])
     sources = recordings_in.recording_sources(events, force_path, manifest, trial=trial, labels=dict(labels),
                                               force_options=force_options, sensor=sensor)
     recordings, warnings = sync.sync(sources, spec)
-    tables.write(output, recordings, step=history())
+    tables.write(output, recordings, step=history(camera=provenance.checksums(recordings.schema)))
     echo_lines("sync", warnings, prefix="warning: ")

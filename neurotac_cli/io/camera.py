@@ -22,6 +22,7 @@ from neurotac_cli.errors import FormatError, InputError, NeurotacError
 from neurotac_cli.io import reader
 from neurotac_cli.io.reader import Decoded
 from neurotac_cli.io.readers import OPENERS
+from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
 FORMATS = ("aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
@@ -197,7 +198,8 @@ def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, I
         cleanup()
         raise
     schema = sch.events_schema(*declared)
-    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoded.meta.pop("source", {})}}
+    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, "sha256": file_sha256(local),
+                          **decoded.meta.pop("source", {})}}
     entries.update(decoded.meta)
     schema = sch.set_meta(schema, **entries)
     return schema, _batches(name, fmt, decoded, declared, schema, cleanup)

@@ -78,6 +78,17 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
         )
 
 
+def folder_as_manifest(events, manifest, force):
+    """A folder given as EVENTS: (None, its manifest, a note for the user), the manifest written by
+    pairing camera files with force logs by name when the folder has none; anything else as given."""
+    if events in (None, "-") or not os.path.isdir(events) or manifest or force:
+        return events, manifest, None
+    from neurotac_cli.datasets import folder_manifest
+
+    manifest, note = folder_manifest(events)
+    return None, manifest, note
+
+
 def recording_sources(events=None, force=None, manifest=None, *, trial=None, labels=None,
                       force_options: ForceOptions = ForceOptions(), sensor=None):
     """The recordings `neurotac sync` is given: a manifest's rows, or one events file (or an events
@@ -90,7 +101,8 @@ def recording_sources(events=None, force=None, manifest=None, *, trial=None, lab
     if not force:
         raise UsageError("sync needs a force log (--force FILE) or a manifest (--manifest FILE)")
     if events in (None, "-"):
-        table, name = tables.read(["-"], kind="events"), trial or "trial"
+        table = tables.read(["-"], kind="events")
+        name = trial or trial_name(sch.camera_source(table.schema).get("file") or "trial")
     else:
         table, name = read_camera(events, sensor), trial or trial_name(events)
     return [Source(trial=name, events=table, force=force_options.read(force), labels=labels)]

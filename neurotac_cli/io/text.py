@@ -18,7 +18,7 @@ from neurotac_cli.io import reader
 from neurotac_cli.io.reader import Decoded
 
 TIME_NAMES = {"t": None, "t_us": 1, "timestamp": 1, "ts": 1, "time": None, "t_ms": 1_000, "t_s": 1_000_000}
-POLARITY_NAMES = ("p", "polarity", "pol")
+POLARITY_NAMES = ("p", "polarity", "pol", "on")  # faery's CSV: `t,x@W,y@H,on`, the sensor size after the @
 
 
 def open_text(path: str, head: bytes, sensor) -> Decoded:
@@ -32,8 +32,13 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     delimiter = "," if "," in first else ("\t" if "\t" in first else " ")
     fields = [f.strip() for f in (first.split(",") if delimiter == "," else first.split())]
     has_header = any(re.search(r"[a-zA-Z_]", f) and not _is_number(f) for f in fields)
+    declared = None
     if has_header:
         names = [f.strip("\"'").lower() for f in fields]
+        sizes = dict(name.split("@", 1) for name in names if "@" in name)
+        names = [name.split("@", 1)[0] for name in names]
+        if sizes.get("x", "").isdigit() and sizes.get("y", "").isdigit():
+            declared = (int(sizes["x"]), int(sizes["y"]))
     elif delimiter == ",":
         raise FormatError(
             "a CSV file needs a header naming its columns, e.g. `t,x,y,p` (t in µs; or t_ms, t_s); add one as the first line"
@@ -69,7 +74,7 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
             line += newlines
             yield t, x, y, p
 
-    return Decoded(sensor=None, chunks=chunks)
+    return Decoded(sensor=declared, chunks=chunks)
 
 
 def _line_blocks(path: str, first_line: int):

@@ -1,9 +1,17 @@
 """Figures: measured vs estimated force over time and per-phase scatter (thesis Figs 3.9, 4.5),
-confusion matrix (Fig. 3.13), training curve. matplotlib with the Agg backend (no display needed)."""
+confusion matrix (Fig. 3.13), training curve. matplotlib with the Agg backend (no display needed).
+
+One style for every figure of the project (`STYLE`, also used by `neurotac render`): each title says
+what is shown and how well (RMSE and MAE in newtons, accuracy), each axis its unit, each reference
+line its meaning in the legend.
+"""
 
 import numpy as np
 
 PHASE_COLOURS = {"grasping": "tab:blue", "holding": "tab:red", "releasing": "tab:green"}
+STYLE = {"font.size": 8, "axes.titlesize": 9, "axes.labelsize": 8, "legend.fontsize": 7, "xtick.labelsize": 7,
+         "ytick.labelsize": 7, "axes.grid": True, "grid.color": "#dddddd", "grid.linewidth": 0.5,
+         "axes.spines.top": False, "axes.spines.right": False, "savefig.dpi": 110}
 
 
 def _pyplot():
@@ -13,6 +21,15 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def force_errors(true: np.ndarray, pred: np.ndarray) -> tuple[float, float, int]:
+    """(RMSE, MAE, frames) over the frames where both are known."""
+    known = np.isfinite(true) & np.isfinite(pred)
+    if not known.any():
+        return float("nan"), float("nan"), 0
+    error = pred[known] - true[known]
+    return float(np.sqrt(np.mean(error ** 2))), float(np.mean(np.abs(error))), int(known.sum())
 
 
 def force_figure(predictions, path: str, trials=None, title: str = ""):
@@ -26,53 +43,95 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
     chosen = list(trials) if trials else list(dict.fromkeys(trial))[:3]
     # cross-validation repeats hold every frame once per seed: traces show the first seed's run
     first_run = predictions.column("repeat").to_numpy() == 0 if "repeat" in predictions.column_names else np.ones(len(trial), bool)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for n, name in enumerate(chosen):
-        mask = (trial == name) & first_run
-        colour = f"C{n}"
-        left.plot(t[mask], true[mask], color=colour, lw=1.5, label=f"{name} measured")
-        left.plot(t[mask], pred[mask], color=colour, lw=1.2, ls="--", label=f"{name} estimated")
-    left.set_xlabel("time since sync (ms)")
-    left.set_ylabel("force (N)")
-    left.legend(fontsize=7)
-    left.set_title("measured vs estimated force" + (" (first seed)" if not first_run.all() else ""))
+    rmse, mae, frames = force_errors(true, pred)
+    with plt.rc_context(STYLE):
+        fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
+        for n, name in enumerate(chosen):
+            mask = (trial == name) & first_run
+            trial_rmse = force_errors(true[mask], pred[mask])[0]
+            left.plot(t[mask], true[mask], color=f"C{n}", lw=1.5, label=f"{name} measured")
+            left.plot(t[mask], pred[mask], color=f"C{n}", lw=1.2, ls="--", label=f"{name} estimated (RMSE {trial_rmse:.3f} N)")
+        left.set_xlabel("time since sync t0 (ms)")
+        left.set_ylabel("force (N)")
+        left.legend()
+        left.set_title("force over time" + (" (first seed)" if not first_run.all() else ""))
+        _scatter(right, true, pred, phase)
+        what = f"{title}: " if title else ""
+        seeds = ", every seed" if not first_run.all() else ""
+        fig.suptitle(f"{what}estimated vs measured force, RMSE {rmse:.3f} N, MAE {mae:.3f} N "
+                     f"({frames:,} frames of {len(set(trial.tolist()))} trials{seeds})")
+        fig.tight_layout()
+        _save(fig, path)
+        plt.close(fig)
+
+
+def _scatter(axis, true, pred, phase):
+    """Estimate against measurement per phase, with the 1:1 line of a perfect estimate."""
     for name, colour in PHASE_COLOURS.items():
         mask = phase == name
         if mask.any():
-            right.scatter(true[mask], pred[mask], s=4, alpha=0.5, color=colour, label=name)
-    finite = np.isfinite(true)
-    if finite.any():
-        low, high = np.nanmin(true), np.nanmax(true)
-        right.plot([low, high], [low, high], color="black", lw=1)
-    right.set_xlabel("measured force (N)")
-    right.set_ylabel("estimated force (N)")
-    right.legend(fontsize=7)
-    right.set_title("per phase")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+            axis.scatter(true[mask], pred[mask], s=4, alpha=0.5, color=colour, label=name)
+    other = ~np.isin(phase, list(PHASE_COLOURS))
+    if other.any():
+        axis.scatter(true[other], pred[other], s=4, alpha=0.4, color="grey", label="no phase")
+    known = np.isfinite(true) & np.isfinite(pred)
+    if known.any():
+        low = min(true[known].min(), pred[known].min())
+        high = max(true[known].max(), pred[known].max())
+        axis.plot([low, high], [low, high], color="black", lw=1, label="1:1 (estimate = measured)")
+        axis.set_xlim(low, high)
+        axis.set_ylim(low, high)
+        axis.set_aspect("equal", adjustable="box")
+    axis.set_xlabel("measured force (N)")
+    axis.set_ylabel("estimated force (N)")
+    axis.legend(markerscale=3)
+    axis.set_title("per frame, by phase")
 
 
 def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
     plt = _pyplot()
-    fig, axis = plt.subplots(figsize=(4.8, 4.2))
-    axis.imshow(matrix, cmap="Blues")
-    totals = matrix.sum(axis=1, keepdims=True).clip(min=1)
-    for i in range(len(classes)):
-        for j in range(len(classes)):
-            axis.text(j, i, f"{matrix[i, j]}\n{100 * matrix[i, j] / totals[i, 0]:.0f}%", ha="center", va="center",
-                      color="white" if matrix[i, j] > matrix.max() / 2 else "black", fontsize=8)
-    axis.set_xticks(range(len(classes)), classes, rotation=30)
-    axis.set_yticks(range(len(classes)), classes)
-    axis.set_xlabel("predicted class")
-    axis.set_ylabel("true class")
     accuracy = np.trace(matrix) / max(matrix.sum(), 1)
-    axis.set_title(title or f"accuracy {100 * accuracy:.1f}%")
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    with plt.rc_context({**STYLE, "axes.grid": False}):
+        fig, axis = plt.subplots(figsize=(4.8, 4.4))
+        axis.imshow(matrix, cmap="Blues")
+        totals = matrix.sum(axis=1, keepdims=True).clip(min=1)
+        for i in range(len(classes)):
+            for j in range(len(classes)):
+                axis.text(j, i, f"{matrix[i, j]}\n{100 * matrix[i, j] / totals[i, 0]:.0f}%", ha="center", va="center",
+                          color="white" if matrix[i, j] > matrix.max() / 2 else "black", fontsize=8)
+        axis.set_xticks(range(len(classes)), classes, rotation=30)
+        axis.set_yticks(range(len(classes)), classes)
+        axis.set_xlabel("predicted class")
+        axis.set_ylabel("true class (row: trials, share of the row)")
+        axis.set_title(title or f"confusion matrix: accuracy {100 * accuracy:.1f}% of {int(matrix.sum())} trials")
+        fig.tight_layout()
+        _save(fig, path)
+        plt.close(fig)
+
+
+def restored_epoch(curve: list) -> dict | None:
+    """The epoch whose weights training kept: the first lowest validation loss (training loss without
+    validation), by the same rule as model.fit."""
+    best, kept = np.inf, None
+    for row in curve:
+        watched = row["val_loss"] if np.isfinite(row["val_loss"]) else row["train_loss"]
+        if watched < best - 1e-9:
+            best, kept = watched, row
+    return kept
+
+
+def log_ticks(axis, values) -> None:
+    """Log-scale ticks that read: 1, 2, 5 per decade over a few decades, every digit within one."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    values = np.asarray([v for v in values if np.isfinite(v) and v > 0])
+    if not values.size:
+        return
+    decades = np.log10(values.max() / values.min())
+    subs = tuple(range(1, 10)) if decades < 1 else (1.0, 2.0, 5.0) if decades < 3 else (1.0,)
+    axis.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
+    axis.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.3g}"))
+    axis.yaxis.set_minor_formatter(NullFormatter())
 
 
 def evaluation_figure(predictions, path: str, *, name: str, label: str = "material", trials=None):
@@ -90,20 +149,32 @@ def evaluation_figure(predictions, path: str, *, name: str, label: str = "materi
 
 def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
     plt = _pyplot()
-    fig, axis = plt.subplots(figsize=(5.5, 3.6))
     epochs = [row["epoch"] for row in curve]
-    axis.plot(epochs, [row["train_loss"] for row in curve], label="training")
+    train = [row["train_loss"] for row in curve]
     val = [row["val_loss"] for row in curve]
-    if np.isfinite(val).any():
-        axis.plot(epochs, val, label="validation")
-    axis.set_yscale("log")
-    axis.set_xlabel("epoch")
-    axis.set_ylabel(loss)
-    axis.legend()
-    axis.set_title(title)
-    fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
+    kept = restored_epoch(curve)
+    with plt.rc_context(STYLE):
+        fig, axis = plt.subplots(figsize=(5.8, 3.8))
+        axis.plot(epochs, train, label="training")
+        if np.isfinite(val).any():
+            axis.plot(epochs, val, label="validation")
+        axis.set_yscale("log")
+        log_ticks(axis, train + val)
+        if kept is not None:
+            watched = kept["val_loss"] if np.isfinite(kept["val_loss"]) else kept["train_loss"]
+            axis.axvline(kept["epoch"], color="black", lw=0.8, ls="--", label=f"restored: epoch {kept['epoch']}")
+            axis.plot([kept["epoch"]], [watched], "ko", ms=4)
+        axis.set_xlabel("epoch")
+        axis.set_ylabel(loss)
+        axis.legend()
+        how = ""
+        if kept is not None:
+            which = "validation" if np.isfinite(kept["val_loss"]) else "training"
+            how = f"best {which} loss {(kept['val_loss'] if which == 'validation' else kept['train_loss']):.4g} at epoch {kept['epoch']} of {len(curve)}"
+        axis.set_title(f"{title}: {how}" if title and how else title or how)
+        fig.tight_layout()
+        _save(fig, path)
+        plt.close(fig)
 
 
 def _save(fig, path: str):
@@ -114,4 +185,4 @@ def _save(fig, path: str):
     from neurotac_cli.tables import atomic_file
 
     with atomic_file(path) as temporary:
-        fig.savefig(temporary, dpi=110, format=os.path.splitext(path)[1].lstrip(".").lower())
+        fig.savefig(temporary, format=os.path.splitext(path)[1].lstrip(".").lower())

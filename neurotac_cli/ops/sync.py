@@ -19,14 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-from neurotac_cli import schema as sch
+from neurotac_cli import provenance, schema as sch
 from neurotac_cli.errors import NeurotacError, SyncError
 from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import LED_LATENCY_US, find_led_spikes
-from neurotac_cli.ops.xcorr import XCORR_RESPONSE_US, XCORR_SATURATION, uncertainty_warnings, xcorr_instant
+from neurotac_cli.ops.xcorr import XCORR_RESPONSE_US, XCORR_SATURATION, uncertainty_warnings, unrelated_warnings, xcorr_instant
 
 METHODS = ("led", "trigger", "offset", "xcorr")
 
@@ -93,7 +93,9 @@ def sync(sources, method: SyncMethod) -> tuple[pa.Table, list[str]]:
     recordings = sync_sources(sources, method)
     trials = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
     warnings = [line for info in trials.values() for line in info.get("warnings", [])]
-    return recordings, warnings + (uncertainty_warnings(trials) if method.method == "xcorr" else [])
+    if method.method == "xcorr":
+        warnings += uncertainty_warnings(trials) + unrelated_warnings(trials)
+    return recordings, warnings
 
 
 # ---------------------------------------------------------------- force conditioning
@@ -207,8 +209,9 @@ def _column(table: pa.Table, name: str, dtype) -> np.ndarray:
 
 def sync_sources(sources, method: SyncMethod) -> pa.Table:
     """Sync every source (an iterable, read one at a time) into one recordings table."""
-    trials, info, sensor = [], {}, None
+    trials, info, sensor, inputs = [], {}, None, []
     for source in sources:
+        inputs.append(source.events.schema)
         found = sch.sensor_of(source.events.schema)
         if sensor is None:
             sensor = found
@@ -226,4 +229,4 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
     sync = dict(method.args())
     sync["trials"] = info
     width, height = sensor if sensor else (None, None)
-    return sch.recordings_table(trials, width, height, sync=sync)
+    return provenance.carry(sch.recordings_table(trials, width, height, sync=sync), inputs)

@@ -48,6 +48,9 @@ XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 
 XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
 XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
 XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
+# below this best correlation sync warns that camera and force log may not belong together; a warning,
+# not a refusal, because matched and mismatched simulated pairs overlap (docs/journal.md)
+XCORR_MIN_CORRELATION = 0.5
 
 
 def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
@@ -237,3 +240,14 @@ def uncertainty_warnings(trials: dict) -> list[str]:
     return [f"xcorr's offset is uncertain by more than ±{XCORR_UNCERTAIN_US / 1000:g} ms on {len(wide)} of {len(trials)} "
             f"trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor?); an LED blink (--method led) "
             "or a trigger aligns within 0.1 ms"]
+
+
+def unrelated_warnings(trials: dict) -> list[str]:
+    """One warning for the trials whose event rate and force log hardly correlate at any offset."""
+    low = {name: info["correlation"] for name, info in trials.items() if info.get("correlation", 1.0) < XCORR_MIN_CORRELATION}
+    if not low:
+        return []
+    worst = min(low, key=low.get)
+    return [f"on {len(low)} of {len(trials)} trial(s) the event rate and the force log correlate below "
+            f"{XCORR_MIN_CORRELATION} at their best offset (lowest r {low[worst]:.3f}, {worst}): are they of the same "
+            "grasp? Check the pairing; an LED blink (--method led) or a trigger does not depend on it"]

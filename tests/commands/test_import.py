@@ -78,10 +78,10 @@ def test_import_from_stdin(tmp_path):
 def test_several_files_are_one_table_in_order(tmp_path):
     es, dat = real_file("atis_ncars_loris.es"), real_file("atis_ncars_loris.dat")
     out = tmp_path / "two.parquet"
-    result = run(["import", str(dat), str(dat), "-o", str(out), "--sensor", "304x240"])
+    result = run(["import", "--one-stream", str(dat), str(dat), "-o", str(out), "--sensor", "304x240"])
     assert result.exit_code == 0, result.output
     assert pq.read_table(out).num_rows == 2 * 4_407
-    mixed = run(["import", str(es), str(dat), "-o", str(out)])
+    mixed = run(["import", "--one-stream", str(es), str(dat), "-o", str(out)])
     assert mixed.exit_code == 1 and "different sensor sizes" in mixed.output
 
 
@@ -96,7 +96,7 @@ def test_sensor_option_overrides_and_too_small_a_sensor_is_an_error(tmp_path):
 @pytest.mark.parametrize(
     "setup, expected",
     [
-        (lambda d: str(d), "is a directory"),
+        (lambda d: str(d), "holds no camera files"),
         (lambda d: str(d / "missing.aedat"), "no such file"),
         (lambda d: make(d / "empty.aedat", b""), "is empty"),
         (lambda d: make(d / "x.bin", bytes(range(256)) * 4), "unknown camera format"),

@@ -1,0 +1,212 @@
+"""neurotac as a library: the functions the commands call, for notebooks and scripts (docs/python.md).
+
+Tables are pyarrow Tables of the kinds of docs/formats.md (events, recordings, frames, predictions,
+metrics); counts come out as numpy arrays (frames, 2, H, W), channel 0 = OFF, 1 = ON. Durations are
+integer microseconds or strings with their unit ("10ms"). Errors are `neurotac_cli.errors.NeurotacError`
+with the message the command line would print. Nothing here prints or exits.
+
+    from neurotac_cli import api
+    recordings = api.simulate("ch4", trials=4, seed=1)
+    frames = api.crop(api.frame(recordings, "10ms"), size=(60, 60), center="auto", pool=(2, 2))
+    model = api.train(frames, "tdnn", epochs=5)
+    predictions, metrics = api.evaluate(model, frames)
+"""
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError
+from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
+
+TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
+
+
+def _us(duration) -> int:
+    from neurotac_cli.units import parse_duration_us
+
+    return int(duration) if isinstance(duration, (int, np.integer)) else parse_duration_us(str(duration))
+
+
+# ---------------------------------------------------------------- tables in and out
+
+
+def read(*paths: str, kind=None) -> pa.Table:
+    """Tables (Arrow IPC stream or file, Parquet) read as one, checked as `kind` when given."""
+    from neurotac_cli import tables
+
+    return tables.read(list(paths), kind=kind)
+
+
+def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
+    """Write by suffix (.parquet, .arrow, .arrows; .csv, .json, .ndjson without tensors), atomically;
+    `step` = (command, args) appends to the table's history."""
+    from neurotac_cli import tables
+
+    if path in (None, "-"):
+        raise NeurotacError("give a file path: the library does not write binary tables to stdout")
+    tables.write(path, table, step=step)
+
+
+def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
+    """A camera file (AEDAT, EVT2/3, DAT, ES, CSV, text) as an events table, timestamps as written."""
+    from neurotac_cli.io.camera import read_events_table
+
+    return read_events_table(path, sensor=sensor)
+
+
+def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **overrides) -> pa.Table:
+    """Simulated grasps as a recordings table, cut at the true LED-off instant (`simulate --synced`)."""
+    from neurotac_cli.sim.config import preset_config
+    from neurotac_cli.sim.run import recordings, simulate as run
+
+    return recordings(run(preset_config(preset, **overrides), seed=seed, trials=trials))
+
+
+def sync(camera, force: str, method: str = "led", trial: str | None = None, labels: dict | None = None) -> pa.Table:
+    """One camera recording (a path or an events table) and its force log as a recordings table."""
+    from neurotac_cli.io.camera import trial_name
+    from neurotac_cli.ops import sync as sy
+
+    events = import_camera(camera) if isinstance(camera, str) else camera
+    name = trial or (trial_name(camera) if isinstance(camera, str) else "trial")
+    source = sy.Source(trial=name, events=events, force=sy.ForceOptions().read(force), labels=dict(labels or {}))
+    return sy.sync_sources([source], sy.SyncMethod(method=method))
+
+
+# ---------------------------------------------------------------- frames
+
+
+def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
+    """Frames of a recordings table (per trial, from t0) or an events table (one trial, from its first
+    event). `options` as `neurotac frame`'s: partial, pad_to, force_at, phases, accumulate, dtype."""
+    from neurotac_cli.ops import frame as fr
+
+    if sch.kind_of(table.schema) == "recordings":
+        return fr.frame_recordings(table, _us(window), **options)
+    return fr.frames_from_events_table(table, _us(window), **options)
+
+
+def crop(table: pa.Table, box=None, size=None, center=None, pool=None) -> pa.Table:
+    """Crop and sum-pool frames, recordings or events: box=(x, y, w, h), or size=(w, h) with
+    center=(x, y) or "auto"; pool=(k, l) or "all"."""
+    from neurotac_cli.ops import crop as cr
+
+    return cr.crop_table(table, cr.CropSpec(box=box, size=size, center=center, pool=pool))
+
+
+def augment(frames: pa.Table, *methods, copies: int = 1, combine: str = "independent", seed: int = 0,
+            keep_original: bool = True) -> pa.Table:
+    """Augmented copies of every trial, e.g. augment(frames, api.Rotate(0, 45), api.FrameShift(-1))."""
+    from neurotac_cli.ops.augment import augment_frames
+
+    table, _ = augment_frames(frames, list(methods), copies=copies, combine=combine, keep_original=keep_original, seed=seed)
+    return table
+
+
+def counts(frames: pa.Table, trial: str | None = None) -> np.ndarray:
+    """The counts of all frames, or of one trial in frame order, as (frames, 2, H, W) numpy."""
+    import pyarrow.compute as pc
+
+    if trial is not None:
+        frames = frames.filter(pc.equal(frames.column("trial"), trial))
+        frames = frames.take(pc.sort_indices(frames.column("frame")))
+    return sch.counts_numpy(frames.column("counts"))
+
+
+# ---------------------------------------------------------------- models
+
+
+def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: float | None = 0.1, **options):
+    """Train a model (`neurotac train --model NAME`); `options` are its hyperparameters (epochs, layers, ...)."""
+    from neurotac_cli import model as models
+
+    return models.train(frames, models.make_spec(model, **options), val_fraction=val_fraction, seed=seed)
+
+
+def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, pa.Table]:
+    """(predictions, metrics) of a model on frames, as `neurotac eval --model`."""
+    from neurotac_cli.metrics import metrics_table
+    from neurotac_cli.model import evaluate as ev
+
+    predictions, rows = ev.evaluate_model(model, frames, nonzero=nonzero)
+    return predictions, metrics_table(rows, model.name)
+
+
+def load_model(path: str):
+    from neurotac_cli import model as models
+
+    return models.load(path)
+
+
+def save_model(model, path: str) -> None:
+    from neurotac_cli import model as models
+
+    models.save(model, path)
+
+
+class Stepper:
+    """A force model fed frame by frame, as `neurotac predict` does: its state carried between calls."""
+
+    def __init__(self, model):
+        if model.task != "force":
+            raise NeurotacError(f"model {model.name!r} classifies materials; only force models are stepped")
+        self.model, self.state = model, None
+
+    def step(self, counts: np.ndarray, t_us) -> np.ndarray:
+        """Force (N) for one frame (2, H, W) or several in order (n, 2, H, W), at their start times in µs."""
+        counts = np.asarray(counts)
+        many = counts.ndim == 4
+        t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
+        force, self.state = self.model.step(counts[None] if many else counts[None, None], t[None], self.state)
+        return force[0] if many else force[0, 0]
+
+    def reset(self) -> None:
+        self.state = None
+
+
+# ---------------------------------------------------------------- other tools
+
+
+def to_tonic(events: pa.Table) -> np.ndarray:
+    """An events table as the structured array tonic's transforms take (fields x, y, t µs, p 0/1)."""
+    out = np.empty(events.num_rows, dtype=TONIC_DTYPE)
+    for name in ("x", "y", "t", "p"):
+        out[name] = events.column(name).to_numpy()
+    return out
+
+
+def from_tonic(array: np.ndarray, sensor_size: tuple) -> pa.Table:
+    """A tonic structured array (t in µs, p 0/1 or -1/1 or bool) as an events table; sensor_size is
+    tonic's (W, H, polarities)."""
+    p = np.asarray(array["p"])
+    return sch.events_table(np.asarray(array["t"], np.int64), np.asarray(array["x"], np.uint16), np.asarray(array["y"], np.uint16),
+                            (p > 0).astype(np.uint8), width=int(sensor_size[0]), height=int(sensor_size[1]))
+
+
+def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
+    """tonic's sensor_size (W, H, 2) of an events table."""
+    sensor = sch.sensor_of(events.schema)
+    if sensor is None:
+        raise NeurotacError("the events table does not say its sensor size (import it with --sensor WxH)")
+    return sensor[0], sensor[1], 2
+
+
+def events_of(recordings: pa.Table, trial: str) -> pa.Table:
+    """One trial of a recordings table as an events table, times relative to its t0."""
+    import pyarrow.compute as pc
+
+    row = recordings.filter(pc.equal(recordings.column("trial"), trial))
+    if row.num_rows == 0:
+        raise NeurotacError(f"no trial {trial!r} in the recordings")
+    events = row.column("events").combine_chunks().flatten()
+    sensor = sch.sensor_of(recordings.schema) or (None, None)
+    return sch.events_table(*(events.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")),
+                            width=sensor[0], height=sensor[1])
+
+
+def render(table: pa.Table, path: str, **spec) -> dict:
+    """Draw a table into a PNG, GIF or MP4, as `neurotac render` (spec: view, trial, slices, every, ...)."""
+    from neurotac_cli import rendering as rd
+
+    return rd.render(table, path, rd.RenderSpec(**spec))

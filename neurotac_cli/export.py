@@ -1,0 +1,157 @@
+"""Events tables back into camera files, for the vendors' tools: Prophesee EVT 3.0 (.raw), iniVation
+AEDAT 4.0 (.aedat4, `aedat4_bytes`) and jAER AEDAT 2.0 (.aedat, io/writers.py).
+
+EVT 3.0 is 16-bit little-endian words after a `%` header (`% evt 3.0`, `% format EVT3;height=H;width=W`,
+`% geometry WxH`, `% end`). Time is a 24-bit µs counter: TIME_HIGH (0x8) holds bits 12-23, TIME_LOW
+(0x6) bits 0-11; a reader counts a loop of 2^24 µs each time TIME_HIGH falls back, so a TIME_HIGH is
+written for every 4096 µs step of the recording, events or not, as a camera does. Each event is an
+EVT_ADDR_Y (0x0, written when the row changes) and an EVT_ADDR_X (0x2: x, polarity in bit 11), after
+a TIME_LOW when its time changes. A reader starts at time 0, so the TIME_HIGH steps are written from
+0 and times come back as they were; a recording that starts later than 10 minutes (Unix time, as
+AEDAT 4.0 writes) is written from the 2^24 µs loop of its first event instead, and comes back
+earlier by whole loops (`shift_us` in the report). Events must be in time order, as EVT 3.0 cannot go back in time.
+"""
+
+import struct
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError, UsageError
+
+EVT3_LOOP_US = 1 << 24
+WALK_LIMIT_US = 600_000_000  # first events up to 10 min in: TIME_HIGH walked from 0 (146k words at most)
+FORMATS = {".raw": "evt3", ".aedat": "aedat2", ".aedat4": "aedat4"}
+AEDAT4_PACKET_EVENTS = 1 << 15
+AEDAT4_EVENT = np.dtype({"names": ["t", "x", "y", "on"], "formats": ["<i8", "<i2", "<i2", "u1"], "offsets": [0, 8, 10, 12], "itemsize": 16})
+
+
+def export_format(path: str) -> str:
+    import os
+
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in FORMATS:
+        raise UsageError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat4 for AEDAT 4.0, .aedat for AEDAT 2.0)")
+    return FORMATS[suffix]
+
+
+def evt3_bytes(t, x, y, p, width: int, height: int) -> tuple[bytes, int]:
+    """(the bytes of an EVT 3.0 file, the whole loops taken off the times in µs)."""
+    t = np.asarray(t, dtype=np.int64)
+    if len(t) and np.any(np.diff(t) < 0):
+        raise NeurotacError("EVT 3.0 cannot go back in time: the events are not in time order (sort them by t first)")
+    if width > 2048 or height > 2048:
+        raise NeurotacError(f"EVT 3.0 addresses 2048x2048 pixels at most, the sensor is {width}x{height}")
+    header = f"% evt 3.0\n% format EVT3;height={height};width={width}\n% geometry {width}x{height}\n% end\n".encode()
+    if not len(t):
+        return header, 0
+    shift = 0 if t[0] < WALK_LIMIT_US else int(t[0]) // EVT3_LOOP_US * EVT3_LOOP_US
+    t = t - shift
+    high = t >> 12
+    y = np.asarray(y, dtype=np.int64)
+    # before each event: the TIME_HIGH steps since the previous event's (every one, so loops are seen),
+    # a TIME_LOW when its time changes, an ADDR_Y when its row changes (or a TIME_HIGH came between)
+    previous = np.r_[-1, high[:-1]]  # the clock is walked from 0 (a reader counts loops from there)
+    highs_before = high - previous
+    new_time = np.r_[True, np.diff(t) != 0]
+    new_row = np.r_[True, np.diff(y) != 0] | (highs_before > 0)
+    per_event = highs_before + new_time + new_row + 1
+    out = np.empty(int(per_event.sum()), dtype=np.uint16)
+    start = np.cumsum(per_event) - per_event
+    within = np.arange(highs_before.sum()) - np.repeat(np.cumsum(highs_before) - highs_before, highs_before)
+    out[np.repeat(start, highs_before) + within] = (0x8 << 12) | ((np.repeat(previous + 1, highs_before) + within) & 0xFFF)
+    at = start + highs_before
+    out[at[new_time]] = (0x6 << 12) | (t[new_time] & 0xFFF)
+    at = at + new_time
+    out[at[new_row]] = (0x0 << 12) | (y[new_row] & 0x7FF)
+    at = at + new_row
+    out[at] = (0x2 << 12) | ((np.asarray(p, dtype=np.int64) & 1) << 11) | (np.asarray(x, dtype=np.int64) & 0x7FF)
+    return header + out.astype("<u2").tobytes(), shift
+
+
+def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
+    """The bytes of an AEDAT 4.0 file: one uncompressed events stream (id 0), as dv writes it.
+
+    After `#!AER-DAT4.0\\r\\n`, the IOHeader flatbuffer (compression none, no file data table, the
+    stream described in dv's XML with sizeX/sizeY) with its length before it, then packets:
+    stream id, length, and a size-prefixed EventPacket flatbuffer (identifier EVTS) of 16-byte
+    Event structs (t int64 µs, x int16, y int16, on bool). The flatbuffers are laid out by hand:
+    fixed tables, offsets pointing forward, the struct vector 8-byte aligned."""
+    description = (
+        '<dv version="2.0"><node name="outInfo" path="/mainloop/neurotac/outInfo/">'
+        '<node name="0" path="/mainloop/neurotac/outInfo/0/">'
+        '<attr key="compression" type="string">NONE</attr>'
+        '<attr key="originalModuleName" type="string">neurotac</attr>'
+        '<attr key="originalOutputName" type="string">events</attr>'
+        '<attr key="typeDescription" type="string">Array of events (polarity ON/OFF).</attr>'
+        '<attr key="typeIdentifier" type="string">EVTS</attr>'
+        '<node name="info" path="/mainloop/neurotac/outInfo/0/info/">'
+        f'<attr key="sizeX" type="int">{int(width)}</attr><attr key="sizeY" type="int">{int(height)}</attr>'
+        '<attr key="source" type="string">neurotac</attr></node></node></node></dv>'
+    ).encode()
+    # IOHeader: root offset, "IOHE", vtable (10 bytes) at 8, table at 24: soffset, compression at +4,
+    # file_data_position (int64, 8-aligned) at +8, description offset at +16 -> string at 44
+    header = struct.pack("<I4sHHHHH6xiiqI", 24, b"IOHE", 10, 20, 4, 8, 16, 16, 0, -1, 4)
+    header += struct.pack("<I", len(description)) + description + b"\0"
+    header += b"\0" * (-len(header) % 4)
+    out = [b"#!AER-DAT4.0\r\n", struct.pack("<I", len(header)), header]
+    events = np.zeros(len(t), dtype=AEDAT4_EVENT)
+    events["t"], events["x"], events["y"], events["on"] = t, x, y, np.asarray(p) > 0
+    for start in range(0, len(events), AEDAT4_PACKET_EVENTS):
+        part = events[start : start + AEDAT4_PACKET_EVENTS]
+        # size prefix, root offset (table at 20), "EVTS", vtable (6 bytes) at 12, table: soffset 8 and
+        # the vector's offset (to 28), vector length at 28, elements from 32
+        packet = struct.pack("<II4sHHH2xiII", 28 + 16 * len(part), 16, b"EVTS", 6, 8, 4, 8, 4, len(part)) + part.tobytes()
+        out += [struct.pack("<II", 0, len(packet)), packet]
+    return b"".join(out)
+
+
+def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
+    """(t, x, y, p, width, height) of an events table, or of one trial of a recordings table on the
+    camera's clock (t0 added back)."""
+    import pyarrow.compute as pc
+
+    kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
+    sensor = sch.sensor_of(table.schema)
+    if sensor is None:
+        raise NeurotacError("the table does not say its sensor size, which a camera file needs (import with --sensor WxH)")
+    if kind == "events":
+        if trial is not None:
+            raise NeurotacError("--trial picks a trial of a recordings table; an events table is one recording")
+        columns = [table.column(name).to_numpy() for name in ("t", "x", "y", "p")]
+        return (*columns, *sensor)
+    if kind != "recordings":
+        raise NeurotacError(f"export writes events or recordings tables, got {kind or 'an unknown'} table")
+    trials = table.column("trial").to_pylist()
+    if trial is None and len(trials) > 1:
+        raise NeurotacError(f"the recordings hold {len(trials)} trials: pick one with --trial (e.g. {trials[0]})")
+    name = trial or trials[0]
+    row = table.filter(pc.equal(table.column("trial"), name))
+    if row.num_rows == 0:
+        raise NeurotacError(f"no trial {name!r} in the recordings (trials: {', '.join(trials[:6])})")
+    events = row.column("events").combine_chunks().flatten()
+    t0 = int(row.column("t0")[0].as_py())
+    t, x, y, p = (events.field(n).to_numpy(zero_copy_only=False) for n in ("t", "x", "y", "p"))
+    return (t.astype(np.int64) + t0, x, y, p, *sensor)
+
+
+def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
+    """Write `table` (events, or one trial of recordings) as the camera file `path` by its suffix."""
+    from neurotac_cli.io.writers import aedat2_bytes
+    from neurotac_cli.tables import atomic_file
+
+    fmt = export_format(path)
+    t, x, y, p, width, height = events_arrays(table, trial)
+    if fmt == "evt3":
+        data, shift = evt3_bytes(t, x, y, p, width, height)
+    elif fmt == "aedat4":
+        data, shift = aedat4_bytes(t, x, y, p, width, height), 0
+    else:
+        if len(t) and (t.min() < 0 or t.max() >= 1 << 32):
+            raise NeurotacError("AEDAT 2.0 holds times from 0 to 71 minutes in µs; these events lie outside (use .raw)")
+        data, shift = aedat2_bytes(t, x, y, p, width=width, height=height), 0
+    with atomic_file(path) as temporary:
+        with open(temporary, "wb") as sink:
+            sink.write(data)
+    return {"format": fmt, "events": int(len(t)), "bytes": len(data), "shift_us": shift}

@@ -1,0 +1,166 @@
+"""Rows of any table: select by an expression, concatenate with checks, split into training and test.
+
+Expressions are SQL (DuckDB), evaluated over the table's plain columns (not counts, events or force
+lists): `material = 'steel' AND frame < 30`, `phase IN ('holding', 'releasing')`,
+`t BETWEEN 0 AND 200000` (µs), `trial LIKE 'steel-%'`. DuckDB only computes which rows to keep;
+the rows themselves are taken with pyarrow, so tensors, nested lists and the metadata pass unchanged.
+A row whose expression is NULL (a missing label) is not kept. DuckDB runs without file access.
+
+Splits move whole trials, and an augmented copy goes with its source (`source_trial`), so no test
+trial is seen in training under another name.
+"""
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError, SchemaError
+
+
+def plain_columns(schema: pa.Schema) -> list[str]:
+    return [f.name for f in schema if not (pa.types.is_nested(f.type) or isinstance(f.type, pa.BaseExtensionType))]
+
+
+def where_mask(table: pa.Table, expression: str) -> np.ndarray:
+    """Which rows of `table` the SQL `expression` keeps (NULL: not kept)."""
+    import duckdb
+
+    plain = table.select(plain_columns(table.schema)).replace_schema_metadata(None)
+    connection = duckdb.connect()
+    try:
+        connection.execute("SET enable_external_access = false")
+        connection.register("input_rows", plain)
+        keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows").fetchnumpy()["keep"]
+    except duckdb.Error as error:
+        first = str(error).splitlines()[0]
+        raise NeurotacError(f"cannot evaluate {expression!r}: {first} (columns: {', '.join(plain.column_names)}; "
+                            "write SQL, strings in single quotes, times in µs)") from None
+    finally:
+        connection.close()
+    keep = np.asarray(keep)
+    if keep.dtype != bool:
+        raise NeurotacError(f"{expression!r} is not a condition (it gives {keep.dtype} values; compare, e.g. frame < 30)")
+    return keep
+
+
+def select(table: pa.Table, expression: str) -> tuple[pa.Table, dict]:
+    """The rows the expression keeps; (table, {"kept": n, "dropped": m})."""
+    keep = where_mask(table, expression)
+    return table.filter(pa.array(keep)), {"kept": int(keep.sum()), "dropped": int((~keep).sum())}
+
+
+# ---------------------------------------------------------------- concat
+
+
+def trial_ids(table: pa.Table) -> list[str]:
+    return pc.unique(table.column("trial")).to_pylist() if "trial" in table.column_names else []
+
+
+def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.Table, list[str]]:
+    """One table of several (name, table) parts of one kind. Trials already seen in an earlier part
+    are refused, or with `rename` get `~2`, `~3`, ... (returned as notes for a warning)."""
+    seen, notes, tables = {}, [], []
+    check_alike(parts)
+    for name, table in parts:
+        ids = trial_ids(table)
+        clash = [trial for trial in ids if trial in seen]
+        if clash and not rename:
+            raise SchemaError(f"trial {clash[0]!r} is in both {seen[clash[0]]} and {name} ({len(clash)} trial(s) in both); "
+                              "a trial twice would be trained on twice: drop one, or give --rename to suffix the later ones")
+        if clash:
+            mapping = {trial: _free_name(trial, seen) for trial in clash}
+            notes.append(f"{name}: renamed {len(clash)} trial(s), e.g. {clash[0]} -> {mapping[clash[0]]}")
+            renamed = [mapping.get(trial, trial) for trial in table.column("trial").to_pylist()]
+            index = table.schema.get_field_index("trial")
+            table = table.set_column(index, table.schema.field(index), pa.array(renamed, pa.string()))
+            ids = [mapping.get(trial, trial) for trial in ids]
+        seen.update({trial: name for trial in ids})
+        tables.append(table)
+    first = tables[0].schema
+    try:
+        combined = pa.concat_tables([t.replace_schema_metadata(first.metadata) for t in tables], promote_options="none")
+    except pa.ArrowInvalid as error:
+        raise SchemaError(f"the tables have different columns or types ({str(error).splitlines()[0]}); "
+                          "select the same columns in each first") from None
+    return combined, notes
+
+
+def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
+    """The parts are of one kind, sensor size and frame window."""
+    first_name, first = parts[0]
+    facts = lambda schema: {"kind": sch.kind_of(schema) or sch._guess_kind(schema), "sensor size": sch.sensor_of(schema),  # noqa: E731
+                            "frame window (µs)": sch.get_meta(schema, sch.WINDOW)}
+    expected = facts(first.schema)
+    for name, table in parts[1:]:
+        for what, value in facts(table.schema).items():
+            if value is not None and expected[what] is not None and value != expected[what]:
+                raise SchemaError(f"{name} has {what} {_show(value)}, {first_name} {_show(expected[what])}; "
+                                  "concatenate tables made alike (crop and frame them the same way)")
+
+
+def _show(value) -> str:
+    return f"{value[0]}x{value[1]}" if isinstance(value, tuple) else str(value)
+
+
+def _free_name(trial: str, seen: dict) -> str:
+    number = 2
+    while f"{trial}~{number}" in seen:
+        number += 1
+    return f"{trial}~{number}"
+
+
+# ---------------------------------------------------------------- split
+
+
+def _groups(table: pa.Table) -> np.ndarray:
+    """Each row's split group: its source trial (an augmented copy goes with its source), else its trial."""
+    column = "source_trial" if "source_trial" in table.column_names else "trial"
+    groups = table.column(column).to_numpy(zero_copy_only=False)
+    if column == "source_trial":
+        trials = table.column("trial").to_numpy(zero_copy_only=False)
+        groups = np.where(pc.is_null(table.column(column)).to_numpy(zero_copy_only=False), trials, groups)
+    return groups.astype(object)
+
+
+def split(table: pa.Table, fraction: float | None = None, where: str | None = None, per: str | None = None,
+          seed: int = 0) -> tuple[pa.Table, pa.Table, dict]:
+    """(train, test, report): test = the trials `where` selects (any of its rows), or a seeded share
+    `fraction` of the trials, drawn within each value of the label `per` when given."""
+    if "trial" not in table.column_names:
+        raise SchemaError("split moves whole trials: the table has no trial column (select rows with `neurotac select`)")
+    if (fraction is None) == (where is None):
+        raise NeurotacError("give either --fraction (a seeded share of the trials) or --where (the test trials by a condition)")
+    groups = _groups(table)
+    if where is not None:
+        test_groups = set(groups[where_mask(table, where)].tolist())
+    else:
+        if not 0 < fraction < 1:
+            raise NeurotacError(f"--fraction must lie between 0 and 1, got {fraction}")
+        test_groups = _draw(table, groups, fraction, per, np.random.default_rng(seed))
+    in_test = np.isin(groups, list(test_groups))
+    if in_test.all() or not in_test.any():
+        raise NeurotacError(f"the split leaves the {'training' if in_test.all() else 'test'} table empty; "
+                            "change --fraction or --where")
+    train, test = table.filter(pa.array(~in_test)), table.filter(pa.array(in_test))
+    report = {"train_trials": len(set(groups[~in_test].tolist())), "test_trials": len(test_groups),
+              "train_rows": train.num_rows, "test_rows": test.num_rows, "test": sorted(test_groups)}
+    return train, test, report
+
+
+def _draw(table: pa.Table, groups: np.ndarray, fraction: float, per: str | None, rng) -> set:
+    unique = list(dict.fromkeys(groups.tolist()))
+    if per is None:
+        strata = {"": unique}
+    else:
+        if per not in table.column_names:
+            raise SchemaError(f"no label column {per!r} to split per (labels: {', '.join(sch.label_columns(table.schema))})")
+        labels = dict(zip(groups.tolist(), table.column(per).to_pylist()))
+        strata = {}
+        for group in unique:
+            strata.setdefault(labels[group], []).append(group)
+    chosen = set()
+    for members in strata.values():
+        count = int(round(fraction * len(members)))
+        chosen.update(rng.choice(np.array(members, dtype=object), size=count, replace=False).tolist() if count else [])
+    return chosen

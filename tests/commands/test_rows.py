@@ -1,0 +1,100 @@
+"""select, concat, split: rows by a condition, tables joined with checks, trials split whole."""
+
+import subprocess
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from click.testing import CliRunner
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.cli import cli
+from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.ops.rows import concat, select, split
+from tests.model.helpers import tiny_frames
+
+
+def test_select_keeps_tensors_and_metadata_and_drops_null_conditions():
+    frames = tiny_frames(trials=4)
+    kept, report = select(frames, "object = 'small' AND frame BETWEEN 2 AND 4")
+    assert report == {"kept": 6, "dropped": 42}
+    assert kept.schema.equals(frames.schema, check_metadata=True)
+    assert set(kept.column("trial").to_pylist()) == {"t0", "t2"} and set(kept.column("frame").to_pylist()) == {2, 3, 4}
+    nulls = frames.set_column(frames.schema.get_field_index("object"), "object", pa.array([None] * frames.num_rows, pa.string()))
+    assert select(nulls, "object <> 'small'")[1]["kept"] == 0
+
+
+@pytest.mark.parametrize("expression, words", [("frame <", "syntax error"), ("size > 1", 'column "size" not found'),
+                                               ("frame + 1", "is not a condition"), ("read_csv('/etc/passwd') IS NULL", "cannot evaluate")])
+def test_select_refuses_what_it_cannot_evaluate(expression, words):
+    with pytest.raises(NeurotacError, match=words):
+        select(tiny_frames(trials=2), expression)
+
+
+def test_concat_refuses_a_trial_twice_or_renames_it():
+    frames = tiny_frames(trials=2)
+    with pytest.raises(SchemaError, match="trial 't0' is in both a and b"):
+        concat([("a", frames), ("b", frames)])
+    table, notes = concat([("a", frames), ("b", frames), ("c", frames)], rename=True)
+    assert sorted(set(table.column("trial").to_pylist())) == ["t0", "t0~2", "t0~3", "t1", "t1~2", "t1~3"]
+    assert len(notes) == 2 and table.schema.equals(frames.schema, check_metadata=True)
+
+
+def test_concat_refuses_frames_of_another_window():
+    with pytest.raises(SchemaError, match="frame window"):
+        concat([("a", tiny_frames(trials=1)), ("b", tiny_frames(trials=1, seed=1, window_us=7000))])
+
+
+def test_split_by_fraction_is_seeded_keeps_copies_with_their_source_and_stratifies():
+    frames = tiny_frames(trials=8, augmented_copies=1)
+    train, test, report = split(frames, fraction=0.25, per="object", seed=3)
+    again = split(frames, fraction=0.25, per="object", seed=3)[2]
+    assert report["test"] == again["test"] and len(report["test"]) == 2
+    test_sources = set(test.column("source_trial").to_pylist())
+    assert not test_sources & set(train.column("source_trial").to_pylist())
+    assert {"small", "large"} == set(test.column("object").to_pylist())  # one trial of each object
+    assert train.num_rows + test.num_rows == frames.num_rows
+
+
+def test_split_by_a_condition_and_refusals():
+    frames = tiny_frames(trials=4)
+    train, test, _ = split(frames, where="object = 'large'")
+    assert set(test.column("trial").to_pylist()) == {"t1", "t3"}
+    with pytest.raises(NeurotacError, match="leaves the test table empty"):
+        split(frames, where="object = 'huge'")
+    with pytest.raises(NeurotacError, match="either --fraction"):
+        split(frames)
+
+
+def test_split_command_writes_both_tables(tmp_path):
+    source = str(tmp_path / "f.arrows")
+    tables.write(source, tiny_frames(trials=4))
+    result = CliRunner().invoke(cli, ["split", source, "--fraction", "0.5", "--train", str(tmp_path / "a.parquet"),
+                                      "--test", str(tmp_path / "b.parquet")])
+    assert result.exit_code == 0, result.output
+    a, b = tables.read([str(tmp_path / "a.parquet")]), tables.read([str(tmp_path / "b.parquet")])
+    assert a.num_rows == b.num_rows == 24 and sch.get_meta(b.schema, sch.HISTORY)[-1]["args"]["part"] == "test"
+
+
+def test_a_new_users_workflow_by_shell_pipes(tmp_path):
+    """A folder of simulated grasps to a drawn montage, a selection, a split, a model and CSV predictions."""
+    script = f"""
+    set -euo pipefail
+    cd {tmp_path}
+    neurotac simulate --preset ch4 --trials 6 --seed 5 --out sim 2>/dev/null
+    neurotac sync --manifest sim/manifest.csv | neurotac frame --window 10ms \\
+      | neurotac crop --size 60x60 --center auto --pool 2x2 > frames.arrows 2>/dev/null
+    neurotac render frames.arrows --every 4 -o montage.png 2>/dev/null
+    neurotac select --where "phase IS NOT NULL" frames.arrows 2>/dev/null \\
+      | neurotac split --fraction 0.34 --seed 1 --train train.arrows --test test.arrows 2>/dev/null
+    neurotac train --model tdnn --epochs 2 train.arrows -o force.model 2>/dev/null
+    neurotac eval --model force.model test.arrows -o predictions.csv 2>/dev/null
+    head -1 predictions.csv
+    """
+    done = subprocess.run(["bash", "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().startswith('"trial","frame","t"') and "force_pred" in done.stdout
+    assert (tmp_path / "montage.png").stat().st_size > 0
+    assert oct((tmp_path / "force.model").stat().st_mode & 0o077) == oct((tmp_path / "frames.arrows").stat().st_mode & 0o077)
+    counts = np.loadtxt(tmp_path / "predictions.csv", delimiter=",", skiprows=1, usecols=(1,))
+    assert len(counts) > 0

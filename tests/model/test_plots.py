@@ -1,0 +1,48 @@
+"""Figures say how well: the restored epoch, RMSE in the title, ticks that read on a log axis."""
+
+import math
+
+import numpy as np
+import pyarrow as pa
+from PIL import Image
+
+from neurotac_cli.model import plots
+
+
+def test_restored_epoch_is_the_first_lowest_validation_loss():
+    curve = [{"epoch": e, "train_loss": 1.0 / e, "val_loss": v} for e, v in enumerate([0.5, 0.3, 0.3, 0.4], start=1)]
+    assert plots.restored_epoch(curve)["epoch"] == 2
+    no_validation = [{"epoch": e, "train_loss": t, "val_loss": math.nan} for e, t in enumerate([3.0, 1.0, 2.0], start=1)]
+    assert plots.restored_epoch(no_validation)["epoch"] == 2
+
+
+def test_a_log_axis_within_one_decade_has_several_labelled_ticks(tmp_path):
+    plt = plots._pyplot()
+    figure, axis = plt.subplots()
+    values = [0.071, 0.09, 0.2, 0.31]
+    axis.plot(range(4), values)
+    axis.set_yscale("log")
+    plots.log_ticks(axis, values)
+    figure.canvas.draw()
+    low, high = axis.get_ylim()
+    labelled = [tick for tick in axis.get_yticks() if low <= tick <= high]
+    assert len(labelled) >= 4 and all(label.get_text() for label in axis.get_yticklabels() if low <= label.get_position()[1] <= high)
+    plt.close(figure)
+
+
+def test_force_errors_skip_unknown_frames():
+    rmse, mae, frames = plots.force_errors(np.array([1.0, 2.0, np.nan]), np.array([2.0, 2.0, 5.0]))
+    assert (round(rmse, 6), mae, frames) == (round(math.sqrt(0.5), 6), 0.5, 2)
+
+
+def test_figures_are_written(tmp_path):
+    predictions = pa.table({"trial": ["a"] * 4 + ["b"] * 4, "t": [0, 10_000, 20_000, 30_000] * 2,
+                            "force": np.linspace(0, 2, 8), "force_pred": np.linspace(0.1, 2.1, 8),
+                            "phase": ["grasping", "holding", "holding", None] * 2})
+    plots.force_figure(predictions, str(tmp_path / "f.png"), title="tdnn")
+    curve = [{"epoch": e, "train_loss": 1.0 / e, "val_loss": 0.5 + abs(e - 3) / 10} for e in range(1, 8)]
+    plots.curve_figure(curve, str(tmp_path / "c.png"), title="tdnn training curve")
+    plots.confusion_figure(np.array([[3, 1], [0, 4]]), ["foam", "steel"], str(tmp_path / "m.png"))
+    for name in ("f", "c", "m"):
+        with Image.open(tmp_path / f"{name}.png") as image:
+            assert image.format == "PNG" and min(image.size) > 300

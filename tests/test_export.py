@@ -1,0 +1,79 @@
+"""Camera files out: EVT 3.0 and AEDAT 2.0 written from events tables read back equal."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.cli import cli
+from neurotac_cli.errors import NeurotacError
+from neurotac_cli.export import evt3_bytes, export
+from neurotac_cli.io.camera import read_events_table
+
+
+def events(n=2000, start=3_000_000, gap=0, seed=0, width=640, height=480):
+    rng = np.random.default_rng(seed)
+    t = np.sort(start + rng.integers(0, 200_000, n))
+    t[n // 2:] += gap
+    return sch.events_table(t, rng.integers(0, width, n), rng.integers(0, height, n), rng.integers(0, 2, n), width, height)
+
+
+def columns(table):
+    return [table.column(name).to_numpy().astype(np.int64) for name in ("t", "x", "y", "p")]
+
+
+@pytest.mark.parametrize("suffix", [".raw", ".aedat", ".aedat4"])
+def test_written_files_read_back_equal(tmp_path, suffix):
+    table = events(width=240, height=180)
+    path = str(tmp_path / f"e{suffix}")
+    assert export(table, path)["shift_us"] == 0
+    back = read_events_table(path)
+    for a, b in zip(columns(back), columns(table)):
+        np.testing.assert_array_equal(a, b)
+    assert sch.sensor_of(back.schema) == (240, 180)
+
+
+def test_evt3_keeps_time_over_many_loops_and_gaps(tmp_path):
+    table = events(start=5_000_000, gap=70_000_000)  # a 70 s gap: four 2^24 µs loops without events
+    (tmp_path / "g.raw").write_bytes(evt3_bytes(*columns(table), 640, 480)[0])
+    for a, b in zip(columns(read_events_table(str(tmp_path / "g.raw"))), columns(table)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_evt3_of_unix_time_drops_whole_loops(tmp_path):
+    table = events(start=1_600_000_000_000_000)
+    data, shift = evt3_bytes(*columns(table), 640, 480)
+    (tmp_path / "u.raw").write_bytes(data)
+    assert shift % (1 << 24) == 0 and shift > 0
+    np.testing.assert_array_equal(columns(read_events_table(str(tmp_path / "u.raw")))[0] + shift, columns(table)[0])
+
+
+def test_refusals(tmp_path):
+    backwards = sch.events_table([5, 3], [0, 0], [0, 0], [1, 1], 4, 4)
+    with pytest.raises(NeurotacError, match="not in time order"):
+        evt3_bytes(*columns(backwards), 4, 4)
+    source = str(tmp_path / "e.arrows")
+    tables.write(source, events())
+    result = CliRunner().invoke(cli, ["export", source, "-o", str(tmp_path / "e.dat")])
+    assert result.exit_code == 1 and "use .raw for EVT 3.0, .aedat4 for AEDAT 4.0" in result.output
+
+
+def test_a_trial_of_recordings_goes_back_on_the_camera_clock(tmp_path):
+    recordings = sch.recordings_table([{"trial": "g", "t0": 1_000_000, "events": ([-50, 0, 10], [1, 2, 3], [4, 5, 6], [1, 0, 1]),
+                                        "force": ([0], [0.5])}], width=240, height=180)
+    source = str(tmp_path / "r.arrows")
+    tables.write(source, recordings)
+    result = CliRunner().invoke(cli, ["export", source, "-o", str(tmp_path / "g.raw")])
+    assert result.exit_code == 0, result.output
+    assert read_events_table(str(tmp_path / "g.raw")).column("t").to_pylist() == [999_950, 1_000_000, 1_000_010]
+
+
+def test_aedat4_is_read_by_the_reference_decoder(tmp_path):
+    aedat = pytest.importorskip("aedat")
+    table = events(n=70_000, width=346, height=260)  # three packets
+    export(table, str(tmp_path / "e.aedat4"))
+    decoder = aedat.Decoder(str(tmp_path / "e.aedat4"))
+    assert decoder.id_to_stream() == {0: {"type": "events", "width": 346, "height": 260}}
+    decoded = np.concatenate([packet["events"] for packet in decoder])
+    for name, column in zip(("t", "x", "y", "on"), columns(table)):
+        np.testing.assert_array_equal(decoded[name].astype(np.int64), column)

@@ -1,0 +1,122 @@
+"""`neurotac render`: every view and picture format is written, readable, and of the size it says."""
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.cli import cli
+from neurotac_cli.ops.augment import augment_frames
+from neurotac_cli.ops.crop import CropSpec
+from neurotac_cli.rendering import RenderSpec, render, rgb
+
+
+def frames_table(trials=("a", "b"), n=6, height=16, width=20):
+    rng = np.random.default_rng(0)
+    counts = rng.poisson(0.3, (len(trials) * n, 2, height, width)).astype(np.uint16)
+    schema = sch.frames_schema(height, width, window_us=10_000)
+    columns = {
+        "trial": pa.array([t for t in trials for _ in range(n)]),
+        "frame": pa.array(np.tile(np.arange(n, dtype=np.int32), len(trials))),
+        "t": pa.array(np.tile(np.arange(n) * 10_000, len(trials))),
+        "counts": sch.counts_array(counts),
+        "force": pa.array(np.tile(np.linspace(0, 2, n), len(trials)).astype(np.float32)),
+        "phase": pa.array(["grasping", "holding", "holding", "holding", "releasing", None] * len(trials)),
+    }
+    return pa.Table.from_pydict(columns, schema=schema)
+
+
+def events_table(n=500):
+    rng = np.random.default_rng(1)
+    t = np.sort(rng.integers(0, 100_000, n))
+    return sch.events_table(t, rng.integers(0, 20, n), rng.integers(0, 16, n), rng.integers(0, 2, n), width=20, height=16)
+
+
+def write_input(tmp_path, table, name="in.arrows"):
+    path = str(tmp_path / name)
+    tables.write(path, table)
+    return path
+
+
+def run(*args):
+    return CliRunner().invoke(cli, ["render", *args])
+
+
+def test_png_montage_of_frames_is_the_size_it_reports(tmp_path):
+    done = render(frames_table(), str(tmp_path / "m.png"), RenderSpec(columns=3))
+    with Image.open(tmp_path / "m.png") as image:
+        assert image.format == "PNG"
+        assert image.size == (done["width"], done["height"])
+    assert (done["trial"], done["pictures"]) == ("a", 1)
+
+
+def test_gif_of_events_has_one_picture_per_slice(tmp_path):
+    path = write_input(tmp_path, events_table())
+    result = run(path, "--slices", "5", "-o", str(tmp_path / "e.gif"))
+    assert result.exit_code == 0, result.output
+    with Image.open(tmp_path / "e.gif") as image:
+        assert (image.format, image.n_frames) == ("GIF", 5)
+    assert "5 pictures" in result.output
+
+
+def test_mp4_of_every_second_frame_has_those_frames_in_whole_macro_blocks(tmp_path):
+    import imageio_ffmpeg
+
+    done = render(frames_table(), str(tmp_path / "m.mp4"), RenderSpec(trial="b", every=2, fps=5))
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "m.mp4"))
+    assert (frames, done["pictures"]) == (3, 3)
+    assert seconds == pytest.approx(0.6, abs=0.05)
+    assert done["width"] % 16 == 0 and done["height"] % 16 == 0
+
+
+def test_slices_of_a_recording_hold_every_event_of_the_trial(tmp_path):
+    from neurotac_cli.rendering import steps_of
+
+    rng = np.random.default_rng(2)
+    t = np.sort(rng.integers(-5_000, 80_000, 300))
+    recordings = sch.recordings_table([{"trial": "r1", "t0": 0, "events": (t, rng.integers(0, 20, 300), rng.integers(0, 16, 300),
+                                        rng.integers(0, 2, 300)), "force": (np.arange(0, 80_000, 2_000), np.ones(40))}],
+                                      width=20, height=16)
+    steps = steps_of(recordings, "r1", RenderSpec(slices=7))
+    assert steps.counts.shape == (7, 2, 16, 20) and steps.counts.sum() == 300
+    render(recordings, str(tmp_path / "r.png"), RenderSpec(slices=7))
+
+
+def test_crop_view_draws_the_box_and_needs_one(tmp_path):
+    spec = RenderSpec(view="crop", crop=CropSpec(size=(8, 8), center="auto"))
+    done = render(frames_table(), str(tmp_path / "c.png"), spec)
+    assert done["view"] == "crop"
+    result = run(write_input(tmp_path, frames_table()), "--view", "crop", "-o", str(tmp_path / "c2.png"))
+    assert result.exit_code == 1
+    assert result.output.strip().splitlines() == ["neurotac render: error: the crop view needs the box: --box X,Y,W,H, "
+                                                  "or --size WxH with --center X,Y|auto"]
+
+
+def test_augmented_view_puts_a_copy_under_its_source(tmp_path):
+    from neurotac_cli.ops.augment import FrameShift
+
+    augmented, _ = augment_frames(frames_table(), [FrameShift(1)])
+    done = render(augmented, str(tmp_path / "a.gif"), RenderSpec(view="augmented", trial="b"))
+    assert done["trial"].startswith("b~") and done["pictures"] == 6
+
+
+def test_refusals_are_one_line(tmp_path):
+    path = write_input(tmp_path, frames_table())
+    for args, words, code in [(["-o", str(tmp_path / "x.jpg")], "use .png, .gif or .mp4", 2),
+                               (["--trial", "zz", "-o", str(tmp_path / "x.png")], "no trial 'zz'", 1),
+                               (["--view", "augmented", "-o", str(tmp_path / "x.png")], "from `neurotac augment`", 1)]:
+        result = run(path, *args)
+        assert result.exit_code == code and words in result.output and len(result.output.strip().splitlines()) == 1
+    assert not list(tmp_path.glob("x.*"))
+
+
+def test_colours_are_white_for_nothing_red_for_on_blue_for_off():
+    counts = np.zeros((2, 1, 3))
+    counts[1, 0, 1] = 4  # ON
+    counts[0, 0, 2] = 4  # OFF
+    image = rgb(counts, top=4)
+    assert image[0, 0].tolist() == [1, 1, 1]
+    assert image[0, 1].tolist() == [1, 0, 0]
+    assert image[0, 2].tolist() == [0, 0, 1]
