@@ -99,6 +99,28 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     return Py_BuildValue("(LLLLLLL)", inside, saturated, before, late, beyond, k_max, zeroed);
 }
 
+/* Events more than `slack` behind the latest earlier event, or before `floor`: (how many, index of
+ * the first, -1 for none, the latest time after these events). */
+static PyObject *time_order(PyObject *self, PyObject *args) {
+    PyObject *ot;
+    long long latest, slack, floor;
+    if (!PyArg_ParseTuple(args, "OLLL", &ot, &latest, &slack, &floor)) return NULL;
+    Buf b[1];
+    memset(b, 0, sizeof b);
+    if (take(ot, &b[0], 0, 8, "t")) { release(b, 1); return NULL; }
+    const int64_t *t = DATA(b[0], int64_t);
+    Py_ssize_t n = ITEMS(b[0], int64_t), first = -1;
+    long long back = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (t[i] < latest - slack || t[i] < floor) {
+            if (first < 0) first = i;
+            back++;
+        } else if (t[i] > latest) latest = t[i];
+    }
+    release(b, 1);
+    return Py_BuildValue("(LnL)", back, first, latest);
+}
+
 /* ------------------------------------------------------------------ Prophesee EVT 3.0 */
 
 enum { HIGH, LOOP, LOW, ROW, BASE_X, VECTOR_P, TIMED };
@@ -395,6 +417,7 @@ static PyObject *es_decode(PyObject *self, PyObject *args) {
 
 static PyMethodDef methods[] = {
     {"count_events", count_events, METH_VARARGS, "Count events into frames (see io/kernels.py count_events)."},
+    {"time_order", time_order, METH_VARARGS, "Events out of time order (see io/kernels.py time_order)."},
     {"evt3_count", evt3_count, METH_VARARGS, "Events in EVT 3.0 words."},
     {"evt3_decode", evt3_decode, METH_VARARGS, "Decode EVT 3.0 words into given arrays; returns how many."},
     {"evt2_count", evt2_count, METH_VARARGS, "Events in EVT 2.0 words."},

@@ -82,6 +82,13 @@ def count_events(t, x, y, p, start: int, window_us: int, first: int, out: np.nda
     return _c.count_events(t, x, y, p, int(start), int(window_us), int(first), out, n, height, width, zeroed)
 
 
+def time_order(t, latest: int, slack: int, floor: int | None = None) -> tuple[int, int, int]:
+    """Events more than `slack` µs behind the latest earlier event (`latest` before these), or before
+    `floor`: (how many, index of the first (-1 for none), the latest time after these events)."""
+    t = np.ascontiguousarray(t, dtype=np.int64)
+    return _c.time_order(t, int(latest), int(slack), -(1 << 63) if floor is None else int(floor))
+
+
 # ---------------------------------------------------------------- decoders
 
 
