@@ -372,3 +372,77 @@ def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
     tables.write(str(source), sch.events_table(t, x, y, p, W, H))
     done = run(["frame", "--window", "10ms", "--phases", "1-2", str(source)])
     assert done.returncode == 1 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
+
+
+def test_frame_command_refuses_a_window_that_is_not_positive():
+    for window in ("0ms", "-5ms"):
+        done = run(["frame", "--window", window])
+        assert done.returncode == 2 and "positive duration" in done.stderr.decode()
+
+
+# ---------------------------------------------------------------- bounded work
+
+
+def test_a_clock_jump_is_refused_before_its_frames_are_written_with_where_it_is(tmp_path):
+    t = np.array([0, 5_000, 12_000, 10**12, 10**12 + 10])  # a clock jump of 278 hours at event 3
+    source = tmp_path / "ev.arrows"
+    tables.write(str(source), sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.zeros(5, int), W, H))
+    done = run(["frame", "--window", "10ms", str(source), "-o", str(tmp_path / "f.arrows")])
+    message = done.stderr.decode()
+    assert done.returncode == 1 and message.count("\n") == 1, message
+    assert "frames to write, more than --max-frames 1,000,000" in message
+    assert "a gap of 277.8 hours at event 3, from t = 12000 to 1000000000000 µs" in message
+    assert not (tmp_path / "f.arrows").exists()
+
+
+def test_a_window_too_small_for_the_span_is_refused_and_the_limit_can_be_raised():
+    t = np.arange(0, 50_000, 10)
+    table = sch.events_table(t, np.zeros(len(t), int), np.zeros(len(t), int), np.zeros(len(t), int), W, H)
+    with pytest.raises(NeurotacError, match=r"at least 49,991 frames to write, more than --max-frames 1,000 \(the events span 50.0 ms: a window of 1 µs is too small"):
+        fr.frames_from_events_table(table, 1, max_frames=1_000)
+    assert fr.frames_from_events_table(table, 1, max_frames=50_000).num_rows == 49_991
+
+
+def test_recordings_past_the_frame_limit_are_refused_naming_the_trial():
+    far = {"trial": "late", "t0": 0, "events": (np.array([0, 10**11]), np.zeros(2), np.zeros(2), np.zeros(2)), "force": (np.array([], np.int64), np.array([]))}
+    near = {"trial": "ok", "t0": 0, "events": random_events(1, n=50), "force": (np.array([], np.int64), np.array([]))}
+    with pytest.raises(NeurotacError, match=r"^10,000,\d{3} frames to write, .*\(trial late: a gap of 27.8 hours at event 1"):
+        fr.frame_recordings(recordings([near, far]), 10_000)
+
+
+def test_float32_without_a_scale_spills_to_disk_and_equals_the_counts_divided_by_their_maxima(monkeypatch):
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 3)
+    t, x, y, p = random_events(8, n=4000, span=300_000)
+    table = sch.events_table(t, x, y, p, W, H)
+    counts = counts_of(fr.frames_from_events_table(table, 5_000))
+    report = fr.FramingReport()
+    scaled = fr.frames_from_events_table(table, 5_000, report=report, dtype="float32")
+    peaks = counts.max(axis=(0, 2, 3)).astype(np.float32)
+    assert report.scale == [float(v) for v in peaks] and sch.get_meta(scaled.schema, "neurotac:scale") == report.scale
+    assert np.array_equal(counts_of(scaled), counts.astype(np.float32) / peaks[None, :, None, None])
+
+
+# ---------------------------------------------------------------- live
+
+
+def test_a_frame_leaves_through_a_pipe_as_soon_as_its_window_has_closed():
+    """The input stays open: the first frame must arrive once an event past its window has, not at the end."""
+    import pyarrow.ipc as ipc
+
+    schema = sch.events_schema(W, H)
+    process = subprocess.Popen(["neurotac", "frame", "--window", "10ms"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        writer = ipc.new_stream(process.stdin, schema)
+        writer.write_batch(sch.events_batch(np.array([0, 4_000]), np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), schema))
+        writer.write_batch(sch.events_batch(np.array([12_000]), np.array([3]), np.array([3]), np.array([1]), schema))
+        process.stdin.flush()
+        reader = ipc.open_stream(process.stdout)  # blocks until frame's schema has arrived
+        first = reader.read_next_batch()  # ... and its first frame, while its input is still open
+        assert first.column("frame").to_pylist() == [0] and counts_of(pa.Table.from_batches([first])).sum() == 2
+        assert process.poll() is None
+        writer.close()
+        process.stdin.close()
+        rest = reader.read_all()
+        assert rest.column("frame").to_pylist() == [1] and process.wait(timeout=30) == 0
+    finally:
+        process.kill()

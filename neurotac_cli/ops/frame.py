@@ -486,7 +486,7 @@ class _StreamFramer:
                 self.report.after_end += int(past.sum())
                 t, x, y, p = t[~past], x[~past], y[~past], p[~past]
         elif self.latest >= self.start:
-            check_frame_count((self.latest - self.start) // self.window + 1, self.framing, lambda: self._why(t))
+            check_frame_count((self.latest - self.start) // self.window + 1, self.framing, lambda: self._why(t), streaming=True)
         while len(t):
             offset = self.emitted - self.base
             inside, saturated, before, late, beyond, _, zeroed = kernels.count_events(
@@ -561,10 +561,12 @@ class _StreamFramer:
         return why_so_many(np.concatenate([[self.previous], t]), self.start, self.window, self.report.events - len(t) - 1)
 
 
-def check_frame_count(frames: int, framing: Framing, why) -> None:
-    """Refuse to write more than framing.max_frames frames; `why()` says where they come from."""
+def check_frame_count(frames: int, framing: Framing, why, streaming: bool = False) -> None:
+    """Refuse to write more than framing.max_frames frames; `why()` says where they come from. A
+    stream's count is of the events so far: `streaming` says so."""
     if frames > framing.max_frames:
-        raise NeurotacError(f"{frames:,} frames to write, more than --max-frames {framing.max_frames:,} ({why()})")
+        at_least = "at least " if streaming else ""
+        raise NeurotacError(f"{at_least}{frames:,} frames to write, more than --max-frames {framing.max_frames:,} ({why()})")
 
 
 def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int) -> str:
@@ -576,8 +578,8 @@ def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int)
     i = int(np.argmax(steps)) if len(steps) else 0
     if len(steps) and 2 * int(steps[i]) > span:
         return (
-            f"a gap of {_duration(int(steps[i]))} at event {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs: "
-            "a clock reset or a corrupt record?; cut the input there, or raise --max-frames"
+            f"a gap of {_duration(int(steps[i]))} at event {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs, "
+            "a clock jump or a corrupt record; cut the input there, or raise --max-frames"
         )
     return (
         f"the events span {_duration(span)}: a window of {_duration(window_us)} is too small for it; "
