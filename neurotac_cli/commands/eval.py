@@ -42,13 +42,10 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         neurotac eval --cv loo --model-spec tdnn --grid layers=1..5 --grid units=5,10,...,40 \\
           --metrics grid.parquet --jobs 0 < ch3-frames.arrows > oof.arrows
     """
-    import torch
-
     from neurotac_cli import model as models
     from neurotac_cli import tables
     from neurotac_cli.errors import NeurotacError
     from neurotac_cli.metrics import metrics_table
-    from neurotac_cli.model import evaluate
 
     if grid and not cv:
         raise click.UsageError("--grid needs --cv and --model-spec (a grid of cross-validated models)")
@@ -64,8 +61,12 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         return run_grid(paths, output, model_spec, grid, hyperparameters(options), cv, repeats, val_fraction, val_per,
                         label, nonzero, per_trial, metrics_path, jobs, scheduler, cache, seed, command="eval")
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
+    table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    import torch
+
+    from neurotac_cli.model import evaluate
+
     torch.set_num_threads(max(1, threads))
-    table = tables.read(paths, kind="frames")
     if cv:
         spec = models.make_spec(model_spec, **hyperparameters(options))
         predictions, rows = evaluate.cross_validate(

@@ -18,17 +18,22 @@ def command(paths, output, model_path, threads):
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
     """
+    import itertools
     import sys
-
-    import torch
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model.store import read_header
+
+    read_header(model_path)  # a wrong model file fails at once; torch (seconds to import) waits for the first frame
+    source = tables.open_input(paths, kind="frames")
+    frames = iter(source.batches)
+    first = next(frames)  # an empty input fails here
+    import torch
 
     torch.set_num_threads(max(1, threads))
     model = models.load(model_path)
-    source = tables.open_input(paths, kind="frames")
-    schema, batches = models.stream(model, source.schema, source.batches)
+    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames))
 
     def flushed(batches):
         for batch in batches:

@@ -110,14 +110,14 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
         neurotac simulate --preset ch4 --seed 1 --synced | neurotac frame --window 10ms \\
           | neurotac crop --size 115x115 --center auto | neurotac train --model deform-gru -o force.model
     """
-    import torch
-
     from neurotac_cli import model as models
     from neurotac_cli import tables
 
     tables.check_folder(*(path for path in (output, curve, plot) if path))
+    table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    import torch
+
     torch.set_num_threads(max(1, threads))
-    table = tables.read(paths, kind="frames")
     spec = models.make_spec(model_name, **hyperparameters(options))
     if val_trials is None and val_where is None and val_fraction is None:
         val_fraction = 0.1

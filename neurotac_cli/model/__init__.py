@@ -11,15 +11,21 @@ Public API (used by the train, eval, classify and predict commands, and by studi
 - `check_input(model, schema)`: refuse frames whose window, crop or channels differ from training.
 """
 
-from neurotac_cli.model.core import (  # noqa: F401
-    FORCE_MODELS,
-    MATERIAL_MODELS,
-    Model,
-    check_input,
-    classify_table,
-    make_spec,
-    predict_table,
-    stream,
-    train,
-)
-from neurotac_cli.model.store import load, save  # noqa: F401
+import importlib
+
+# Loaded on first use: `neurotac_cli.model.store.read_header` and the package itself cost no torch
+# import, so a verb can check a model file and its input before paying for torch.
+_EXPORTS = {
+    **dict.fromkeys(
+        ("FORCE_MODELS", "MATERIAL_MODELS", "Model", "check_input", "classify_table", "make_spec", "predict_table", "stream", "train"),
+        "core",
+    ),
+    "load": "store",
+    "save": "store",
+}
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(f"neurotac_cli.model.{_EXPORTS[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
