@@ -43,24 +43,26 @@ static inline int popcount(int64_t v) { return __builtin_popcountll((unsigned lo
 
 /* ------------------------------------------------------------------ framing */
 
+/* Count events into frames; with `order` (int64 [latest, slack, floor]), also count the events
+ * more than `slack` behind the latest earlier one, or before `floor`, and keep `latest` up to date. */
 static PyObject *count_events(PyObject *self, PyObject *args) {
-    PyObject *ot, *ox, *oy, *op, *oout;
+    PyObject *ot, *ox, *oy, *op, *oout, *oorder;
     long long start, window, first, zeroed;
     Py_ssize_t n, height, width;
-    if (!PyArg_ParseTuple(args, "OOOOLLLOnnnL", &ot, &ox, &oy, &op, &start, &window, &first, &oout, &n, &height, &width, &zeroed))
+    if (!PyArg_ParseTuple(args, "OOOOLLLOnnnLO", &ot, &ox, &oy, &op, &start, &window, &first, &oout, &n, &height, &width, &zeroed, &oorder))
         return NULL;
-    Buf b[5];
+    Buf b[6];
     memset(b, 0, sizeof b);
     if (take(ot, &b[0], 0, 8, "t") || take(ox, &b[1], 0, 2, "x") || take(oy, &b[2], 0, 2, "y") || take(op, &b[3], 0, 1, "p") ||
-        take(oout, &b[4], 1, 2, "out")) {
-        release(b, 5);
+        take(oout, &b[4], 1, 2, "out") || (oorder != Py_None && take(oorder, &b[5], 1, 8, "order"))) {
+        release(b, 6);
         return NULL;
     }
     Py_ssize_t events = ITEMS(b[0], int64_t);
     Py_ssize_t cells = 2 * height * width;
     if (window <= 0 || ITEMS(b[1], uint16_t) != events || ITEMS(b[2], uint16_t) != events || ITEMS(b[3], uint8_t) != events ||
-        ITEMS(b[4], uint16_t) < n * cells || zeroed < 0 || zeroed > n) {
-        release(b, 5);
+        ITEMS(b[4], uint16_t) < n * cells || zeroed < 0 || zeroed > n || (b[5].held && ITEMS(b[5], int64_t) != 3)) {
+        release(b, 6);
         PyErr_SetString(PyExc_ValueError, "count_events: arrays of different lengths, a buffer too small, or a bad window");
         return NULL;
     }
@@ -68,11 +70,20 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     const uint16_t *x = DATA(b[1], uint16_t), *y = DATA(b[2], uint16_t);
     const uint8_t *p = DATA(b[3], uint8_t);
     uint16_t *flat = DATA(b[4], uint16_t);
-    long long inside = 0, saturated = 0, before = 0, late = 0, beyond = 0, k_max = -1;
+    int64_t *order = b[5].held ? DATA(b[5], int64_t) : NULL;
+    int64_t latest = order ? order[0] : 0, slack = order ? order[1] : 0, floor = order ? order[2] : INT64_MIN;
+    long long inside = 0, saturated = 0, before = 0, late = 0, beyond = 0, k_max = -1, back = 0;
+    Py_ssize_t first_back = -1;
     Py_BEGIN_ALLOW_THREADS
     int64_t k = 0, j = -1, lo = start, hi = start, base = 0;  /* [lo, hi): the previous event's window */
     for (Py_ssize_t i = 0; i < events; i++) {
         int64_t ti = t[i];
+        if (order) {  /* branch-free but for the first event out of order */
+            int bad = (ti < latest - slack) | (ti < floor);
+            back += bad;
+            if (bad && first_back < 0) first_back = i;
+            latest = ti > latest ? ti : latest;  /* an event out of order lies below `latest`: it stays */
+        }
         if (ti < lo || ti >= hi) {
             int64_t d = ti - start;
             k = d >= 0 ? d / window : -((-d + window - 1) / window);  /* floor division */
@@ -95,8 +106,9 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
         else (*cell)++;
     }
     Py_END_ALLOW_THREADS
-    release(b, 5);
-    return Py_BuildValue("(LLLLLLL)", inside, saturated, before, late, beyond, k_max, zeroed);
+    if (order) order[0] = latest;
+    release(b, 6);
+    return Py_BuildValue("(LLLLLLLLn)", inside, saturated, before, late, beyond, k_max, zeroed, back, first_back);
 }
 
 /* Events more than `slack` behind the latest earlier event, or before `floor`: (how many, index of
@@ -111,11 +123,12 @@ static PyObject *time_order(PyObject *self, PyObject *args) {
     const int64_t *t = DATA(b[0], int64_t);
     Py_ssize_t n = ITEMS(b[0], int64_t), first = -1;
     long long back = 0;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        if (t[i] < latest - slack || t[i] < floor) {
-            if (first < 0) first = i;
-            back++;
-        } else if (t[i] > latest) latest = t[i];
+    for (Py_ssize_t i = 0; i < n; i++) {  /* branch-free but for the first one out of order */
+        int64_t v = t[i];
+        int bad = (v < latest - slack) | (v < floor);
+        back += bad;
+        if (bad && first < 0) first = i;
+        latest = v > latest ? v : latest;  /* floor <= the first time: an event out of order is below `latest` */
     }
     release(b, 1);
     return Py_BuildValue("(LnL)", back, first, latest);

@@ -59,13 +59,16 @@ def _events(count: int):
 # ---------------------------------------------------------------- framing
 
 
-def count_events(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray, zeroed: int | None = None) -> tuple:
+def count_events(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray, zeroed: int | None = None, order=None) -> tuple:
     """Add events to `out` (n, 2, H, W) uint16, whose frame 0 is window `first` counted from `start`.
 
-    One pass; returns (inside, saturated, before, late, beyond, k_max, zeroed): events counted into
-    these windows (of which `saturated` could not be, the pixel being at 65535), events before
-    `start`, events of windows before `first` (late), events of windows past the buffer (beyond),
-    the largest window index seen (-1 for none), and how many leading frames of `out` now hold counts.
+    One pass; returns (inside, saturated, before, late, beyond, k_max, zeroed, back, first_back):
+    events counted into these windows (of which `saturated` could not be, the pixel being at
+    65535), events before `start`, events of windows before `first` (late), events of windows past
+    the buffer (beyond), the largest window index seen (-1 for none), how many leading frames of
+    `out` now hold counts, and, with `order` (an int64 array [latest, slack, floor], whose latest
+    is kept up to date), the events more than `slack` µs behind the latest earlier event or before
+    `floor` and the index of the first of them (-1 for none; without `order`: 0 and -1).
     Frames from `zeroed` on (by default none: all of `out` holds counts) hold garbage and are zeroed
     when an event first reaches them (and every frame before it), so each is written while it is in
     the cache: framing a long stream is bound by memory traffic, and zeroing a buffer ahead of time
@@ -79,7 +82,7 @@ def count_events(t, x, y, p, start: int, window_us: int, first: int, out: np.nda
     x = np.ascontiguousarray(x, dtype=np.uint16)
     y = np.ascontiguousarray(y, dtype=np.uint16)
     p = np.ascontiguousarray(p, dtype=np.uint8)
-    return _c.count_events(t, x, y, p, int(start), int(window_us), int(first), out, n, height, width, zeroed)
+    return _c.count_events(t, x, y, p, int(start), int(window_us), int(first), out, n, height, width, zeroed, order)
 
 
 def time_order(t, latest: int, slack: int, floor: int | None = None) -> tuple[int, int, int]:

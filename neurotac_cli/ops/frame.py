@@ -436,6 +436,7 @@ class _StreamFramer:
         self.start = framing.start_us  # camera time of window 0: --start, else the first event's
         self.floor = None  # events before it are out of time order: the first event, when it sets the start
         self.latest = self.previous = None  # the largest event time so far, and before the current batch
+        self.order = None  # [latest, slack, floor] as the kernel reads and updates them
         self.base = self.zeroed = self.emitted = 0
         self.cap = framing.pad_to if isinstance(framing.pad_to, int) else None
         self.running = np.zeros((2, self.height, self.width), dtype=np.int64) if framing.accumulate else None
@@ -450,62 +451,73 @@ class _StreamFramer:
             t, x, y, p = (batch.column(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p"))
             t = t.astype(np.int64, copy=False)
             sch.check_events(t, x, y, p, (self.width, self.height), sorted_time=False)
-            self._check_order(t, batches)
-            yield from self._count(t, x, y, p)
+            if self.order is None:  # the first batch
+                if self.start is None:
+                    self.start = self.floor = int(t[0])
+                self.order = np.array([t[0], self.window, -(1 << 63) if self.floor is None else self.floor], dtype=np.int64)
+            self.previous = int(self.order[0])
+            self.report.events += len(t)
+            yield from self._count(t, x, y, p, batches)
             yield from self._emit(self._closed())
         if self.latest is None:
             raise NeurotacError("input events table is empty: nothing to frame")
         yield from self._finish()
 
-    def _check_order(self, t: np.ndarray, rest):
-        """Refuse events more than one window back in time, counting them over the rest of the input."""
-        if self.start is None:
-            self.start = self.floor = int(t[0])
-        self.previous = int(t[0]) if self.latest is None else self.latest
-        back, first, self.latest = kernels.time_order(t, self.previous, self.window, self.floor)
-        if back:
-            ahead = int(max(self.previous, t[:first].max(initial=self.previous)))
-            latest = ahead
-            for batch in rest:
-                if batch.num_rows:
-                    more, _, latest = kernels.time_order(batch.column("t").to_numpy(zero_copy_only=False), latest, self.window, self.floor)
-                    back += more
-            raise NeurotacError(
-                f"{back:,} event{'s' if back > 1 else ''} more than one window out of time order (the first: event "
-                f"{self.report.events + first:,} at t = {int(t[first])} µs, after an event at {ahead} µs; "
-                "sort them with --sort, or fix the recording)"
-            )
-        self.report.events += len(t)
-
-    def _count(self, t, x, y, p):
-        """Count a batch into the buffer; while events lie past its end, the windows before them
-        leave and a fresh buffer starts at the first of them."""
+    def _count(self, t, x, y, p, rest):
+        """Count a batch into the buffer, checking its time order (in the same pass, but with
+        --pad-to N) and the frame limit; while events lie past the buffer's end, the windows before
+        them leave and a fresh buffer starts at the first of them."""
+        order = self.order
         if self.cap is not None:  # windows past --pad-to N are cut here, and counted
+            back, first, order[0] = kernels.time_order(t, order[0], self.window, self.floor)
+            self._refuse_disorder(back, first, t, rest)
             past = (t - self.start) // self.window >= self.cap
             if past.any():
                 self.report.after_end += int(past.sum())
                 t, x, y, p = t[~past], x[~past], y[~past], p[~past]
-        elif self.latest >= self.start:
-            check_frame_count((self.latest - self.start) // self.window + 1, self.framing, lambda: self._why(t), streaming=True)
+            order = None
         while len(t):
             offset = self.emitted - self.base
-            inside, saturated, before, late, beyond, _, zeroed = kernels.count_events(
-                t, x, y, p, self.start, self.window, self.emitted, self.buffer[offset:], max(0, self.zeroed - offset)
+            inside, saturated, before, late, beyond, _, zeroed, back, first = kernels.count_events(
+                t, x, y, p, self.start, self.window, self.emitted, self.buffer[offset:], max(0, self.zeroed - offset), order
             )
             self.zeroed = max(self.zeroed, offset + zeroed)
             self.report.framed += inside - saturated
             self.report.saturated_events += saturated
             self.report.before_start += before
             self.report.late += late
+            self.latest = int(self.order[0])
+            if order is not None:
+                self._refuse_disorder(back, first, t, rest)
+                if self.latest >= self.start:
+                    frames = (self.latest - self.start) // self.window + 1
+                    check_frame_count(frames, self.framing, lambda: self._why(t), streaming=True)
+                order = None  # once per batch
             if not beyond:
                 return
             windows = (t - self.start) // self.window
-            rest = windows >= self.base + self.capacity
-            t, x, y, p = t[rest], x[rest], y[rest], p[rest]
-            next_base = int(windows[rest].min())
+            rest_of_batch = windows >= self.base + self.capacity
+            t, x, y, p = t[rest_of_batch], x[rest_of_batch], y[rest_of_batch], p[rest_of_batch]
+            next_base = int(windows[rest_of_batch].min())
             yield from self._emit(next_base)
             self.buffer = np.empty_like(self.buffer)  # the frames that left are views of the old one
             self.base, self.zeroed = next_base, 0
+
+    def _refuse_disorder(self, back: int, first: int, t: np.ndarray, rest):
+        """Refuse events more than one window back in time, counting them over the rest of the input."""
+        if not back:
+            return
+        ahead = int(max(self.previous, t[:first].max(initial=self.previous)))
+        latest = int(self.order[0])
+        for batch in rest:
+            if batch.num_rows:
+                more, _, latest = kernels.time_order(batch.column("t").to_numpy(zero_copy_only=False), latest, self.window, self.floor)
+                back += more
+        raise NeurotacError(
+            f"{back:,} event{'s' if back > 1 else ''} more than one window out of time order (the first: event "
+            f"{self.report.events - len(t) + first:,} at t = {int(t[first])} µs, after an event at {ahead} µs; "
+            "sort them with --sort, or fix the recording)"
+        )
 
     def _closed(self) -> int:
         """Windows before the latest event's window have closed."""
