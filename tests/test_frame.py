@@ -199,7 +199,7 @@ def test_count_events_counts_each_event_in_its_window_and_classifies_the_rest(se
     t, x, y, p = random_events(seed, n=3000, span=120_000, start=-20_000)
     out = np.full((6, 2, H, W), 7, np.uint16)  # frames from `zeroed` on hold garbage until counted into
     out[:zeroed] = 0
-    inside, saturated, before, late, beyond, k_max, now_zeroed = kernels.count_events(t, x, y, p, 0, 10_000, first, out, zeroed)
+    inside, saturated, before, late, beyond, k_max, now_zeroed, _, _ = kernels.count_events(t, x, y, p, 0, 10_000, first, out, zeroed)
     k = t // 10_000
     j = k - first
     keep = (k >= 0) & (j >= 0) & (j < 6)
