@@ -209,6 +209,22 @@ def test_count_events_counts_each_event_in_its_window_and_classifies_the_rest(se
     assert (inside, saturated, before, late, beyond, k_max) == (keep.sum(), 0, (k < 0).sum(), ((k >= 0) & (j < 0)).sum(), (j >= 6).sum(), k.max())
 
 
+@pytest.mark.parametrize("accumulate", [False, True])
+def test_a_long_trial_is_framed_in_pieces_equal_to_the_whole(monkeypatch, accumulate):
+    t, x, y, p = random_events(9, n=4000, span=300_000)
+    order = np.random.default_rng(9).permutation(len(t))  # a trial's events in any order
+    trial = {"trial": "a", "t0": 0, "events": (t[order], x[order], y[order], p[order]), "force": (np.array([], np.int64), np.array([]))}
+    whole = counts_of(fr.frame_recordings(recordings([trial]), 5_000, accumulate=accumulate, pad_to=70))
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 7)  # seven frames a piece
+    pieces = fr.frame_recordings(recordings([trial]), 5_000, accumulate=accumulate, pad_to=70)
+    expected = fr.count_frames(t, x, y, p, 5_000, 70, H, W)
+    if accumulate:
+        real = fr.n_windows(fr.trial_end(t, np.array([], np.int64)), 5_000)
+        expected[:real] = np.cumsum(expected[:real], axis=0)
+    assert np.array_equal(counts_of(pieces), whole) and np.array_equal(whole, expected)
+    assert pieces.column("frame").to_pylist() == list(range(70))
+
+
 def test_sliced_recordings_frame_like_whole_ones():
     trials = [{"trial": f"g{i}", "t0": 0, "events": random_events(i, n=300, span=50_000), "force": (np.arange(0, 50_001, 2000), np.zeros(26))}
               for i in range(4)]

@@ -241,10 +241,12 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
 
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
-            counts = counter.counts(events, n_real, n_total)
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
             phase = _phases(force, n_real, n_total, framing.phases)
-            yield _frames_batch(out_schema, trial, counts, force, phase, label_values, labels, framing.window_us, scale)
+            for first, counts in counter.chunks(events, n_real, n_total):
+                end = first + len(counts)
+                yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
+                                    label_values, labels, framing.window_us, scale, first_frame=first)
 
     return out_schema, batches()
 
@@ -283,40 +285,48 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
 
 
 class _TrialCounter:
-    """The count frames of one trial of a recording, accumulated when asked."""
+    """The count frames of one trial of a recording, in pieces of at most BUFFER_CELLS counts (memory
+    stays flat however long the trial), accumulated when asked."""
 
     def __init__(self, framing: Framing, report: FramingReport, sensor):
         self.framing, self.report = framing, report
         self.width, self.height = sensor
+        self.chunk = int(max(1, BUFFER_CELLS // (2 * self.height * self.width)))
 
-    def counts(self, events, n_real: int, n_total: int, count: bool = True) -> np.ndarray:
+    def chunks(self, events, n_real: int, n_total: int, count: bool = True):
+        """(first frame, counts) pieces of the trial's n_total frames, of which the first n_real hold events."""
         t, x, y, p = events
-        counts = np.zeros((n_total, 2, self.height, self.width), dtype=np.uint16)
-        _, saturated, *_ = kernels.count_events(t, x, y, p, 0, self.framing.window_us, 0, counts[:n_real])
-        if self.framing.accumulate and n_real:
-            counts[:n_real] = _accumulate(counts[:n_real], self.report if count else FramingReport())
-        if count:
-            self.report.saturated_events += saturated
-            self.report.framed -= saturated
-            self.report.saturated_pixels += int(np.count_nonzero(counts == MAX_COUNT))
-        return counts
+        if len(t) > 1 and np.any(t[1:] < t[:-1]):  # a trial's events out of order are sorted once
+            order = np.argsort(t, kind="stable")
+            t, x, y, p = t[order], x[order], y[order], p[order]
+        window = self.framing.window_us
+        running = np.zeros((2, self.height, self.width), dtype=np.int64) if self.framing.accumulate else None
+        over = 0
+        for first in range(0, n_total, self.chunk):
+            counts = np.zeros((min(self.chunk, n_total - first), 2, self.height, self.width), dtype=np.uint16)
+            real = max(0, min(len(counts), n_real - first))
+            lo, hi = np.searchsorted(t, [first * window, (first + real) * window])
+            _, saturated, *_ = kernels.count_events(t[lo:hi], x[lo:hi], y[lo:hi], p[lo:hi], 0, window, first, counts[:real])
+            if running is not None and real:
+                total = running[None] + np.cumsum(counts[:real], axis=0, dtype=np.int64)
+                running = total[-1]
+                over += int(np.count_nonzero(total > MAX_COUNT))
+                counts[:real] = np.minimum(total, MAX_COUNT)
+            if count:
+                self.report.saturated_events += saturated
+                self.report.framed -= saturated
+                self.report.saturated_pixels += int(np.count_nonzero(counts == MAX_COUNT))
+            yield first, counts
+        if over and count:
+            self.report.notes.append(f"accumulated counts passed {MAX_COUNT} in {over} pixel-frames")
 
     def peaks(self, plan) -> list[float]:
         """Each channel's largest count over every trial (a first pass; frames are made again after)."""
         peaks = np.zeros(2, dtype=np.int64)
         for _, events, _, _, _, n_real, _ in plan:
-            counts = self.counts(events, n_real, n_real, count=False)
-            if len(counts):
+            for _, counts in self.chunks(events, n_real, n_real, count=False):
                 peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
         return [float(max(peak, 1)) for peak in peaks]
-
-
-def _accumulate(counts: np.ndarray, report: FramingReport) -> np.ndarray:
-    total = np.cumsum(counts, axis=0, dtype=np.int64)
-    over = total > MAX_COUNT
-    if over.any():
-        report.notes.append(f"accumulated counts passed {MAX_COUNT} in {int(over.sum())} pixel-frames")
-    return np.minimum(total, MAX_COUNT).astype(np.uint16)
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:
