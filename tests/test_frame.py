@@ -419,6 +419,18 @@ def test_a_window_too_small_for_the_span_is_refused_and_the_limit_can_be_raised(
     assert fr.frames_from_events_table(table, 1, max_frames=50_000).num_rows == 49_991
 
 
+def test_a_long_gap_within_the_limit_is_reported_with_where_it_is():
+    t = np.array([0, 5_000, 20_000_000, 20_005_000, 20_010_000])
+    table = sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.zeros(5, int), W, H)
+    report = fr.FramingReport()
+    frames = fr.frames_from_events_table(table, 10_000, report=report)
+    assert frames.num_rows == 2_002 and counts_of(frames).sum() == 5
+    assert report.notes == ["a gap of 20.0 s at event 2 (from t = 5000 to 20000000 µs): 1,999 empty frames in the middle of the stream"]
+    coarse = fr.FramingReport()
+    fr.frames_from_events_table(table, 100_000, report=coarse)  # the same gap is 200 windows of 100 ms: not reported
+    assert coarse.notes == []
+
+
 def test_recordings_past_the_frame_limit_are_refused_naming_the_trial():
     far = {"trial": "late", "t0": 0, "events": (np.array([0, 10**11]), np.zeros(2), np.zeros(2), np.zeros(2)), "force": (np.array([], np.int64), np.array([]))}
     near = {"trial": "ok", "t0": 0, "events": random_events(1, n=50), "force": (np.array([], np.int64), np.array([]))}

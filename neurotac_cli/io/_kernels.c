@@ -43,8 +43,10 @@ static inline int popcount(int64_t v) { return __builtin_popcountll((unsigned lo
 
 /* ------------------------------------------------------------------ framing */
 
-/* Count events into frames; with `order` (int64 [latest, slack, floor]), also count the events
- * more than `slack` behind the latest earlier one, or before `floor`, and keep `latest` up to date. */
+/* Count events into frames; with `order` (int64 [latest, slack, floor, gap, gap_at, gap_from]),
+ * also count the events more than `slack` behind the latest earlier one, or before `floor`, keep
+ * `latest` up to date, and record a step forward in time longer than `gap`: its length, the
+ * event's index in this call and the time before it. */
 static PyObject *count_events(PyObject *self, PyObject *args) {
     PyObject *ot, *ox, *oy, *op, *oout, *oorder;
     long long start, window, first, zeroed;
@@ -61,7 +63,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     Py_ssize_t events = ITEMS(b[0], int64_t);
     Py_ssize_t cells = 2 * height * width;
     if (window <= 0 || ITEMS(b[1], uint16_t) != events || ITEMS(b[2], uint16_t) != events || ITEMS(b[3], uint8_t) != events ||
-        ITEMS(b[4], uint16_t) < n * cells || zeroed < 0 || zeroed > n || (b[5].held && ITEMS(b[5], int64_t) != 3)) {
+        ITEMS(b[4], uint16_t) < n * cells || zeroed < 0 || zeroed > n || (b[5].held && ITEMS(b[5], int64_t) != 6)) {
         release(b, 6);
         PyErr_SetString(PyExc_ValueError, "count_events: arrays of different lengths, a buffer too small, or a bad window");
         return NULL;
@@ -72,6 +74,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     uint16_t *flat = DATA(b[4], uint16_t);
     int64_t *order = b[5].held ? DATA(b[5], int64_t) : NULL;
     int64_t latest = order ? order[0] : 0, slack = order ? order[1] : 0, floor = order ? order[2] : INT64_MIN;
+    int64_t gap = order ? order[3] : 0, gap_at = order ? order[4] : -1, gap_from = order ? order[5] : 0;
     long long inside = 0, saturated = 0, before = 0, late = 0, beyond = 0, k_max = -1, back = 0;
     Py_ssize_t first_back = -1;
     Py_BEGIN_ALLOW_THREADS
@@ -82,6 +85,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
             int bad = (ti < latest - slack) | (ti < floor);
             back += bad;
             if (bad && first_back < 0) first_back = i;
+            if (ti - latest > gap) { gap = ti - latest; gap_at = i; gap_from = latest; }
             latest = ti > latest ? ti : latest;  /* an event out of order lies below `latest`: it stays */
         }
         if (ti < lo || ti >= hi) {
@@ -106,7 +110,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
         else (*cell)++;
     }
     Py_END_ALLOW_THREADS
-    if (order) order[0] = latest;
+    if (order) { order[0] = latest; order[3] = gap; order[4] = gap_at; order[5] = gap_from; }
     release(b, 6);
     return Py_BuildValue("(LLLLLLLLn)", inside, saturated, before, late, beyond, k_max, zeroed, back, first_back);
 }

@@ -66,9 +66,11 @@ def count_events(t, x, y, p, start: int, window_us: int, first: int, out: np.nda
     events counted into these windows (of which `saturated` could not be, the pixel being at
     65535), events before `start`, events of windows before `first` (late), events of windows past
     the buffer (beyond), the largest window index seen (-1 for none), how many leading frames of
-    `out` now hold counts, and, with `order` (an int64 array [latest, slack, floor], whose latest
-    is kept up to date), the events more than `slack` µs behind the latest earlier event or before
-    `floor` and the index of the first of them (-1 for none; without `order`: 0 and -1).
+    `out` now hold counts, and, with `order` (an int64 array [latest, slack, floor, gap, gap_at,
+    gap_from], updated in place), the events more than `slack` µs behind the latest earlier event
+    or before `floor` and the index of the first of them (-1 for none; without `order`: 0 and -1).
+    `order` also records the largest step forward in time beyond `gap`: its length, the index of
+    the event after it in this call (left as it was when no step is longer) and the time before it.
     Frames from `zeroed` on (by default none: all of `out` holds counts) hold garbage and are zeroed
     when an event first reaches them (and every frame before it), so each is written while it is in
     the cache: framing a long stream is bound by memory traffic, and zeroing a buffer ahead of time

@@ -39,6 +39,7 @@ BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever 
 SCAN_EVENTS = 1 << 18  # events counted at a time, so the frames of a huge input batch leave as it is counted
 MAX_FRAMES = 1_000_000  # frames written unless the user raises the limit: 2.8 hours of 10 ms windows
 SORT_EVENTS = 20_000_000  # events `sort` holds in memory (about 0.5 GB with the sort's index)
+GAP_WINDOWS = 1_000  # a stream's step in time of this many windows or more is reported, with where it is
 
 
 # ---------------------------------------------------------------- counting
@@ -446,7 +447,8 @@ class _StreamFramer:
         self.start = framing.start_us  # camera time of window 0: --start, else the first event's
         self.floor = None  # events before it are out of time order: the first event, when it sets the start
         self.latest = self.previous = None  # the largest event time so far, and before the current batch
-        self.order = None  # [latest, slack, floor] as the kernel reads and updates them
+        self.order = None  # [latest, slack, floor, gap, gap_at, gap_from] as the kernel reads and updates them
+        self.gap = None  # (µs, event index, time before it) of the longest step in time of GAP_WINDOWS windows or more
         self.base = self.zeroed = self.emitted = 0
         self.cap = framing.pad_to if isinstance(framing.pad_to, int) else None
         self.running = np.zeros((2, self.height, self.width), dtype=np.int64) if framing.accumulate else None
@@ -464,7 +466,8 @@ class _StreamFramer:
             if self.order is None:  # the first batch
                 if self.start is None:
                     self.start = self.floor = int(t[0])
-                self.order = np.array([t[0], self.window, -(1 << 63) if self.floor is None else self.floor], dtype=np.int64)
+                floor = -(1 << 63) if self.floor is None else self.floor
+                self.order = np.array([t[0], self.window, floor, GAP_WINDOWS * self.window - 1, -1, 0], dtype=np.int64)
             self.previous = int(self.order[0])
             self.report.events += len(t)
             yield from self._count(t, x, y, p, batches)
@@ -499,6 +502,9 @@ class _StreamFramer:
             self.latest = int(self.order[0])
             if order is not None:
                 self._refuse_disorder(back, first, t, rest)
+                if order[4] >= 0:  # the longest run of empty windows so far, and where it is
+                    self.gap = (int(order[3]), self.report.events - len(t) + int(order[4]), int(order[5]))
+                    order[4] = -1
                 if self.latest >= self.start:
                     frames = (self.latest - self.start) // self.window + 1
                     check_frame_count(frames, self.framing, lambda: self._why(t), streaming=True)
@@ -577,6 +583,12 @@ class _StreamFramer:
         self.report.framed -= lost
         self.report.after_end += lost
         self.zeroed = min(self.zeroed, keep)
+        if self.gap:
+            length, at, since = self.gap
+            self.report.notes.append(
+                f"a gap of {_duration(length)} at event {at:,} (from t = {since} to {since + length} µs): "
+                f"{length // self.window:,} empty frames in the middle of the stream"
+            )
         yield from self._emit(n_total)
 
     def _why(self, t: np.ndarray) -> str:
