@@ -430,6 +430,143 @@ static PyObject *es_decode(PyObject *self, PyObject *args) {
     return Py_BuildValue("(nO)", k, outside ? Py_True : Py_False);
 }
 
+/* ------------------------------------------------------------------ text (CSV, whitespace) */
+
+enum { TEXT_OK, TEXT_NUMBER, TEXT_FIELDS, TEXT_COORDINATE, TEXT_POLARITY, TEXT_FRACTION, TEXT_DIGITS };
+static const int64_t POWERS[19] = {1LL, 10LL, 100LL, 1000LL, 10000LL, 100000LL, 1000000LL, 10000000LL, 100000000LL,
+    1000000000LL, 10000000000LL, 100000000000LL, 1000000000000LL, 10000000000000LL, 100000000000000LL,
+    1000000000000000LL, 10000000000000000LL, 100000000000000000LL, 1000000000000000000LL};
+
+/* One field's number, its digits read: scaled to µs for the time (role 0), checked for x, y, p. */
+typedef struct {
+    int64_t mantissa, significant, fraction, exponent, exp_digits;
+    int negative, exp_negative, signed_, digits, content, part;  /* part: 0 before a digit, 1 integer, 2 fraction, 3 exponent */
+} Field;
+
+static int text_value(const Field *f, int64_t role, int64_t time_digits, int64_t *out) {
+    int64_t scale = (role == 0 ? time_digits : 0) + (f->exp_negative ? -f->exponent : f->exponent) - f->fraction;
+    int64_t value = f->mantissa;
+    if (scale > 0) {
+        if (scale > 18 || f->mantissa > INT64_MAX / POWERS[scale]) return TEXT_DIGITS;
+        value = f->mantissa * POWERS[scale];
+    } else if (scale < 0) {
+        int64_t divisor = POWERS[-scale > 18 ? 18 : -scale];
+        value = -scale > 18 ? 0 : f->mantissa / divisor;
+        int64_t rest = f->mantissa - value * divisor;
+        if (rest != 0) {
+            if (role != 0 || time_digits == 0) return role == 0 ? TEXT_FRACTION : TEXT_COORDINATE;
+            if (2 * rest >= divisor) value += 1;  /* half away from zero */
+        }
+    }
+    if (f->negative) value = -value;
+    if ((role == 1 || role == 2) && (value < 0 || value > 65535)) return TEXT_COORDINATE;
+    if (role == 3 && value != -1 && value != 0 && value != 1) return TEXT_POLARITY;
+    *out = value;
+    return TEXT_OK;
+}
+
+/* A byte of a number that is not a digit (sign, point, exponent); 0 when it has no place there. */
+static int text_sign_or_point(Field *f, unsigned char byte) {
+    if (byte == '.' && f->part <= 1) f->part = 2;
+    else if ((byte == '-' || byte == '+') && f->part == 0 && !f->signed_) { f->negative = byte == '-'; f->signed_ = 1; }
+    else if ((byte == 'e' || byte == 'E') && f->digits && f->part <= 2) f->part = 3;
+    else if ((byte == '-' || byte == '+') && f->part == 3 && f->exp_digits == 0 && !f->exp_negative) f->exp_negative = byte == '-';
+    else return 0;
+    return 1;
+}
+
+static PyObject *parse_text(PyObject *self, PyObject *args) {
+    PyObject *od, *oroles, *ot, *ox, *oy, *op;
+    int comma;
+    long long time_digits;
+    if (!PyArg_ParseTuple(args, "OOpLOOOO", &od, &oroles, &comma, &time_digits, &ot, &ox, &oy, &op)) return NULL;
+    Buf b[6];
+    memset(b, 0, sizeof b);
+    if (take(od, &b[0], 0, 1, "data") || take(oroles, &b[1], 0, 8, "roles") || take(ot, &b[2], 1, 8, "t") || take(ox, &b[3], 1, 2, "x") ||
+        take(oy, &b[4], 1, 2, "y") || take(op, &b[5], 1, 1, "p")) { release(b, 6); return NULL; }
+    const unsigned char *data = b[0].view.buf;
+    const int64_t *roles = DATA(b[1], int64_t);
+    Py_ssize_t n = b[0].view.len, ncols = ITEMS(b[1], int64_t), cap = ITEMS(b[2], int64_t), row = 0, line_start = 0, field = 0;
+    int64_t *t = DATA(b[2], int64_t);
+    uint16_t *x = DATA(b[3], uint16_t), *y = DATA(b[4], uint16_t);
+    uint8_t *p = DATA(b[5], uint8_t);
+    int64_t role = ncols ? roles[0] : -1;
+    int status = TEXT_OK;
+    Field f;
+    memset(&f, 0, sizeof f);
+#define FAIL(why) do { status = (why); goto done; } while (0)
+    for (Py_ssize_t i = 0; i <= n; i++) {
+        unsigned char byte = i < n ? data[i] : '\n';
+        if (byte >= '0' && byte <= '9') {
+            int64_t digit = byte - '0';
+            f.content = 1;
+            if (role < 0) continue;
+            if (f.part == 3) {
+                f.exponent = f.exponent * 10 + digit;
+                f.exp_digits++;
+                if (f.exponent > 40) FAIL(TEXT_DIGITS);
+                continue;
+            }
+            f.digits = 1;
+            if (f.significant < 18) {
+                f.mantissa = f.mantissa * 10 + digit;
+                f.significant += f.mantissa != 0;
+                f.fraction += f.part == 2;
+            } else if (f.part != 2 || digit != 0) FAIL(TEXT_DIGITS);
+            if (f.part == 0) f.part = 1;
+            continue;
+        }
+        int newline = byte == '\n';
+        int separator = comma ? byte == ',' : (byte == ' ' || byte == '\t');
+        if (!(separator || newline)) {
+            if (byte == '\r' || byte == ' ' || byte == '\t') {  /* CR, spaces around a CSV field: after a number only the field's end may follow */
+                if (f.content && role >= 0) {
+                    Py_ssize_t j = i + 1;
+                    while (j < n && (data[j] == '\r' || data[j] == ' ' || data[j] == '\t')) j++;
+                    if (j < n && data[j] != '\n' && !(comma ? data[j] == ',' : (data[j] == ' ' || data[j] == '\t'))) FAIL(TEXT_NUMBER);
+                }
+                continue;
+            }
+            f.content = 1;
+            if (role >= 0 && !text_sign_or_point(&f, byte)) FAIL(TEXT_NUMBER);
+            continue;
+        }
+        if (newline && field == 0 && !f.content) {  /* a blank line */
+            line_start = i + 1;
+            continue;
+        }
+        if (comma || f.content) {  /* the end of a field */
+            if (field >= ncols) FAIL(TEXT_FIELDS);
+            if (role >= 0) {
+                int64_t value = 0;
+                if (!f.digits || (f.part == 3 && f.exp_digits == 0)) FAIL(TEXT_NUMBER);
+                int why = text_value(&f, role, time_digits, &value);
+                if (why != TEXT_OK) FAIL(why);
+                if (row >= cap) FAIL(TEXT_FIELDS);  /* cannot happen: rows are counted from newlines */
+                if (role == 0) t[row] = value;
+                else if (role == 1) x[row] = (uint16_t)value;
+                else if (role == 2) y[row] = (uint16_t)value;
+                else p[row] = value == 1;
+            }
+            field++;
+            role = field < ncols ? roles[field] : -1;
+            memset(&f, 0, sizeof f);
+        }
+        if (newline) {
+            if (field != ncols) FAIL(TEXT_FIELDS);
+            row++;
+            field = 0;
+            role = roles[0];
+            line_start = i + 1;
+        }
+    }
+    line_start = n;
+#undef FAIL
+done:
+    release(b, 6);
+    return Py_BuildValue("(nin)", row, status, line_start);
+}
+
 /* ------------------------------------------------------------------ module */
 
 static PyMethodDef methods[] = {
@@ -443,6 +580,7 @@ static PyMethodDef methods[] = {
     {"count_kind", count_kind, METH_VARARGS, "Words of one kind."},
     {"davis_count", davis_count, METH_VARARGS, "DVS events in AEDAT 2.0 DAVIS records."},
     {"davis_decode", davis_decode, METH_VARARGS, "Decode AEDAT 2.0 DAVIS records; returns (how many, largest jAER row)."},
+    {"parse_text", parse_text, METH_VARARGS, "Parse rows of text numbers into given arrays; returns (rows, status, offset)."},
     {"es_decode", es_decode, METH_VARARGS, "Decode Event Stream 2.x bytes; returns (how many, any outside the sensor)."},
     {NULL, NULL, 0, NULL},
 };

@@ -1,13 +1,12 @@
 """Compiled kernels: the framing count and the decoders of camera formats whose words carry state.
 
-EVT 2.0/3.0, AEDAT 2.0 and Event Stream are sequential state machines (a TIME_HIGH word sets the
+EVT 2.0/3.0, AEDAT 2.0, Event Stream and text rows are sequential state machines (a TIME_HIGH word sets the
 time of the words after it; an EVT 3.0 vector word's x depends on every vector word since its
 base), and framing is one pass that adds each event to its frame's pixel. They run as C
 (io/_kernels.c, built at install): a neurotac verb is a process in a pipe, and C costs nothing to
 load where numba's import and cache load cost 1.7 s per process (see docs/design.md). These
 wrappers allocate the outputs (each decoder counts its events first, so its output is exact) and
-keep a decoder's state in a small int64 array, so a file can be decoded chunk by chunk. The text
-parser is numba (io/text_kernel.py), imported only when a text file is read.
+keep a decoder's state in a small int64 array, so a file can be decoded chunk by chunk.
 """
 
 import numpy as np
@@ -28,7 +27,7 @@ E2_HIGH, E2_LOOP, E2_TIMED = range(3)
 # Event Stream 2.x state slots (FLAGS: bit 0 = ATIS threshold crossing, bit 1 = polarity)
 ES_T, ES_STEP, ES_FLAGS, ES_X, ES_Y = range(5)
 
-# text parser statuses (io/text_kernel.py)
+# text parser statuses
 TEXT_OK, TEXT_NUMBER, TEXT_FIELDS, TEXT_COORDINATE, TEXT_POLARITY, TEXT_FRACTION, TEXT_DIGITS = range(7)
 TEXT_PROBLEMS = {
     TEXT_NUMBER: "not a number",
@@ -158,7 +157,16 @@ def has_kind(words: np.ndarray, shift: int, kind: int) -> bool:
 
 
 def parse_text(data: np.ndarray, roles: np.ndarray, comma: bool, time_digits: int):
-    """Rows of text numbers -> (t, x, y, p, rows, status, offset, newlines): see io/text_kernel.py."""
-    from neurotac_cli.io.text_kernel import parse_text as parse
+    """Rows of text numbers -> (t, x, y, p, rows, status, offset, newlines).
 
-    return parse(data, roles, comma, time_digits)
+    `roles[i]` says what field i is: 0 = time, 1 = x, 2 = y, 3 = polarity, -1 = ignored. Fields are
+    separated by a comma (`comma`) or by runs of spaces and tabs; blank lines are skipped. Time is a
+    decimal (optionally with an exponent) scaled by 10**time_digits to whole µs: exactly, from its
+    digits, with no float rounding; a time column in µs (time_digits 0) must be whole, finer columns
+    are rounded half away from zero to the µs. On the first problem, `status` says what and `offset`
+    where (the start of its line). One pass over the bytes: a small state machine per field.
+    """
+    newlines = int(np.count_nonzero(data == 10))
+    t, x, y, p = _events(newlines + 1)
+    rows, status, offset = _c.parse_text(data, np.ascontiguousarray(roles, dtype=np.int64), bool(comma), int(time_digits), t, x, y, p)
+    return t[:rows], x[:rows], y[:rows], p[:rows], rows, status, offset, newlines
