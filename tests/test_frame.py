@@ -176,6 +176,13 @@ def test_sort_frames_shuffled_events_as_sorted_ones():
     assert np.array_equal(counts_of(fr.frames_from_events_table(shuffled, 5_000, sort=True)), counts_of(ordered))
 
 
+def test_sort_refuses_more_events_than_it_may_hold(monkeypatch):
+    monkeypatch.setattr(fr, "SORT_EVENTS", 1_000)
+    t, x, y, p = random_events(6, n=1_500)
+    with pytest.raises(NeurotacError, match=r"^more than 1,000 events to sort \(--sort holds them in memory"):
+        fr.frames_from_events_table(sch.events_table(t, x, y, p, W, H), 5_000, sort=True)
+
+
 def test_events_late_by_less_than_a_window_after_their_frame_left_are_counted_as_late():
     t = np.array([0, 10_000, 20_500, 19_000, 30_000])  # 19000 arrives after window [10, 20 ms) has left
     table = sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.ones(5, int), W, H)
