@@ -1,6 +1,7 @@
 """Each verb imports only what its work needs: on an empty input (it starts, reads the schema, and
-refuses it, or describes it for `info`) no verb loads numba, scipy, sklearn, matplotlib or Parquet, and none loads torch, not even
-the model verbs, which read the model file's header without it."""
+refuses it, or describes it for `info`) no verb loads numba, scipy, sklearn, matplotlib or Parquet,
+and none loads torch, not even the model verbs, which read the model file's header without it
+(`predict` starts importing torch in the background while it waits for its first frame)."""
 
 import json
 import subprocess
@@ -64,5 +65,7 @@ def test_a_verb_on_an_empty_input_imports_nothing_heavy(inputs, args, table):
     with open(inputs / f"{table}.arrows", "rb") as stdin:
         done = subprocess.run([sys.executable, "-c", PROBE, *args], stdin=stdin, capture_output=True, text=True)
     code, heavy = eval(done.stderr.strip().splitlines()[-1])
+    if args[0] == "predict":  # it starts importing torch in a thread while it waits for the first frame, and does not wait for it
+        heavy = [name for name in heavy if name != "torch"]
     assert (code == 0) if args[0] == "info" else (code == 1 and "has no rows" in done.stderr), done.stderr
     assert heavy == [], f"{args[0]} imported {heavy} before refusing an empty input"

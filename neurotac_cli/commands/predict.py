@@ -18,6 +18,7 @@ def command(paths, output, model_path, threads):
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
     """
+    import importlib
     import itertools
     import sys
 
@@ -25,8 +26,13 @@ def command(paths, output, model_path, threads):
     from neurotac_cli import tables
     from neurotac_cli.model.store import read_header
 
-    read_header(model_path)  # a wrong model file fails at once; torch (seconds to import) waits for the first frame
+    import threading
+
+    read_header(model_path)  # a wrong model file fails at once
     source = tables.open_input(paths, kind="frames")
+    # torch takes seconds to import: it is imported beside the wait for the first frame (in a pipe,
+    # while the verbs upstream work), and an empty input is refused without waiting for it
+    threading.Thread(target=importlib.import_module, args=("torch",), daemon=True).start()
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
     import torch
