@@ -176,6 +176,15 @@ def test_sort_frames_shuffled_events_as_sorted_ones():
     assert np.array_equal(counts_of(fr.frames_from_events_table(shuffled, 5_000, sort=True)), counts_of(ordered))
 
 
+def test_pad_to_cuts_a_stream_even_when_whole_batches_lie_past_it():
+    t = np.array([0, 5_000, 15_000, 50_000, 60_000, 70_000])  # the second batch lies past frame 3
+    table = sch.events_table(t, np.zeros(6, int), np.zeros(6, int), np.zeros(6, int), W, H)
+    report = fr.FramingReport()
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=3), fr.Framing(window_us=10_000, pad_to=5), report)
+    frames = pa.Table.from_batches(list(batches), schema=schema)
+    assert frames.num_rows == 5 and counts_of(frames).sum() == 3 == report.framed and report.after_end == 3
+
+
 def test_sort_refuses_more_events_than_it_may_hold(monkeypatch):
     monkeypatch.setattr(fr, "SORT_EVENTS", 1_000)
     t, x, y, p = random_events(6, n=1_500)

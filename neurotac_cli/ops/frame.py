@@ -484,6 +484,7 @@ class _StreamFramer:
         if self.cap is not None:  # windows past --pad-to N are cut here, and counted
             back, first, order[0] = kernels.time_order(t, order[0], self.window, self.floor)
             self._refuse_disorder(back, first, t, rest)
+            self.latest = int(order[0])
             past = (t - self.start) // self.window >= self.cap
             if past.any():
                 self.report.after_end += int(past.sum())
