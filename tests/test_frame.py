@@ -450,8 +450,11 @@ def test_a_long_gap_within_the_limit_is_reported_with_where_it_is():
 def test_recordings_past_the_frame_limit_are_refused_naming_the_trial():
     far = {"trial": "late", "t0": 0, "events": (np.array([0, 10**11]), np.zeros(2), np.zeros(2), np.zeros(2)), "force": (np.array([], np.int64), np.array([]))}
     near = {"trial": "ok", "t0": 0, "events": random_events(1, n=50), "force": (np.array([], np.int64), np.array([]))}
-    with pytest.raises(NeurotacError, match=r"^10,000,\d{3} frames to write, .*\(trial late: a gap of 27.8 hours at event 1"):
+    with pytest.raises(NeurotacError, match=r"^10,000,\d{3} frames to write, .*\(trial late: a gap of 27.8 hours at event 1, from t = 0 to 100000000000 µs"):
         fr.frame_recordings(recordings([near, far]), 10_000)
+    logged = {"trial": "logged", "t0": 0, "events": random_events(2, n=50), "force": (np.arange(0, 3_000_000_000, 2_000), np.zeros(1_500_000))}
+    with pytest.raises(NeurotacError, match=r"\(trial logged: the force samples span 50.0 min: a window of 1.0 ms is too small for it"):
+        fr.frame_recordings(recordings([logged]), 1_000)
 
 
 def test_float32_without_a_scale_spills_to_disk_and_equals_the_counts_divided_by_their_maxima(monkeypatch):

@@ -264,8 +264,9 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
     if sum(totals):
         longest = int(np.argmax(totals))
         trial, (t, *_), (force_t, _), _ = rows[longest]
-        times = np.sort(np.concatenate([[0], t[t >= 0], force_t]))
-        check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(times, 0, window, -1))
+        # the trial's end is its force log's when it has one (see trial_end), else its last event's
+        times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
+        check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
     plan = []
     for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
         t, x, y, p = events
@@ -604,8 +605,8 @@ def check_frame_count(frames: int, framing: Framing, why, streaming: bool = Fals
         raise NeurotacError(f"{at_least}{frames:,} frames to write, more than --max-frames {framing.max_frames:,} ({why()})")
 
 
-def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int) -> str:
-    """The reason for a frame count: the largest gap in `times` (event times from index
+def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int, what: str = "event") -> str:
+    """The reason for a frame count: the largest gap in `times` (times of `what`, numbered from
     `first_index`) when it holds most of the span from `start`, else a window too small for it."""
     reach = np.maximum.accumulate(np.asarray(times, dtype=np.int64))
     span = int(reach[-1]) - start
@@ -613,11 +614,11 @@ def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int)
     i = int(np.argmax(steps)) if len(steps) else 0
     if len(steps) and 2 * int(steps[i]) > span:
         return (
-            f"a gap of {_duration(int(steps[i]))} at event {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs, "
+            f"a gap of {_duration(int(steps[i]))} at {what} {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs, "
             "a clock jump or a corrupt record; cut the input there, or raise --max-frames"
         )
     return (
-        f"the events span {_duration(span)}: a window of {_duration(window_us)} is too small for it; "
+        f"the {what}s span {_duration(span)}: a window of {_duration(window_us)} is too small for it; "
         "give a longer --window, or raise --max-frames"
     )
 
