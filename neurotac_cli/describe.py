@@ -8,7 +8,6 @@ describes the same wherever it is stored.
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
 
@@ -95,6 +94,8 @@ class _Recordings:
         self.events = 0
 
     def add(self, batch):
+        import pyarrow.compute as pc  # only recordings need it: its import costs every `info`
+
         names = batch.schema.names
         ids = batch.column("trial").to_pylist()
         t0 = batch.column("t0").to_numpy(zero_copy_only=False)

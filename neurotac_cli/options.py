@@ -21,13 +21,17 @@ class Duration(ParamType):
 
     name = "DURATION"
 
+    def __init__(self, positive: bool = False):
+        self.positive = positive
+
     def convert(self, value, param, ctx):
-        if isinstance(value, int):
-            return value
         try:
-            return parse_duration_us(value)
+            us = value if isinstance(value, int) else parse_duration_us(value)
         except NeurotacError as error:
             self.fail(str(error), param, ctx)
+        if self.positive and us <= 0:
+            self.fail(f"expected a positive duration, got {value!r}", param, ctx)
+        return us
 
 
 class Size(ParamType):

@@ -19,7 +19,6 @@ from typing import Iterable, Iterator
 
 import pyarrow as pa
 import pyarrow.ipc as ipc
-import pyarrow.parquet as pq
 
 from neurotac_cli import __version__, bridges, schema as sch
 from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError
@@ -155,6 +154,8 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
                 reader = ipc.open_file(data if data is not None else pa.memory_map(path))
                 yield reader.schema, _guard((reader.get_batch(i) for i in range(reader.num_record_batches)), name)
             else:
+                import pyarrow.parquet as pq  # only for Parquet: its import costs a pipe's every process
+
                 parquet = pq.ParquetFile(data if data is not None else path)
                 schema = parquet.schema_arrow
                 yield schema, _guard(parquet.iter_batches(batch_size=65536), name, schema)
@@ -401,6 +402,8 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
 
             write_text(temporary, fmt, schema, batches)
         elif fmt == "parquet":
+            import pyarrow.parquet as pq
+
             writer = pq.ParquetWriter(temporary, schema, compression="zstd")
             for batch in batches:
                 writer.write_batch(_with_schema(batch, schema))

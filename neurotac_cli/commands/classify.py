@@ -15,7 +15,9 @@ def command(paths, output, model_path):
     """
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model.store import read_header
 
-    model = models.load(model_path)
+    read_header(model_path)  # a wrong model file fails at once, an empty input next, before torch's import
     table = tables.read(paths, kind="frames")
+    model = models.load(model_path)
     tables.write(output, models.classify_table(model, table), step=history())

@@ -42,18 +42,21 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         neurotac eval --cv loo --model-spec tdnn --grid layers=1..5 --grid units=5,10,...,40 \\
           --metrics grid.parquet --jobs 0 < ch3-frames.arrows > oof.arrows
     """
-    import torch
-
     from neurotac_cli import tables
-    from neurotac_cli.model import evaluate, plots
+    from neurotac_cli.model.request import check_request
 
     chosen = hyperparameters(options)
-    evaluate.check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
+    check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
+    table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    import torch
+
+    from neurotac_cli.model import evaluate, plots
+
     torch.set_num_threads(max(1, threads))
     folds = evaluate.Folds(cv, repeats, seed, val_fraction, val_per, label) if cv else None
     result = evaluate.evaluate(
-        tables.read(paths, kind="frames"), model_path=model_path, model_spec=model_spec, hyperparameters=chosen, grid=grid,
+        table, model_path=model_path, model_spec=model_spec, hyperparameters=chosen, grid=grid,
         folds=folds, nonzero=nonzero, per_trial=per_trial, runner=evaluate.Runner(jobs, scheduler, cache),
         progress=progress_printer())
     click.echo(result.summary, err=True)

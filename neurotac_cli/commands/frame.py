@@ -18,10 +18,25 @@ class PadTo(ParamType):
         return number
 
 
+class Scale(ParamType):
+    name = "N[,M]"
+
+    def convert(self, value, param, ctx):
+        if value is None or isinstance(value, tuple):
+            return value
+        try:
+            values = tuple(float(v) for v in str(value).split(","))
+        except ValueError:
+            self.fail(f"expected one or two positive counts (OFF,ON), e.g. 40 or 40,55, got {value!r}", param, ctx)
+        if len(values) not in (1, 2) or min(values) <= 0:
+            self.fail(f"expected one or two positive counts (OFF,ON), e.g. 40 or 40,55, got {value!r}", param, ctx)
+        return values * 2 if len(values) == 1 else values
+
+
 @click.command()
 @input_paths
 @output_option
-@click.option("--window", type=Duration(), required=True, help="Frame length, with its unit: 10ms (thesis ch. 4-5), 7ms (ch. 3).")
+@click.option("--window", type=Duration(positive=True), required=True, help="Frame length, with its unit: 10ms (thesis ch. 4-5), 7ms (ch. 3).")
 @click.option(
     "--last-partial",
     type=click.Choice(["keep", "drop"]),
@@ -53,7 +68,7 @@ class PadTo(ParamType):
     help="uint16 counts (saturation at 65535 is reported), or float32 counts divided by each channel's largest count "
     "in the whole output (or by --scale).",
 )
-@click.option("--scale", default=None, metavar="N[,M]", help="With --dtype float32: divide OFF and ON counts by these, instead of their maxima.")
+@click.option("--scale", type=Scale(), default=None, help="With --dtype float32: divide OFF and ON counts by these, instead of their maxima.")
 @click.option("--start", type=Duration(), default=None, help="Plain events tables: frame from this camera time (e.g. 1500ms) instead of the first event.")
 @click.option(
     "--trial",
@@ -62,56 +77,47 @@ class PadTo(ParamType):
     "as `import` recorded it, else `events`]",
 )
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH, for tables that do not carry neurotac:sensor metadata.")
-def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor):
+@click.option(
+    "--max-frames",
+    type=click.IntRange(min=1),
+    default=1_000_000,
+    show_default=True,
+    help="Refuse to write more frames than this (a clock jump or a tiny --window would otherwise write without end); "
+    "the error says where the frames come from.",
+)
+@click.option(
+    "--sort",
+    is_flag=True,
+    help="Plain events tables: sort the events by time first (held in memory, at most 20 million), instead of "
+    "refusing events more than one window out of time order.",
+)
+def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor, max_frames, sort):
     """Bin each trial's events into two-channel count frames, with force and phase per frame.
 
     Windows are half-open, [t0 + k*T, t0 + (k+1)*T) from each trial's sync instant t0; empty windows
     are zero frames. Channel 0 counts OFF events, channel 1 ON events. A plain events table (from
     `neurotac import`) is framed as one unlabelled trial from its first event, streamed batch by
-    batch so memory does not grow with its length.
+    batch so memory does not grow with its length; each frame is written as soon as an event at or
+    after its window's end has arrived.
 
     \b
         neurotac sync --manifest d/manifest.csv | neurotac frame --window 10ms --pad-to longest > f.arrows
         neurotac import rec.aedat | neurotac frame --window 10ms -o frames.parquet
     """
-    from neurotac_cli import schema as sch, tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli import tables
     from neurotac_cli.ops import frame as fr
     from neurotac_cli.ops.phases import parse_ranges
 
     if phases not in ("auto", "none"):
         phases = tuple(parse_ranges(phases))
-    if scale is not None:
-        try:
-            values = tuple(float(v) for v in scale.split(","))
-        except ValueError:
-            raise NeurotacError(f"cannot read --scale {scale!r} (one or two positive counts, e.g. 40 or 40,55)") from None
-        scale = values * 2 if len(values) == 1 else values
     source = tables.open_input(paths, kind=("recordings", "events"))
-    if trial is None:
-        trial = camera_file_stem(source.schema) or "events"
     framing = fr.Framing(
-        window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases,
-        accumulate=accumulate, dtype=dtype, scale=scale, start_us=start, trial=trial,
+        window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
+        dtype=dtype, scale=scale, start_us=start, trial=trial or camera_file_stem(source.schema) or "events",
+        max_frames=max_frames, sort=sort,
     )
-    report = fr.FramingReport()
-    args = framing.args()
-    if source.kind == "recordings":
-        table = source.read_all()
-        if sensor is not None:
-            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
-        schema, batches = fr.frame_recordings_batches(table, framing, report)
-        args["report"] = report.as_dict()
-    else:
-        schema, batches = fr.frame_events(source.schema, source.batches, framing, report, sensor=sensor)
-        args["trial"] = trial
-        if dtype == "float32" and scale is None:  # the scale is known only at the end: hold the frames
-            batches = list(batches)
-            schema = sch.set_meta(schema, scale=report.scale)
-            args["report"] = report.as_dict()
-        else:
-            args["report"] = "streamed: counts of dropped events are written to stderr"
-    tables.write(output, batches, step=("frame", args), schema=schema)
+    schema, batches, report, args = fr.frame(source, framing, sensor)
+    tables.write(output, flushed(batches) if output in (None, "-") else batches, step=("frame", args), schema=schema)
     for line in report.warnings(lead_in_expected=source.kind == "recordings") + report.notes:
         click.echo(f"neurotac frame: warning: {line}", err=True)
     if source.kind == "events" and report.dropped and not report.warnings():
@@ -120,6 +126,15 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             f"(before start {report.before_start}, after end {report.after_end}, out of time order {report.late})",
             err=True,
         )
+
+
+def flushed(batches):
+    """Each frames batch reaches the reader at once (a live pipe): stdout is flushed once it is written."""
+    import sys
+
+    for batch in batches:
+        yield batch
+        sys.stdout.buffer.flush()
 
 
 def camera_file_stem(schema) -> str | None:

@@ -18,13 +18,24 @@ def command(paths, output, model_path, threads):
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
     """
-    import torch
+    import importlib
+    import itertools
+    import threading
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model.store import read_header
+
+    read_header(model_path)  # a wrong model file fails at once
+    source = tables.open_input(paths, kind="frames")
+    # torch takes seconds to import: it is imported beside the wait for the first frame (in a pipe,
+    # while the verbs upstream work), and an empty input is refused without waiting for it
+    threading.Thread(target=importlib.import_module, args=("torch",), daemon=True).start()
+    frames = iter(source.batches)
+    first = next(frames)  # an empty input fails here
+    import torch
 
     torch.set_num_threads(max(1, threads))
     model = models.load(model_path)
-    source = tables.open_input(paths, kind="frames")
-    schema, batches = models.stream(model, source.schema, source.batches)
+    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames))
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)

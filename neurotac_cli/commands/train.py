@@ -32,16 +32,18 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
         neurotac simulate --preset ch4 --seed 1 --synced | neurotac frame --window 10ms \\
           | neurotac crop --size 115x115 --center auto | neurotac train --model deform-gru -o force.model
     """
-    import torch
-
     from neurotac_cli import model as models
     from neurotac_cli import tables
     from neurotac_cli.model.plots import curve_figure
-    from neurotac_cli.model.training import train_model
 
     tables.check_folder(*(path for path in (output, curve, plot) if path))
+    table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    import torch
+
+    from neurotac_cli.model.training import train_model
+
     torch.set_num_threads(max(1, threads))
-    trained = train_model(tables.read(paths, kind="frames"), model_name, hyperparameters(options), val_trials=val_trials,
+    trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer())
     models.save(trained.model, output)

@@ -5,7 +5,6 @@ from dataclasses import dataclass
 
 import pyarrow as pa
 
-from neurotac_cli.errors import UsageError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import classify_table, make_spec, predict_table
 from neurotac_cli.model.cv import fold_tasks, run_fold
@@ -46,20 +45,6 @@ class Evaluation:
     metrics: pa.Table
     summary: str
     spec: dict | None = None
-
-
-def check_request(*, model_path=None, cv=None, model_spec=None, grid=(), plot=None, hyperparameters=None) -> None:
-    """Refuse a request whose options contradict each other, before any input is read."""
-    if grid and not cv:
-        raise UsageError("--grid needs --cv and --model-spec (a grid of cross-validated models)")
-    if (model_path is None) == (cv is None):
-        raise UsageError("give either --model FILE, or --cv with --model-spec NAME")
-    if cv and not model_spec:
-        raise UsageError("--cv needs --model-spec NAME (the model trained per fold)")
-    if grid and plot:
-        raise UsageError("--plot draws one model; drop --grid, or plot the chosen point with its options (--layers 4 ...)")
-    if model_path and any(value is not None for value in (hyperparameters or {}).values()):
-        raise UsageError("hyperparameter options apply to --cv --model-spec only; a model file carries its own")
 
 
 def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparameters=None, grid=(), folds=None,

@@ -41,7 +41,7 @@ def read_header(path: str) -> dict:
     if not os.path.isfile(path):
         raise ModelError(f"{path} is not a regular file; give a model file written by `neurotac train`")
     try:
-        with safe_open(path, framework="pt") as handle:
+        with safe_open(path, framework="numpy") as handle:  # the header only: no torch needed
             metadata = handle.metadata() or {}
     except Exception as error:  # safetensors raises its own error types for foreign bytes
         raise ModelError(f"{path} is not a neurotac model file ({str(error).splitlines()[0]}); give a file written by `neurotac train`") from None

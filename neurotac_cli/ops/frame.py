@@ -15,171 +15,40 @@ scale: by default the channel's largest count over the whole output (thesis 4.5.
 the `neurotac:scale` metadata and in history so the same scale can be given to new data.
 
 Everything not framed is counted in a `FramingReport`: events before the start, after the end
-(or past --pad-to N), late events (out of time order by more than one window), saturated events.
+(or past --pad-to N), late events (a stream's events that arrive, less than one window out of time
+order, after their frame has left), saturated events. Nothing unbounded is written: more than
+`max_frames` frames are refused before they are written, with where they come from.
 """
 
-import os
-import sys
-from concurrent.futures import ThreadPoolExecutor
+import dataclasses
+import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.ipc as ipc
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.io import kernels
 from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 FORCE_AT = ("end", "mean", "median")
 BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
-SCAN_EVENTS = 1 << 18  # events scanned at a time: a huge input batch (a whole Parquet file) is cut up
-EMIT_FRAMES = 16  # completed frames leave together, as one Arrow batch (at most 16 windows of stream time late)
+SCAN_EVENTS = 1 << 18  # events counted at a time, so the frames of a huge input batch leave as it is counted
+MAX_FRAMES = 1_000_000  # frames written unless the user raises the limit: 2.8 hours of 10 ms windows
+SORT_EVENTS = 20_000_000  # events `sort` holds in memory (about 0.5 GB with the sort's index)
+GAP_WINDOWS = 1_000  # a stream's step in time of this many windows or more is reported, with where it is
 
 
-# ---------------------------------------------------------------- kernel
-
-PAGE_BYTES = 4096
-
-try:  # numba compiles the one-pass loop; numpy's bincount path below gives identical results.
-    if os.environ.get("NEUROTAC_NO_NUMBA"):
-        raise ImportError
-    import numba
-
-    @numba.njit(cache=True, nogil=True)
-    def _scan_numba(t, x, y, p, start, window_us, first, out, zeroed):  # pragma: no cover - compiled
-        n, _, height, width = out.shape
-        cells = 2 * height * width
-        flat = out.reshape(-1)
-        inside = saturated = before = late = beyond = 0
-        k_max = -1
-        k = 0
-        lo = hi = start  # [lo, hi) = the window of the previous event: sorted time rarely leaves it
-        base = 0  # flat offset of frame j = k - first
-        j = -1
-        for i in range(t.shape[0]):
-            ti = t[i]
-            if ti < lo or ti >= hi:
-                k = (ti - start) // window_us
-                lo = start + k * window_us
-                hi = lo + window_us
-                j = k - first
-                if j >= zeroed and j < n:  # frames enter the cache zeroed just before their first count
-                    flat[zeroed * cells : (j + 1) * cells] = 0
-                    zeroed = j + 1
-                base = j * cells
-            if k > k_max:
-                k_max = k
-            if k < 0:
-                before += 1
-                continue
-            if j < 0:
-                late += 1
-                continue
-            if j >= n:
-                beyond += 1
-                continue
-            inside += 1
-            cell = base + (p[i] * height + y[i]) * width + x[i]
-            count = flat[cell]
-            if count == 65535:
-                saturated += 1
-            else:
-                flat[cell] = count + 1
-        return inside, saturated, before, late, beyond, k_max, zeroed
-
-    @numba.njit(cache=True, nogil=True)
-    def _touch_pages(flat):  # pragma: no cover - compiled
-        for i in range(0, flat.shape[0], PAGE_BYTES // 2):
-            flat[i] = 0
-
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - exercised with NEUROTAC_NO_NUMBA=1
-    HAVE_NUMBA = False
-
-
-def _scan_numpy(t, x, y, p, start, window_us, first, out, zeroed):
-    n, _, height, width = out.shape
-    window = (t - start) // window_us
-    k = window - first
-    if len(k) and k.max() >= zeroed:
-        out[zeroed : int(k.max()) + 1] = 0
-        zeroed = min(n, int(k.max()) + 1)
-    keep = (k >= 0) & (k < n)
-    before = int(np.count_nonzero(window < 0))
-    late = int(np.count_nonzero((window >= 0) & (k < 0)))
-    beyond = int(np.count_nonzero(k >= n))
-    k, x, y, p = k[keep], x[keep], y[keep], p[keep]
-    flat = ((k * 2 + p) * height + y.astype(np.int64)) * width + x
-    total = out.reshape(-1).astype(np.int64) + np.bincount(flat, minlength=out.size)
-    saturated = int(np.clip(total - MAX_COUNT, 0, None).sum())
-    out.reshape(-1)[:] = np.minimum(total, MAX_COUNT)
-    k_max = int(window.max()) if len(window) else -1
-    return int(keep.sum()), saturated, before, late, beyond, k_max, zeroed
-
-
-def scan_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray, zeroed: int | None = None) -> tuple:
-    """Add events to `out` (n, 2, H, W) uint16, whose frame 0 is window `first` counted from `start`.
-
-    One pass; returns (inside, saturated, before, late, beyond, k_max, zeroed): events counted into
-    these windows (of which `saturated` could not be, the pixel being at 65535), events before
-    `start`, events of windows before `first` (late), events of windows past the buffer (beyond),
-    the largest window index seen (-1 for none), and how many leading frames of `out` now hold counts.
-    Frames from `zeroed` on (by default none: all of `out` holds counts) hold garbage and are zeroed
-    when an event first reaches them (and every frame before it), so each is written while it is in
-    the cache: framing a long stream is bound by memory traffic, and zeroing a buffer ahead of time
-    reads it from memory twice.
-    Coordinates must lie inside the sensor and p in {0, 1}.
-    """
-    zeroed = out.shape[0] if zeroed is None else int(zeroed)
-    t = np.ascontiguousarray(t, dtype=np.int64)
-    x = np.ascontiguousarray(x, dtype=np.uint16)
-    y = np.ascontiguousarray(y, dtype=np.uint16)
-    p = np.ascontiguousarray(p, dtype=np.uint8)
-    if HAVE_NUMBA and out.flags.c_contiguous:
-        return tuple(int(v) for v in _scan_numba(t, x, y, p, np.int64(start), np.int64(window_us), np.int64(first), out, np.int64(zeroed)))
-    return _scan_numpy(t, x, y, p, int(start), int(window_us), int(first), out, zeroed)
-
-
-def _faulted_in(shape) -> np.ndarray:
-    """A fresh uint16 buffer whose pages the system has supplied (one write per page)."""
-    buffer = np.empty(shape, dtype=np.uint16)
-    if HAVE_NUMBA:
-        _touch_pages(buffer.reshape(-1))
-    else:
-        buffer.reshape(-1)[:: PAGE_BYTES // 2] = 0
-    return buffer
-
-
-class _FreshBuffers:
-    """Fresh streaming buffers, each faulted in by a second thread while the kernel counts into the
-    one before: a long stream whose frames are all held downstream needs new memory at its own rate,
-    and having the system supply those pages (zeroed) takes as long as counting the events into them.
-    The first buffer is made on the spot; one more is prepared only once a stream has used it up."""
-
-    _pool = None
-
-    def __init__(self, shape):
-        self.shape, self.next = shape, None
-
-    def take(self) -> np.ndarray:
-        if _FreshBuffers._pool is None:
-            _FreshBuffers._pool = ThreadPoolExecutor(1, thread_name_prefix="neurotac-pages")
-        buffer = self.next.result() if self.next is not None else np.empty(self.shape, dtype=np.uint16)
-        self.next = _FreshBuffers._pool.submit(_faulted_in, self.shape)
-        return buffer
-
-
-def bin_into(t, x, y, p, start: int, window_us: int, first: int, out: np.ndarray) -> tuple[int, int]:
-    """`scan_into`, returning only (events inside these windows, of which lost to saturation)."""
-    inside, saturated, *_ = scan_into(t, x, y, p, start, window_us, first, out)
-    return inside, saturated
+# ---------------------------------------------------------------- counting
 
 
 def count_frames(t, x, y, p, window_us: int, n_frames: int, height: int, width: int, start: int = 0) -> np.ndarray:
     """The (n_frames, 2, H, W) uint16 counts of events in windows [start + k·T, start + (k+1)·T)."""
     out = np.zeros((n_frames, 2, height, width), dtype=np.uint16)
-    bin_into(t, x, y, p, start, window_us, 0, out)
+    kernels.count_events(t, x, y, p, start, window_us, 0, out)
     return out
 
 
@@ -208,6 +77,8 @@ class Framing:
     scale: tuple | None = None
     start_us: int | None = None
     trial: str = "events"
+    max_frames: int = MAX_FRAMES
+    sort: bool = False
 
     def __post_init__(self):
         if not isinstance(self.window_us, (int, np.integer)) or self.window_us <= 0:
@@ -218,6 +89,8 @@ class Framing:
             raise NeurotacError(f"cannot pad to {self.pad_to!r} (give a number of frames, e.g. 41, or `longest`)")
         if self.force_at not in FORCE_AT:
             raise NeurotacError(f"force-at must be one of {', '.join(FORCE_AT)}, got {self.force_at!r}")
+        if not isinstance(self.max_frames, (int, np.integer)) or self.max_frames <= 0:
+            raise NeurotacError(f"max-frames must be a positive number of frames, got {self.max_frames!r}")
         if self.dtype not in ("uint16", "float32"):
             raise NeurotacError(f"dtype must be uint16 or float32, got {self.dtype!r}")
         if self.scale is not None:
@@ -240,6 +113,8 @@ class Framing:
             "dtype": self.dtype,
             "scale": list(self.scale) if self.scale else None,
             "start_us": self.start_us,
+            "max_frames": int(self.max_frames),
+            "sort": self.sort,
         }
 
 
@@ -353,22 +228,50 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         raise SchemaError("recordings table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
     width, height = sensor
     labels = sch.label_columns(table.schema)
+    plan = _plan_trials(table, framing, report, sensor)
+    counter = _TrialCounter(framing, report, sensor)
+    scale = None
+    if framing.dtype == "float32":
+        scale = [float(s) for s in framing.scale] if framing.scale is not None else counter.peaks(plan)
+        report.scale = scale
+    dtype = np.float32 if framing.dtype == "float32" else np.uint16
+    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us, sensor=sch.sensor_meta(width, height))
+    if scale is not None:
+        out_schema = sch.set_meta(out_schema, scale=scale)
+    out_schema = _keep_meta(table.schema, out_schema)
+
+    def batches():
+        for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
+            force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
+            phase = _phases(force, n_real, n_total, framing.phases)
+            for first, counts in counter.chunks(events, n_real, n_total):
+                end = first + len(counts)
+                yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
+                                    label_values, labels, framing.window_us, scale, first_frame=first)
+
+    return out_schema, batches()
+
+
+def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, sensor) -> list:
+    """Per trial (trial, events, force t, force values, labels, real frames, frames with padding),
+    its events checked and counted in the report; more frames than framing.max_frames refused."""
     window = framing.window_us
     rows = list(_trial_rows(table))
-    lengths = [n_windows(trial_end(ev[0], force[0]), window, framing.partial) for _, ev, force, _ in rows]
-    target = None
-    if framing.pad_to == "longest":
-        target = max(lengths, default=0)
-    elif isinstance(framing.pad_to, int):
-        target = framing.pad_to
-    dtype = np.float32 if framing.dtype == "float32" else np.uint16
-
+    ends = [trial_end(events[0], force[0]) for _, events, force, _ in rows]
+    lengths = [n_windows(end, window, framing.partial) for end in ends]
+    target = max(lengths, default=0) if framing.pad_to == "longest" else framing.pad_to
+    totals = [n if target is None else target for n in lengths]
+    if sum(totals):
+        longest = int(np.argmax(totals))
+        trial, (t, *_), (force_t, _), _ = rows[longest]
+        # the trial's end is its force log's when it has one (see trial_end), else its last event's
+        times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
+        check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
     plan = []
-    for (trial, events, (force_t, force_v), label_values), n_real in zip(rows, lengths):
+    for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
         t, x, y, p = events
         sch.check_events(t, x, y, p, sensor, where=f"trial {trial}", sorted_time=False)
         sch.check_force(force_v, where=f"trial {trial}")
-        n_total = n_real if target is None else target
         n_real = min(n_real, n_total)
         before = int(np.count_nonzero(t < 0))
         after = int(np.count_nonzero(t >= n_real * window))
@@ -380,52 +283,52 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         report.frames += n_total
         report.padded_frames += n_total - n_real
         plan.append((trial, events, force_t, force_v, label_values, n_real, n_total))
+    return plan
 
-    def counts_of(events, n_real, n_total, count=True):
+
+class _TrialCounter:
+    """The count frames of one trial of a recording, in pieces of at most BUFFER_CELLS counts (memory
+    stays flat however long the trial), accumulated when asked."""
+
+    def __init__(self, framing: Framing, report: FramingReport, sensor):
+        self.framing, self.report = framing, report
+        self.width, self.height = sensor
+        self.chunk = int(max(1, BUFFER_CELLS // (2 * self.height * self.width)))
+
+    def chunks(self, events, n_real: int, n_total: int, count: bool = True):
+        """(first frame, counts) pieces of the trial's n_total frames, of which the first n_real hold events."""
         t, x, y, p = events
-        counts = np.zeros((n_total, 2, height, width), dtype=np.uint16)
-        _, saturated = bin_into(t, x, y, p, 0, window, 0, counts[:n_real])
-        if framing.accumulate and n_real:
-            counts[:n_real] = _accumulate(counts[:n_real], report if count else FramingReport())
-        if count:
-            report.saturated_events += saturated
-            report.framed -= saturated
-            report.saturated_pixels += int(np.count_nonzero(counts == MAX_COUNT))
-        return counts
+        if len(t) > 1 and np.any(t[1:] < t[:-1]):  # a trial's events out of order are sorted once
+            order = np.argsort(t, kind="stable")
+            t, x, y, p = t[order], x[order], y[order], p[order]
+        window = self.framing.window_us
+        running = np.zeros((2, self.height, self.width), dtype=np.int64) if self.framing.accumulate else None
+        over = 0
+        for first in range(0, n_total, self.chunk):
+            counts = np.zeros((min(self.chunk, n_total - first), 2, self.height, self.width), dtype=np.uint16)
+            real = max(0, min(len(counts), n_real - first))
+            lo, hi = np.searchsorted(t, [first * window, (first + real) * window])
+            _, saturated, *_ = kernels.count_events(t[lo:hi], x[lo:hi], y[lo:hi], p[lo:hi], 0, window, first, counts[:real])
+            if running is not None and real:
+                total = running[None] + np.cumsum(counts[:real], axis=0, dtype=np.int64)
+                running = total[-1]
+                over += int(np.count_nonzero(total > MAX_COUNT))
+                counts[:real] = np.minimum(total, MAX_COUNT)
+            if count:
+                self.report.saturated_events += saturated
+                self.report.framed -= saturated
+                self.report.saturated_pixels += int(np.count_nonzero(counts == MAX_COUNT))
+            yield first, counts
+        if over and count:
+            self.report.notes.append(f"accumulated counts passed {MAX_COUNT} in {over} pixel-frames")
 
-    scale = None
-    if framing.dtype == "float32":
-        if framing.scale is not None:
-            scale = [float(s) for s in framing.scale]
-        else:  # a first pass for the channels' largest counts; frames are made again below, one trial at a time
-            peaks = np.zeros(2, dtype=np.int64)
-            for _, events, _, _, _, n_real, n_total in plan:
-                counts = counts_of(events, n_real, n_real, count=False)
-                if len(counts):
-                    peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
-            scale = [float(max(peak, 1)) for peak in peaks]
-        report.scale = scale
-    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=window, sensor=sch.sensor_meta(width, height))
-    if scale is not None:
-        out_schema = sch.set_meta(out_schema, scale=scale)
-    out_schema = _keep_meta(table.schema, out_schema)
-
-    def batches():
-        for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
-            counts = counts_of(events, n_real, n_total)
-            force = frame_force(force_t, force_v, window, n_total, framing.force_at)
-            phase = _phases(force, n_real, n_total, framing.phases)
-            yield _frames_batch(out_schema, trial, counts, force, phase, label_values, labels, window, scale)
-
-    return out_schema, batches()
-
-
-def _accumulate(counts: np.ndarray, report: FramingReport) -> np.ndarray:
-    total = np.cumsum(counts, axis=0, dtype=np.int64)
-    over = total > MAX_COUNT
-    if over.any():
-        report.notes.append(f"accumulated counts passed {MAX_COUNT} in {int(over.sum())} pixel-frames")
-    return np.minimum(total, MAX_COUNT).astype(np.uint16)
+    def peaks(self, plan) -> list[float]:
+        """Each channel's largest count over every trial (a first pass; frames are made again after)."""
+        peaks = np.zeros(2, dtype=np.int64)
+        for _, events, _, _, _, n_real, _ in plan:
+            for _, counts in self.chunks(events, n_real, n_real, count=False):
+                peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
+        return [float(max(peak, 1)) for peak in peaks]
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:
@@ -506,198 +409,230 @@ def _frames_batch(schema, trial, counts, force, phase, label_values, labels, win
 def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingReport, sensor=None):
     """Frame a plain `events` stream as one unlabelled trial, batch by batch.
 
-    Memory stays flat: frames are counted into a buffer of at most BUFFER_CELLS counts and leave it,
-    without a copy, as soon as a later event shows they are complete (one window of slack absorbs
-    small time disorder, such as the steps back of Prophesee EVT 3.0 files; events later than that
-    are counted as late). Returns (frames schema, iterator of batches); the
-    report is complete once the iterator is exhausted.
+    Window k leaves as soon as it has closed: once an event at or after its end has arrived (or the
+    input has ended), after the input batch that brought that event. Memory stays flat: frames are
+    counted into a buffer of at most BUFFER_CELLS counts and leave it as views, without a copy.
+    Events more than one window behind an earlier event, or before the first event, are refused
+    (or sorted first, with `framing.sort`); events less late than that whose frame has already left
+    are counted as late. Float32 output without a given scale spills the counts to a temporary file
+    until the channels' maxima are known. Returns (frames schema, iterator of batches); the report
+    is complete once the iterator is exhausted.
     """
     sensor = sensor or sch.sensor_of(schema)
     if sensor is None:
         raise SchemaError("events table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
     width, height = sensor
-    window = framing.window_us
-    if framing.phases not in ("auto", "none"):
-        phases = framing.phases
-    else:
-        phases = None
     dtype = np.float32 if framing.dtype == "float32" else np.uint16
-    out_schema = sch.frames_schema(height, width, (), dtype=dtype, window_us=window, sensor=sch.sensor_meta(width, height))
-    if framing.dtype == "float32" and framing.scale is not None:
+    out_schema = sch.frames_schema(height, width, (), dtype=dtype, window_us=framing.window_us, sensor=sch.sensor_meta(width, height))
+    if framing.scale is not None:
         out_schema = sch.set_meta(out_schema, scale=[float(s) for s in framing.scale])
     out_schema = _keep_meta(schema, out_schema)
-    capacity = int(min(256, max(2, BUFFER_CELLS // (2 * height * width))))
-    cap = framing.pad_to if isinstance(framing.pad_to, int) else None
+    batches = _slices(_sorted(batches) if framing.sort else batches, SCAN_EVENTS)
+    if framing.dtype == "float32" and framing.scale is None:
+        return _scaled_from_spill(out_schema, batches, framing, report, sensor)
+    return out_schema, _StreamFramer(out_schema, framing, report, sensor).frames(batches)
 
-    def generate():
-        # Frames are counted straight into `buffer` and leave as views of it (no copy); when events
-        # reach past its end, a fresh buffer takes over, carrying the frames still open (one or two).
-        # Buffer frames [0, zeroed) hold counts; later ones are garbage until the kernel zeroes them.
-        state = {"start": framing.start_us, "first": 0, "base": 0, "zeroed": 0, "last_t": None, "emitted": 0}
-        buffer = np.empty((capacity, 2, height, width), dtype=np.uint16)
-        spares = []  # earlier buffers, reused once nothing downstream holds their frames
-        fresh_buffers = _FreshBuffers(buffer.shape)
-        running = np.zeros((2, height, width), dtype=np.int64) if framing.accumulate else None
-        held = []  # float32 output without a given scale: frames wait for the maximum
-        ready = []  # frames batches made, waiting to be yielded
 
-        def emit(frames: np.ndarray):
-            """Frames leave here, in order, numbered from state['emitted']; never written again."""
-            nonlocal running
-            if not len(frames):
-                return
-            if running is not None:
-                total = running[None] + np.cumsum(frames, axis=0, dtype=np.int64)
-                running = total[-1].copy()
-                frames = np.minimum(total, MAX_COUNT).astype(np.uint16)
-            if report.saturated_events or running is not None:
-                report.saturated_pixels += int(np.count_nonzero(frames == MAX_COUNT))
-            first = state["emitted"]
-            state["emitted"] += len(frames)
-            report.frames += len(frames)
-            phase = ph.phases_from_ranges(first + len(frames), list(phases))[first:] if phases else None
-            if framing.dtype == "float32" and framing.scale is None:
-                held.append((first, frames, phase))
-                return
-            scale = [float(s) for s in framing.scale] if framing.dtype == "float32" else None
-            ready.append(_frames_batch(out_schema, framing.trial, frames, None, phase, {}, (), window, scale, first_frame=first))
+class _StreamFramer:
+    """The frames of one events stream. Buffer frame i is window `base + i`; buffer frames
+    [0, zeroed) hold counts, later ones garbage until an event reaches them (the kernel zeroes a
+    frame just before its first count, while it is in the cache); windows [0, emitted) have left."""
 
-        def zeros(count: int):
-            while count > 0:
-                step = min(count, capacity)
-                emit(np.zeros((step, 2, height, width), dtype=np.uint16))
-                count -= step
+    def __init__(self, out_schema: pa.Schema, framing: Framing, report: FramingReport, sensor):
+        self.schema, self.framing, self.report = out_schema, framing, report
+        self.width, self.height = sensor
+        self.window = framing.window_us
+        self.capacity = int(min(256, max(2, BUFFER_CELLS // (2 * self.height * self.width))))
+        self.buffer = np.empty((self.capacity, 2, self.height, self.width), dtype=np.uint16)
+        self.zero_frames = None  # one block of zero frames, shared by every run of empty windows
+        self.start = framing.start_us  # camera time of window 0: --start, else the first event's
+        self.floor = None  # events before it are out of time order: the first event, when it sets the start
+        self.latest = self.previous = None  # the largest event time so far, and before the current batch
+        self.order = None  # [latest, slack, floor, gap, gap_at, gap_from] as the kernel reads and updates them
+        self.gap = None  # (µs, event index, time before it) of the longest step in time of GAP_WINDOWS windows or more
+        self.base = self.zeroed = self.emitted = 0
+        self.cap = framing.pad_to if isinstance(framing.pad_to, int) else None
+        self.running = np.zeros((2, self.height, self.width), dtype=np.int64) if framing.accumulate else None
+        self.scale = [float(s) for s in framing.scale] if framing.scale is not None else None
 
-        def counted(end: int):
-            """Buffer frames [0, end) hold counts (those no event reached are zeroed now)."""
-            if end > state["zeroed"]:
-                buffer[state["zeroed"]:end] = 0
-                state["zeroed"] = end
-
-        def flush():
-            """Emit the completed frames still in the buffer, [emitted, first), as one batch."""
-            a, b = state["emitted"] - state["base"], state["first"] - state["base"]
-            if b > a:
-                counted(b)
-                emit(buffer[a:b])
-
-        def rebase():
-            """A fresh buffer starting at the first open frame, carrying the open frames over."""
-            nonlocal buffer
-            flush()
-            offset = state["first"] - state["base"]
-            filled = max(0, state["zeroed"] - offset)
-            fresh = None
-            for i in range(len(spares)):  # a buffer whose frames have all been let go of downstream
-                if sys.getrefcount(spares[i]) <= 2:  # held by the list and the call's argument only
-                    fresh = spares.pop(i)
-                    break
-            if fresh is None:  # frames are zeroed as they fill (np.zeros' lazily zeroed pages, faulted in by
-                # scattered counts, measured 30% slower)
-                fresh = fresh_buffers.take()
-            fresh[:filled] = buffer[offset:offset + filled]
-            if len(spares) < 4:
-                spares.append(buffer)
-            buffer = fresh
-            state["base"] = state["first"]
-            state["zeroed"] = filled
-
-        def advance(new_first: int):
-            """Frames [first, new_first) are complete: they leave once EMIT_FRAMES of them wait (a
-            batch per few frames, not per input batch: building an Arrow batch costs as much as
-            counting tens of thousands of events)."""
-            first, base = state["first"], state["base"]
-            if new_first <= first:
-                return
-            end = base + capacity
-            state["first"] = min(new_first, end)
-            if state["first"] - state["emitted"] >= EMIT_FRAMES or new_first > end:
-                flush()
-            if new_first > end:
-                zeros(new_first - end)
-                state["first"] = new_first
-                rebase()
-
-        def scan(t, x, y, p):
-            offset = state["first"] - state["base"]
-            counted(offset)  # windows skipped without an event are zero frames
-            inside, saturated, before, late, beyond, k_max, zeroed = scan_into(
-                t, x, y, p, state["start"], window, state["first"], buffer[offset:], max(0, state["zeroed"] - offset)
-            )
-            state["zeroed"] = max(state["zeroed"], offset + zeroed)
-            report.framed += inside - saturated
-            report.saturated_events += saturated
-            report.before_start += before
-            report.late += late
-            return beyond, k_max
-
-        for batch in _slices(batches, SCAN_EVENTS):
+    def frames(self, batches):
+        """Frames batches, each as soon as the input batch that closed its windows has been counted."""
+        batches = iter(batches)
+        for batch in batches:
             if not batch.num_rows:
                 continue
-            t = batch.column("t").to_numpy(zero_copy_only=False).astype(np.int64, copy=False)
-            x = batch.column("x").to_numpy(zero_copy_only=False)
-            y = batch.column("y").to_numpy(zero_copy_only=False)
-            p = batch.column("p").to_numpy(zero_copy_only=False)
-            sch.check_events(t, x, y, p, sensor, sorted_time=False)
-            if state["start"] is None:
-                state["start"] = int(t[0])
-            state["last_t"] = int(t[-1])
-            report.events += len(t)
-            if cap is not None:  # windows past --pad-to N are cut here, and counted
-                past = (t - state["start"]) // window >= cap
-                if past.any():
-                    report.after_end += int(past.sum())
-                    t, x, y, p = t[~past], x[~past], y[~past], p[~past]
-            beyond, k_max = scan(t, x, y, p)
-            while beyond:  # events past the buffer's end (once per buffer length): move on and count them
-                windows = (t - state["start"]) // window
-                rest = windows >= state["base"] + capacity
-                t, x, y, p = t[rest], x[rest], y[rest], p[rest]
-                advance(int(windows[rest].min()) - 1)
-                if state["first"] != state["base"]:
-                    rebase()
-                beyond, k_max = scan(t, x, y, p)
-            # frames before the latest event's window, less one window of slack, are complete
-            if k_max - 1 > state["first"]:
-                advance(k_max - 1)
-            yield from ready
-            ready.clear()
-
-        if state["start"] is None:
+            t, x, y, p = (batch.column(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p"))
+            t = t.astype(np.int64, copy=False)
+            sch.check_events(t, x, y, p, (self.width, self.height), sorted_time=False)
+            if self.order is None:  # the first batch
+                if self.start is None:
+                    self.start = self.floor = int(t[0])
+                floor = -(1 << 63) if self.floor is None else self.floor
+                self.order = np.array([t[0], self.window, floor, GAP_WINDOWS * self.window - 1, -1, 0], dtype=np.int64)
+            self.previous = int(self.order[0])
+            self.report.events += len(t)
+            yield from self._count(t, x, y, p, batches)
+            yield from self._emit(self._closed())
+        if self.latest is None:
             raise NeurotacError("input events table is empty: nothing to frame")
-        # tonic's convention for a stream: window k is complete when it ends at or before the last
-        # event's time; the partial window kept is the one holding the last event
-        span = state["last_t"] - state["start"]
-        n_real = 0 if span < 0 else span // window + (1 if framing.partial == "keep" else 0)
-        n_total = n_real
-        if cap is not None:
-            n_total = cap
-            n_real = min(n_real, cap)
-        report.padded_frames = max(0, n_total - n_real)
-        report.trials = 1
-        first, base = state["first"], state["base"]
-        keep_end = min(max(n_real - base, first - base), capacity)
-        lost = int(buffer[keep_end:max(state["zeroed"], keep_end)].sum(dtype=np.int64))  # the partial window, when dropped
-        counted(keep_end)
-        emit(buffer[state["emitted"] - base:keep_end])  # the completed frames still waiting, and the last ones
-        report.framed -= lost
-        report.after_end += lost
-        zeros(n_total - state["emitted"])
-        yield from ready
-        ready.clear()
-        if held:
-            peaks = np.zeros(2, dtype=np.int64)
-            for _, frames, _ in held:
-                peaks = np.maximum(peaks, frames.max(axis=(0, 2, 3)))
-            scale = [float(max(peak, 1)) for peak in peaks]
-            report.scale = scale
-            for first, frames, phase in held:
-                yield _frames_batch(out_schema, framing.trial, frames, None, phase, {}, (), window, scale, first_frame=first)
+        yield from self._finish()
 
-    return out_schema, generate()
+    def _count(self, t, x, y, p, rest):
+        """Count a batch into the buffer, checking its time order (in the same pass, but with
+        --pad-to N) and the frame limit; while events lie past the buffer's end, the windows before
+        them leave and a fresh buffer starts at the first of them."""
+        order = self.order
+        if self.cap is not None:  # windows past --pad-to N are cut here, and counted
+            back, first, order[0] = kernels.time_order(t, order[0], self.window, self.floor)
+            self._refuse_disorder(back, first, t, rest)
+            self.latest = int(order[0])
+            past = (t - self.start) // self.window >= self.cap
+            if past.any():
+                self.report.after_end += int(past.sum())
+                t, x, y, p = t[~past], x[~past], y[~past], p[~past]
+            order = None
+        while len(t):
+            offset = self.emitted - self.base
+            inside, saturated, before, late, beyond, _, zeroed, back, first = kernels.count_events(
+                t, x, y, p, self.start, self.window, self.emitted, self.buffer[offset:], max(0, self.zeroed - offset), order
+            )
+            self.zeroed = max(self.zeroed, offset + zeroed)
+            self.report.framed += inside - saturated
+            self.report.saturated_events += saturated
+            self.report.before_start += before
+            self.report.late += late
+            self.latest = int(self.order[0])
+            if order is not None:
+                self._refuse_disorder(back, first, t, rest)
+                if order[4] >= 0:  # the longest run of empty windows so far, and where it is
+                    self.gap = (int(order[3]), self.report.events - len(t) + int(order[4]), int(order[5]))
+                    order[4] = -1
+                if self.latest >= self.start:
+                    frames = (self.latest - self.start) // self.window + 1
+                    check_frame_count(frames, self.framing, lambda: self._why(t), streaming=True)
+                order = None  # once per batch
+            if not beyond:
+                return
+            windows = (t - self.start) // self.window
+            rest_of_batch = windows >= self.base + self.capacity
+            t, x, y, p = t[rest_of_batch], x[rest_of_batch], y[rest_of_batch], p[rest_of_batch]
+            next_base = int(windows[rest_of_batch].min())
+            yield from self._emit(next_base)
+            self.buffer = np.empty_like(self.buffer)  # the frames that left are views of the old one
+            self.base, self.zeroed = next_base, 0
+
+    def _refuse_disorder(self, back: int, first: int, t: np.ndarray, rest):
+        """Refuse events more than one window back in time, counting them over the rest of the input."""
+        if not back:
+            return
+        ahead = int(max(self.previous, t[:first].max(initial=self.previous)))
+        latest = int(self.order[0])
+        for batch in rest:
+            if batch.num_rows:
+                more, _, latest = kernels.time_order(batch.column("t").to_numpy(zero_copy_only=False), latest, self.window, self.floor)
+                back += more
+        raise NeurotacError(
+            f"{back:,} event{'s' if back > 1 else ''} more than one window out of time order (the first: event "
+            f"{self.report.events - len(t) + first:,} at t = {int(t[first])} µs, after an event at {ahead} µs; "
+            "sort them with --sort, or fix the recording)"
+        )
+
+    def _closed(self) -> int:
+        """Windows before the latest event's window have closed."""
+        closed = max(0, (self.latest - self.start) // self.window)
+        return closed if self.cap is None else min(closed, self.cap)
+
+    def _emit(self, end: int):
+        """Batches of the windows [emitted, end): buffer frames, then zero frames past the buffer."""
+        stop = min(end, self.base + self.capacity)
+        if stop > self.emitted:
+            a, b = self.emitted - self.base, stop - self.base
+            if b > self.zeroed:
+                self.buffer[self.zeroed:b] = 0  # windows no event reached
+                self.zeroed = b
+            yield self._batch(self.buffer[a:b])
+        while end > self.emitted:
+            if self.zero_frames is None:
+                self.zero_frames = np.zeros_like(self.buffer)
+            yield self._batch(self.zero_frames[: min(end - self.emitted, self.capacity)])
+
+    def _batch(self, frames: np.ndarray) -> pa.RecordBatch:
+        """Frames leave here, in order, numbered from `emitted`; never written again."""
+        if self.running is not None:
+            total = self.running[None] + np.cumsum(frames, axis=0, dtype=np.int64)
+            self.running = total[-1].copy()
+            frames = np.minimum(total, MAX_COUNT).astype(np.uint16)
+        if self.report.saturated_events or self.running is not None:
+            self.report.saturated_pixels += int(np.count_nonzero(frames == MAX_COUNT))
+        first = self.emitted
+        self.emitted += len(frames)
+        self.report.frames += len(frames)
+        phases = self.framing.phases
+        phase = ph.phases_from_ranges(self.emitted, list(phases))[first:] if isinstance(phases, tuple) else None
+        return _frames_batch(self.schema, self.framing.trial, frames, None, phase, {}, (), self.window, self.scale, first_frame=first)
+
+    def _finish(self):
+        """tonic's convention for a stream: window k is complete when it ends at or before the last
+        event's time; the partial window kept is the one holding the last event."""
+        span = self.latest - self.start
+        n_real = 0 if span < 0 else span // self.window + (1 if self.framing.partial == "keep" else 0)
+        n_total = n_real if self.cap is None else self.cap
+        n_real = min(n_real, n_total)
+        self.report.padded_frames = max(0, n_total - n_real)
+        self.report.trials = 1
+        keep = min(max(n_real, self.emitted), self.base + self.capacity) - self.base
+        lost = int(self.buffer[keep:max(self.zeroed, keep)].sum(dtype=np.int64))  # the partial window, when dropped
+        self.report.framed -= lost
+        self.report.after_end += lost
+        self.zeroed = min(self.zeroed, keep)
+        if self.gap:
+            length, at, since = self.gap
+            self.report.notes.append(
+                f"a gap of {_duration(length)} at event {at:,} (from t = {since} to {since + length} µs): "
+                f"{length // self.window:,} empty frames in the middle of the stream"
+            )
+        yield from self._emit(n_total)
+
+    def _why(self, t: np.ndarray) -> str:
+        return why_so_many(np.concatenate([[self.previous], t]), self.start, self.window, self.report.events - len(t) - 1)
+
+
+def check_frame_count(frames: int, framing: Framing, why, streaming: bool = False) -> None:
+    """Refuse to write more than framing.max_frames frames; `why()` says where they come from. A
+    stream's count is of the events so far: `streaming` says so."""
+    if frames > framing.max_frames:
+        at_least = "at least " if streaming else ""
+        raise NeurotacError(f"{at_least}{frames:,} frames to write, more than --max-frames {framing.max_frames:,} ({why()})")
+
+
+def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int, what: str = "event") -> str:
+    """The reason for a frame count: the largest gap in `times` (times of `what`, numbered from
+    `first_index`) when it holds most of the span from `start`, else a window too small for it."""
+    reach = np.maximum.accumulate(np.asarray(times, dtype=np.int64))
+    span = int(reach[-1]) - start
+    steps = np.diff(reach)
+    i = int(np.argmax(steps)) if len(steps) else 0
+    if len(steps) and 2 * int(steps[i]) > span:
+        return (
+            f"a gap of {_duration(int(steps[i]))} at {what} {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs, "
+            "a clock jump or a corrupt record; cut the input there, or raise --max-frames"
+        )
+    return (
+        f"the {what}s span {_duration(span)}: a window of {_duration(window_us)} is too small for it; "
+        "give a longer --window, or raise --max-frames"
+    )
+
+
+def _duration(us: int) -> str:
+    for unit, size in (("hours", 3_600_000_000), ("min", 60_000_000), ("s", 1_000_000), ("ms", 1_000)):
+        if abs(us) >= size:
+            return f"{us / size:.1f} {unit}"
+    return f"{us} µs"
 
 
 def _slices(batches, size: int):
+    """Batches of at most `size` events: a huge input batch (a whole Parquet file) is cut up, so its
+    frames leave as it is counted."""
     for batch in batches:
         if batch.num_rows <= size:
             yield batch
@@ -706,9 +641,79 @@ def _slices(batches, size: int):
                 yield batch.slice(offset, size)
 
 
+def _sorted(batches):
+    """The events in time order (a stable sort, held in memory: at most SORT_EVENTS of them)."""
+    held, rows = [], 0
+    for batch in batches:
+        rows += batch.num_rows
+        if rows > SORT_EVENTS:
+            raise NeurotacError(
+                f"more than {SORT_EVENTS:,} events to sort (--sort holds them in memory; "
+                "sort the recording in pieces, or frame it without --sort)"
+            )
+        held.append(batch)
+    if not held:
+        return
+    table = pa.Table.from_batches(held)
+    del held
+    order = np.argsort(table.column("t").to_numpy(), kind="stable")
+    yield from table.take(order).to_batches(max_chunksize=SCAN_EVENTS)
+
+
+def _scaled_from_spill(out_schema: pa.Schema, batches, framing: Framing, report: FramingReport, sensor):
+    """Float32 frames divided by each channel's largest count: the uint16 frames are written to a
+    temporary file while the maxima are found, then read back and divided, so memory stays flat
+    whatever the stream's length (the disk holds its counts). Returns (schema with the scale, batches)."""
+    width, height = sensor
+    counting = dataclasses.replace(framing, dtype="uint16")
+    counts_schema = sch.frames_schema(height, width, (), window_us=framing.window_us)
+    spill = tempfile.TemporaryFile(prefix="neurotac-frame-")
+    peaks = np.zeros(2, dtype=np.int64)
+    with ipc.new_stream(spill, counts_schema) as writer:
+        for batch in _StreamFramer(counts_schema, counting, report, sensor).frames(batches):
+            counts = sch.counts_numpy(batch.column("counts"))
+            peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
+            writer.write_batch(batch)
+    report.scale = [float(max(peak, 1)) for peak in peaks]
+    out_schema = sch.set_meta(out_schema, scale=report.scale)
+    divisor = np.asarray(report.scale, dtype=np.float32)[None, :, None, None]
+
+    def scaled():
+        with spill:
+            spill.seek(0)
+            for batch in ipc.open_stream(spill):
+                columns = batch.columns
+                columns[3] = sch.counts_array(sch.counts_numpy(columns[3]).astype(np.float32) / divisor)
+                yield pa.RecordBatch.from_arrays(columns, schema=out_schema)
+
+    return out_schema, scaled()
+
+
 def frames_from_events_table(table: pa.Table, window_us: int, report: FramingReport | None = None, **options) -> pa.Table:
     """Frame a whole `events` table (tests and notebooks); the command streams with frame_events."""
     framing = Framing(window_us=window_us, **options)
     report = report if report is not None else FramingReport()
     schema, batches = frame_events(table.schema, table.to_batches(max_chunksize=1 << 16), framing, report)
     return pa.Table.from_batches(list(batches), schema=schema)
+
+
+# ---------------------------------------------------------------- the verb
+
+
+def frame(source, framing: Framing, sensor=None):
+    """Frame an opened `recordings` or `events` input (tables.Input): (frames schema, batches, report,
+    the settings as history records them). A recordings table is read whole and framed trial by
+    trial; an events stream is framed as it arrives."""
+    report = FramingReport()
+    args = framing.args()
+    if source.kind == "recordings":
+        table = source.read_all()
+        if sensor is not None:
+            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+        schema, batches = frame_recordings_batches(table, framing, report)
+        args["report"] = report.as_dict()
+    else:
+        schema, batches = frame_events(source.schema, source.batches, framing, report, sensor=sensor)
+        args["trial"] = framing.trial
+        args["report"] = report.as_dict() if report.scale else "streamed: counts of dropped events are written to stderr"
+    return schema, batches, report, args

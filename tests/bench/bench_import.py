@@ -2,8 +2,7 @@
 
 Our reader (`read_events_table`: file -> Arrow table with t, x, y, p) against every peer among
 evlib, faery, aedat and expelliarmus that reads the same file (full decode to arrays). Best of
-REPEATS runs after one warm-up each (numba's compiled code is cached on disk; the warm-up also
-loads it). Prints the time of each and the ratio peer/ours (> 1: ours is faster), and checks the
+REPEATS runs after one warm-up each (the page cache and the allocator warm up). Prints the time of each and the ratio peer/ours (> 1: ours is faster), and checks the
 goals: ours at least as fast as the fastest peer on the DAVIS240C AEDAT 2.0 file and the EVT 3.0
 file; the text reader at least 5x faster than numpy.loadtxt. Also checks that memory stays flat
 while a large file streams through `read_events` in chunks.

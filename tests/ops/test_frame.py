@@ -12,6 +12,7 @@ from hypothesis import given, settings, strategies as st
 
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.errors import NeurotacError
+from neurotac_cli.io import kernels
 from neurotac_cli.ops import frame as fr
 from neurotac_cli.ops import phases as ph
 
@@ -114,8 +115,8 @@ def test_streamed_frames_equal_whole_frames_with_a_small_buffer(monkeypatch):
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), gaps=st.lists(st.integers(0, 80_000), min_size=0, max_size=4),
        batch=st.sampled_from([1, 37, 500, 10_000]), frames=st.integers(2, 5))
-def test_reused_buffers_hold_no_stale_counts_across_gaps_and_batch_sizes(seed, gaps, batch, frames):
-    # frames are zeroed lazily as events reach them; buffers dropped downstream come back full of old counts
+def test_streamed_frames_hold_no_stale_counts_across_gaps_and_batch_sizes(seed, gaps, batch, frames):
+    # frames are zeroed lazily as events reach them: a frame no event reached must still leave as zeros
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(fr, "BUFFER_CELLS", 2 * H * W * frames)
         t, x, y, p = random_events(seed, n=3000, span=300_000)
@@ -128,7 +129,7 @@ def test_reused_buffers_hold_no_stale_counts_across_gaps_and_batch_sizes(seed, g
     assert np.array_equal(streamed, fr.count_frames(t, x, y, p, 5_000, len(streamed), H, W, start=int(t[0])))
 
 
-def test_buffers_are_reused_only_once_downstream_lets_go_of_their_frames(monkeypatch):
+def test_frames_held_downstream_keep_their_counts_while_later_frames_are_counted(monkeypatch):
     monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 4)
     t, x, y, p = random_events(4, n=20_000, span=900_000)
     table = sch.events_table(t, x, y, p, W, H)
@@ -147,39 +148,97 @@ def test_buffers_are_reused_only_once_downstream_lets_go_of_their_frames(monkeyp
     assert np.array_equal(held, expected)
 
 
-def test_events_later_than_one_window_of_slack_are_counted_not_lost(monkeypatch):
-    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 2)
-    t = np.array([0, 10_000, 50_000, 60_000, 5_000, 70_000])  # 5000 arrives after frames 0..4 have left
-    x = y = np.zeros(6, dtype=int)
-    p = np.ones(6, dtype=int)
+def test_events_out_of_time_order_are_refused_with_their_count_and_first_place():
+    t = np.array([0, 10_000, 50_000, 60_000, 5_000, 70_000, 20_000, 80_000])  # two step back more than a window
+    x = y = np.zeros(8, dtype=int)
+    p = np.ones(8, dtype=int)
     table = sch.events_table(t, x, y, p, W, H)
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=3), fr.Framing(window_us=10_000), fr.FramingReport())
+    with pytest.raises(NeurotacError, match=r"^2 events more than one window out of time order \(the first: event 4 at t = 5000 µs, after an event at 60000 µs; sort them with --sort"):
+        list(batches)
+
+
+def test_events_before_the_first_event_are_out_of_order_not_an_empty_table():
+    t = np.array([3_000, 1_000, 2_000, 500])  # three of four before the first: no frame would hold them
+    table = sch.events_table(t, np.zeros(4, int), np.zeros(4, int), np.zeros(4, int), W, H)
+    with pytest.raises(NeurotacError, match="^3 events more than one window out of time order"):
+        fr.frames_from_events_table(table, 10_000)
+    report = fr.FramingReport()
+    frames = fr.frames_from_events_table(table, 1_000, report=report, sort=True)
+    assert counts_of(frames).sum() == 4 and frames.num_rows == 3 and report.framed == 4
+
+
+def test_sort_frames_shuffled_events_as_sorted_ones():
+    t, x, y, p = random_events(5, n=3000, span=200_000)
+    order = np.random.default_rng(5).permutation(len(t))
+    shuffled = sch.events_table(t[order], x[order], y[order], p[order], W, H)
+    ordered = fr.frames_from_events_table(sch.events_table(t, x, y, p, W, H), 5_000)
+    assert np.array_equal(counts_of(fr.frames_from_events_table(shuffled, 5_000, sort=True)), counts_of(ordered))
+
+
+def test_pad_to_cuts_a_stream_even_when_whole_batches_lie_past_it():
+    t = np.array([0, 5_000, 15_000, 50_000, 60_000, 70_000])  # the second batch lies past frame 3
+    table = sch.events_table(t, np.zeros(6, int), np.zeros(6, int), np.zeros(6, int), W, H)
+    report = fr.FramingReport()
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=3), fr.Framing(window_us=10_000, pad_to=5), report)
+    frames = pa.Table.from_batches(list(batches), schema=schema)
+    assert frames.num_rows == 5 and counts_of(frames).sum() == 3 == report.framed and report.after_end == 3
+
+
+def test_sort_refuses_more_events_than_it_may_hold(monkeypatch):
+    monkeypatch.setattr(fr, "SORT_EVENTS", 1_000)
+    t, x, y, p = random_events(6, n=1_500)
+    with pytest.raises(NeurotacError, match=r"^more than 1,000 events to sort \(--sort holds them in memory"):
+        fr.frames_from_events_table(sch.events_table(t, x, y, p, W, H), 5_000, sort=True)
+
+
+def test_events_late_by_less_than_a_window_after_their_frame_left_are_counted_as_late():
+    t = np.array([0, 10_000, 20_500, 19_000, 30_000])  # 19000 arrives after window [10, 20 ms) has left
+    table = sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.ones(5, int), W, H)
     report = fr.FramingReport()
     schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=1), fr.Framing(window_us=10_000), report)
     frames = pa.Table.from_batches(list(batches), schema=schema)
-    assert report.late == 1 and counts_of(frames).sum() == 5
+    assert report.late == 1 and counts_of(frames).sum() == 4 and report.framed + report.dropped == 5
 
 
-def test_saturation_holds_at_65535_and_is_counted_in_both_kernels():
+def test_saturation_holds_at_65535_and_is_counted():
     n = 70_000
     t, x, y, p = np.zeros(n, np.int64), np.full(n, 3), np.full(n, 2), np.ones(n)
-    for kernel in (fr._scan_numpy, None):
-        out = np.zeros((1, 2, H, W), np.uint16)
-        if kernel is None:
-            inside, saturated = fr.bin_into(t, x, y, p, 0, 10_000, 0, out)
-        else:
-            inside, saturated, *_ = kernel(t, x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, 0, out, 1)
-        assert out[0, 1, 2, 3] == 65535 and inside == n and saturated == n - 65535
+    out = np.zeros((1, 2, H, W), np.uint16)
+    inside, saturated, *_ = kernels.count_events(t, x, y, p, 0, 10_000, 0, out)
+    assert out[0, 1, 2, 3] == 65535 and inside == n and saturated == n - 65535
 
 
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), first=st.integers(0, 5))
-def test_numpy_fallback_equals_compiled_kernel(seed, first):
-    t, x, y, p = random_events(seed, n=3000)
-    a = np.zeros((6, 2, H, W), np.uint16)
-    b = np.zeros((6, 2, H, W), np.uint16)
-    ra = fr.scan_into(t, x, y, p, 0, 10_000, first, a)
-    rb = fr._scan_numpy(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16), p.astype(np.uint8), 0, 10_000, first, b, 6)
-    assert ra == rb and np.array_equal(a, b)
+@given(seed=st.integers(0, 2**32 - 1), first=st.integers(-2, 5), zeroed=st.integers(0, 6))
+def test_count_events_counts_each_event_in_its_window_and_classifies_the_rest(seed, first, zeroed):
+    t, x, y, p = random_events(seed, n=3000, span=120_000, start=-20_000)
+    out = np.full((6, 2, H, W), 7, np.uint16)  # frames from `zeroed` on hold garbage until counted into
+    out[:zeroed] = 0
+    inside, saturated, before, late, beyond, k_max, now_zeroed, _, _ = kernels.count_events(t, x, y, p, 0, 10_000, first, out, zeroed)
+    k = t // 10_000
+    j = k - first
+    keep = (k >= 0) & (j >= 0) & (j < 6)
+    expected = np.zeros_like(out)
+    np.add.at(expected, (j[keep], p[keep], y[keep], x[keep]), 1)
+    assert np.array_equal(out[:now_zeroed], expected[:now_zeroed]) and not expected[now_zeroed:].any()
+    assert (inside, saturated, before, late, beyond, k_max) == (keep.sum(), 0, (k < 0).sum(), ((k >= 0) & (j < 0)).sum(), (j >= 6).sum(), k.max())
+
+
+@pytest.mark.parametrize("accumulate", [False, True])
+def test_a_long_trial_is_framed_in_pieces_equal_to_the_whole(monkeypatch, accumulate):
+    t, x, y, p = random_events(9, n=4000, span=300_000)
+    order = np.random.default_rng(9).permutation(len(t))  # a trial's events in any order
+    trial = {"trial": "a", "t0": 0, "events": (t[order], x[order], y[order], p[order]), "force": (np.array([], np.int64), np.array([]))}
+    whole = counts_of(fr.frame_recordings(recordings([trial]), 5_000, accumulate=accumulate, pad_to=70))
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 7)  # seven frames a piece
+    pieces = fr.frame_recordings(recordings([trial]), 5_000, accumulate=accumulate, pad_to=70)
+    expected = fr.count_frames(t, x, y, p, 5_000, 70, H, W)
+    if accumulate:
+        real = fr.n_windows(fr.trial_end(t, np.array([], np.int64)), 5_000)
+        expected[:real] = np.cumsum(expected[:real], axis=0)
+    assert np.array_equal(counts_of(pieces), whole) and np.array_equal(whole, expected)
+    assert pieces.column("frame").to_pylist() == list(range(70))
 
 
 def test_sliced_recordings_frame_like_whole_ones():
@@ -345,3 +404,92 @@ def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
     tables.write(str(source), sch.events_table(t, x, y, p, W, H))
     done = run(["frame", "--window", "10ms", "--phases", "1-2", str(source)])
     assert done.returncode == 2 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
+
+
+def test_frame_command_refuses_a_window_that_is_not_positive():
+    for window in ("0ms", "-5ms"):
+        done = run(["frame", "--window", window])
+        assert done.returncode == 2 and "positive duration" in done.stderr.decode()
+
+
+# ---------------------------------------------------------------- bounded work
+
+
+def test_a_clock_jump_is_refused_before_its_frames_are_written_with_where_it_is(tmp_path):
+    t = np.array([0, 5_000, 12_000, 10**12, 10**12 + 10])  # a clock jump of 278 hours at event 3
+    source = tmp_path / "ev.arrows"
+    tables.write(str(source), sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.zeros(5, int), W, H))
+    done = run(["frame", "--window", "10ms", str(source), "-o", str(tmp_path / "f.arrows")])
+    message = done.stderr.decode()
+    assert done.returncode == 1 and message.count("\n") == 1, message
+    assert "frames to write, more than --max-frames 1,000,000" in message
+    assert "a gap of 277.8 hours at event 3, from t = 12000 to 1000000000000 µs" in message
+    assert not (tmp_path / "f.arrows").exists()
+
+
+def test_a_window_too_small_for_the_span_is_refused_and_the_limit_can_be_raised():
+    t = np.arange(0, 50_000, 10)
+    table = sch.events_table(t, np.zeros(len(t), int), np.zeros(len(t), int), np.zeros(len(t), int), W, H)
+    with pytest.raises(NeurotacError, match=r"at least 49,991 frames to write, more than --max-frames 1,000 \(the events span 50.0 ms: a window of 1 µs is too small"):
+        fr.frames_from_events_table(table, 1, max_frames=1_000)
+    assert fr.frames_from_events_table(table, 1, max_frames=50_000).num_rows == 49_991
+
+
+def test_a_long_gap_within_the_limit_is_reported_with_where_it_is():
+    t = np.array([0, 5_000, 20_000_000, 20_005_000, 20_010_000])
+    table = sch.events_table(t, np.zeros(5, int), np.zeros(5, int), np.zeros(5, int), W, H)
+    report = fr.FramingReport()
+    frames = fr.frames_from_events_table(table, 10_000, report=report)
+    assert frames.num_rows == 2_002 and counts_of(frames).sum() == 5
+    assert report.notes == ["a gap of 20.0 s at event 2 (from t = 5000 to 20000000 µs): 1,999 empty frames in the middle of the stream"]
+    coarse = fr.FramingReport()
+    fr.frames_from_events_table(table, 100_000, report=coarse)  # the same gap is 200 windows of 100 ms: not reported
+    assert coarse.notes == []
+
+
+def test_recordings_past_the_frame_limit_are_refused_naming_the_trial():
+    far = {"trial": "late", "t0": 0, "events": (np.array([0, 10**11]), np.zeros(2), np.zeros(2), np.zeros(2)), "force": (np.array([], np.int64), np.array([]))}
+    near = {"trial": "ok", "t0": 0, "events": random_events(1, n=50), "force": (np.array([], np.int64), np.array([]))}
+    with pytest.raises(NeurotacError, match=r"^10,000,\d{3} frames to write, .*\(trial late: a gap of 27.8 hours at event 1, from t = 0 to 100000000000 µs"):
+        fr.frame_recordings(recordings([near, far]), 10_000)
+    logged = {"trial": "logged", "t0": 0, "events": random_events(2, n=50), "force": (np.arange(0, 3_000_000_000, 2_000), np.zeros(1_500_000))}
+    with pytest.raises(NeurotacError, match=r"\(trial logged: the force samples span 50.0 min: a window of 1.0 ms is too small for it"):
+        fr.frame_recordings(recordings([logged]), 1_000)
+
+
+def test_float32_without_a_scale_spills_to_disk_and_equals_the_counts_divided_by_their_maxima(monkeypatch):
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 3)
+    t, x, y, p = random_events(8, n=4000, span=300_000)
+    table = sch.events_table(t, x, y, p, W, H)
+    counts = counts_of(fr.frames_from_events_table(table, 5_000))
+    report = fr.FramingReport()
+    scaled = fr.frames_from_events_table(table, 5_000, report=report, dtype="float32")
+    peaks = counts.max(axis=(0, 2, 3)).astype(np.float32)
+    assert report.scale == [float(v) for v in peaks] and sch.get_meta(scaled.schema, "neurotac:scale") == report.scale
+    assert np.array_equal(counts_of(scaled), counts.astype(np.float32) / peaks[None, :, None, None])
+
+
+# ---------------------------------------------------------------- live
+
+
+def test_a_frame_leaves_through_a_pipe_as_soon_as_its_window_has_closed():
+    """The input stays open: the first frame must arrive once an event past its window has, not at the end."""
+    import pyarrow.ipc as ipc
+
+    schema = sch.events_schema(W, H)
+    process = subprocess.Popen(["neurotac", "frame", "--window", "10ms"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        writer = ipc.new_stream(process.stdin, schema)
+        writer.write_batch(sch.events_batch(np.array([0, 4_000]), np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), schema))
+        writer.write_batch(sch.events_batch(np.array([12_000]), np.array([3]), np.array([3]), np.array([1]), schema))
+        process.stdin.flush()
+        reader = ipc.open_stream(process.stdout)  # blocks until frame's schema has arrived
+        first = reader.read_next_batch()  # ... and its first frame, while its input is still open
+        assert first.column("frame").to_pylist() == [0] and counts_of(pa.Table.from_batches([first])).sum() == 2
+        assert process.poll() is None
+        writer.close()
+        process.stdin.close()
+        rest = reader.read_all()
+        assert rest.column("frame").to_pylist() == [1] and process.wait(timeout=30) == 0
+    finally:
+        process.kill()
