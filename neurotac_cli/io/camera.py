@@ -201,8 +201,18 @@ def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, I
     `fmt` forces a format (one of FORMATS) instead of sniffing. Decoding happens lazily, chunk by
     chunk, as the batches are consumed; every decoding problem is raised as one `FormatError`.
     """
+    from neurotac_cli.io import live
+
+    if live.is_stream(path):  # a pipe, FIFO or process substitution: decoded as its bytes arrive
+        stream = live.open_stream(path, sensor, fmt)
+        return stream.schema, stream.batches
     local, cleanup = _local_path(path)
     name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+    return read_local(local, name, sensor, fmt, cleanup)
+
+
+def read_local(local: str, name: str, sensor=None, fmt: str | None = None, cleanup=lambda: None):
+    """`read_events` of a local file shown to the user as `name`; `cleanup` runs once it is read."""
     try:
         if os.path.getsize(local) == 0:
             raise InputError(f"{name} is empty (0 bytes); is it the right file?")
