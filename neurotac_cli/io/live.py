@@ -216,7 +216,9 @@ def header_length(fmt: str, data: bytes, at_end: bool) -> int | None:
         length = eventstream.HEADER
     else:
         found = aedat2.header_length(bytes(data)) if fmt == "aedat2" else _lines_length(data, b"%")
-        if found == len(data) and not at_end:
+        if found == len(data) and not (at_end and data.endswith(b"\n")):
+            if at_end:
+                raise FormatError(f"the {fmt} header is cut short ({len(data)} bytes arrived, ending mid-line)")
             return None
         # a DAT header is followed by its event type and size bytes (absent in a file with no events)
         length = found + 2 if fmt == "dat" and len(data) >= found + 2 else found
