@@ -24,8 +24,9 @@ the model's accuracy).
     NEUROTAC_BENCH_LIVE_SPEED    replay speed: 1 = real time (default); 6 replays 30 minutes in 5
     NEUROTAC_BENCH_LIVE_INPUT    `follow` (a file that grows, read with import --follow; default) or
                                  `stdin` (a pipe into `import -`: nothing grows on disk, for long replays)
-    NEUROTAC_BENCH_LIVE_UNTIL    `frame`, `crop` or `predict` (default): the last stage of the pipe, whose
-                                 output rows are timed (to see where a delay comes from)
+    NEUROTAC_BENCH_LIVE_UNTIL    `import`, `frame`, `crop` or `predict` (default): the last stage of the
+                                 pipe, whose output is timed (to see where a delay comes from); for
+                                 `import`, a window is out with the first batch holding its last millisecond
 """
 
 import os
@@ -47,6 +48,7 @@ SLICE_US = 1_000  # the camera writes a millisecond of events at a time
 SECONDS = float(os.environ.get("NEUROTAC_BENCH_LIVE_SECONDS", "20"))
 SPEED = float(os.environ.get("NEUROTAC_BENCH_LIVE_SPEED", "1"))
 INPUT = os.environ.get("NEUROTAC_BENCH_LIVE_INPUT", "follow")
+STAGES = ["import", "frame", "crop", "predict"]
 UNTIL = os.environ.get("NEUROTAC_BENCH_LIVE_UNTIL", "predict")
 STARTUP_S = 20.0
 ENV = dict(os.environ, PATH=os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", ""))
@@ -149,7 +151,7 @@ def _pipe(folder, camera_path):
     first = ["neurotac", "import", "--follow", "--idle-timeout", "3600s", str(camera_path)] if INPUT == "follow" else ["neurotac", "import", "-"]
     commands = [first, ["neurotac", "frame", "--window", "10ms"], ["neurotac", "crop", "--size", "115x115", "--center", "120,90"],
                 ["neurotac", "predict", "--model", str(folder / "m.model"), "--threads", "1"]]
-    commands = commands[: 2 + ["frame", "crop", "predict"].index(UNTIL)]
+    commands = commands[: 1 + STAGES.index(UNTIL)]
     processes, stdin = [], subprocess.PIPE if INPUT == "stdin" else subprocess.DEVNULL
     for command in commands:
         process = subprocess.Popen(command, stdin=stdin, stdout=subprocess.PIPE, env=ENV)
@@ -205,8 +207,13 @@ def _read_forces(stdout, ready, arrived):
     ready.set()
     for batch in reader:
         now = time.monotonic()
-        for frame in batch.column("frame").to_pylist():
-            arrived[frame] = now
+        if "frame" in batch.schema.names:
+            frames = batch.column("frame").to_pylist()
+        else:  # import's events: a window has gone out with the events of its last millisecond
+            t = batch.column("t").to_numpy()
+            frames = np.unique(t[t % WINDOW_US >= WINDOW_US - SLICE_US] // WINDOW_US).tolist()
+        for frame in frames:
+            arrived.setdefault(frame, now)
 
 
 def _report(camera: Camera, arrived: dict, memory: list):
@@ -217,7 +224,7 @@ def _report(camera: Camera, arrived: dict, memory: list):
           f"{int(np.isfinite(camera.closed).sum())} windows written")
     print(f"window close -> its row on stdout: p50 {np.percentile(latency, 50):.2f} ms, p99 {np.percentile(latency, 99):.2f} ms, "
           f"max {latency.max():.2f} ms (goal: p99 < 5 ms)")
-    names = ["import", "frame", "crop", "predict"][: 2 + ["frame", "crop", "predict"].index(UNTIL)]
+    names = STAGES[: 1 + STAGES.index(UNTIL)]
     settled_at = 60.0 if SECONDS >= 120 else SECONDS / 4
     settled = next((rss for seconds, rss in memory if seconds >= settled_at), memory[-1][1])
     peak = np.max([rss for _, rss in memory], axis=0)
