@@ -125,7 +125,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         if fmt not in STREAMED:
             return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
         buffer = _read_until(feed, buffer, lambda data, end: header_length(fmt, data, end) is not None)
-        length = header_length(fmt, buffer, True)
+        length = camera._guarded_call(name, fmt, lambda: header_length(fmt, buffer, True))
         decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, bytes(buffer[:length]), sensor))
         declared = sensor or decoder.sensor
         if declared is None:
@@ -146,7 +146,9 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
 
 def _open_fd(path) -> int:
     if path in (None, "-"):
-        if sys.stdin is None:
+        from neurotac_cli.tables import is_terminal
+
+        if sys.stdin is None or is_terminal(sys.stdin):
             raise InputError("no input: give a camera file, or pipe one into stdin")
         return sys.stdin.fileno()
     if os.path.isdir(path):
@@ -218,14 +220,14 @@ def header_length(fmt: str, data: bytes, at_end: bool) -> int | None:
         found = aedat2.header_length(bytes(data)) if fmt == "aedat2" else _lines_length(data, b"%")
         if found == len(data) and not (at_end and data.endswith(b"\n")):
             if at_end:
-                raise FormatError(f"the {fmt} header is cut short ({len(data)} bytes arrived, ending mid-line)")
+                raise FormatError(f"the camera header is cut short: the input ended mid-line after {len(data)} bytes (is it the whole file?)")
             return None
         # a DAT header is followed by its event type and size bytes (absent in a file with no events)
         length = found + 2 if fmt == "dat" and len(data) >= found + 2 else found
     if length <= len(data):
         return length
     if at_end:
-        raise FormatError(f"the {fmt} header is cut short ({len(data)} bytes arrived)")
+        raise FormatError(f"the camera header is cut short: the input ended after {len(data)} bytes (is it the whole file?)")
     return None
 
 
@@ -272,7 +274,7 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
                 break
             pending += data
         if pending and not decoder.finished:
-            notes.append(f"{name}: the last {len(pending)} bytes are a record cut short (the stream ended mid-record); they were left out")
+            notes.append(f"{name}: the last {len(pending)} bytes are a record cut short (the input ended, or was stopped, mid-record); they were left out")
         if decoder.triggers:
             notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
                          "before they arrive); import the finished file for `sync --method trigger`")

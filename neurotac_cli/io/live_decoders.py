@@ -136,9 +136,13 @@ class Aedat4:
         handle, self.path = tempfile.mkstemp(prefix=".neurotac-aedat4-", suffix=".aedat4")
         with os.fdopen(handle, "wb") as sink:
             sink.write(self.header)
-        packets = aedat4._packets(self.path)
-        streams = next(packets)
-        packets.close()
+        try:
+            packets = aedat4._packets(self.path)
+            streams = next(packets)
+            packets.close()
+        except BaseException:
+            self.close()
+            raise
         event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
         if not event_ids:
             self.close()
