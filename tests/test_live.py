@@ -110,7 +110,8 @@ def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     assert events(table).equals(events(read_events_table(source)).slice(0, table.num_rows))
 
 
-def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path):
+@pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path, number):
     source = real_file("davis240c_rotdisk.aedat")
     path = tmp_path / "cam.aedat"
     path.write_bytes(b"")
@@ -118,7 +119,7 @@ def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path):
     writer = write_in_pieces(source.read_bytes(), path, pieces=80, pause=0.1, stop=stop)
     process = subprocess.Popen(["neurotac", "import", "--follow", str(path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     first = process.stdout.read1(1 << 16)  # events are flowing
-    process.send_signal(signal.SIGINT)
+    process.send_signal(number)
     rest, stderr = process.communicate(timeout=20)
     stop.set()
     writer.join()
@@ -128,6 +129,16 @@ def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path):
     whole = read_events_table(source)
     assert 0 < table.num_rows < whole.num_rows
     assert events(table).equals(events(whole).slice(0, table.num_rows))
+
+
+def test_ctrl_c_before_the_header_is_one_line(tmp_path):
+    (tmp_path / "cam.raw").write_bytes(b"")
+    process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=20)
+    lines = stderr.decode().strip().splitlines()
+    assert process.returncode in (1, 130) and len(lines) == 1 and "Traceback" not in stderr.decode(), stderr
 
 
 def test_an_empty_followed_file_is_one_line_after_the_timeout(tmp_path):

@@ -116,6 +116,8 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     try:
         feed = Feed(fd, follow, idle_timeout, stop)
         buffer = _read_until(feed, bytearray(), lambda data, end: _sniffed(data, end))
+        if stop() and not _sniffed(buffer, False):
+            raise InputError(f"{name}: stopped before the camera header had arrived (no table to write)")
         if not buffer:
             waited = f" after waiting {idle_timeout:g} s" if follow else ""
             raise InputError(f"{name} is empty (0 bytes){waited}; is it the right file, and is the camera writing it?")
