@@ -105,7 +105,7 @@ def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     start = time.monotonic()
     table, _ = collect(stream)
     waited = time.monotonic() - start
-    assert 0.3 <= waited < 3
+    assert 0.3 <= waited < 10  # ends after the timeout, not at once and not never (a loaded machine is slow)
     assert table.num_rows > 0 and len(stream.notes) == 1 and "cut short" in stream.notes[0]
     assert events(table).equals(events(read_events_table(source)).slice(0, table.num_rows))
 
