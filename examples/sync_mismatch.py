@@ -13,7 +13,7 @@ import tempfile
 import numpy as np
 
 from neurotac_cli import schema as sch
-from neurotac_cli.io.camera import read_events_table
+from neurotac_cli.io.events import read_events_table
 from neurotac_cli.io.force import read_force_log
 from neurotac_cli.ops import sync as sy
 

@@ -50,7 +50,7 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
 
 def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
     """A camera file (AEDAT, EVT2/3, DAT, ES, CSV, text) as an events table, timestamps as written."""
-    from neurotac_cli.io.camera import read_events_table
+    from neurotac_cli.io.events import read_events_table
 
     return read_events_table(path, sensor=sensor)
 

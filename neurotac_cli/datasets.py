@@ -45,7 +45,8 @@ def expand(paths) -> list[str]:
 def recordings_per_file(paths: list[str], sensor=None, fmt: str | None = None) -> pa.Table:
     """One recordings row per camera file (see the module doc)."""
     from neurotac_cli import provenance
-    from neurotac_cli.io.camera import read_events_table, trial_name
+    from neurotac_cli.io.camera import trial_name
+    from neurotac_cli.io.events import read_events_table
 
     rows, sources, sizes, named = [], [], set(), {}
     for path in paths:

@@ -416,7 +416,7 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     """Describe tables (read as one, as every command does) or one camera file (decoded on the fly)."""
     from neurotac_cli import tables
     from neurotac_cli.errors import InputError
-    from neurotac_cli.io import camera
+    from neurotac_cli.io import camera, events
 
     paths = list(paths) or ["-"]
     is_tables = [camera.is_table(path) or not _exists(path) for path in paths]
@@ -425,7 +425,7 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
         return describe(opened.schema, opened.batches, everything=everything)
     if len(paths) > 1:
         raise InputError("describe one camera file at a time, or import them into one table first")
-    schema, batches = camera.read_events(paths[0], sensor)
+    schema, batches = events.read_events(paths[0], sensor)
     fmt = sch.camera_source(schema).get("format")
     return describe(schema, batches, camera={"format": fmt, "format_name": camera.FORMAT_NAMES.get(fmt, fmt)})
 

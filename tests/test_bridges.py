@@ -117,7 +117,7 @@ def test_an_evlib_events_file_frames_from_the_command_line(tmp_path):
 
 
 def test_faery_csv_with_its_sensor_in_the_header_and_crlf_lines(tmp_path):
-    from neurotac_cli.io.camera import read_events_table
+    from neurotac_cli.io.events import read_events_table
 
     (tmp_path / "faery.csv").write_bytes(b"t,x@346,y@260,on\r\n10,1,2,1\r\n20,345,259,0\r\n35,3,4,1\r\n")
     events = read_events_table(str(tmp_path / "faery.csv"))

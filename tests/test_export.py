@@ -8,7 +8,7 @@ from neurotac_cli import schema as sch, tables
 from neurotac_cli.cli import cli
 from neurotac_cli.errors import NeurotacError
 from neurotac_cli.export import evt3_bytes, export
-from neurotac_cli.io.camera import read_events_table
+from neurotac_cli.io.events import read_events_table
 
 
 def events(n=2000, start=3_000_000, gap=0, seed=0, width=640, height=480):
@@ -55,7 +55,7 @@ def test_refusals(tmp_path):
     source = str(tmp_path / "e.arrows")
     tables.write(source, events())
     result = CliRunner().invoke(cli, ["export", source, "-o", str(tmp_path / "e.dat")])
-    assert result.exit_code == 1 and "use .raw for EVT 3.0, .aedat4 for AEDAT 4.0" in result.output
+    assert result.exit_code == 2 and "use .raw for EVT 3.0, .aedat4 for AEDAT 4.0" in result.output
 
 
 def test_a_trial_of_recordings_goes_back_on_the_camera_clock(tmp_path):

@@ -1,8 +1,8 @@
-"""`neurotac import`: camera files in, one events table out."""
+"""`neurotac import`: camera files in, one events table out; live from a file being written, a pipe, or a replay."""
 
 import click
 
-from neurotac_cli.options import Size, output_option
+from neurotac_cli.options import Duration, Size, history, output_option
 
 FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"]
 
@@ -18,9 +18,16 @@ FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"
     default=None,
     help="Read the files as this format instead of telling it from their first bytes.",
 )
+@click.option("--follow", is_flag=True, help="Read FILE while the camera still writes it (like `tail -f`), passing events on "
+              "as they arrive; ends when FILE stops growing for --idle-timeout, or on Ctrl-C, with the output complete.")
+@click.option("--idle-timeout", type=Duration(), default="2s", show_default=True,
+              help="With --follow: end once FILE (or the pipe) has not grown for this long.")
+@click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
+              "when that much time has passed since the first event (to test a controller against a recording).")
+@click.option("--speed", type=float, default=None, help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1].")
 @click.option("--one-stream", is_flag=True, help="Several files: read them in order as one events table instead of one "
               "trial per file.")
-def command(paths, output, sensor, fmt, one_stream):
+def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, one_stream):
     """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
 
     Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
@@ -30,28 +37,67 @@ def command(paths, output, sensor, fmt, one_stream):
     reads a file from stdin. Several files, a directory or a glob give a recordings table with one
     trial per file, named after it, each starting at its first event (--one-stream: one events table).
 
+    Live input: AEDAT 4.0, EVT 3.0, EVT 2.0, AEDAT 2.0, Event Stream and DAT from stdin, a FIFO or a
+    process substitution (`<(...)`) are decoded as their bytes arrive, and so is a file still being
+    written with --follow; each read's whole records go on as one batch at once (a record cut
+    mid-write waits for its rest). A stream's external triggers cannot go into the metadata, which is
+    written before they arrive: they are counted in a warning. Text, and DAT without a sensor size,
+    are read whole. Ctrl-C (or SIGTERM) ends a followed file, a pipe or a replay with the output
+    complete, exit 0.
+
     \b
         neurotac import recording.aedat -o events.parquet
         neurotac import events.txt --sensor 240x180 | neurotac info -
         neurotac import recordings/ | neurotac frame --window 10ms > frames.arrows
+        neurotac import --follow cam.raw | neurotac frame --window 10ms | ...
+        neurotac import --realtime --speed 2 session.aedat4 | neurotac frame --window 10ms | ...
     """
-    from neurotac_cli import tables
-    from neurotac_cli.io import import_files
+    from neurotac_cli import datasets, tables
+    from neurotac_cli.io import events, live
 
-    args = {"files": list(paths), "sensor": f"{sensor[0]}x{sensor[1]}" if sensor else None, "format": fmt}
-    from neurotac_cli import datasets  # several files, a directory or a glob: one trial per file
-
+    if follow and len(paths) > 1:
+        raise click.UsageError("--follow reads one file; follow each file in its own `neurotac import`")
+    if speed is not None and not realtime:
+        raise click.UsageError("--speed sets the pace of a replay: give it with --realtime")
+    if speed is not None and not speed > 0:
+        raise click.BadParameter(f"{speed:g} is not a speed (give a number above 0, e.g. 10 for ten times faster)", param_hint="--speed")
+    if idle_timeout <= 0:
+        raise click.BadParameter("give a duration above 0, e.g. 2s", param_hint="--idle-timeout")
     files = datasets.expand(paths)
-    if len(files) > 1 and not one_stream:
-        return tables.write(output, datasets.recordings_per_file(files, sensor, fmt), step=("import", dict(args, files=files)))
-    schema, batches = import_files(files, sensor=sensor, fmt=fmt)
+    if len(files) > 1 and not one_stream and not (follow or realtime):
+        return tables.write(output, datasets.recordings_per_file(files, sensor, fmt), step=history(paths=files))
+    paths = files
+    is_live = follow or realtime or any(live.is_stream(p) for p in paths)
+    stop = _stop_on_signals() if is_live else (lambda: False)
+    stream = events.import_events(paths, sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
+                                speed=(speed or 1.0) if realtime else None, stop=stop)
     rows = [0]
 
     def counted():
-        for batch in batches:
+        for batch in stream.batches:
             rows[0] += batch.num_rows
             yield batch
+            if is_live and output in (None, "-"):
+                click.get_binary_stream("stdout").flush()  # each batch goes on as soon as it is read
 
-    tables.write(output, counted(), schema=schema, step=("import", args))
+    tables.write(output, counted(), schema=stream.schema, step=history(paths=paths))
+    for note in stream.notes:
+        click.echo(f"neurotac import: warning: {note}", err=True)
     if not rows[0]:
         click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)
+
+
+def _stop_on_signals():
+    """A stop request that Ctrl-C and SIGTERM set instead of interrupting, so live input ends with
+    the output complete; a second signal interrupts as usual."""
+    import signal
+    import threading
+
+    requested = threading.Event()
+
+    def handler(number, frame):
+        requested.set()
+        signal.signal(number, previous[number])
+
+    previous = {number: signal.signal(number, handler) for number in (signal.SIGINT, signal.SIGTERM)}
+    return requested.is_set

@@ -5,6 +5,7 @@
     is_table(path) -> bool                                 Arrow/Parquet by magic bytes
 """
 
-from neurotac_cli.io.camera import FORMATS, detect_format, import_files, is_table, read_events, read_events_table
+from neurotac_cli.io.camera import FORMATS, detect_format, is_table
+from neurotac_cli.io.events import import_files, read_events, read_events_table
 
 __all__ = ["FORMATS", "detect_format", "import_files", "is_table", "read_events", "read_events_table"]

@@ -153,7 +153,7 @@ def _decoder(fmt: str):
     return OPENERS[fmt]
 
 
-def _local_path(path) -> tuple[str, Callable[[], None]]:
+def local_path(path) -> tuple[str, Callable[[], None]]:
     """A readable file path for `path`; stdin (`-`) is copied to a temporary file first."""
     if path not in (None, "-"):
         if os.path.isdir(path):
@@ -172,15 +172,8 @@ def _local_path(path) -> tuple[str, Callable[[], None]]:
     return temporary, lambda: os.path.exists(temporary) and os.unlink(temporary)
 
 
-def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
-    """Decode a camera or text file into an `events` schema and an iterator of record batches.
-
-    `sensor=(W, H)` supplies the size where the file does not say and overrides it where it does.
-    `fmt` forces a format (one of FORMATS) instead of sniffing. Decoding happens lazily, chunk by
-    chunk, as the batches are consumed; every decoding problem is raised as one `FormatError`.
-    """
-    local, cleanup = _local_path(path)
-    name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+def read_local(local: str, name: str, sensor=None, fmt: str | None = None, cleanup=lambda: None):
+    """`read_events` of a local file shown to the user as `name`; `cleanup` runs once it is read."""
     try:
         if os.path.getsize(local) == 0:
             raise InputError(f"{name} is empty (0 bytes); is it the right file?")
@@ -203,12 +196,6 @@ def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, I
     entries.update(decoded.meta)
     schema = sch.set_meta(schema, **entries)
     return schema, _batches(name, fmt, decoded, declared, schema, cleanup)
-
-
-def read_events_table(path, sensor=None, fmt: str | None = None) -> pa.Table:
-    """The whole events table of a camera or text file (see `read_events`)."""
-    schema, batches = read_events(path, sensor, fmt)
-    return pa.Table.from_batches(list(batches), schema=schema)
 
 
 def _extent(name: str, fmt: str, decoded: Decoded) -> tuple[int, int]:
@@ -272,33 +259,3 @@ def _short(error: Exception) -> str:
     return text[0][:200] if text else type(error).__name__
 
 
-def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
-    """Several camera files, in order, as one events table (schema + lazily decoded batches).
-
-    Every file must have the same sensor size (or `sensor` is given); the metadata `neurotac:source`
-    names each file. A table given as a camera file is refused with a hint.
-    """
-    paths = list(paths)
-    if not paths:
-        raise InputError("no camera file given (e.g. `neurotac import recording.aedat -o events.parquet`)")
-    opened = []
-    for path in paths:
-        if path not in (None, "-") and os.path.isfile(path) and is_table(path) and fmt is None:
-            raise InputError(f"{path} is already a table, not a camera file (pass it to the next command directly)")
-        opened.append(read_events(path, sensor, fmt))
-    schema = opened[0][0]
-    sizes = {sch.sensor_of(s) for s, _ in opened}
-    if len(sizes) > 1:
-        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, (sch.sensor_of(s) for s, _ in opened)))
-        raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
-    if len(opened) > 1:
-        sources = [sch.get_meta(s, sch.SOURCE) for s, _ in opened]
-        triggers = [t for s, _ in opened for t in (sch.get_meta(s, "neurotac:triggers") or [])]
-        schema = sch.set_meta(schema, source=sources, triggers=triggers if any(sch.get_meta(s, "neurotac:triggers") is not None for s, _ in opened) else None)
-
-    def batches():
-        for other, part in opened:
-            for batch in part:
-                yield pa.RecordBatch.from_arrays(batch.columns, schema=schema)
-
-    return schema, batches()

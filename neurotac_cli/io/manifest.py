@@ -9,7 +9,8 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.errors import NeurotacError, UsageError
-from neurotac_cli.io.camera import is_table, read_events_table, trial_name
+from neurotac_cli.io.camera import is_table, trial_name
+from neurotac_cli.io.events import read_events_table
 from neurotac_cli.io.force import read_force_log
 
 

@@ -146,28 +146,39 @@ def open_dat(path: str, head: bytes, sensor) -> Decoded:
         kind_size = handle.read(2)
     if len(kind_size) < 2:
         return Decoded(sensor=sensor_of_header(fields), chunks=lambda: iter(()), meta=_meta(fields))
+    check_dat_kind(kind_size)
+
+    def chunks():
+        state = {"last": None, "loop": 0}
+        for block in read_chunks(path, offset + 2, 8):
+            yield decode_dat(block, state)
+
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
+
+
+def check_dat_kind(kind_size: bytes):
+    """The two bytes after a DAT header: event type and size; only 8-byte CD events are read."""
     event_type, event_size = kind_size[0], kind_size[1]
     if event_size != 8:
         raise FormatError(f"DAT events of {event_size} bytes are not supported (CD events are 8 bytes)")
     if event_type not in (0x00, 0x0C):
         raise FormatError(f"DAT event type 0x{event_type:02x} is not a CD event type (0x00 or 0x0c)")
 
-    def chunks():
-        state = {"last": None, "loop": 0}
-        for block in read_chunks(path, offset + 2, 8):
-            records = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
-            t = records[:, 0].astype(np.int64)
-            # 32-bit timestamps wrap after 71 minutes: a fall by more than half the range is a wrap
-            previous = np.concatenate(([state["last"] if state["last"] is not None else t[0]], t[:-1])) if len(t) else t
-            loops = np.cumsum(previous - t > (1 << 31)) + state["loop"]
-            if len(t):
-                state["last"], state["loop"] = int(t[-1]), int(loops[-1])
-            data = records[:, 1]
-            yield (
-                t + (loops << 32),
-                (data & 0x3FFF).astype(np.uint16),
-                ((data >> 14) & 0x3FFF).astype(np.uint16),
-                ((data >> 28) & 0x1).astype(np.uint8),
-            )
 
-    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
+def decode_dat(block: bytes, state: dict):
+    """Whole 8-byte DAT records -> (t, x, y, p); `state` ({"last": None, "loop": 0}) carries the
+    32-bit timestamp wraps from block to block."""
+    records = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
+    t = records[:, 0].astype(np.int64)
+    # 32-bit timestamps wrap after 71 minutes: a fall by more than half the range is a wrap
+    previous = np.concatenate(([state["last"] if state["last"] is not None else t[0]], t[:-1])) if len(t) else t
+    loops = np.cumsum(previous - t > (1 << 31)) + state["loop"]
+    if len(t):
+        state["last"], state["loop"] = int(t[-1]), int(loops[-1])
+    data = records[:, 1]
+    return (
+        t + (loops << 32),
+        (data & 0x3FFF).astype(np.uint16),
+        ((data >> 14) & 0x3FFF).astype(np.uint16),
+        ((data >> 28) & 0x1).astype(np.uint8),
+    )

@@ -62,7 +62,7 @@ def test_import_writes_the_events_kind_sensor_and_history(tmp_path):
     assert sch.kind_of(table.schema) == "events" and sch.sensor_of(table.schema) == (1280, 720)
     assert table.num_rows == 219_596
     history = sch.get_meta(table.schema, sch.HISTORY)
-    assert history[-1]["command"] == "import" and history[-1]["args"]["files"] == [str(path)]
+    assert history[-1]["command"] == "import" and history[-1]["args"]["paths"] == [str(path)]
 
 
 def test_import_from_stdin(tmp_path):

@@ -1,0 +1,82 @@
+"""Events from any path: a camera file, a pipe decoded as it arrives, several files as one table,
+or a file followed while it is written. The one place that chooses between the file readers
+(`io.camera`) and the live readers (`io.live`)."""
+
+import os
+from typing import Iterator
+
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import InputError
+from neurotac_cli.io import camera, live
+
+
+def read_events(path, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
+    """Decode a camera or text file into an `events` schema and an iterator of record batches.
+
+    `sensor=(W, H)` supplies the size where the file does not say and overrides it where it does.
+    `fmt` forces a format (one of FORMATS) instead of sniffing. Decoding happens lazily, chunk by
+    chunk, as the batches are consumed; every decoding problem is raised as one `FormatError`.
+    """
+    if live.is_stream(path):  # a pipe, FIFO or process substitution: decoded as its bytes arrive
+        stream = live.open_stream(path, sensor, fmt)
+        return stream.schema, stream.batches
+    local, cleanup = camera.local_path(path)
+    name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+    return camera.read_local(local, name, sensor, fmt, cleanup)
+
+
+def read_events_table(path, sensor=None, fmt: str | None = None) -> pa.Table:
+    """The whole events table of a camera or text file (see `read_events`)."""
+    schema, batches = read_events(path, sensor, fmt)
+    return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema, Iterator[pa.RecordBatch]]:
+    """Several camera files, in order, as one events table (schema + lazily decoded batches).
+
+    Every file must have the same sensor size (or `sensor` is given); the metadata `neurotac:source`
+    names each file. A table given as a camera file is refused with a hint.
+    """
+    paths = list(paths)
+    if not paths:
+        raise InputError("no camera file given (e.g. `neurotac import recording.aedat -o events.parquet`)")
+    opened = []
+    for path in paths:
+        if path not in (None, "-") and os.path.isfile(path) and camera.is_table(path) and fmt is None:
+            raise InputError(f"{path} is already a table, not a camera file (pass it to the next command directly)")
+        opened.append(read_events(path, sensor, fmt))
+    schema = opened[0][0]
+    sizes = {sch.sensor_of(s) for s, _ in opened}
+    if len(sizes) > 1:
+        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, (sch.sensor_of(s) for s, _ in opened)))
+        raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
+    if len(opened) > 1:
+        sources = [sch.get_meta(s, sch.SOURCE) for s, _ in opened]
+        triggers = [t for s, _ in opened for t in (sch.get_meta(s, "neurotac:triggers") or [])]
+        schema = sch.set_meta(schema, source=sources, triggers=triggers if any(sch.get_meta(s, "neurotac:triggers") is not None for s, _ in opened) else None)
+
+    def batches():
+        for other, part in opened:
+            for batch in part:
+                yield pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+
+    return schema, batches()
+
+
+def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = False, idle_timeout: float = 2.0,
+                  speed: float | None = None, stop=lambda: False) -> live.Stream:
+    """What `neurotac import` reads: camera files in order as one events table; a pipe or stdin decoded
+    as it arrives; with `follow`, one file still being written; with `speed`, replayed at `speed`
+    times its recorded pace. `stop()` turning true ends a followed file, a pipe or a replay cleanly."""
+    paths = list(paths)
+    if follow and len(paths) != 1:
+        raise InputError(f"--follow reads one file at a time, got {len(paths)}; follow each in its own `neurotac import`")
+    if follow or (len(paths) == 1 and live.is_stream(paths[0])):
+        stream = live.open_stream(paths[0], sensor, fmt, follow=follow, idle_timeout=idle_timeout, stop=stop)
+    else:
+        stream = live.Stream(*import_files(paths, sensor=sensor, fmt=fmt))
+    if speed is not None:
+        stream.batches = live.replay(stream.batches, speed, stop)
+    return stream

@@ -1,0 +1,328 @@
+"""Camera bytes as they arrive: a recording still being written (`--follow`), a pipe, a FIFO, stdin;
+and a finished recording replayed at its recorded speed.
+
+AEDAT 4.0, EVT 3.0, EVT 2.0, AEDAT 2.0, Event Stream and DAT are read front to back, so they are
+decoded as their bytes arrive: each read's whole records become one batch, and a record cut by the
+read (a writer caught mid-record) waits in a buffer for its rest. The decoders are the ones files use
+(the compiled word kernels with their state carried across reads; AEDAT 4.0 packets through the
+`aedat` library, one read's whole packets at a time), so a stream gives the same events as the file.
+
+What a stream cannot give: metadata that depends on the whole recording. The sensor of a text or DAT
+file that does not declare it (a pass over every event) and external triggers (written into the
+schema, which goes out before the first event) are such. Text, and a DAT without a size, piped in
+without --sensor, are copied to a temporary file and read whole; a followed file refuses them; the
+triggers of a stream are counted in a note instead of kept.
+"""
+
+import os
+import select
+import stat
+import struct
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import FormatError, InputError
+
+STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "es", "dat")
+POLL_S = 0.001  # a followed file is checked for new bytes this often (a pipe wakes the reader itself)
+WAKE_S = 0.05  # a reader blocked on a pipe looks at the stop request this often
+READ_BYTES = 1 << 20  # at most this much is decoded into one batch
+SNIFF_BYTES = 1 << 16
+REPLAY_SLICE_US = 1000  # a replay releases the events of each millisecond of camera time together
+
+
+@dataclass
+class Stream:
+    """An events table being read: its schema, its batches (lazily), and notes for the user (things
+    the stream could not keep), filled in as the batches are read."""
+
+    schema: pa.Schema
+    batches: Iterator[pa.RecordBatch]
+    notes: list = field(default_factory=list)
+
+
+def is_stream(path) -> bool:
+    """Whether `path` (`-` = stdin) is a pipe, FIFO or other input that can be read only once, front to back."""
+    try:
+        if path in (None, "-"):
+            if sys.stdin is None:
+                return False
+            mode = os.fstat(sys.stdin.fileno()).st_mode
+        else:
+            mode = os.stat(path).st_mode
+    except (OSError, ValueError, AttributeError):
+        return False
+    return not stat.S_ISREG(mode) and not stat.S_ISDIR(mode)
+
+
+class Feed:
+    """The new bytes of a file being written, a pipe or stdin.
+
+    `read()` gives the bytes that arrived (b"" when none did yet) and None at the end: the end of a
+    pipe; the end of a regular file unless followed; for a followed file or pipe, no new byte for
+    `idle_timeout` seconds; or `stop()` turning true.
+    """
+
+    def __init__(self, fd: int, follow: bool = False, idle_timeout: float = 2.0, stop: Callable[[], bool] = lambda: False):
+        self.fd, self.follow, self.idle_timeout, self.stop = fd, follow, idle_timeout, stop
+        self.regular = stat.S_ISREG(os.fstat(fd).st_mode)
+        self.last = time.monotonic()
+        self.ended = False
+
+    def read(self) -> bytes | None:
+        if self.ended or self.stop():
+            return None
+        if self.regular:
+            data = os.read(self.fd, READ_BYTES)
+            if not data and self.follow:
+                time.sleep(POLL_S)
+        else:
+            ready, _, _ = select.select([self.fd], [], [], WAKE_S)
+            data = os.read(self.fd, READ_BYTES) if ready else b""
+            if ready and not data:
+                self.ended = True
+                return None
+        now = time.monotonic()
+        if data:
+            self.last = now
+            return data
+        if not self.follow and self.regular:
+            self.ended = True
+            return None
+        if self.follow and now - self.last >= self.idle_timeout:
+            self.ended = True
+            return None
+        return b""
+
+
+def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False, idle_timeout: float = 2.0,
+                stop: Callable[[], bool] = lambda: False) -> Stream:
+    """An events stream from a pipe, stdin, or (`follow`) a file still being written.
+
+    Blocks until the camera header has arrived. Formats that cannot be streamed are copied to a
+    temporary file and read whole (a pipe), or refused (a followed file).
+    """
+    from neurotac_cli.io import camera
+
+    name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+    fd = _open_fd(path)
+    try:
+        feed = Feed(fd, follow, idle_timeout, stop)
+        buffer = _read_until(feed, bytearray(), lambda data, end: _sniffed(data, end))
+        if stop() and not _sniffed(buffer, False):
+            raise InputError(f"{name}: stopped before the camera header had arrived (no table to write)")
+        if not buffer:
+            waited = f" after waiting {idle_timeout:g} s" if follow else ""
+            raise InputError(f"{name} is empty (0 bytes){waited}; is it the right file, and is the camera writing it?")
+        fmt = fmt or camera.detect_format(name, bytes(buffer[:SNIFF_BYTES]))
+        if sensor is not None:
+            sensor = (int(sensor[0]), int(sensor[1]))
+        if fmt not in STREAMED:
+            return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
+        buffer = _read_until(feed, buffer, lambda data, end: header_length(fmt, data, end) is not None)
+        length = camera._guarded_call(name, fmt, lambda: header_length(fmt, buffer, True))
+        decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, bytes(buffer[:length]), sensor))
+        declared = sensor or decoder.sensor
+        if declared is None:
+            decoder.close()
+            return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
+    except BaseException:
+        _close(fd, path)
+        raise
+    del buffer[:length]
+    schema = sch.events_schema(*declared)
+    source = "option" if sensor else "file"
+    entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoder.meta.pop("source", {})}}
+    schema = sch.set_meta(schema, **entries, **decoder.meta)
+    stream = Stream(schema, iter(()))
+    stream.batches = _batches(name, fmt, feed, buffer, decoder, declared, schema, stream.notes, lambda: _close(fd, path))
+    return stream
+
+
+def _open_fd(path) -> int:
+    if path in (None, "-"):
+        from neurotac_cli.tables import is_terminal
+
+        if sys.stdin is None or is_terminal(sys.stdin):
+            raise InputError("no input: give a camera file, or pipe one into stdin")
+        return sys.stdin.fileno()
+    if os.path.isdir(path):
+        raise InputError(f"{path} is a directory, not a file (give the camera files inside it)")
+    try:
+        return os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except PermissionError:
+        raise InputError(f"{path}: permission denied") from None
+    except OSError as error:
+        raise InputError(f"{path}: cannot open ({error.strerror})") from None
+
+
+def _close(fd: int, path):
+    if path not in (None, "-"):
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+
+
+def _read_until(feed: Feed, buffer: bytearray, done: Callable[[bytes, bool], bool]) -> bytearray:
+    """Read into `buffer` until `done(buffer, at_end)`, or the feed ends."""
+    while not done(buffer, False):
+        data = feed.read()
+        if data is None:
+            return buffer
+        buffer += data
+    return buffer
+
+
+def _sniffed(data: bytes, at_end: bool) -> bool:
+    """Whether enough of a stream has arrived to tell its format (its whole header, for the text headers)."""
+    if at_end or len(data) >= SNIFF_BYTES:
+        return True
+    if data.startswith(b"#!AER-DAT4"):
+        return True
+    if data[:1] in (b"%", b"#"):
+        return _lines_length(data, data[:1]) < len(data)
+    return len(data) >= 20
+
+
+def _lines_length(data: bytes, marker: bytes) -> int:
+    """Bytes of the leading header lines starting with `marker` (a `% end` line closes a Prophesee header);
+    len(data) while the last such line is still incomplete."""
+    offset = 0
+    while data[offset : offset + 1] == marker:
+        end = data.find(b"\n", offset)
+        if end < 0:
+            return len(data)
+        line = bytes(data[offset + 1 : end]).strip().lower()
+        offset = end + 1
+        if marker == b"%" and line == b"end":
+            break
+    return offset
+
+
+def header_length(fmt: str, data: bytes, at_end: bool) -> int | None:
+    """Bytes of the camera header at the start of `data`, or None while it is still incomplete (a
+    line header is complete once a data byte follows it, or the stream has ended)."""
+    from neurotac_cli.io import aedat2, eventstream
+
+    if fmt == "aedat4":
+        length = 18 + struct.unpack_from("<I", data, 14)[0] if len(data) >= 18 else len(data) + 1
+    elif fmt == "es":
+        length = eventstream.HEADER
+    else:
+        found = aedat2.header_length(bytes(data)) if fmt == "aedat2" else _lines_length(data, b"%")
+        if found == len(data) and not (at_end and data.endswith(b"\n")):
+            if at_end:
+                raise FormatError(f"the camera header is cut short: the input ended mid-line after {len(data)} bytes (is it the whole file?)")
+            return None
+        # a DAT header is followed by its event type and size bytes (absent in a file with no events)
+        length = found + 2 if fmt == "dat" and len(data) >= found + 2 else found
+    if length <= len(data):
+        return length
+    if at_end:
+        raise FormatError(f"the camera header is cut short: the input ended after {len(data)} bytes (is it the whole file?)")
+    return None
+
+
+def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> Stream:
+    """A stream of a format read whole: copied to a temporary file (a pipe), or refused (a followed file)."""
+    from neurotac_cli.io import camera
+
+    label = camera.FORMAT_NAMES.get(fmt, fmt)
+    if follow:
+        if fmt in STREAMED:
+            raise InputError(f"{name}: {label} does not declare the sensor size, which takes a pass over the whole "
+                             "file to find; give --sensor WxH to follow it")
+        raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.0, "
+                         "AEDAT 2.0, Event Stream and DAT); import it without --follow once it is written")
+    handle, temporary = tempfile.mkstemp(prefix=".neurotac-stream-")
+    with os.fdopen(handle, "wb") as sink:
+        sink.write(buffer)
+        while (data := feed.read()) is not None:
+            sink.write(data)
+    close()
+    schema, batches = camera.read_local(temporary, name, sensor, fmt, lambda: os.path.exists(temporary) and os.unlink(temporary))
+    return Stream(schema, batches)
+
+
+def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema, notes, cleanup) -> Iterator[pa.RecordBatch]:
+    """Each read's whole records as one batch; a record cut at the end of the stream is noted, not kept."""
+    from neurotac_cli.io import camera
+
+    width, height = sensor
+    try:
+        while True:
+            usable = decoder.complete(pending)
+            if usable:
+                block = bytes(pending[:usable])
+                del pending[:usable]
+                t, x, y, p = camera._guarded_call(name, fmt, lambda: decoder.decode(block))
+                if len(t):
+                    _check_inside(name, x, y, width, height)
+                    yield sch.events_batch(t, x, y, p, schema)
+            if decoder.finished:
+                break
+            data = feed.read()
+            if data is None:
+                break
+            pending += data
+        if pending and not decoder.finished:
+            notes.append(f"{name}: the last {len(pending)} bytes are a record cut short (the input ended, or was stopped, mid-record); they were left out")
+        if decoder.triggers:
+            notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
+                         "before they arrive); import the finished file for `sync --method trigger`")
+    finally:
+        decoder.close()
+        cleanup()
+
+
+def _check_inside(name, x, y, width, height):
+    if int(x.max()) >= width or int(y.max()) >= height:
+        bad = int(np.count_nonzero((x >= width) | (y >= height)))
+        raise FormatError(
+            f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
+            f"y={int(y.max())}); the stream is damaged, or give the right size with --sensor WxH"
+        )
+
+
+def _decoder(fmt: str, header: bytes, sensor):
+    from neurotac_cli.io import live_decoders
+
+    return live_decoders.DECODERS[fmt](header, sensor)
+
+
+def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable[[], bool] = lambda: False,
+           slice_us: int = REPLAY_SLICE_US, clock=time.monotonic, sleep=time.sleep) -> Iterator[pa.RecordBatch]:
+    """The batches again, each event released when the wall-clock time since the first event reaches
+    its camera time (divided by `speed`): the events of each `slice_us` of camera time go out together
+    once that slice has passed. Events that step back in time go out with the slice they are in; a
+    stop request ends the replay at once."""
+    start_t = start_wall = None
+    last = 0
+    for batch in batches:
+        if batch.num_rows == 0:
+            continue
+        t = batch.column("t").to_numpy()
+        if start_t is None:
+            start_t, start_wall = int(t[0]), clock()
+        slices = np.maximum.accumulate(np.maximum((t - start_t) // slice_us, last))
+        edges = np.concatenate(([0], np.flatnonzero(np.diff(slices)) + 1, [len(t)]))
+        for begin, end in zip(edges[:-1], edges[1:]):
+            due = start_wall + (int(slices[begin]) + 1) * slice_us / 1e6 / speed
+            while (wait := due - clock()) > 0:
+                if stop():
+                    return
+                sleep(min(wait, WAKE_S))
+            if stop():
+                return
+            yield batch.slice(begin, end - begin)
+        last = int(slices[-1])

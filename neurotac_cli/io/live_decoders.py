@@ -1,0 +1,209 @@
+"""Decoders of camera streams read as their bytes arrive (see io/live.py), one class per format.
+
+Each is built from the format's complete header and the --sensor option, and has: `sensor` (declared
+by the header, or None), `meta` (as the file reader gives it), `complete(pending)` (how many leading
+bytes of what has arrived are whole records), `decode(block)` (whole records -> t, x, y, p),
+`finished` (the data is over: AEDAT 4.0's index table has begun), `triggers` (external trigger events
+seen, which a stream cannot keep) and `close()`. The decoding itself is the file readers'.
+"""
+
+import os
+import struct
+import tempfile
+
+import numpy as np
+
+from neurotac_cli.errors import FormatError
+
+
+class _Records:
+    """Fixed-size records decoded by a function of the block alone (plus carried state)."""
+
+    record = 1
+    finished = False
+    triggers = 0
+    meta: dict = {}
+
+    def complete(self, pending) -> int:
+        return len(pending) - len(pending) % self.record
+
+    def close(self):
+        pass
+
+
+class Words(_Records):
+    """Prophesee EVT 2.0 (4-byte words) or EVT 3.0 (2-byte words)."""
+
+    def __init__(self, header: bytes, sensor, word_bytes: int):
+        from neurotac_cli.io import kernels, prophesee
+
+        _, fields = prophesee.header_of(None, header)
+        self.sensor, self.meta, self.record = prophesee.sensor_of_header(fields), prophesee._meta(fields), word_bytes
+        if word_bytes == 4:
+            self._decode, self._find, self.dtype = kernels.decode_evt2, kernels.evt2_triggers, "<u4"
+            self.state, self.trigger_state = kernels.evt2_state(), kernels.evt2_state()
+        else:
+            self._decode, self._find, self.dtype = kernels.decode_evt3, kernels.evt3_triggers, "<u2"
+            self.state, self.trigger_state = kernels.evt3_state(), kernels.evt3_state()
+
+    def decode(self, block: bytes):
+        words = np.frombuffer(block, dtype=self.dtype)
+        self.triggers += len(self._find(words, self.trigger_state)[0])
+        return self._decode(words, self.state)
+
+
+class Davis(_Records):
+    """AEDAT 2.0 (jAER) 8-byte records: DAVIS chips, or DVS128."""
+
+    record = 8
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import aedat2
+
+        chip = aedat2.chip_of(header)
+        self.dvs128 = aedat2.is_dvs128(chip)
+        self.sensor = (128, 128) if self.dvs128 else aedat2.sensor_line(header) or aedat2.sensor_of_chip(chip)
+        self.meta = {"source": {"camera": chip}} if chip else {}
+        self.height = (self.sensor or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
+        if self.height is None and not self.dvs128:
+            raise FormatError(f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
+                              "(give it with --sensor WxH, e.g. --sensor 240x180)")
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import aedat2, kernels
+
+        if self.dvs128:
+            return aedat2.decode_dvs128(block)
+        t, x, y, p, largest = kernels.decode_davis(np.frombuffer(block, dtype=np.uint8), self.height)
+        if largest >= self.height:
+            raise FormatError(f"DVS event row {largest} lies outside the sensor's {self.height} rows (damaged stream, or wrong --sensor)")
+        return t, x, y, p
+
+
+class EventStream(_Records):
+    """Event Stream 2.x bytes (the kernel carries an event cut between reads in its state)."""
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import eventstream, kernels
+
+        decoded = eventstream.open_es(None, header, sensor)
+        self.sensor, self.meta = decoded.sensor, decoded.meta
+        self.atis = header[15] == 2
+        self.state = kernels.es_state()
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import kernels
+
+        width, height = self.sensor
+        t, x, y, p, outside = kernels.decode_es(np.frombuffer(block, dtype=np.uint8), width, height, self.atis, self.state)
+        if outside:
+            raise FormatError(f"an event lies outside the declared {width}x{height} sensor (damaged stream)")
+        return t, x, (height - 1 - y.astype(np.int64)).astype(np.uint16), p
+
+
+class Dat(_Records):
+    """Prophesee DAT 8-byte CD records (the header ends with the event type and size bytes)."""
+
+    record = 8
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import prophesee
+
+        _, fields = prophesee.header_of(None, header[:-2])
+        if len(header) >= 2 and header[-2:-1] != b"%":
+            prophesee.check_dat_kind(header[-2:])
+        self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
+        self.state = {"last": None, "loop": 0}
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import prophesee
+
+        return prophesee.decode_dat(block, self.state)
+
+
+class Aedat4:
+    """AEDAT 4.0 packets (stream id, size, compressed flatbuffer): the whole packets of each read are
+    decoded by the `aedat` library from a temporary file holding the header and those packets. A
+    packet of no declared stream is the index table a finished file ends with: the data is over."""
+
+    finished = False
+    triggers = 0
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import aedat4
+
+        self.header = _without_table_position(header)
+        handle, self.path = tempfile.mkstemp(prefix=".neurotac-aedat4-", suffix=".aedat4")
+        with os.fdopen(handle, "wb") as sink:
+            sink.write(self.header)
+        try:
+            packets = aedat4._packets(self.path)
+            streams = next(packets)
+            packets.close()
+        except BaseException:
+            self.close()
+            raise
+        event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
+        if not event_ids:
+            self.close()
+            raise FormatError("the AEDAT 4.0 stream has no events stream")
+        self.events_id, self.known = event_ids[0], set(streams)
+        found = streams[self.events_id]
+        self.sensor = (int(found["width"]), int(found["height"])) if "width" in found else None
+        self.meta = {}
+
+    def complete(self, pending) -> int:
+        offset = 0
+        while offset + 8 <= len(pending):
+            stream, size = struct.unpack_from("<iI", pending, offset)
+            if stream not in self.known:
+                self.finished = True
+                break
+            if offset + 8 + size > len(pending):
+                break
+            offset += 8 + size
+        return offset
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import aedat4
+
+        with open(self.path, "wb") as sink:
+            sink.write(self.header)
+            sink.write(block)
+        events = []
+        for packet in aedat4._packets(self.path, skip_streams=True):
+            if "triggers" in packet:
+                self.triggers += int(np.isin(packet["triggers"]["source"], list(aedat4.TRIGGER_TYPES)).sum())
+            elif packet.get("stream_id") == self.events_id and "events" in packet:
+                events.append(packet["events"])
+        return aedat4._columns(events)
+
+    def close(self):
+        if os.path.exists(self.path):
+            os.unlink(self.path)
+
+
+def _without_table_position(header: bytes) -> bytes:
+    """The AEDAT 4.0 header with its index-table position set to -1 (none): the `aedat` library seeks
+    to that table, which lies beyond the packets it is given."""
+    data = bytearray(header)
+    try:
+        table = struct.unpack_from("<I", data, 18)[0] + 18
+        vtable = table - struct.unpack_from("<i", data, table)[0]
+        if struct.unpack_from("<H", data, vtable)[0] >= 4 + 2 * 2:
+            offset = struct.unpack_from("<H", data, vtable + 4 + 2)[0]
+            if offset:
+                struct.pack_into("<q", data, table + offset, -1)
+    except struct.error:
+        raise FormatError("the AEDAT 4.0 header is damaged") from None
+    return bytes(data)
+
+
+DECODERS = {
+    "evt2": lambda header, sensor: Words(header, sensor, 4),
+    "evt3": lambda header, sensor: Words(header, sensor, 2),
+    "aedat2": Davis,
+    "es": EventStream,
+    "dat": Dat,
+    "aedat4": Aedat4,
+}

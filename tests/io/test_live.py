@@ -1,0 +1,263 @@
+"""Live input: a camera file followed while it is written, pipes and FIFOs decoded as they arrive,
+and replay at the recorded speed."""
+
+import os
+import pathlib
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pyarrow as pa
+import pytest
+
+from neurotac_cli import schema as sch
+from neurotac_cli.io import live, read_events_table
+from neurotac_cli.tables import read
+from tests.conftest import real_file
+
+FOLLOWED = ["davis240c_rotdisk.aedat", "prophesee_vga_faery.evt2.raw", "prophesee_hd_expelliarmus.evt3.raw", "davis346_aestream.aedat4"]
+PIPED = FOLLOWED + ["dvxplorer_tonic.aedat4", "atis_ncars_loris.es", "atis_ncars_loris.dat", "header_only_tonic.aedat"]
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory) -> pathlib.Path:
+    """One simulated grasp as the rig writes it (AEDAT 2.0)."""
+    out = tmp_path_factory.mktemp("sim")
+    done = subprocess.run(["neurotac", "simulate", "--preset", "ch4", "--trials", "1", "--seed", "3", "--out", str(out)],
+                          capture_output=True)
+    assert done.returncode == 0, done.stderr
+    return out / "steel-bolt8-01.aedat"
+
+
+def write_in_pieces(data: bytes, path, pieces: int = 9, pause: float = 0.02, stop=None) -> threading.Thread:
+    """Write `data` to `path` from a thread, in pieces whose sizes (a multiple of none of the record
+    sizes) end mid-record, pausing between them as a camera's writer does (until `stop` is set)."""
+    step = len(data) // pieces + 7
+    stop = stop or threading.Event()
+
+    def run():
+        with open(path, "wb", buffering=0) as sink:
+            for start in range(0, len(data), step):
+                if stop.is_set():
+                    return
+                sink.write(data[start : start + step])
+                time.sleep(pause)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def events(table: pa.Table) -> pa.Table:
+    return table.select(["t", "x", "y", "p"])
+
+
+def collect(stream: live.Stream) -> tuple[pa.Table, int]:
+    batches = list(stream.batches)
+    return pa.Table.from_batches(batches, schema=stream.schema), len(batches)
+
+
+class Reads:
+    """A feed that gives these reads, then ends."""
+
+    def __init__(self, *reads):
+        self.reads = list(reads)
+
+    def read(self):
+        return self.reads.pop(0) if self.reads else None
+
+
+@pytest.mark.parametrize("cut", [3, 8 * 500 + 5])
+def test_a_record_cut_between_reads_waits_for_its_rest(cut):
+    data = real_file("davis240c_rotdisk.aedat").read_bytes()
+    header = live.header_length("aedat2", data, True)
+    body = data[header : header + 8 * 1000]
+    schema, notes = sch.events_schema(240, 180), []
+    batches = live._batches("cam", "aedat2", Reads(body[cut:]), bytearray(body[:cut]), live._decoder("aedat2", data[:header], None),
+                            (240, 180), schema, notes, lambda: None)
+    table = pa.Table.from_batches(list(batches), schema=schema)
+    expected = live._decoder("aedat2", data[:header], None).decode(body)
+    assert [table[c].to_numpy().tolist() for c in "txyp"] == [a.tolist() for a in expected] and notes == []
+
+
+@pytest.mark.parametrize("name", FOLLOWED + ["simulated"])
+def test_following_a_file_written_in_pieces_gives_the_finished_files_events(tmp_path, name, simulated):
+    source = simulated if name == "simulated" else real_file(name)
+    path = tmp_path / source.name
+    path.write_bytes(b"")
+    writer = write_in_pieces(source.read_bytes(), path)
+    table, batches = collect(live.open_stream(str(path), follow=True, idle_timeout=0.5))
+    writer.join()
+    whole = read_events_table(source)
+    assert events(table).equals(events(whole))
+    assert sch.sensor_of(table.schema) == sch.sensor_of(whole.schema)
+    assert batches > 1  # the events went on as they arrived, not at the end
+
+
+def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
+    source = real_file("prophesee_vga_faery.evt2.raw")
+    data = source.read_bytes()
+    path = tmp_path / "cam.raw"
+    path.write_bytes(data[: len(data) // 2 + 1])  # the camera stopped mid-word
+    stream = live.open_stream(str(path), follow=True, idle_timeout=0.3)
+    start = time.monotonic()
+    table, _ = collect(stream)
+    waited = time.monotonic() - start
+    assert 0.3 <= waited < 10  # ends after the timeout, not at once and not never (a loaded machine is slow)
+    assert table.num_rows > 0 and len(stream.notes) == 1 and "cut short" in stream.notes[0]
+    assert events(table).equals(events(read_events_table(source)).slice(0, table.num_rows))
+
+
+@pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path, number):
+    source = real_file("davis240c_rotdisk.aedat")
+    path = tmp_path / "cam.aedat"
+    path.write_bytes(b"")
+    stop = threading.Event()
+    writer = write_in_pieces(source.read_bytes(), path, pieces=80, pause=0.1, stop=stop)
+    process = subprocess.Popen(["neurotac", "import", "--follow", str(path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = process.stdout.read1(1 << 16)  # events are flowing
+    process.send_signal(number)
+    rest, stderr = process.communicate(timeout=20)
+    stop.set()
+    writer.join()
+    assert process.returncode == 0, stderr
+    assert b"Traceback" not in stderr
+    table = pa.ipc.open_stream(first + rest).read_all()
+    whole = read_events_table(source)
+    assert 0 < table.num_rows < whole.num_rows
+    assert events(table).equals(events(whole).slice(0, table.num_rows))
+
+
+def test_ctrl_c_before_the_header_is_one_line(tmp_path):
+    (tmp_path / "cam.raw").write_bytes(b"")
+    process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=20)
+    lines = stderr.decode().strip().splitlines()
+    assert process.returncode in (1, 130) and len(lines) == 1 and "Traceback" not in stderr.decode(), stderr
+
+
+def test_an_empty_followed_file_is_one_line_after_the_timeout(tmp_path):
+    (tmp_path / "cam.raw").write_bytes(b"")
+    done = subprocess.run(["neurotac", "import", "--follow", "--idle-timeout", "200ms", str(tmp_path / "cam.raw")], capture_output=True)
+    lines = done.stderr.decode().strip().splitlines()
+    assert done.returncode == 1 and len(lines) == 1 and "empty" in lines[0] and lines[0].startswith("neurotac import: error:")
+
+
+def test_formats_that_need_the_whole_file_are_refused_when_followed(tmp_path):
+    (tmp_path / "e.csv").write_text("t,x,y,p\n1,2,3,1\n")
+    dat = real_file("atis_ncars_loris.dat")  # no sensor size in its header
+    for path, hint in ((tmp_path / "e.csv", "without --follow"), (dat, "--sensor")):
+        done = subprocess.run(["neurotac", "import", "--follow", "--idle-timeout", "200ms", str(path)], capture_output=True)
+        lines = done.stderr.decode().strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1 and hint in lines[0], done.stderr
+
+
+@pytest.mark.parametrize("name", PIPED + ["simulated"])
+def test_a_fifo_gives_the_files_events(tmp_path, name, simulated):
+    source = simulated if name == "simulated" else real_file(name)
+    fifo = tmp_path / "cam.fifo"
+    os.mkfifo(fifo)
+    writer = write_in_pieces(source.read_bytes(), fifo, pause=0.005)
+    table = read_events_table(str(fifo))
+    writer.join()
+    whole = read_events_table(source)
+    assert events(table).equals(events(whole))
+    assert sch.sensor_of(table.schema) == sch.sensor_of(whole.schema)
+
+
+def test_stdin_and_process_substitution_give_the_files_events(tmp_path):
+    source = real_file("prophesee_hd_expelliarmus.evt3.raw")
+    whole = events(read_events_table(source))
+    for command in (f"cat {source} | neurotac import - -o {tmp_path}/a.arrows", f"neurotac import <(cat {source}) -o {tmp_path}/a.arrows"):
+        done = subprocess.run(["bash", "-c", command], capture_output=True)
+        assert done.returncode == 0, done.stderr
+        assert events(read([f"{tmp_path}/a.arrows"])).equals(whole)
+
+
+def fifo_of(tmp_path, data: bytes) -> str:
+    fifo = tmp_path / "cam.fifo"
+    os.mkfifo(fifo)
+    write_in_pieces(data, fifo, pause=0.005)
+    return str(fifo)
+
+
+@pytest.mark.parametrize("name", ["davis240c_rotdisk.aedat", "prophesee_hd_expelliarmus.evt3.raw", "davis346_aestream.aedat4"])
+def test_a_stream_cut_anywhere_gives_a_prefix_of_the_events_or_one_error(tmp_path, name):
+    from neurotac_cli.errors import NeurotacError
+
+    data = real_file(name).read_bytes()
+    whole = events(read_events_table(real_file(name)))
+    for i, cut in enumerate(np.random.default_rng(5).integers(1, len(data), 4).tolist() + [100]):
+        (tmp_path / f"{i}").mkdir()
+        try:
+            table = events(read_events_table(fifo_of(tmp_path / f"{i}", data[:cut])))
+        except NeurotacError as error:
+            assert "cut short" in str(error) and cut < 200_000, (cut, error)  # only a header can be cut so short
+            continue
+        assert table.equals(whole.slice(0, table.num_rows)), cut
+
+
+def test_an_empty_pipe_is_one_error(tmp_path):
+    from neurotac_cli.errors import InputError
+
+    with pytest.raises(InputError, match="empty"):
+        read_events_table(fifo_of(tmp_path, b""))
+
+
+def test_a_text_stream_is_read_whole(tmp_path):
+    rows = "t,x,y,p\n" + "".join(f"{10 * i},{i % 7},{i % 5},{i % 2}\n" for i in range(50))
+    table = read_events_table(fifo_of(tmp_path, rows.encode()))
+    assert table["t"].to_pylist() == [10 * i for i in range(50)] and sch.sensor_of(table.schema) == (7, 5)
+
+
+def test_a_streams_triggers_are_counted_in_a_note(tmp_path):
+    words = np.array([0x8000 | 5, 0x6000 | 7, 0xA000 | (2 << 8) | 1, 0x0000 | 1, 0x2000 | 3], dtype="<u2")
+    stream = live.open_stream(fifo_of(tmp_path, b"% evt 3.0\n% geometry 1280x720\n" + words.tobytes()))
+    table, _ = collect(stream)
+    assert table.num_rows == 1 and len(stream.notes) == 1 and "1 external trigger events were not kept" in stream.notes[0]
+
+
+def fake_clock():
+    now = [100.0]
+    return (lambda: now[0]), (lambda seconds: now.__setitem__(0, now[0] + seconds)), now
+
+
+@pytest.mark.parametrize("speed", [1.0, 8.0])
+def test_a_replay_releases_no_event_before_its_time_and_each_within_a_slice(speed):
+    clock, sleep, now = fake_clock()
+    t = np.sort(np.random.default_rng(1).integers(5_000_000, 5_400_000, 3000))
+    schema = sch.events_schema(10, 10)
+    zeros = np.zeros(len(t), np.uint16)
+    batches = [sch.events_batch(t[i : i + 700], zeros[i : i + 700], zeros[i : i + 700], zeros[i : i + 700].astype(np.uint8), schema)
+               for i in range(0, len(t), 700)]
+    released = []
+    for batch in live.replay(iter(batches), speed, clock=clock, sleep=sleep):
+        released.append((now[0] - 100.0, batch.column("t").to_numpy()))
+    assert sum(len(b) for _, b in released) == len(t)
+    for wall, times in released:
+        camera = (times - t[0]) / 1e6 / speed
+        assert np.all(camera <= wall + 1e-9)  # never early
+        assert np.all(wall - camera <= live.REPLAY_SLICE_US / 1e6 / speed + 1e-9)  # late by at most one slice
+    assert released[-1][0] == pytest.approx((t[-1] - t[0]) / 1e6 / speed, abs=live.REPLAY_SLICE_US / 1e6 / speed)
+
+
+def test_realtime_replays_at_the_recorded_pace(tmp_path):
+    source = real_file("davis240c_rotdisk.aedat")  # 3.17 s of events
+    start = time.monotonic()
+    done = subprocess.run(["neurotac", "import", "--realtime", "--speed", "4", str(source), "-o", str(tmp_path / "r.arrows")],
+                          capture_output=True)
+    took = time.monotonic() - start
+    assert done.returncode == 0, done.stderr
+    assert took >= 3.17 / 4
+    assert events(read([str(tmp_path / "r.arrows")])).equals(events(read_events_table(source)))
+
+
+@pytest.mark.parametrize("args", [["--speed", "2"], ["--realtime", "--speed", "0"], ["--follow", "a", "b"], ["--follow", "--idle-timeout", "0s"]])
+def test_live_usage_errors_exit_2(args, tmp_path):
+    done = subprocess.run(["neurotac", "import", *args, str(tmp_path / "x.raw")], capture_output=True)
+    assert done.returncode == 2, done.stderr
