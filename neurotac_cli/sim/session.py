@@ -103,7 +103,8 @@ def plan_session(config: SimConfig, rng: np.random.Generator, n_grasps: int, nam
         planned = _plan_grasp(config, rng, index, material, shape, labels, offset_us=now - LEAD_US)
         grasps.append(planned)
         now = planned.offset_us + planned.grasp.released_us
-    end = now + int(rng.uniform(*config.session_rest_us))
+    rest = int(rng.uniform(*config.session_rest_us))
+    end = now + rest if grasps or not min_duration_us else 0  # a session of no grasps lasts --duration exactly
     return Session(name, grasps, max(end, min_duration_us), camera_start, preroll, led_on)
 
 
@@ -391,17 +392,15 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
     session = plan_session(config, streams[2], n_grasps, name, min_duration_us)
     (led_t, led_x, led_y, led_p), residual = dvs.led_events(config, camera, -session.led_on_us, 0, streams[3])
     drift = _Drift(config, camera, residual, streams[3]) if config.illumination_drift > 0 else None
-    chunk_rngs = [np.random.default_rng(s) for s in children[4].spawn(2 * (n_grasps + 1))]  # noise, force sensor
+    chunk_seeds = children[4]  # spawned in turn, two per chunk: noise, force sensor
     clock = session.led_off_camera_us  # camera time of the session's 0
-    bounds = [-(session.led_on_us + session.preroll_us)] + [g.offset_us for g in session.grasps] + [session.duration_us]
     result = SessionResult(session, physics)
-    for k in range(len(bounds) - 1):
-        start, end = bounds[k], bounds[k + 1]
-        planned = session.grasps[k - 1] if k else None
-        parts = [dvs.noise_events(config, camera, start, end, chunk_rngs[2 * k])]
-        if planned is None:
+    for start, end, planned in _chunks(session):
+        noise_rng, sensor_rng = (np.random.default_rng(s) for s in chunk_seeds.spawn(2))
+        parts = [dvs.noise_events(config, camera, start, end, noise_rng)]
+        if start < 0:
             parts.append((led_t, led_x, led_y, led_p))
-        else:
+        if planned is not None:
             parts.append(_contact_events(config, camera, planned, residual, progress))
         if drift is not None:
             parts.append(drift.events(start, end))
@@ -410,13 +409,31 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
         order = np.flatnonzero(inside)[np.argsort(t[inside], kind="stable")]
         events_sink(t[order] + clock, x[order], y[order], p[order].astype(np.uint8))
         result.events += order.size
-        log_t, reading, truth = _force_log(config, planned, start, end, chunk_rngs[2 * k + 1])
+        log_t, reading, truth = _force_log(config, planned, start, end, sensor_rng)
         force_sink(log_t, reading)
         result.force_t_us.append(log_t)
         result.true_force_n.append(truth.astype(np.float32))
     result.force_t_us = np.concatenate(result.force_t_us)
     result.true_force_n = np.concatenate(result.true_force_n)
     return result
+
+
+CHUNK_US = 2_000_000  # rests are generated and written in pieces of at most this length
+
+
+def _chunks(session: Session):
+    """(start, end, grasp or None) pieces of the session clock, in order: the blink, each grasp's window, the rests
+    between them cut into pieces of at most CHUNK_US. Every event of a grasp falls inside its own piece."""
+    now = -(session.led_on_us + session.preroll_us)
+    windows = [(g.offset_us, g.offset_us + g.stop_us, g) for g in session.grasps]
+    for start, stop, planned in windows + [(session.duration_us, session.duration_us, None)]:
+        while now < start:
+            end = min(start, now + CHUNK_US, 100_000 if now < 0 else now + CHUNK_US)
+            yield now, end, None
+            now = end
+        if planned is not None:
+            yield start, stop, planned
+            now = stop
 
 
 def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, sessions: int = 1, variation=None,
