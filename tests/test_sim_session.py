@@ -123,7 +123,9 @@ def test_frame_labels_each_grasp_of_the_session(session):
     start_ms = frames["t"].to_numpy() / 1000
     for number, g in enumerate(grasps):
         mine = start_ms[index == number]
-        assert abs(mine[0] - float(g["contact_ms"])) <= 20 and abs(mine[-1] - float(g["released_ms"])) <= 20
+        # contact is found once the force passes 5% of the session's scale: during the loading, whatever its speed
+        assert float(g["contact_ms"]) - 10 <= mine[0] <= float(g["loaded_ms"])
+        assert float(g["release_ms"]) <= mine[-1] <= float(g["released_ms"]) + 10
         phases = frames["phase"].to_numpy(zero_copy_only=False)[index == number]
         assert phases[0] == "grasping" and phases[-1] == "releasing" and "holding" in phases
 

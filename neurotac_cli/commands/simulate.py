@@ -102,31 +102,12 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
         neurotac simulate --trials 24 --vary all --hold-out membrane --gripper force --out train/
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import NeurotacError
-    from neurotac_cli.sim.config import parse_value, preset_config
+    from neurotac_cli.sim.config import preset_config
     from neurotac_cli.sim.physics import parse_variation
-    from neurotac_cli.units import parse_size
 
     _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift)
-    overrides = {name: parse_value(name, value) for name, value in settings}
-    if groups:
-        overrides["groups"] = parse_value("groups", groups)
-    elif session and preset is None:
-        overrides["groups"] = SESSION_OBJECTS
-    if gripper:
-        overrides["gripper"] = gripper
-    if illumination_drift is not None:
-        overrides["illumination_drift"] = illumination_drift
-    if force_range:
-        overrides["force_min_n"], overrides["force_max_n"] = _force_range(force_range)
-    if hold is not None:
-        overrides["hold_us"] = hold
-    if force_sensor:
-        overrides["force_sensor"] = force_sensor
-    if background_rate is not None:
-        overrides["background_rate_hz"] = background_rate
-    if sensor_size:
-        overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
+    overrides = _overrides(settings, groups, session and preset is None, gripper, illumination_drift, force_range, hold,
+                           force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
     variation = parse_variation(vary, hold_out, unseen)
     if session:
@@ -145,9 +126,38 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     if out_dir:
         write_dataset(simulation, out_dir)
     if synced:
-        args = {"preset": preset, "trials": trials, "seed": seed, "keep_led": keep_led,
+        args = {"preset": preset or "ch4", "trials": trials, "seed": seed, "keep_led": keep_led,
+                **{k: v for k, v in (("vary", vary), ("hold_out", hold_out), ("unseen", unseen)) if v},
                 **{k: _plain(v) for k, v in overrides.items()}}
         tables.write(output, recordings(simulation, keep_led=keep_led), step=("simulate", args))
+
+
+def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_range, hold, force_sensor,
+               background_rate, sensor_size) -> dict:
+    """The simulator parameters the options set, by field name."""
+    from neurotac_cli.sim.config import parse_value
+    from neurotac_cli.units import parse_size
+
+    overrides = {name: parse_value(name, value) for name, value in settings}
+    if groups:
+        overrides["groups"] = parse_value("groups", groups)
+    elif mixed_pool:
+        overrides["groups"] = SESSION_OBJECTS
+    if gripper:
+        overrides["gripper"] = gripper
+    if illumination_drift is not None:
+        overrides["illumination_drift"] = illumination_drift
+    if force_range:
+        overrides["force_min_n"], overrides["force_max_n"] = _force_range(force_range)
+    if hold is not None:
+        overrides["hold_us"] = hold
+    if force_sensor:
+        overrides["force_sensor"] = force_sensor
+    if background_rate is not None:
+        overrides["background_rate_hz"] = background_rate
+    if sensor_size:
+        overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
+    return overrides
 
 
 def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift):
