@@ -156,6 +156,7 @@ def test_slips_move_the_contact_along_their_direction():
 def test_session_options_are_refused_outside_their_mode(tmp_path):
     for args, word in ((["--session"], "--out"), (["--session", "--synced", "--out", str(tmp_path)], "--synced"),
                        (["--grasps", "3", "--out", str(tmp_path)], "--session"),
-                       (["--illumination-drift", "0.1", "--out", str(tmp_path)], "--session")):
+                       (["--illumination-drift", "0.1", "--out", str(tmp_path)], "--session"),
+                       (["--session", "--hold", "1s", "--out", str(tmp_path)], "session_hold_us")):
         done = subprocess.run(["neurotac", "simulate", *args], capture_output=True)
         assert done.returncode == 1 and done.stderr.decode().count("\n") == 1 and word in done.stderr.decode()

@@ -105,7 +105,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     from neurotac_cli.sim.config import preset_config
     from neurotac_cli.sim.physics import parse_variation
 
-    _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift)
+    _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift, hold, keep_led)
     overrides = _overrides(settings, groups, session and preset is None, gripper, illumination_drift, force_range, hold,
                            force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
@@ -160,16 +160,19 @@ def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_
     return overrides
 
 
-def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift):
+def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift, hold, keep_led):
     """Options that belong to one mode only are refused in the other, rather than ignored."""
     from neurotac_cli.errors import NeurotacError
 
     if session:
         if not out_dir:
             raise NeurotacError("--session writes files: give --out DIR (then `neurotac sync --manifest DIR/manifest.csv`)")
-        if synced or output or trials is not None:
-            raise NeurotacError("--synced, -o and --trials are for trials, not --session (sync the session with "
-                             "`neurotac sync --manifest DIR/manifest.csv`; --grasps sets a session's grasps)")
+        if synced or output or trials is not None or keep_led:
+            raise NeurotacError("--synced, -o, --keep-led and --trials are for trials, not --session (sync the session with "
+                                "`neurotac sync --manifest DIR/manifest.csv`; --grasps sets a session's grasps)")
+        if hold is not None:
+            raise NeurotacError("--hold sets a trial's hold; a session draws each grasp's hold from session_hold_us "
+                                "(e.g. --set session_hold_us=1s..4s)")
         return
     if not out_dir and not synced:
         raise NeurotacError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
