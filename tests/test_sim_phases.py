@@ -1,6 +1,7 @@
 """Grasps inside a session: `ops.phases.label_session` on force traces with re-grasps, force changes and partial releases."""
 
 import numpy as np
+from hypothesis import given, settings, strategies as st
 
 from neurotac_cli.ops.phases import detect_phases, label_session, session_columns
 
@@ -76,3 +77,22 @@ def test_session_columns_pad_with_none_and_minus_one_and_auto_keeps_single_grasp
     session_phase, session_grasp = label_session(single)
     assert set(session_grasp.tolist()) == {-1, 0}
     assert list(detect_phases(single)).count("holding") > 30  # `auto` is untouched by the session labels
+
+
+@settings(max_examples=40, deadline=None)
+@given(levels=st.lists(st.floats(1.0, 4.0), max_size=6), seed=st.integers(0, 2**32 - 1))
+def test_every_grasp_of_a_random_session_is_found_once_and_in_order(levels, seed):
+    rng = np.random.default_rng(seed)
+    parts, spans = [np.zeros(int(rng.integers(30, 60)))], []  # enough rest to read the noise from
+    for level in levels:
+        start = sum(part.size for part in parts)
+        rise, hold, fall = int(rng.integers(1, 30)), int(rng.integers(5, 80)), int(rng.integers(1, 20))
+        parts += [ramp(0, level, rise), np.full(hold, level), ramp(level, 0, fall), np.zeros(int(rng.integers(5, 30)))]
+        spans.append((start, start + rise, start + rise + hold, start + rise + hold + fall))
+    force = np.concatenate(parts) + rng.normal(0, 0.005, sum(part.size for part in parts))
+    phase, grasp = label_session(force)
+    assert sorted(set(grasp.tolist()) - {-1}) == list(range(len(levels)))
+    for index, (start, loaded, release, end) in enumerate(spans):
+        mine = np.flatnonzero(grasp == index)
+        assert start <= mine[0] <= loaded and release <= mine[-1] <= end  # contact found in the rise, lost in the fall
+        assert phase[mine[0]] == "grasping" and phase[mine[-1]] == "releasing"

@@ -128,6 +128,10 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     level that is then held) is releasing then holding; a force change while held slower than
     `slope_share` per frame, and a viscoelastic object relaxing, stay holding; after the last fall
     every frame to the end of contact is releasing.
+
+    Limits: a grasp weaker than `contact_share` of the session's force scale is not found (a 0.5 N
+    touch among 20 N grasps: lower `contact_share`); the noise is read from the trace itself, so it
+    needs some tens of frames at rest to be read well.
     """
     force = np.asarray(force, dtype=np.float64)
     n = len(force)
