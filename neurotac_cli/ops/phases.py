@@ -177,8 +177,8 @@ def _grasp_phases(f: np.ndarray, before: float, rest: float, noise: float, move_
     labels = np.full(len(f), "holding", dtype=object)
     moves = _moves(change, peak, move_share, slope_share, tail=max(TAIL_SHARE * peak, 3 * noise))
     rises = [m for m in moves if m[2] > 0]
-    first_rise_end = rises[0][1] if rises and rises[0][0] <= _first_move(moves) else 0
-    labels[:first_rise_end + 1] = "grasping"
+    # from first contact to the end of the first rise: grasping, however slowly the rise began
+    labels[:moves[0][1] + 1 if moves and moves[0][2] > 0 else 1] = "grasping"
     for start, stop, sign in moves:
         labels[start:stop + 1] = "grasping" if sign > 0 else "releasing"
     falls = [m for m in moves if m[2] < 0]
@@ -187,10 +187,6 @@ def _grasp_phases(f: np.ndarray, before: float, rest: float, noise: float, move_
     if not ends_in_contact:
         labels[-1] = "releasing"
     return labels
-
-
-def _first_move(moves) -> int:
-    return moves[0][0] if moves else 0
 
 
 def _moves(change: np.ndarray, peak: float, move_share: float, slope_share: float, tail: float) -> list[tuple[int, int, int]]:
