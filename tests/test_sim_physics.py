@@ -84,3 +84,15 @@ def test_a_force_controlled_gripper_holds_the_peak_whatever_the_material():
         ratios[gripper] = held[1] / held[0]
     assert ratios["position"] < 0.85  # the squeezed foam relaxes by its 22% over a 700 ms hold
     assert ratios["force"] == pytest.approx(1.0, abs=0.06)  # the grip holds its force (the hold's ripple aside)
+
+
+def test_a_session_draws_the_objects_family_per_grasp_and_the_sensor_once():
+    from neurotac_cli.sim.session import plan_session
+
+    variation = parse_variation("all", unseen="objects")
+    assert variation.without("objects").families == ("pixels", "membrane", "optics", "noise", "sensor")
+    session = plan_session(preset_config("ch4"), np.random.default_rng(0), 6, variation=variation)
+    tilts = [planned.physics["tilt_deg"] for planned in session.grasps]
+    assert len(set(tilts)) == 6 and all(SEEN_SHARE * 0.6 <= tilt <= 0.6 for tilt in tilts)  # the unseen third
+    assert all(planned.config.tilt_deg == planned.physics["tilt_deg"] for planned in session.grasps)
+    assert all(planned.config.on_threshold == 0.30 for planned in session.grasps)  # plan_session leaves the sensor to the session

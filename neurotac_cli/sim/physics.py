@@ -108,6 +108,17 @@ class Variation:
         return varied, values
 
 
+    def draw_family(self, config, rng: np.random.Generator, family: str):
+        """(config, values) with only `family` drawn, if this variation varies it; else (config, {})."""
+        if family not in self.families:
+            return config, {}
+        return Variation((family,), self.held_out if self.held_out == family else None, self.side).draw(config, rng)
+
+    def without(self, family: str) -> "Variation":
+        """The same variation, `family` left out."""
+        return Variation(tuple(f for f in self.families if f != family), None if self.held_out == family else self.held_out, self.side)
+
+
 def parse_variation(families: str | None, held_out: str | None = None, unseen: str | None = None) -> Variation | None:
     """`--vary pixels,membrane` (or `all`), `--hold-out FAMILY` (seen part only), `--unseen FAMILY` (unseen part only)."""
     if held_out and unseen:

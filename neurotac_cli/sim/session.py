@@ -58,6 +58,8 @@ class SessionGrasp:
     speed: float  # gripper speed factor
     events: dict = field(default_factory=dict)  # regrasp / change / partial: local start time (µs)
     slip: Slip | None = None
+    config: SimConfig | None = None  # the grasp's own physics, where the objects family is drawn per grasp
+    physics: dict = field(default_factory=dict)  # what was drawn for this grasp
 
     @property
     def stop_us(self) -> int:
@@ -88,8 +90,11 @@ def object_pool(config: SimConfig) -> list[tuple]:
 
 
 def plan_session(config: SimConfig, rng: np.random.Generator, n_grasps: int, name: str = "session",
-                 min_duration_us: int = 0) -> Session:
-    """Draw a session's grasps: objects, peak forces, rests, speeds, events while held, slips, poses."""
+                 min_duration_us: int = 0, variation=None) -> Session:
+    """Draw a session's grasps: objects, peak forces, rests, speeds, events while held, slips, poses.
+
+    A `variation` that varies the `objects` family draws it again for every grasp (its pose, tilt,
+    rim and motions are the object's, not the sensor's)."""
     pool = object_pool(config)
     weights = np.array([entry[2] for entry in pool], float)
     camera_start = int(rng.uniform(*config.camera_offset_us))
@@ -100,7 +105,10 @@ def plan_session(config: SimConfig, rng: np.random.Generator, n_grasps: int, nam
     for index in range(n_grasps):
         material, shape, _, labels = pool[int(rng.choice(len(pool), p=weights / weights.sum()))]
         now += max(int(rng.uniform(*config.session_rest_us)), LEAD_US + SETTLE_US + 10_000)
-        planned = _plan_grasp(config, rng, index, material, shape, labels, offset_us=now - LEAD_US)
+        own, physics = (config, {}) if variation is None else variation.draw_family(config, rng, "objects")
+        planned = _plan_grasp(own, rng, index, material, shape, labels, offset_us=now - LEAD_US)
+        if physics:
+            planned.config, planned.physics = own, physics
         grasps.append(planned)
         now = planned.offset_us + planned.grasp.released_us
     rest = int(rng.uniform(*config.session_rest_us))
@@ -248,6 +256,7 @@ def _room_px(config, center, direction) -> float:
 
 def grasp_force(config: SimConfig, planned: SessionGrasp, t_us: np.ndarray) -> np.ndarray:
     """The true contact force (N) at local times t: the segments, relaxation on plateaus, ripple, the slip's drop."""
+    config = planned.config or config
     t = np.asarray(t_us, dtype=float)
     force = np.zeros_like(t)
     share, tau = _relaxation(config, planned.grasp.material)
@@ -275,6 +284,7 @@ def grasp_force(config: SimConfig, planned: SessionGrasp, t_us: np.ndarray) -> n
 
 def grasp_motion(config: SimConfig, planned: SessionGrasp, t_us: np.ndarray) -> np.ndarray:
     """Displacement of the face on the sensor (px, (n, 2)): settling, drift, vibration, and the slip."""
+    config = planned.config or config
     t = np.asarray(t_us, dtype=float)
     motion = rigid_motion_px(config, planned.grasp, t)
     if planned.slip is not None:
@@ -340,6 +350,7 @@ def _no_events():
 
 def _contact_events(config, camera, planned: SessionGrasp, residual, progress=None):
     """One grasp's contact events on the session clock; `residual` (H, W) carries the pixels' state across grasps."""
+    config = planned.config or config
     step = config.step_us
     times = np.arange(int(np.ceil(planned.stop_us / step)) + 1) * float(step)
     force = grasp_force(config, planned, times)
@@ -386,10 +397,10 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
     children = seq.spawn(5)
     streams = [np.random.default_rng(s) for s in children[:4]]  # physics, camera, plan, LED and drift
     physics = {}
-    if variation is not None:
-        config, physics = variation.draw(config, streams[0])
+    if variation is not None:  # the sensor's physics once per session; the objects family per grasp (plan_session)
+        config, physics = variation.without("objects").draw(config, streams[0])
     camera = dvs.make_camera(config, streams[1])
-    session = plan_session(config, streams[2], n_grasps, name, min_duration_us)
+    session = plan_session(config, streams[2], n_grasps, name, min_duration_us, variation)
     (led_t, led_x, led_y, led_p), residual = dvs.led_events(config, camera, -session.led_on_us, 0, streams[3])
     drift = _Drift(config, camera, residual, streams[3]) if config.illumination_drift > 0 else None
     chunk_seeds = children[4]  # spawned in turn, two per chunk: noise, force sensor
@@ -495,6 +506,7 @@ def grasp_row(session_name: str, planned: SessionGrasp) -> dict:
            "contact_ms": ms(g.contact_us), "loaded_ms": ms(g.loaded_us), "release_ms": ms(g.release_us),
            "released_ms": ms(g.released_us), "speed": f"{planned.speed:.3f}"}
     row.update({f"{kind}_ms": ms(t) for kind, t in planned.events.items()})
+    row.update({f"true_{name}": f"{value:.6g}" for name, value in planned.physics.items()})
     if planned.slip is not None:
         s = planned.slip
         length_mm = s.speed_mm_s * (s.end_us - s.start_us) * 1e-6
