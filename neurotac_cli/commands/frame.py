@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import Duration, ParamType, Size, input_paths, output_option
+from neurotac_cli.options import Duration, ParamType, Size, echo_lines, input_paths, output_option
 
 
 class PadTo(ParamType):
@@ -56,7 +56,8 @@ class Scale(ParamType):
     "--phases",
     default="auto",
     show_default=True,
-    help="Phase per frame: `auto` (from the force: rise, plateau, fall), `none`, or three inclusive frame ranges "
+    help="Phase per frame: `auto` (from the force: rise, plateau, fall), `session` (many grasps per trial: phases per "
+    "grasp, and an int32 `grasp` column, -1 between grasps), `none`, or three inclusive frame ranges "
     "for grasping, holding, releasing, e.g. 0-21,22-121,122-143 (thesis ch. 3).",
 )
 @click.option("--accumulate", is_flag=True, help="Counts cumulated from the trial's start (thesis ch. 3 inputs; with `crop --pool all`).")
@@ -108,7 +109,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     from neurotac_cli.ops import frame as fr
     from neurotac_cli.ops.phases import parse_ranges
 
-    if phases not in ("auto", "none"):
+    if phases not in ("auto", "none", "session"):
         phases = tuple(parse_ranges(phases))
     source = tables.open_input(paths, kind=("recordings", "events"))
     framing = fr.Framing(
@@ -117,24 +118,14 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         max_frames=max_frames, sort=sort,
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)
-    tables.write(output, flushed(batches) if output in (None, "-") else batches, step=("frame", args), schema=schema)
-    for line in report.warnings(lead_in_expected=source.kind == "recordings") + report.notes:
-        click.echo(f"neurotac frame: warning: {line}", err=True)
+    tables.write(output, batches, step=("frame", args), schema=schema, flush_each=True)
+    echo_lines("frame", report.warnings(lead_in_expected=source.kind == "recordings") + report.notes, prefix="warning: ")
     if source.kind == "events" and report.dropped and not report.warnings():
         click.echo(
             f"neurotac frame: {report.dropped} of {report.events} events lie outside the frames "
             f"(before start {report.before_start}, after end {report.after_end}, out of time order {report.late})",
             err=True,
         )
-
-
-def flushed(batches):
-    """Each frames batch reaches the reader at once (a live pipe): stdout is flushed once it is written."""
-    import sys
-
-    for batch in batches:
-        yield batch
-        sys.stdout.buffer.flush()
 
 
 def camera_file_stem(schema) -> str | None:

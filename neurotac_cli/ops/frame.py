@@ -98,8 +98,8 @@ class Framing:
                 raise NeurotacError("a scale only applies to --dtype float32")
             if len(self.scale) != 2 or min(self.scale) <= 0:
                 raise NeurotacError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
-        if not (self.phases in ("auto", "none") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
-            raise NeurotacError(f"phases must be auto, none or three frame ranges, got {self.phases!r}")
+        if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
+            raise NeurotacError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
 
     def args(self) -> dict:
         """The settings as history records them."""
@@ -235,7 +235,9 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         scale = [float(s) for s in framing.scale] if framing.scale is not None else counter.peaks(plan)
         report.scale = scale
     dtype = np.float32 if framing.dtype == "float32" else np.uint16
-    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us, sensor=sch.sensor_meta(width, height))
+    extra = (("grasp", pa.int32()),) if framing.phases == "session" else ()
+    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us,
+                                   sensor=sch.sensor_meta(width, height), extra=extra)
     if scale is not None:
         out_schema = sch.set_meta(out_schema, scale=scale)
     out_schema = _keep_meta(table.schema, out_schema)
@@ -243,11 +245,15 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
-            phase = _phases(force, n_real, n_total, framing.phases)
+            if framing.phases == "session":
+                phase, grasp = ph.session_columns(force, n_real, n_total)
+            else:
+                phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
-                                    label_values, labels, framing.window_us, scale, first_frame=first)
+                                    label_values, labels, framing.window_us, scale, first_frame=first,
+                                    grasp=None if grasp is None else grasp[first:end])
 
     return out_schema, batches()
 
@@ -384,7 +390,7 @@ def _keep_meta(source: pa.Schema, target: pa.Schema) -> pa.Schema:
     return target.with_metadata(metadata)
 
 
-def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0) -> pa.RecordBatch:
+def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0, grasp=None) -> pa.RecordBatch:
     n = len(counts)
     if scale is not None:
         counts = counts.astype(np.float32) / np.asarray(scale, dtype=np.float32)[None, :, None, None]
@@ -396,6 +402,8 @@ def _frames_batch(schema, trial, counts, force, phase, label_values, labels, win
         pa.array(force, pa.float32(), from_pandas=True) if force is not None else pa.nulls(n, pa.float32()),
         pa.array(list(phase), pa.string()) if phase is not None else pa.nulls(n, pa.string()),
     ]
+    if grasp is not None:
+        columns.append(pa.array(grasp, pa.int32()))
     columns += [pa.array([label_values.get(name)] * n, pa.string()) for name in labels]
     names = schema.names
     for extra in names[len(columns):]:

@@ -1,0 +1,98 @@
+"""Grasps inside a session: `ops.phases.label_session` on force traces with re-grasps, force changes and partial releases."""
+
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from neurotac_cli.ops.phases import detect_phases, label_session, session_columns
+
+
+def ramp(a, b, frames):
+    u = np.linspace(0, 1, frames + 1)[1:]
+    return a + (b - a) * (3 * u**2 - 2 * u**3)
+
+
+def runs(phase, grasp):
+    """[(first frame, phase, grasp)] at every change of either."""
+    out, previous = [], None
+    for k, key in enumerate(zip(phase.tolist(), grasp.tolist())):
+        if key != previous:
+            out.append((k, *key))
+            previous = key
+    return out
+
+
+def session_trace(seed=0, noise=0.01):
+    rest = np.zeros(20)
+    regrasp = np.concatenate([ramp(0, 3, 8), np.full(30, 3.0), ramp(3, 0.5, 4), np.full(5, 0.5), ramp(0.5, 3.2, 6),
+                              np.full(20, 3.2), ramp(3.2, 0, 5)])
+    # a force change while held (+15% over 20 frames: regulation speed), then a partial release to 1 N
+    change_partial = np.concatenate([ramp(0, 2, 10), 2.0 * np.linspace(1, 1.15, 20), np.full(20, 2.3), ramp(2.3, 1.0, 4),
+                                     np.full(25, 1.0), ramp(1.0, 0, 4)])
+    force = np.concatenate([rest, regrasp, rest, change_partial, rest])
+    return force + np.random.default_rng(seed).normal(0, noise, force.size)
+
+
+def test_regrasp_partial_release_and_force_change_get_their_phases_per_grasp():
+    phase, grasp = label_session(session_trace())
+    assert grasp.dtype == np.int32
+    assert runs(phase, grasp) == [
+        (0, "none", -1),
+        (21, "grasping", 0), (28, "holding", 0),  # frame 20 reads 0.04 N: not yet in contact
+        (58, "releasing", 0), (62, "holding", 0), (67, "grasping", 0), (73, "holding", 0),  # the re-grasp
+        (93, "releasing", 0), (98, "none", -1),  # the frame that first reads below contact is releasing
+        (119, "grasping", 1), (128, "holding", 1),  # the +15% change over 20 frames stays holding
+        (168, "releasing", 1), (172, "holding", 1),  # the partial release, then the lower level held
+        (197, "releasing", 1), (201, "none", -1),
+    ]
+
+
+def test_labels_hold_across_noise_draws_and_a_trace_at_rest_is_none():
+    for seed in range(5):
+        phase, grasp = label_session(session_trace(seed))
+        assert set(grasp.tolist()) == {-1, 0, 1}
+        assert [k for k, name, g in runs(phase, grasp) if name == "grasping"] == [21, 67, 119]
+    phase, grasp = label_session(np.random.default_rng(1).normal(0, 0.01, 500))
+    assert set(phase.tolist()) == {"none"} and set(grasp.tolist()) == {-1}
+    phase, grasp = label_session(np.full(10, np.nan))
+    assert set(phase.tolist()) == {"none"}
+
+
+def test_a_relaxing_hold_stays_holding_and_a_dip_of_two_frames_does_not_split_a_grasp():
+    relax = 3.0 * (1 - 0.22 * -np.expm1(-np.arange(60) / 25.0))  # foam: 22% lost with a 250 ms time constant
+    dip = np.concatenate([np.full(10, relax[-1]), [0.0, 0.0], np.full(10, relax[-1])])
+    force = np.concatenate([np.zeros(10), ramp(0, 3, 8), relax, np.full(5, relax[-1]), ramp(relax[-1], 0, 5), np.zeros(10)])
+    phase, grasp = label_session(force)
+    assert set(grasp[10:]) - {-1} == {0}
+    assert set(phase[18:18 + 60 + 5].tolist()) == {"holding"}
+    trace = np.concatenate([np.zeros(10), ramp(0, 3, 8), np.full(20, 3.0), dip, ramp(3, 0, 5), np.zeros(10)])
+    _, grasp = label_session(trace)
+    assert set(grasp.tolist()) == {-1, 0}
+
+
+def test_session_columns_pad_with_none_and_minus_one_and_auto_keeps_single_grasps():
+    force = session_trace()
+    phase, grasp = session_columns(np.concatenate([force, np.full(7, np.nan)]), force.size, force.size + 7)
+    assert phase.size == grasp.size == force.size + 7 and set(grasp[-7:].tolist()) == {-1} and set(phase[-7:]) == {"none"}
+    single = np.concatenate([np.zeros(5), ramp(0, 3, 10), np.full(40, 3.0), ramp(3, 0, 6), np.zeros(5)])
+    session_phase, session_grasp = label_session(single)
+    assert set(session_grasp.tolist()) == {-1, 0}
+    assert list(detect_phases(single)).count("holding") > 30  # `auto` is untouched by the session labels
+
+
+@settings(max_examples=40, deadline=None)
+@given(levels=st.lists(st.floats(1.0, 4.0), max_size=6), seed=st.integers(0, 2**32 - 1))
+def test_every_grasp_of_a_random_session_is_found_once_and_in_order(levels, seed):
+    rng = np.random.default_rng(seed)
+    parts, spans = [np.zeros(int(rng.integers(30, 60)))], []  # enough rest to read the noise from
+    for level in levels:
+        start = sum(part.size for part in parts)
+        rise, hold, fall = int(rng.integers(1, 30)), int(rng.integers(5, 80)), int(rng.integers(1, 20))
+        parts += [ramp(0, level, rise), np.full(hold, level), ramp(level, 0, fall), np.zeros(int(rng.integers(5, 30)))]
+        spans.append((start, start + rise, start + rise + hold, start + rise + hold + fall))
+    force = np.concatenate(parts) + rng.normal(0, 0.005, sum(part.size for part in parts))
+    phase, grasp = label_session(force)
+    assert sorted(set(grasp.tolist()) - {-1}) == list(range(len(levels)))
+    for index, (start, loaded, release, end) in enumerate(spans):
+        mine = np.flatnonzero(grasp == index)
+        assert start <= mine[0] <= loaded and release <= mine[-1] <= end  # contact found in the rise, lost in the fall
+        assert phase[mine[0]] == "grasping" and phase[mine[-1]] == "releasing"
