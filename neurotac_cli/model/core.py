@@ -296,6 +296,10 @@ def predict_table(model: Model, table: pa.Table) -> pa.Table:
     """Force estimates for every frame of a frames table (trials batched, each run from its start)."""
     if model.task != "force":
         raise ModelError(f"model {model.name!r} classifies materials; use `neurotac classify` or `neurotac eval`")
+    from neurotac_cli.model import session
+
+    if session.is_session_model(model):  # trained on contacts: runs on unbounded streams
+        return session.predict_table(model, table)
     check_input(model, table.schema)
     data = shaping.sequences(table)
     outputs = []
@@ -325,6 +329,10 @@ def stream(model: Model, schema: pa.Schema, batches):
 
     Returns (predictions schema, iterator of record batches).
     """
+    from neurotac_cli.model import session
+
+    if session.is_session_model(model):  # trained on contacts: runs on unbounded streams
+        return session.stream(model, schema, batches)
     if model.task != "force":
         raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
     check_input(model, schema)

@@ -13,13 +13,18 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
     """Metric rows of a predictions table (force or material)."""
     names = predictions.schema.names
     if "force_pred" in names:
-        return metrics.force_rows(
+        rows = metrics.force_rows(
             predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
             predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
             nonzero=nonzero, per_trial=per_trial,
             series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
             if "repeat" in names else None,
         )
+        if "contact_pred" in names:  # a model run on streams: rest, drift, contact and per-grasp figures
+            from neurotac_cli.model.session import session_rows
+
+            rows += session_rows(predictions)
+        return rows
     if label not in names:
         from neurotac_cli.errors import SchemaError
 

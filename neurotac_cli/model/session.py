@@ -1,0 +1,179 @@
+"""Force models that run indefinitely: the contact detector cuts a stream into contacts.
+
+Why: every force network here was trained on grasps that start from a membrane at rest and a state
+of zeros. On a session of many grasps its accumulators (deform-gru's deformation map and counts,
+the recurrent states) carry each grasp into the next and it drifts (measured: 1.3-2.6 N at rest
+after six grasps, growing). The event-driven contact detector (`ops.contact`) finds when a contact
+begins and ends; the force model runs only inside a contact, from a fresh state at its onset, and
+reads zero between contacts. So the state is bounded by one contact, and between contacts it is
+the detector's handful of numbers.
+
+Training on sessions follows: the contacts the detector finds in the training sessions are the
+training sequences, each starting from zeros exactly as at run time (truncated back-propagation at
+the contacts' ends loses nothing: no state crosses them). A model file trained this way carries the
+detector's settings in its input spec (`contact`); `predict_table` and `stream` of `model.core`
+hand such a model to this module. A model trained on single grasps has no `contact` and runs as
+before.
+"""
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import metrics
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import data as shaping
+from neurotac_cli.ops import contact as detector
+
+CONTACT_KEY = "contact"
+SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string())]
+PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the predictions
+
+
+def is_session_model(model) -> bool:
+    return CONTACT_KEY in (model.input_spec or {})
+
+
+def contact_config(model) -> detector.ContactConfig:
+    return detector.ContactConfig(**model.input_spec[CONTACT_KEY])
+
+
+class Stream:
+    """One stream's state (a session, or a trial): the detector's numbers and the force model's state
+    inside the current contact (None between contacts)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.config = contact_config(model)
+        self.contact = detector.ContactState.start(self.config)
+        self.inner = None
+
+    def step(self, counts: np.ndarray, t_us: np.ndarray):
+        """(force per frame, phase per frame) of frames (T, 2, H, W) at times (T,) µs."""
+        off, on = detector.frame_sums(counts)
+        phases, onsets, _ = detector.detect(self.config, off, on, self.contact)
+        force = np.zeros(len(counts), dtype=np.float32)
+        for begin, end in metrics.runs(phases != detector.NONE):
+            if onsets[begin]:
+                self.inner = None
+            estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
+            force[begin:end] = estimate[0]
+        if len(phases) and phases[-1] == detector.NONE:
+            self.inner = None
+        return force, phases
+
+
+# ---------------------------------------------------------------- training
+
+
+def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
+    """The frames of every contact the detector finds, one trial per contact (`SESSION@FRAME`), and
+    what was found: {"sessions", "contacts", "frames", "frames_in_contacts"}."""
+    sch.validate(table.schema, "frames")
+    data = shaping.sequences(table)
+    trial_column = table.column("trial").to_pylist()
+    frame_column = table.column("frame").to_numpy()
+    row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(trial_column, frame_column.tolist()))}
+    rows, names = [], []
+    for trial, counts, frames in zip(data.trials, data.counts, data.frame):
+        off, on = detector.frame_sums(counts)
+        phases, _, _ = detector.detect(config, off, on)
+        for begin, end in metrics.runs(phases != detector.NONE):
+            rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
+            names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
+    if not rows:
+        raise ModelError("the contact detector found no contact in the training frames (no burst of OFF events above "
+                         "the background); check the crop covers the contact, or train without --contacts")
+    found = table.take(pa.array(rows, pa.int64()))
+    found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
+    summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows, "frames_in_contacts": len(rows)}
+    return found, summary
+
+
+def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = None, **options):
+    """Train the force model of `spec` on the contacts found in `table` (sessions or trials); the model
+    file then carries the detector's settings and runs on unbounded streams."""
+    from neurotac_cli.model import core
+
+    config = config or detector.ContactConfig()
+    found, summary = contacts_table(table, config)
+    progress = options.get("progress")
+    if progress:
+        progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
+                 f"{summary['frames_in_contacts']} of {summary['frames']} frames")
+    model = core.train(found, spec, **options)
+    model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict()})
+    model.training = dict(model.training, contacts=summary)
+    return model
+
+
+# ---------------------------------------------------------------- running
+
+
+def predictions_schema(table_schema: pa.Schema, model) -> pa.Schema:
+    from neurotac_cli.model.core import FORCE_FIELDS, _predictions_schema
+
+    extra = [(name, table_schema.field(name).type) for name in PASSED_ON if name in table_schema.names]
+    schema, _ = _predictions_schema(table_schema, FORCE_FIELDS + SESSION_FIELDS + extra, model)
+    return schema
+
+
+def predict_table(model, table: pa.Table) -> pa.Table:
+    """Force, contact and phase for every frame, each trial streamed from its start (same as `stream`)."""
+    schema, batches = stream(model, table.schema, table.to_batches())
+    return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def stream(model, schema: pa.Schema, batches):
+    """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
+
+    Frames of a trial must arrive in order (as `frame` writes them)."""
+    from neurotac_cli.model.core import check_input
+
+    if model.task != "force":
+        raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    check_input(model, schema)
+    out_schema = predictions_schema(schema, model)
+    streams = {}
+
+    def run():
+        for batch in batches:
+            if batch.num_rows == 0:
+                continue
+            yield _predict_batch(model, batch, out_schema, streams)
+
+    return out_schema, run()
+
+
+def _predict_batch(model, batch, out_schema, streams) -> pa.RecordBatch:
+    trials = batch.column("trial").to_pylist()
+    counts = sch.counts_numpy(batch.column("counts"))
+    t = batch.column("t").to_numpy().astype(np.int64)
+    force = np.empty(batch.num_rows, dtype=np.float32)
+    phase = np.empty(batch.num_rows, dtype=object)
+    edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
+    for begin, end in zip(edges[:-1], edges[1:]):
+        one = streams.setdefault(trials[begin], Stream(model))
+        force[begin:end], phase[begin:end] = one.step(counts[begin:end], t[begin:end])
+    columns = {
+        "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
+        "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()), "force_pred": pa.array(force),
+        "contact_pred": pa.array(phase != detector.NONE, pa.bool_()), "phase_pred": pa.array(phase.tolist(), pa.string()),
+    }
+    for field in out_schema:
+        if field.name not in columns:
+            columns[field.name] = batch.column(field.name)
+    return pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
+
+
+def session_rows(predictions: pa.Table) -> list:
+    """`metrics.session_rows` of a predictions table that has the detector's columns."""
+    names = predictions.schema.names
+    column = lambda name: predictions.column(name).to_numpy(zero_copy_only=False) if name in names else None  # noqa: E731
+    grasp = predictions.column("grasp").cast(pa.float64()).fill_null(np.nan).to_numpy() if "grasp" in names else None
+    slip = predictions.column("slip").fill_null(False).to_numpy(zero_copy_only=False) if "slip" in names else None
+    return metrics.session_rows(
+        predictions.column("trial").to_pylist(), column("frame"), column("t"), predictions.column("phase").to_pylist(),
+        column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),
+        slip=slip, slip_pred=column("slip_pred"), window_us=sch.get_meta(predictions.schema, sch.WINDOW),
+    )
