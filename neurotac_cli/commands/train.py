@@ -17,6 +17,7 @@ HYPERPARAMETERS = [
     ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); deform-gru, material-curves."),
     ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
     ("--hidden", "hidden", int, "deform-gru: GRU units (default 32)."),
+    ("--memory-frames", "memory_frames", int, "deform-gru: time constant in frames of its deformation map and counts (default 0 = sums since the trial start; --contacts sets 3000)."),
     ("--layout-grid", "layout_grid", int, "deform-gru: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
     ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
@@ -91,12 +92,16 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
 @hyperparameter_options
 @validation_options
+@click.option("--contacts", is_flag=True,
+              help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
+              "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
+              "reading zero between contacts (docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=click.Path(dir_okay=False), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Draw the training curve to this PNG.")
 @click.option("--threads", type=int, default=2, show_default=True, help="CPU threads for torch.")
 @seed_option
-def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, label, curve, plot, threads, seed, **options):
+def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, contacts, label, curve, plot, threads, seed, **options):
     """Train a force or material model on frames; write one model file.
 
     Validation trials (for early stopping) are chosen by id, by label value, or as a fraction per
@@ -114,7 +119,10 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model import session
 
+    if contacts and model_name in MATERIAL:
+        raise click.UsageError("--contacts trains force models; a material classifier takes whole trials")
     tables.check_folder(*(path for path in (output, curve, plot) if path))
     torch.set_num_threads(max(1, threads))
     table = tables.read(paths, kind="frames")
@@ -122,8 +130,9 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     if val_trials is None and val_where is None and val_fraction is None:
         val_fraction = 0.1
     trials = [t.strip() for t in val_trials.split(",") if t.strip()] if val_trials else None
-    model = models.train(table, spec, val_trials=trials, val_fraction=val_fraction, val_where=val_where,
-                         per=val_per, seed=seed, progress=progress_printer(), label=label)
+    model = (session.train if contacts else models.train)(
+        table, spec, val_trials=trials, val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed,
+        progress=progress_printer(), label=label)
     models.save(model, output)
     history = model.training.get("curve", [])
     if history:

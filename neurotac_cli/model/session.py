@@ -27,7 +27,10 @@ from neurotac_cli.ops import contact as detector
 
 CONTACT_KEY = "contact"
 SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string())]
-PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the predictions
+PASSED_ON = ("grasp", "slip")
+# deform-gru's leak when trained on contacts: 30 s at 10 ms frames, far longer than a hold (its sums
+# lose 1.3% over a 40-frame ch4 grasp), so a contact that never ends keeps them bounded.
+DEFAULT_MEMORY_FRAMES = 3000  # truth columns of session frames, copied to the predictions
 
 
 def is_session_model(model) -> bool:
@@ -96,6 +99,8 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     from neurotac_cli.model import core
 
     config = config or detector.ContactConfig()
+    if spec["model"] == "deform-gru":
+        spec = {"memory_frames": DEFAULT_MEMORY_FRAMES, **spec}
     found, summary = contacts_table(table, config)
     progress = options.get("progress")
     if progress:
