@@ -180,7 +180,7 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
 #   (`rest_mean_abs`, `rest_max_abs`, N), and as % of the force range (`rest_mean_abs_pct_range`);
 # - drift: the least-squares slope of |estimate| at rest against time, per session, in N per minute
 #   (`drift_n_per_min`: the mean over sessions; `drift_pct_range_per_min` as % of the range);
-# - per grasp (`grasp` column): RMSE and MAE of each grasp's frames (scope `grasp:TRIAL/G`), and their
+# - per grasp (`grasp` column, -1 or null between grasps): RMSE and MAE of each grasp's frames (scope `grasp:TRIAL/G`), and their
 #   mean over grasps in scope `all` (`grasp_rmse_mean`);
 # - contact: true contacts are runs of frames whose phase is not none, detected ones runs of
 #   `contact_pred`; a detection that overlaps a true contact not yet matched is a hit (F1 over
@@ -283,7 +283,7 @@ def _slope(x, y) -> float:
 def _grasp_rows(rows, trial, grasp, true, pred) -> dict:
     """Per-grasp RMSE / MAE rows appended to `rows`; returns their mean over grasps."""
     rmse = []
-    inside = ~np.isnan(grasp) & ~np.isnan(true)
+    inside = (np.nan_to_num(grasp, nan=-1.0) >= 0) & ~np.isnan(true)  # -1 or null: between grasps
     keys = dict.fromkeys(zip(trial[inside], grasp[inside].astype(int)))
     for one, index in keys:
         mask = inside & (trial == one) & (grasp == index)

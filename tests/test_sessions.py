@@ -20,7 +20,7 @@ SIZE = 9
 WINDOW_US = 10_000
 
 
-def tiny_session(grasps=4, seed=0, trial="s0", rest=(20, 60), background=0.05):
+def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
     """A session of grasp-like contacts between rests: OFF events while the force rises, ON while it
     falls, a little activity while held, background everywhere. Returns (frames table, true onsets)."""
     rng = np.random.default_rng(seed)
@@ -72,7 +72,7 @@ def trained(sessions):
 def test_detector_finds_every_contact_within_two_frames_and_ends_it_at_the_release():
     table, onsets = tiny_session(grasps=8, seed=3)
     off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
-    phases, found, _ = contact.detect(contact.ContactConfig(), off, on)
+    phases, found, _, _ = contact.detect(contact.ContactConfig(), off, on)
     assert np.flatnonzero(found).tolist() == onsets
     truth = np.asarray(table.column("phase").to_pylist()) != "none"
     true_runs, found_runs = metrics.runs(truth), metrics.runs(phases != contact.NONE)
@@ -87,7 +87,7 @@ def test_detector_phases_through_a_grasp():
     grows to a full release (releasing, then rest), and the membrane's ON tail after it (still rest)."""
     off = [3] * 50 + [1000, 2000, 300, 20, 60, 10, 10, 10, 12, 3, 2, 3, 3]
     on = [8] * 50 + [10, 10, 30, 25, 70, 10, 10, 60, 50, 3000, 300, 60, 10]
-    phases, onsets, _ = contact.detect(contact.ContactConfig(), np.array(off), np.array(on))
+    phases, onsets, _, _ = contact.detect(contact.ContactConfig(), np.array(off), np.array(on))
     assert phases[:50].tolist() == ["none"] * 50 and np.flatnonzero(onsets).tolist() == [50]
     assert phases[50:].tolist() == ["grasping", "grasping", "holding", "holding", "holding", "holding", "holding",
                                     "releasing", "releasing", "none", "none", "none", "none"]
@@ -97,10 +97,10 @@ def test_detector_in_pieces_equals_one_pass():
     table, _ = tiny_session(grasps=5, seed=4)
     off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
     config = contact.ContactConfig()
-    whole, _, _ = contact.detect(config, off, on)
+    whole, _, _, _ = contact.detect(config, off, on)
     state, parts = None, []
     for start in range(0, len(off), 7):
-        part, _, state = contact.detect(config, off[start:start + 7], on[start:start + 7], state)
+        part, _, _, state = contact.detect(config, off[start:start + 7], on[start:start + 7], state)
         parts.append(part)
     assert np.concatenate(parts).tolist() == whole.tolist()
 
@@ -114,7 +114,7 @@ def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
     off = rng.poisson(scale * rng.random(n) ** 4)
     on = rng.poisson(scale * rng.random(n) ** 4)
     config = contact.ContactConfig()
-    _, _, state = contact.detect(config, off, on)
+    _, _, _, state = contact.detect(config, off, on)
     largest = float(max(off.max(), on.max(), config.background_off, config.background_on)) + 1
     assert 0 <= state.mean_off <= largest and 0 <= state.mean_on <= largest
     assert 0 <= state.off_since <= largest * (config.memory_frames + 1)
@@ -177,7 +177,7 @@ def test_model_state_stays_bounded_on_long_random_streams(trained, seed):
         length = 200
         level = rng.choice([0.0, 0.05, 2.0, 6.0])
         counts = rng.poisson(level * rng.random((length, 1, 1, 1)) ** 2, (length, 2, SIZE, SIZE)).astype(np.uint16)
-        force, phases = one.step(counts, np.arange(length, dtype=np.int64) * WINDOW_US)
+        force, phases, _ = one.step(counts, np.arange(length, dtype=np.int64) * WINDOW_US)
         assert np.all(np.isfinite(force))
         largest = max(largest, float(counts.max()))
         if phases[-1] == contact.NONE:

@@ -26,11 +26,13 @@ from neurotac_cli.model import data as shaping
 from neurotac_cli.ops import contact as detector
 
 CONTACT_KEY = "contact"
-SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string())]
-PASSED_ON = ("grasp", "slip")
+SLIP_KEY = "slip"
+SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string()), ("slip_pred", pa.bool_())]
+PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the predictions
 # deform-gru's leak when trained on contacts: 30 s at 10 ms frames, far longer than a hold (its sums
 # lose 1.3% over a 40-frame ch4 grasp), so a contact that never ends keeps them bounded.
-DEFAULT_MEMORY_FRAMES = 3000  # truth columns of session frames, copied to the predictions
+DEFAULT_MEMORY_FRAMES = 3000
+RELEASE_SHARE = 0.1  # a contact ends when the estimate falls under this share of the largest training force
 
 
 def is_session_model(model) -> bool:
@@ -48,57 +50,104 @@ class Stream:
     def __init__(self, model):
         self.model = model
         self.config = contact_config(model)
+        self.slip = detector.SlipConfig(**model.input_spec.get(SLIP_KEY, {}))
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
 
     def step(self, counts: np.ndarray, t_us: np.ndarray):
-        """(force per frame, phase per frame) of frames (T, 2, H, W) at times (T,) µs."""
-        off, on = detector.frame_sums(counts)
-        phases, onsets, _ = detector.detect(self.config, off, on, self.contact)
+        """(force, phase, slip flag) per frame of frames (T, 2, H, W) at times (T,) µs.
+
+        Frame by frame the detector says whether the frame is in a contact; the force model runs on
+        the frames of a contact, in one call per run of them until a release burst makes the end of
+        the contact possible, then frame by frame until its estimate says the contact is over."""
+        off, on, separation = detector.frame_stats(counts)
         force = np.zeros(len(counts), dtype=np.float32)
-        for begin, end in metrics.runs(phases != detector.NONE):
-            if onsets[begin]:
+        phases = np.empty(len(counts), dtype=object)
+        slips = np.zeros(len(counts), dtype=bool)
+        pending = []  # frames of the current contact waiting for one call of the force model
+        for k in range(len(counts)):
+            before = self.contact.onsets
+            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True)
+            if self.contact.onsets != before or phase == detector.NONE:
+                self._run(pending, counts, t_us, force)
                 self.inner = None
+            if phase != detector.NONE:
+                pending.append(k)
+                if self.contact.released:
+                    self._run(pending, counts, t_us, force)
+                    if detector.end_by_force(self.config, self.contact, float(force[k])):
+                        phase, force[k], self.inner = detector.NONE, 0.0, None
+            phases[k] = phase
+            slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
+        self._run(pending, counts, t_us, force)
+        return force, phases, slips
+
+    def _run(self, pending: list, counts, t_us, force):
+        """The force model on the pending frames (consecutive), carrying its state; empties `pending`."""
+        if pending:
+            begin, end = pending[0], pending[-1] + 1
             estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
             force[begin:end] = estimate[0]
-        if len(phases) and phases[-1] == detector.NONE:
-            self.inner = None
-        return force, phases
+            pending.clear()
 
 
 # ---------------------------------------------------------------- training
 
 
+MARGIN_BEFORE, MARGIN_AFTER = 2, 30  # frames of rest kept around each true contact for training
+
+
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
-    """The frames of every contact the detector finds, one trial per contact (`SESSION@FRAME`), and
-    what was found: {"sessions", "contacts", "frames", "frames_in_contacts"}."""
+    """The frames of every contact, one trial per contact (`STREAM@FRAME`), and what was found:
+    {"sessions", "contacts", "frames", "frames_in_contacts", "from"}.
+
+    Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
+    of frames whose phase is not none, with MARGIN_BEFORE frames of rest before it (the detector
+    finds onsets within a frame or two) and MARGIN_AFTER after it (the model learns to read zero
+    once released, which ends the contact at run time); without phases, the runs the detector finds."""
     sch.validate(table.schema, "frames")
     data = shaping.sequences(table)
-    trial_column = table.column("trial").to_pylist()
-    frame_column = table.column("frame").to_numpy()
-    row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(trial_column, frame_column.tolist()))}
+    labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
+    row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(table.column("trial").to_pylist(), table.column("frame").to_numpy().tolist()))}
     rows, names = [], []
-    for trial, counts, frames in zip(data.trials, data.counts, data.frame):
-        off, on = detector.frame_sums(counts)
-        phases, _, _ = detector.detect(config, off, on)
-        for begin, end in metrics.runs(phases != detector.NONE):
+    for trial, counts, frames, phases in zip(data.trials, data.counts, data.frame, data.phase):
+        if labelled:
+            runs = _widened(metrics.runs(np.asarray([p not in (None, "none") for p in phases])), len(frames))
+        else:
+            off, on = detector.frame_sums(counts)
+            runs = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
+        for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
     if not rows:
-        raise ModelError("the contact detector found no contact in the training frames (no burst of OFF events above "
-                         "the background); check the crop covers the contact, or train without --contacts")
+        raise ModelError("found no contact in the training frames (no phase other than none, and no burst of OFF "
+                         "events above the background); check the crop covers the contact, or train without --contacts")
     found = table.take(pa.array(rows, pa.int64()))
     found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
-    summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows, "frames_in_contacts": len(rows)}
+    summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
+               "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector"}
     return found, summary
 
 
-def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = None, **options):
+def _widened(runs: list, length: int) -> list:
+    """Runs grown by the margins, clipped to the stream, overlapping ones merged."""
+    out = []
+    for begin, end in runs:
+        begin, end = max(0, begin - MARGIN_BEFORE), min(length, end + MARGIN_AFTER)
+        if out and begin <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], end))
+        else:
+            out.append((begin, end))
+    return out
+
+
+def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = None,
+          slip: detector.SlipConfig | None = None, **options):
     """Train the force model of `spec` on the contacts found in `table` (sessions or trials); the model
     file then carries the detector's settings and runs on unbounded streams."""
     from neurotac_cli.model import core
 
-    config = config or detector.ContactConfig()
+    config = config or detector.ContactConfig(release_force_n=release_force(table))
     if spec["model"] == "deform-gru":
         spec = {"memory_frames": DEFAULT_MEMORY_FRAMES, **spec}
     found, summary = contacts_table(table, config)
@@ -107,9 +156,17 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
         progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames")
     model = core.train(found, spec, **options)
-    model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict()})
+    slip = slip or detector.SlipConfig()
+    model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
     model.training = dict(model.training, contacts=summary)
     return model
+
+
+def release_force(table: pa.Table) -> float:
+    """A contact is over when the estimate falls under RELEASE_SHARE of the largest training force."""
+    force = table.column("force").to_numpy(zero_copy_only=False)
+    known = force[~np.isnan(force)] if len(force) else force
+    return RELEASE_SHARE * float(np.abs(known).max()) if len(known) else detector.ContactConfig.release_force_n
 
 
 # ---------------------------------------------------------------- running
@@ -156,14 +213,16 @@ def _predict_batch(model, batch, out_schema, streams) -> pa.RecordBatch:
     t = batch.column("t").to_numpy().astype(np.int64)
     force = np.empty(batch.num_rows, dtype=np.float32)
     phase = np.empty(batch.num_rows, dtype=object)
+    slip = np.zeros(batch.num_rows, dtype=bool)
     edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
     for begin, end in zip(edges[:-1], edges[1:]):
         one = streams.setdefault(trials[begin], Stream(model))
-        force[begin:end], phase[begin:end] = one.step(counts[begin:end], t[begin:end])
+        force[begin:end], phase[begin:end], slip[begin:end] = one.step(counts[begin:end], t[begin:end])
     columns = {
         "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
         "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()), "force_pred": pa.array(force),
         "contact_pred": pa.array(phase != detector.NONE, pa.bool_()), "phase_pred": pa.array(phase.tolist(), pa.string()),
+        "slip_pred": pa.array(slip, pa.bool_()),
     }
     for field in out_schema:
         if field.name not in columns:
