@@ -29,7 +29,7 @@ from neurotac_cli.model import evaluate, session
 
 FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min",
             epochs={"deform-gru": 200, "lstm": 60, "convlstm": 30}, patience=15)
-QUICK = dict(train_sessions=1, train_grasps=5, test_sessions=1, test_grasps=3, duration=None,
+QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None,
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
 TRAIN_SEED, TEST_SEED = 1501, 2501
@@ -133,8 +133,17 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="tiny sessions and few epochs (seconds to a minute)")
     parser.add_argument("--out", default=None, help="folder for data, models and sessions.md (default examples/out-sessions[-quick])")
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated models to train (default all three)")
+    parser.add_argument("--train-sessions", type=int, default=None, help="override the mode's number of training sessions")
+    parser.add_argument("--train-grasps", type=int, default=None, help="override the grasps per training session")
+    parser.add_argument("--test-sessions", type=int, default=None, help="override the number of test sessions")
+    parser.add_argument("--epochs", default=None, metavar="MODEL=N,...", help="override the most epochs per model, e.g. convlstm=2")
     args = parser.parse_args(argv)
-    size = QUICK if args.quick else FULL
+    size = dict(QUICK if args.quick else FULL)
+    for key in ("train_sessions", "train_grasps", "test_sessions"):
+        if getattr(args, key) is not None:
+            size[key] = getattr(args, key)
+    if args.epochs:
+        size["epochs"] = dict(size["epochs"], **{k: int(v) for k, v in (item.split("=") for item in args.epochs.split(","))})
     here = os.path.dirname(os.path.abspath(__file__))
     out = args.out or os.path.join(here, "out-sessions-quick" if args.quick else "out-sessions")
     os.makedirs(out, exist_ok=True)

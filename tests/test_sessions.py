@@ -1,5 +1,6 @@
 """Sessions: the event-driven contact detector, force models run on unbounded streams, session scores."""
 
+import pathlib
 import subprocess
 import sys
 
@@ -13,9 +14,11 @@ from neurotac_cli import metrics
 from neurotac_cli import model as models
 from neurotac_cli import schema as sch
 from neurotac_cli import tables
+from neurotac_cli.errors import ModelError
 from neurotac_cli.model import evaluate, session
 from neurotac_cli.ops import contact
 
+ROOT = pathlib.Path(__file__).resolve().parent.parent
 SIZE = 9
 WINDOW_US = 10_000
 
@@ -177,7 +180,7 @@ def test_model_state_stays_bounded_on_long_random_streams(trained, seed):
         length = 200
         level = rng.choice([0.0, 0.05, 2.0, 6.0])
         counts = rng.poisson(level * rng.random((length, 1, 1, 1)) ** 2, (length, 2, SIZE, SIZE)).astype(np.uint16)
-        force, phases, _ = one.step(counts, np.arange(length, dtype=np.int64) * WINDOW_US)
+        force, phases, _, _ = one.step(counts, np.arange(length, dtype=np.int64) * WINDOW_US)
         assert np.all(np.isfinite(force))
         largest = max(largest, float(counts.max()))
         if phases[-1] == contact.NONE:
@@ -250,3 +253,42 @@ def test_train_contacts_then_predict_writes_contact_and_phase(sessions, tmp_path
 def test_train_contacts_refuses_a_classifier(tmp_path):
     done = run(["train", "--model", "material-dnn", "--contacts", "-o", str(tmp_path / "m.model")])
     assert done.returncode == 2 and b"--contacts trains force models" in done.stderr
+
+
+def test_the_sessions_example_runs_quick(tmp_path):
+    """examples/sessions.py --quick end to end (simulate, frame, train on contacts, score) writes its table."""
+    script = ROOT / "examples" / "sessions.py"
+    done = subprocess.run([sys.executable, str(script), "--quick", "--models", "deform-gru", "--out", str(tmp_path)],
+                          capture_output=True, check=False)
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    table = (tmp_path / "sessions.md").read_text()
+    assert "| deform-gru |" in table and "contact F1" in table
+
+
+def pooled_material_model():
+    """A material classifier trained on tiny labelled trials pooled to one pixel (`crop --pool all`)."""
+    from neurotac_cli.ops.crop import CropSpec, crop_table
+    from tests.test_model_helpers import tiny_frames
+
+    pooled = crop_table(tiny_frames(trials=6, size=(SIZE, SIZE)), CropSpec(pool="all"))
+    return models.train(pooled, models.make_spec("material-dnn", epochs=3), seed=0)
+
+
+def test_predict_names_each_contacts_material_when_it_ends(trained):
+    material = pooled_material_model()
+    table, _ = tiny_session(grasps=4, seed=13, trial="test")
+    predictions = session.predict_table(trained, table, material=material)
+    touching = predictions.column("contact_pred").to_numpy(zero_copy_only=False)
+    ends = [end for _, end in metrics.runs(touching) if end < len(touching)]
+    named = predictions.column("material_pred").to_pylist()
+    assert [k for k, v in enumerate(named) if v is not None] == ends
+    assert {named[k] for k in ends} <= set(material.classes)
+
+
+def test_a_material_model_on_unpooled_frames_is_refused(trained):
+    from tests.test_model_helpers import tiny_frames
+
+    unpooled = models.train(tiny_frames(trials=4, size=(SIZE, SIZE)), models.make_spec("material-dnn", epochs=1), seed=0)
+    table, _ = tiny_session(grasps=1, seed=1)
+    with pytest.raises(ModelError, match="pooled to one pixel"):
+        session.predict_table(trained, table, material=unpooled)

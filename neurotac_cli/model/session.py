@@ -16,6 +16,8 @@ hand such a model to this module. A model trained on single grasps has no `conta
 before.
 """
 
+import collections
+
 import numpy as np
 import pyarrow as pa
 
@@ -32,6 +34,7 @@ PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the 
 # deform-gru's leak when trained on contacts: 30 s at 10 ms frames, far longer than a hold (its sums
 # lose 1.3% over a 40-frame ch4 grasp), so a contact that never ends keeps them bounded.
 DEFAULT_MEMORY_FRAMES = 3000
+MAX_CONTACT_FRAMES = 60_000  # a material model sees at most the last 10 min (at 10 ms) of a contact: bounded state
 RELEASE_SHARE = 0.1  # a contact ends when the estimate falls under this share of the largest training force
 
 
@@ -47,15 +50,17 @@ class Stream:
     """One stream's state (a session, or a trial): the detector's numbers and the force model's state
     inside the current contact (None between contacts)."""
 
-    def __init__(self, model):
-        self.model = model
+    def __init__(self, model, material=None):
+        self.model, self.material = model, material
+        self.sums = collections.deque(maxlen=MAX_CONTACT_FRAMES)  # OFF and ON per frame of the current contact
         self.config = contact_config(model)
         self.slip = detector.SlipConfig(**model.input_spec.get(SLIP_KEY, {}))
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
 
     def step(self, counts: np.ndarray, t_us: np.ndarray):
-        """(force, phase, slip flag) per frame of frames (T, 2, H, W) at times (T,) µs.
+        """(force, phase, slip flag, material) per frame of frames (T, 2, H, W) at times (T,) µs; the
+        material (with a material model) on the frame where a contact ends, None elsewhere.
 
         Frame by frame the detector says whether the frame is in a contact; the force model runs on
         the frames of a contact, in one call per run of them until a release burst makes the end of
@@ -64,23 +69,41 @@ class Stream:
         force = np.zeros(len(counts), dtype=np.float32)
         phases = np.empty(len(counts), dtype=object)
         slips = np.zeros(len(counts), dtype=bool)
+        materials = np.full(len(counts), None, dtype=object)
         pending = []  # frames of the current contact waiting for one call of the force model
         for k in range(len(counts)):
+            touching = self.contact.phase != detector.NONE
             before = self.contact.onsets
             phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True)
             if self.contact.onsets != before or phase == detector.NONE:
                 self._run(pending, counts, t_us, force)
                 self.inner = None
+            if self.contact.onsets != before:
+                self.sums.clear()
             if phase != detector.NONE:
                 pending.append(k)
+                self.sums.append((off[k], on[k]))
                 if self.contact.released:
                     self._run(pending, counts, t_us, force)
                     if detector.end_by_force(self.config, self.contact, float(force[k])):
                         phase, force[k], self.inner = detector.NONE, 0.0, None
+            if touching and phase == detector.NONE:
+                materials[k] = self._material()
             phases[k] = phase
             slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
         self._run(pending, counts, t_us, force)
-        return force, phases, slips
+        return force, phases, slips, materials
+
+    def _material(self):
+        """The material model's class for the contact that just ended (its OFF and ON per frame)."""
+        if self.material is None or not self.sums:
+            return None
+        sums = np.asarray(self.sums, dtype=np.float32).reshape(-1, 2, 1, 1)
+        self.sums.clear()
+        data = shaping.Sequences(trials=["contact"], counts=[sums], t=[np.zeros(len(sums), np.int64)],
+                                 frame=[np.arange(len(sums), dtype=np.int32)], force=[np.full(len(sums), np.nan, np.float32)],
+                                 phase=[np.full(len(sums), None, dtype=object)])
+        return self.material.classes[int(self.material.proba(data)[0].argmax())]
 
     def _run(self, pending: list, counts, t_us, force):
         """The force model on the pending frames (consecutive), carrying its state; empties `pending`."""
@@ -172,57 +195,82 @@ def release_force(table: pa.Table) -> float:
 # ---------------------------------------------------------------- running
 
 
-def predictions_schema(table_schema: pa.Schema, model) -> pa.Schema:
+def predictions_schema(table_schema: pa.Schema, model, material=None) -> pa.Schema:
     from neurotac_cli.model.core import FORCE_FIELDS, _predictions_schema
 
     extra = [(name, table_schema.field(name).type) for name in PASSED_ON if name in table_schema.names]
-    schema, _ = _predictions_schema(table_schema, FORCE_FIELDS + SESSION_FIELDS + extra, model)
+    named = [("material_pred", pa.string())] if material is not None else []
+    schema, _ = _predictions_schema(table_schema, FORCE_FIELDS + SESSION_FIELDS + named + extra, model)
     return schema
 
 
-def predict_table(model, table: pa.Table) -> pa.Table:
+def predict_table(model, table: pa.Table, material=None) -> pa.Table:
     """Force, contact and phase for every frame, each trial streamed from its start (same as `stream`)."""
-    schema, batches = stream(model, table.schema, table.to_batches())
+    schema, batches = stream(model, table.schema, table.to_batches(), material)
     return pa.Table.from_batches(list(batches), schema=schema)
 
 
-def stream(model, schema: pa.Schema, batches):
+def stream(model, schema: pa.Schema, batches, material=None):
     """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
+    With `material` (a material model on frames pooled to one pixel, at the same window), each
+    contact's material in `material_pred` on the frame where it ends.
 
     Frames of a trial must arrive in order (as `frame` writes them)."""
     from neurotac_cli.model.core import check_input
 
     if model.task != "force":
         raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    if material is not None:
+        check_material(model, material)
     check_input(model, schema)
-    out_schema = predictions_schema(schema, model)
+    out_schema = predictions_schema(schema, model, material)
     streams = {}
 
     def run():
         for batch in batches:
             if batch.num_rows == 0:
                 continue
-            yield _predict_batch(model, batch, out_schema, streams)
+            yield _predict_batch(model, material, batch, out_schema, streams)
 
     return out_schema, run()
 
 
-def _predict_batch(model, batch, out_schema, streams) -> pa.RecordBatch:
+def check_material(model, material):
+    """A material model for contacts: trained on frames pooled to one pixel, at the force model's window."""
+    spec = material.input_spec
+    if not is_session_model(model):
+        raise ModelError(f"a material per contact needs a force model trained with --contacts (model {model.name!r} "
+                         "was trained on whole trials); train it with `neurotac train --contacts`")
+    if material.task != "material":
+        raise ModelError(f"the material model {material.name!r} estimates force; give a classifier (material-dnn, material-curves)")
+    if (spec.get("height"), spec.get("width")) != (1, 1) or spec.get("accumulated"):
+        raise ModelError(f"the material model {material.name!r} was trained on {spec.get('width')}x{spec.get('height')} "
+                         f"{'accumulated ' if spec.get('accumulated') else ''}frames; a contact's material needs one trained on "
+                         "plain counts pooled to one pixel (`neurotac crop --pool all`)")
+    if spec.get("window_us") != model.input_spec.get("window_us"):
+        raise ModelError(f"the material model was trained on {spec.get('window_us')} µs windows, the force model on "
+                         f"{model.input_spec.get('window_us')} µs; frame both the same way")
+
+
+def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatch:
     trials = batch.column("trial").to_pylist()
     counts = sch.counts_numpy(batch.column("counts"))
     t = batch.column("t").to_numpy().astype(np.int64)
     force = np.empty(batch.num_rows, dtype=np.float32)
     phase = np.empty(batch.num_rows, dtype=object)
     slip = np.zeros(batch.num_rows, dtype=bool)
+    named = np.full(batch.num_rows, None, dtype=object)
     edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
     for begin, end in zip(edges[:-1], edges[1:]):
-        one = streams.setdefault(trials[begin], Stream(model))
-        force[begin:end], phase[begin:end], slip[begin:end] = one.step(counts[begin:end], t[begin:end])
+        if trials[begin] not in streams:
+            streams[trials[begin]] = Stream(model, material)
+        one = streams[trials[begin]]
+        force[begin:end], phase[begin:end], slip[begin:end], named[begin:end] = one.step(counts[begin:end], t[begin:end])
     columns = {
         "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
         "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()), "force_pred": pa.array(force),
         "contact_pred": pa.array(phase != detector.NONE, pa.bool_()), "phase_pred": pa.array(phase.tolist(), pa.string()),
-        "slip_pred": pa.array(slip, pa.bool_()),
+        "slip_pred": pa.array(slip, pa.bool_()), "material_pred": pa.array(named.tolist(), pa.string()),
     }
     for field in out_schema:
         if field.name not in columns:
