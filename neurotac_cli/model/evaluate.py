@@ -136,6 +136,10 @@ def summary(rows: list, title: str = "") -> str:
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
     lines += _validation_lines(by_scope.get("all", {}))
+    if "rest_frames" in by_scope.get("all", {}):  # a model run on streams (train --contacts)
+        from neurotac_cli.model.session import summary_lines
+
+        lines += summary_lines(by_scope["all"])
     return "\n".join(lines)
 
 

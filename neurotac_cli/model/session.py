@@ -289,3 +289,19 @@ def session_rows(predictions: pa.Table) -> list:
         column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),
         slip=slip, slip_pred=column("slip_pred"), window_us=sch.get_meta(predictions.schema, sch.WINDOW),
     )
+
+
+def summary_lines(figures: dict) -> list[str]:
+    """`eval`'s stderr lines for the session figures (scope `all` of `metrics.session_rows`)."""
+    get = lambda name: figures.get(name, float("nan"))  # noqa: E731
+    lines = [f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max {get('rest_max_abs'):.3g} N, "
+             f"drift {get('drift_n_per_min'):.3g} N/min; RMSE in contact {get('contact_rmse'):.3g} N, "
+             f"per grasp {get('grasp_rmse_mean'):.3g} N (mean over {int(figures.get('grasps', 0))})"]
+    if "contact_f1" in figures:
+        lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
+                     f"{int(get('contact_found'))} detected), onset {get('contact_onset_frames_mean'):.2g} frames late on average, "
+                     f"{100 * get('contact_within_2'):.0f}% within 2 frames; per frame F1 {get('contact_frame_f1'):.3f}")
+    if "slip_f1" in figures:
+        lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
+                     f"{int(get('slip_found'))} flagged), {100 * get('slip_within_20'):.0f}% within 20 ms")
+    return lines
