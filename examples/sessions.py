@@ -27,9 +27,9 @@ from neurotac_cli import tables
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
-FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min",
+FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min",
             epochs={"deform-gru": 200, "lstm": 60, "convlstm": 30}, patience=15)
-QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None,
+QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
 TRAIN_SEED, TEST_SEED = 1501, 2501
@@ -116,15 +116,16 @@ def table_rows(results: dict, force_range: float) -> list[str]:
     pct = lambda v: 100 * v / force_range  # noqa: E731
     lines = ["| model | RMSE in contact, sessions (N) | same grasps cut into trials (N) | ratio (goal <= 1.25) "
              "| rest mean abs error (% of range; goal < 2) | rest max (N) | drift (% of range per min; goal < 0.5) "
-             "| contact F1 (goal >= 0.98) | onsets within 2 frames | slip F1 (goal >= 0.9) | slips within 20 ms | R² | train (s) |",
-             "|" + "---|" * 13]
-    for name, (s, c, seconds) in results.items():
+             "| contact F1 (goal >= 0.98) | onsets within 2 frames | slip F1 (goal >= 0.9) | slips within 20 ms | R² "
+             "| no-grasp session: max abs (N), contacts | train (s) |",
+             "|" + "---|" * 14]
+    for name, (s, c, seconds, empty) in results.items():
         slip_f1, slip_on_time = s.get("slip_f1", float("nan")), s.get("slip_within_20", float("nan"))
         lines.append(
             f"| {name} | {s['contact_rmse']:.3f} | {c['contact_rmse']:.3f} | {s['contact_rmse'] / c['contact_rmse']:.2f} "
             f"| {pct(s['rest_mean_abs']):.2f} | {s['rest_max_abs']:.3f} | {pct(abs(s['drift_n_per_min'])):.3f} "
             f"| {s['contact_f1']:.3f} | {s.get('contact_within_2', float('nan')):.3f} | {slip_f1:.3f} | {slip_on_time:.3f} "
-            f"| {s['r2']:.3f} | {seconds:.0f} |")
+            f"| {s['r2']:.3f} | {empty['rest_max_abs']:.3f}, {int(empty.get('contact_found', 0))} | {seconds:.0f} |")
     return lines
 
 
@@ -153,13 +154,14 @@ def main(argv=None):
     train = simulate(os.path.join(out, "train"), TRAIN_SEED, size["train_sessions"], size["train_grasps"], None)
     test = simulate(os.path.join(out, "test"), TEST_SEED, size["test_sessions"], size["test_grasps"], size["duration"])
     cut = cut_into_trials(test)
+    empty = simulate(os.path.join(out, "empty"), TEST_SEED + 1, 1, 0, size["empty"])
     force = test.column("force").to_numpy(zero_copy_only=False)
     force_range = float(np.nanmax(force) - np.nanmin(force))
     results = {}
     for name in args.models.split(","):
         model, seconds = train_one(name, train, size)
         models.save(model, os.path.join(out, f"{name}.model"))
-        results[name] = (score(model, test), score(model, cut), seconds)
+        results[name] = (score(model, test), score(model, cut), seconds, score(model, empty))
         print(f"{name}: trained in {seconds:.0f} s", file=sys.stderr)
     minutes = test.num_rows * WINDOW_MS / 60000
     grasps = len(set(cut.column("trial").to_pylist()))

@@ -4,16 +4,17 @@ Why: every force network here was trained on grasps that start from a membrane a
 of zeros. On a session of many grasps its accumulators (deform-gru's deformation map and counts,
 the recurrent states) carry each grasp into the next and it drifts (measured: 1.3-2.6 N at rest
 after six grasps, growing). The event-driven contact detector (`ops.contact`) finds when a contact
-begins and ends; the force model runs only inside a contact, from a fresh state at its onset, and
-reads zero between contacts. So the state is bounded by one contact, and between contacts it is
-the detector's handful of numbers.
+begins; the force model runs only inside a contact, from a fresh state at its onset, and reads zero
+between contacts; the contact ends after a release burst once the model reads near zero (or the
+membrane has been quiet for a while). So the state is bounded by one contact, and between contacts
+it is the detector's handful of numbers.
 
-Training on sessions follows: the contacts the detector finds in the training sessions are the
-training sequences, each starting from zeros exactly as at run time (truncated back-propagation at
-the contacts' ends loses nothing: no state crosses them). A model file trained this way carries the
-detector's settings in its input spec (`contact`); `predict_table` and `stream` of `model.core`
-hand such a model to this module. A model trained on single grasps has no `contact` and runs as
-before.
+Training on sessions follows: the contacts of the training frames (their phases; the detector's
+where there are none), with a little rest before and more after, are the training sequences, each
+starting from zeros exactly as at run time (truncated back-propagation at the contacts' ends loses
+nothing: no state crosses them). A model file trained this way carries the detector's settings in
+its input spec (`contact`, `slip`); `predict_table` and `stream` of `model.core` hand such a model
+to this module. A model trained on single grasps has no `contact` and runs as before.
 """
 
 import collections
