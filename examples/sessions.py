@@ -32,7 +32,7 @@ FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, 
 QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
-TRAIN_SEED, TEST_SEED = 1501, 2501
+TRAIN_SEED, TEST_SEED = 1501, 3501  # not 2501: that session chose the contact detector's low_frames
 CUT_MARGIN = 20  # frames kept before a grasp's first contact and after its release when cut into a trial
 WINDOW_MS = 10
 
