@@ -9,6 +9,10 @@ on the same grasps cut into trials. Prints a markdown table and writes it to OUT
     python examples/sessions.py --quick            # seconds to a minute: tiny sessions, few epochs
     python examples/sessions.py --out out/sessions # the goals' size: 50-grasp sessions of >= 5 min
 
+The full mode takes roughly 2 hours on 2 cores (estimated from a reduced run on a loaded machine:
+about 10 CPU min simulating 300 grasps, 10-30 min each for deform-gru and the LSTM, about an hour
+for 10 ConvLSTM epochs over 200 contacts). The LSTM has 2 layers of 32 units (the thesis: 6).
+
 The frames are the whole 240x180 sensor sum-pooled 6x6 (40x30): slips carry the object far from
 the centre, and on a CPU the ConvLSTM trains on sessions only at that size.
 """
@@ -28,7 +32,7 @@ from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
 FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min",
-            epochs={"deform-gru": 200, "lstm": 60, "convlstm": 30}, patience=15)
+            epochs={"deform-gru": 200, "lstm": 60, "convlstm": 10}, patience=15)
 QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
