@@ -223,7 +223,9 @@ def detection_figures(true_flags_per_session, found_flags_per_session, name: str
         pairs = match_runs(true_runs, found_runs)
         hits, n_true, n_found = hits + len(pairs), n_true + len(true_runs), n_found + len(found_runs)
         latency += [(found_runs[j][0] - true_runs[i][0]) * unit for i, j in pairs]
-        tp_frames, true_frames, found_frames = tp_frames + int((truth & found).sum()), true_frames + int(truth.sum()), found_frames + int(found.sum())
+        tp_frames += int((truth & found).sum())
+        true_frames += int(truth.sum())
+        found_frames += int(found.sum())
     f1 = lambda tp, t, f: 2 * tp / (t + f) if t + f else float("nan")  # noqa: E731
     latency = np.asarray(latency, dtype=np.float64)
     figures = {f"{name}_f1": f1(hits, n_true, n_found), f"{name}_true": n_true, f"{name}_found": n_found, f"{name}_hits": hits,
