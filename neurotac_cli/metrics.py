@@ -170,3 +170,126 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
          pa.array([r[2] for r in rows], pa.float64()), pa.array([model] * len(rows), pa.string())],
         schema=schema,
     )
+
+
+# ---------------------------------------------------------------- sessions
+#
+# A session is one long trial of many grasps. Besides the figures above it is scored on:
+# - `contact_rmse`: RMSE over the frames whose true phase is not none (the grasps themselves);
+# - rest: frames whose true phase is none (no contact, the true force zero): mean and max |estimate|
+#   (`rest_mean_abs`, `rest_max_abs`, N), and as % of the force range (`rest_mean_abs_pct_range`);
+# - drift: the least-squares slope of |estimate| at rest against time, per session, in N per minute
+#   (`drift_n_per_min`: the mean over sessions; `drift_pct_range_per_min` as % of the range);
+# - per grasp (`grasp` column, -1 or null between grasps): RMSE and MAE of each grasp's frames (scope `grasp:TRIAL/G`), and their
+#   mean over grasps in scope `all` (`grasp_rmse_mean`);
+# - contact: true contacts are runs of frames whose phase is not none, detected ones runs of
+#   `contact_pred`; a detection that overlaps a true contact not yet matched is a hit (F1 over
+#   contacts, `contact_f1`), its onset latency the frames from the true onset (`contact_onset_frames_*`,
+#   `contact_within_2`: the share of hits within 2 frames); `contact_frame_f1` per frame;
+# - slip (where the table has a `slip` truth column): the same for runs of `slip` and `slip_pred`,
+#   latency in ms (`slip_latency_ms_*`, from frame starts: frames x window; `slip_within_20`).
+
+REST_PHASES = (None, "none")
+
+
+def runs(flags) -> list[tuple[int, int]]:
+    """(start, end) index pairs, end exclusive, of the runs of True in a boolean sequence."""
+    flags = np.asarray(flags, dtype=bool)
+    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
+def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
+    """Pairs (true index, found index): each found run matched to the first unmatched true run it overlaps."""
+    pairs, used = [], set()
+    for j, (a, b) in enumerate(found_runs):
+        for i, (c, d) in enumerate(true_runs):
+            if i not in used and a < d and c < b:
+                pairs.append((i, j))
+                used.add(i)
+                break
+    return pairs
+
+
+def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, suffix="frames",
+                      tolerance: float = 2.0) -> dict:
+    """F1 over runs, onset latency (in frames x `unit`; the share of hits within `tolerance` of the true
+    onset), and F1 over frames, pooled over sessions."""
+    hits = n_true = n_found = 0
+    latency, tp_frames, true_frames, found_frames = [], 0, 0, 0
+    for truth, found in zip(true_flags_per_session, found_flags_per_session):
+        truth, found = np.asarray(truth, dtype=bool), np.asarray(found, dtype=bool)
+        true_runs, found_runs = runs(truth), runs(found)
+        pairs = match_runs(true_runs, found_runs)
+        hits, n_true, n_found = hits + len(pairs), n_true + len(true_runs), n_found + len(found_runs)
+        latency += [(found_runs[j][0] - true_runs[i][0]) * unit for i, j in pairs]
+        tp_frames += int((truth & found).sum())
+        true_frames += int(truth.sum())
+        found_frames += int(found.sum())
+    f1 = lambda tp, t, f: 2 * tp / (t + f) if t + f else float("nan")  # noqa: E731
+    latency = np.asarray(latency, dtype=np.float64)
+    figures = {f"{name}_f1": f1(hits, n_true, n_found), f"{name}_true": n_true, f"{name}_found": n_found, f"{name}_hits": hits,
+               f"{name}_frame_f1": f1(tp_frames, true_frames, found_frames)}
+    if len(latency):
+        figures.update({f"{name}_{suffix}_mean": float(latency.mean()), f"{name}_{suffix}_max": float(latency.max()),
+                        f"{name}_{suffix}_min": float(latency.min()),
+                        f"{name}_within_{tolerance:g}": float(np.mean(np.abs(latency) <= tolerance))})
+    return figures
+
+
+def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_pred=None, slip=None, slip_pred=None,
+                 window_us=None) -> list:
+    """(scope, metric, value) rows scoring sessions (see the block comment above); scope `all`, `grasp:...`."""
+    trial, phase = np.asarray(trial, dtype=object), np.asarray(phase, dtype=object)
+    t_us, true, pred = np.asarray(t_us, dtype=np.float64), np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
+    order = np.lexsort((np.asarray(frame), trial))
+    sessions = [order[trial[order] == one] for one in dict.fromkeys(trial[order])]
+    rest = np.isin(phase, REST_PHASES) | np.asarray([p is None for p in phase])
+    known = ~np.isnan(true)
+    spread = float(np.nanmax(true) - np.nanmin(true)) if known.any() else float("nan")
+    pct = (lambda v: 100 * v / spread) if spread > 0 else (lambda v: float("nan"))
+    rows = []
+    at_rest = np.abs(pred[rest])
+    slopes = [_slope(t_us[idx][rest[idx]] / 60e6, np.abs(pred[idx][rest[idx]])) for idx in sessions]
+    slopes = [s for s in slopes if np.isfinite(s)]
+    figures = {"rest_frames": int(rest.sum())}
+    touching = ~rest & known
+    if touching.any():  # the grasps' own frames: comparable between a session and its grasps cut into trials
+        figures["contact_rmse"] = float(np.sqrt(np.mean((pred[touching] - true[touching]) ** 2)))
+    if len(at_rest):
+        figures.update(rest_mean_abs=float(at_rest.mean()), rest_max_abs=float(at_rest.max()),
+                       rest_mean_abs_pct_range=pct(float(at_rest.mean())))
+    if slopes:
+        figures.update(drift_n_per_min=float(np.mean(slopes)), drift_max_abs_n_per_min=float(np.max(np.abs(slopes))),
+                       drift_pct_range_per_min=pct(float(np.mean(slopes))))
+    if grasp is not None:
+        figures.update(_grasp_rows(rows, trial, np.asarray(grasp, dtype=np.float64), true, pred))
+    if contact_pred is not None:
+        contact_pred = np.asarray(contact_pred, dtype=bool)
+        figures.update(detection_figures([~rest[idx] for idx in sessions], [contact_pred[idx] for idx in sessions], "contact",
+                                         suffix="onset_frames"))
+    if slip is not None and slip_pred is not None:
+        slip, slip_pred = np.asarray(slip, dtype=bool), np.asarray(slip_pred, dtype=bool)
+        figures.update(detection_figures([slip[idx] for idx in sessions], [slip_pred[idx] for idx in sessions], "slip",
+                                         unit=(window_us or 0) / 1000, suffix="latency_ms", tolerance=20.0))
+    rows[:0] = [("all", name, float(value)) for name, value in figures.items()]
+    return rows
+
+
+def _slope(x, y) -> float:
+    if len(x) < 2 or np.ptp(x) <= 0:
+        return float("nan")
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def _grasp_rows(rows, trial, grasp, true, pred) -> dict:
+    """Per-grasp RMSE / MAE rows appended to `rows`; returns their mean over grasps."""
+    rmse = []
+    inside = (np.nan_to_num(grasp, nan=-1.0) >= 0) & ~np.isnan(true)  # -1 or null: between grasps
+    keys = dict.fromkeys(zip(trial[inside], grasp[inside].astype(int)))
+    for one, index in keys:
+        mask = inside & (trial == one) & (grasp == index)
+        error = pred[mask] - true[mask]
+        rmse.append(float(np.sqrt(np.mean(error**2))))
+        rows += [(f"grasp:{one}/{index}", "rmse", rmse[-1]), (f"grasp:{one}/{index}", "mae", float(np.mean(np.abs(error))))]
+    return {"grasp_rmse_mean": float(np.mean(rmse)), "grasp_rmse_max": float(np.max(rmse)), "grasps": len(rmse)} if rmse else {}

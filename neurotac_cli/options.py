@@ -203,6 +203,7 @@ HYPERPARAMETERS = [
     ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); deform-gru, material-curves."),
     ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
     ("--hidden", "hidden", int, "deform-gru: GRU units (default 32)."),
+    ("--memory-frames", "memory_frames", int, "deform-gru: time constant in frames of its deformation map and counts (default 0 = sums since the trial start; --contacts sets 3000)."),
     ("--layout-grid", "layout_grid", int, "deform-gru: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
     ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),

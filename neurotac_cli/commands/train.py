@@ -13,12 +13,16 @@ from neurotac_cli.options import (PlotPath, TablePath, history, hyperparameter_o
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
 @hyperparameter_options
 @validation_options
+@click.option("--contacts", is_flag=True,
+              help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
+              "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
+              "reading zero between contacts (docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
 @click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG.")
 @threads_option(2)
 @seed_option
-def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, label, curve, plot, threads, seed, **options):
+def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, contacts, label, curve, plot, threads, seed, **options):
     """Train a force or material model on frames; write one model file.
 
     Validation trials (for early stopping) are chosen by id, by label value, or as a fraction per
@@ -36,6 +40,8 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     from neurotac_cli import tables
     from neurotac_cli.model.plots import curve_figure
 
+    if contacts and model_name in MATERIAL_MODELS:
+        raise click.UsageError("--contacts trains force models; a material classifier takes whole trials")
     tables.check_folder(*(path for path in (output, curve, plot) if path))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
@@ -45,7 +51,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     torch.set_num_threads(max(1, threads))
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
-                          progress=progress_printer())
+                          progress=progress_printer(), contacts=contacts)
     models.save(trained.model, output)
     if trained.summary:
         click.echo(f"{trained.summary}; wrote {output}", err=True)

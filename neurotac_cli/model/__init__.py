@@ -19,7 +19,7 @@ import importlib
 _HOMES = {
     "FORCE_MODELS": "names", "MATERIAL_MODELS": "names",
     "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core",
-    "predict_table": "core", "stream": "core", "train": "core",
+    "predict_table": "predict", "stream": "predict", "train": "core",
     "load": "store", "save": "store",
 }
 

@@ -288,7 +288,7 @@ FORCE_FIELDS = [("trial", pa.string()), ("frame", pa.int32()), ("t", pa.int64())
                 ("force", pa.float32()), ("force_pred", pa.float32())]
 
 
-def predict_table(model: Model, table: pa.Table) -> pa.Table:
+def predict_trials(model: Model, table: pa.Table) -> pa.Table:
     """Force estimates for every frame of a frames table (trials batched, each run from its start)."""
     if model.task != "force":
         raise ModelError(f"model {model.name!r} classifies materials; use `neurotac classify` or `neurotac eval`")
@@ -316,7 +316,7 @@ def predict_table(model: Model, table: pa.Table) -> pa.Table:
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def stream(model: Model, schema: pa.Schema, batches):
+def stream_trials(model: Model, schema: pa.Schema, batches):
     """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame.
 
     Returns (predictions schema, iterator of record batches).

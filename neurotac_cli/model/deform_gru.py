@@ -16,6 +16,9 @@ force is better described by a few physical quantities that change smoothly with
 - a coarse `layout_grid` x `layout_grid` layout of the deformation map and of the frame's events, as shares of
   their totals (so they do not scale with object size).
 
+With `memory_frames` the deformation map and counts leak (a time constant in frames), so a stream
+that never rests keeps them bounded; the default (0) sums since the trial start, as the thesis does.
+
 The features are standardised with constants fitted on training trials, then a GRU of `hidden`
 units and a linear head give the force. State per trial: the deformation map, the accumulated
 counts and the GRU state, so streaming costs O(H x W) per frame plus a tiny GRU step.
@@ -38,6 +41,7 @@ class Config:
     levels: int = 8  # depth levels of the deformation map whose areas are features
     layout_grid: int = 0  # 0 = none: a layout learns where the seen sizes press, which an unseen size does not share
     dropout: float = 0.0
+    memory_frames: int = 0  # time constant of the deformation map and counts, in frames (0: sums since the start)
 
 
 class Net(ForceNet):
@@ -71,8 +75,8 @@ class Net(ForceNet):
         counts = counts.float()
         sums = counts.sum(dim=(-1, -2))  # (B, T, 2)
         active = (counts > 0).sum(dim=(-1, -2)).float()
-        acc = torch.cumsum(sums, dim=1) + state["acc"].unsqueeze(1)
-        deformation = torch.cumsum(counts[:, :, 0] - counts[:, :, 1], dim=1) + state["deformation"].unsqueeze(1)
+        acc = accumulate(sums, state["acc"], self.config.memory_frames)
+        deformation = accumulate(counts[:, :, 0] - counts[:, :, 1], state["deformation"], self.config.memory_frames)
         positive, negative = deformation.clamp_min(0), (-deformation).clamp_min(0)
         mass = positive.sum(dim=(-1, -2))
         area = (deformation > 0.5).sum(dim=(-1, -2)).float()
@@ -127,8 +131,15 @@ class Net(ForceNet):
         if "level_unit" not in tensors:  # a file written before the depth levels: unused there (levels 0)
             tensors["level_unit"] = self.level_unit.clone()
 
+    def _depths(self, counts: np.ndarray) -> np.ndarray:
+        """The deformation map of one trial's counts (T, 2, H, W) over its frames."""
+        change = counts[:, 0].astype(np.float32) - counts[:, 1]
+        if not self.config.memory_frames:
+            return np.cumsum(change, axis=0)
+        return accumulate(torch.as_tensor(change[None]), torch.zeros(1, *change.shape[1:]), self.config.memory_frames)[0].numpy()
+
     def calibrate(self, counts, t_s):
-        depths = [np.cumsum(c[:, 0].astype(np.float32) - c[:, 1], axis=0).ravel() for c in counts]
+        depths = [self._depths(c).ravel() for c in counts]
         depths = np.concatenate(depths) if depths else np.ones(1)
         positive = depths[depths > 0]
         self.level_unit.fill_(float(np.percentile(positive, 99.5)) if len(positive) else 1.0)
@@ -140,3 +151,17 @@ class Net(ForceNet):
         rows = torch.cat(rows)
         self.feature_mean.copy_(rows.mean(dim=0))
         self.feature_std.copy_(rows.std(dim=0).clamp_min(1e-3))
+
+
+def accumulate(x, start, memory_frames: int):
+    """Running sums over time (dim 1) of x (B, T, ...) from `start` (B, ...): plain sums, or with
+    `memory_frames` > 0 leaky ones (each frame keeps exp(-1 / memory_frames) of the last), which stay
+    bounded by the largest frame times about `memory_frames` however long the stream."""
+    if not memory_frames:
+        return torch.cumsum(x, dim=1) + start.unsqueeze(1)
+    keep = float(np.exp(-1.0 / memory_frames))
+    out, total = [], start
+    for frame in x.unbind(1):
+        total = total * keep + frame
+        out.append(total)
+    return torch.stack(out, dim=1) if out else x.clone()

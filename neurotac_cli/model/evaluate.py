@@ -6,7 +6,8 @@ from dataclasses import dataclass
 import pyarrow as pa
 
 from neurotac_cli.metrics import metrics_table
-from neurotac_cli.model.core import classify_table, make_spec, predict_table
+from neurotac_cli.model.core import classify_table, make_spec
+from neurotac_cli.model.predict import predict_table
 from neurotac_cli.model.cv import fold_tasks, run_fold
 from neurotac_cli.model.data import sequences
 from neurotac_cli.model.grid import cross_validate_grid, grid_lines, grid_metrics_table

@@ -12,13 +12,18 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
     """Metric rows of a predictions table (force or material)."""
     names = predictions.schema.names
     if "force_pred" in names:
-        return metrics.force_rows(
+        rows = metrics.force_rows(
             predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
             predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
             nonzero=nonzero, per_trial=per_trial,
             series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
             if "repeat" in names else None,
         )
+        if "contact_pred" in names:  # a model run on streams: rest, drift, contact and per-grasp figures
+            from neurotac_cli.model.session import session_rows
+
+            rows += session_rows(predictions)
+        return rows
     if label not in names:
         raise SchemaError(f"the frames have no {label!r} column to score the classifier against (label columns: "
                           f"{', '.join(n for n in names if not n.startswith('prob_') and n != f'{label}_pred') or 'none'}); "
@@ -98,6 +103,10 @@ def summary(rows: list, title: str = "") -> str:
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
     lines += _validation_lines(by_scope.get("all", {}))
+    if "rest_frames" in by_scope.get("all", {}):  # a model run on streams (train --contacts)
+        from neurotac_cli.model.session import summary_lines
+
+        lines += summary_lines(by_scope["all"])
     return "\n".join(lines)
 
 

@@ -4,9 +4,11 @@ from dataclasses import dataclass
 
 import pyarrow as pa
 
+from neurotac_cli.errors import UsageError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import Model, make_spec, train
 from neurotac_cli.model.fit import best_epoch
+from neurotac_cli.model.names import MATERIAL_MODELS
 
 DEFAULT_VAL_FRACTION = 0.1  # validation share when the command is given no other choice
 
@@ -22,14 +24,24 @@ class Trained:
 
 
 def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trials: str | None = None,
-                val_fraction=None, val_where=None, per=None, seed=0, label="material", progress=None) -> Trained:
+                val_fraction=None, val_where=None, per=None, seed=0, label="material", progress=None,
+                contacts: bool = False) -> Trained:
     """Train model `name` with `hyperparameters` (None: the model's default). Validation trials:
     `val_trials` (comma-separated ids), `val_where` (LABEL=VALUE) or `val_fraction` per `per` value,
-    DEFAULT_VAL_FRACTION when none is given."""
+    DEFAULT_VAL_FRACTION when none is given. `contacts`: a force model trained on the contacts the
+    event-driven detector finds, to run on unbounded streams (model.session)."""
     if val_trials is None and val_where is None and val_fraction is None:
         val_fraction = DEFAULT_VAL_FRACTION
     trials = [t.strip() for t in val_trials.split(",") if t.strip()] if val_trials else None
-    model = train(frames, make_spec(name, **hyperparameters), val_trials=trials, val_fraction=val_fraction,
+    if contacts and name in MATERIAL_MODELS:
+        raise UsageError("--contacts trains force models; a material classifier takes whole trials")
+    if contacts:
+        from neurotac_cli.model import session
+
+        fit = session.train
+    else:
+        fit = train
+    model = fit(frames, make_spec(name, **hyperparameters), val_trials=trials, val_fraction=val_fraction,
                   val_where=val_where, per=per, seed=seed, progress=progress, label=label)
     curve = model.training.get("curve", [])
     best = best_epoch(curve)

@@ -1,0 +1,182 @@
+"""Force models on sessions of many grasps: the table of issue 15's goals.
+
+Simulates training and test sessions (`neurotac simulate --session`, test seeds that training never
+saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),
+adds each frame's slip truth from grasps.csv, trains deform-gru, the thesis's LSTM and ConvLSTM on
+the contacts the event detector finds (`train --contacts`), and scores each on the test sessions and
+on the same grasps cut into trials. Prints a markdown table and writes it to OUT/sessions.md.
+
+    python examples/sessions.py --quick            # seconds to a minute: tiny sessions, few epochs
+    python examples/sessions.py --out out/sessions # the goals' size: 50-grasp sessions of >= 5 min
+
+The full mode takes roughly 2 hours on 2 cores (estimated from a reduced run on a loaded machine:
+about 10 CPU min simulating 300 grasps, 10-30 min each for deform-gru and the LSTM, about an hour
+for 10 ConvLSTM epochs over 200 contacts). The LSTM has 2 layers of 32 units (the thesis: 6).
+
+The frames are the whole 240x180 sensor sum-pooled 6x6 (40x30): slips carry the object far from
+the centre, and on a CPU the ConvLSTM trains on sessions only at that size.
+"""
+
+import argparse
+import csv
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import tables
+from neurotac_cli import model as models
+from neurotac_cli.model import evaluate, session
+
+FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min",
+            epochs={"deform-gru": 200, "lstm": 60, "convlstm": 10}, patience=15)
+QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
+             epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
+MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
+TRAIN_SEED, TEST_SEED = 1501, 3501  # not 2501: that session chose the contact detector's low_frames
+CUT_MARGIN = 20  # frames kept before a grasp's first contact and after its release when cut into a trial
+WINDOW_MS = 10
+
+
+def simulate(folder, seed, sessions, grasps, duration):
+    """Session recordings into `folder`, framed into folder/frames.arrows (with a slip truth column)."""
+    frames = os.path.join(folder, "frames.arrows")
+    if os.path.exists(frames):
+        return tables.read([frames])
+    args = ["simulate", "--session", "--grasps", str(grasps), "--sessions", str(sessions), "--seed", str(seed), "--out", folder]
+    run_cli(args + (["--duration", duration] if duration else []))
+    pipe = (f"neurotac sync --manifest {folder}/manifest.csv | neurotac crop --pool 6x6 "
+            f"| neurotac frame --window {WINDOW_MS}ms --phases session")
+    done = subprocess.run(pipe, shell=True, capture_output=True, check=False)
+    if done.returncode:
+        sys.exit(f"sessions.py: framing failed: {done.stderr.decode(errors='replace').strip()}")
+    table = _read_stream(done.stdout)
+    table = with_slip_truth(table, os.path.join(folder, "grasps.csv"))
+    tables.write(frames, table)
+    return table
+
+
+def _read_stream(data: bytes) -> pa.Table:
+    import pyarrow.ipc as ipc
+
+    return ipc.open_stream(data).read_all()
+
+
+def run_cli(args):
+    done = subprocess.run(["neurotac", *args], capture_output=True, check=False)
+    if done.returncode:
+        sys.exit(f"sessions.py: neurotac {' '.join(args)} failed: {done.stderr.decode(errors='replace').strip()}")
+
+
+def with_slip_truth(table: pa.Table, grasps_csv: str) -> pa.Table:
+    """A bool `slip` column: the frame's end lies inside a true slip [start, end) of grasps.csv."""
+    slips = {}
+    with open(grasps_csv, encoding="utf-8") as source:
+        for row in csv.DictReader(source):
+            if row.get("slip_start_ms"):
+                slips.setdefault(row["session"], []).append((float(row["slip_start_ms"]) * 1000, float(row["slip_end_ms"]) * 1000))
+    trial = np.asarray(table.column("trial").to_pylist(), dtype=object)
+    ends = table.column("t").to_numpy() + WINDOW_MS * 1000
+    slip = np.zeros(table.num_rows, dtype=bool)
+    for name, spans in slips.items():
+        mine = trial == name
+        for start, end in spans:
+            slip |= mine & (ends > start) & (ends <= end)
+    return table.append_column("slip", pa.array(slip))
+
+
+def cut_into_trials(table: pa.Table) -> pa.Table:
+    """Each grasp of each session as a trial of its own: its frames with CUT_MARGIN frames either side."""
+    trial = np.asarray(table.column("trial").to_pylist(), dtype=object)
+    grasp = table.column("grasp").to_numpy(zero_copy_only=False)
+    rows, names = [], []
+    for name in dict.fromkeys(trial):
+        mine = np.flatnonzero(trial == name)
+        for index in sorted(set(grasp[mine][grasp[mine] >= 0].tolist())):
+            inside = mine[grasp[mine] == index]
+            lo, hi = max(inside[0] - CUT_MARGIN, mine[0]), min(inside[-1] + CUT_MARGIN + 1, mine[-1] + 1)
+            rows += range(lo, hi)
+            names += [f"{name}/grasp{index:02d}"] * (hi - lo)
+    cut = table.take(pa.array(rows, pa.int64()))
+    return cut.set_column(cut.schema.get_field_index("trial"), "trial", pa.array(names, pa.string()))
+
+
+def score(model, table: pa.Table) -> dict:
+    _, rows = evaluate.evaluate_model(model, table, per_trial=False)
+    return {metric: value for scope, metric, value in rows if scope == "all"}
+
+
+def train_one(name, train, size, seed=1):
+    spec = models.make_spec(name, **MODELS[name], epochs=size["epochs"][name], patience=size["patience"])
+    started = time.monotonic()
+    model = session.train(train, spec, val_fraction=0.15, seed=seed)
+    return model, time.monotonic() - started
+
+
+def table_rows(results: dict, force_range: float) -> list[str]:
+    pct = lambda v: 100 * v / force_range  # noqa: E731
+    lines = ["| model | RMSE in contact, sessions (N) | same grasps cut into trials (N) | ratio (goal <= 1.25) "
+             "| rest mean abs error (% of range; goal < 2) | rest max (N) | drift (% of range per min; goal < 0.5) "
+             "| contact F1 (goal >= 0.98) | onsets within 2 frames | slip F1 (goal >= 0.9) | slips within 20 ms | R² "
+             "| no-grasp session: max abs (N), contacts | train (s) |",
+             "|" + "---|" * 14]
+    for name, (s, c, seconds, empty) in results.items():
+        slip_f1, slip_on_time = s.get("slip_f1", float("nan")), s.get("slip_within_20", float("nan"))
+        lines.append(
+            f"| {name} | {s['contact_rmse']:.3f} | {c['contact_rmse']:.3f} | {s['contact_rmse'] / c['contact_rmse']:.2f} "
+            f"| {pct(s['rest_mean_abs']):.2f} | {s['rest_max_abs']:.3f} | {pct(abs(s['drift_n_per_min'])):.3f} "
+            f"| {s['contact_f1']:.3f} | {s.get('contact_within_2', float('nan')):.3f} | {slip_f1:.3f} | {slip_on_time:.3f} "
+            f"| {s['r2']:.3f} | {empty['rest_max_abs']:.3f}, {int(empty.get('contact_found', 0))} | {seconds:.0f} |")
+    return lines
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="tiny sessions and few epochs (seconds to a minute)")
+    parser.add_argument("--out", default=None, help="folder for data, models and sessions.md (default examples/out-sessions[-quick])")
+    parser.add_argument("--models", default=",".join(MODELS), help="comma-separated models to train (default all three)")
+    parser.add_argument("--train-sessions", type=int, default=None, help="override the mode's number of training sessions")
+    parser.add_argument("--train-grasps", type=int, default=None, help="override the grasps per training session")
+    parser.add_argument("--test-sessions", type=int, default=None, help="override the number of test sessions")
+    parser.add_argument("--epochs", default=None, metavar="MODEL=N,...", help="override the most epochs per model, e.g. convlstm=2")
+    args = parser.parse_args(argv)
+    size = dict(QUICK if args.quick else FULL)
+    for key in ("train_sessions", "train_grasps", "test_sessions"):
+        if getattr(args, key) is not None:
+            size[key] = getattr(args, key)
+    if args.epochs:
+        size["epochs"] = dict(size["epochs"], **{k: int(v) for k, v in (item.split("=") for item in args.epochs.split(","))})
+    here = os.path.dirname(os.path.abspath(__file__))
+    out = args.out or os.path.join(here, "out-sessions-quick" if args.quick else "out-sessions")
+    os.makedirs(out, exist_ok=True)
+    import torch
+
+    torch.set_num_threads(1)
+    train = simulate(os.path.join(out, "train"), TRAIN_SEED, size["train_sessions"], size["train_grasps"], None)
+    test = simulate(os.path.join(out, "test"), TEST_SEED, size["test_sessions"], size["test_grasps"], size["duration"])
+    cut = cut_into_trials(test)
+    empty = simulate(os.path.join(out, "empty"), TEST_SEED + 1, 1, 0, size["empty"])
+    force = test.column("force").to_numpy(zero_copy_only=False)
+    force_range = float(np.nanmax(force) - np.nanmin(force))
+    results = {}
+    for name in args.models.split(","):
+        model, seconds = train_one(name, train, size)
+        models.save(model, os.path.join(out, f"{name}.model"))
+        results[name] = (score(model, test), score(model, cut), seconds, score(model, empty))
+        print(f"{name}: trained in {seconds:.0f} s", file=sys.stderr)
+    minutes = test.num_rows * WINDOW_MS / 60000
+    grasps = len(set(cut.column("trial").to_pylist()))
+    lines = [f"Test: {size['test_sessions']} session(s), {grasps} grasps, {minutes:.1f} min (seed {TEST_SEED}); "
+             f"training: {size['train_sessions']} session(s) of {size['train_grasps']} grasps (seed {TRAIN_SEED}); "
+             f"force range {force_range:.2f} N; frames 40x30 (240x180 pooled 6x6), 10 ms.", ""] + table_rows(results, force_range)
+    text = "\n".join(lines) + "\n"
+    print(text)
+    with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:
+        sink.write(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,308 @@
+"""Force models that run indefinitely: the contact detector cuts a stream into contacts.
+
+Why: every force network here was trained on grasps that start from a membrane at rest and a state
+of zeros. On a session of many grasps its accumulators (deform-gru's deformation map and counts,
+the recurrent states) carry each grasp into the next and it drifts (measured: 1.3-2.6 N at rest
+after six grasps, growing). The event-driven contact detector (`ops.contact`) finds when a contact
+begins; the force model runs only inside a contact, from a fresh state at its onset, and reads zero
+between contacts; the contact ends after a release burst once the model reads near zero (or the
+membrane has been quiet for a while). So the state is bounded by one contact, and between contacts
+it is the detector's handful of numbers.
+
+Training on sessions follows: the contacts of the training frames (their phases; the detector's
+where there are none), with a little rest before and more after, are the training sequences, each
+starting from zeros exactly as at run time (truncated back-propagation at the contacts' ends loses
+nothing: no state crosses them). A model file trained this way carries the detector's settings in
+its input spec (`contact`, `slip`); `predict_table` and `stream` of `model.predict` hand such a model
+to this module. A model trained on single grasps has no `contact` and runs as before.
+"""
+
+import collections
+
+import numpy as np
+import pyarrow as pa
+
+from neurotac_cli import metrics
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import data as shaping
+from neurotac_cli.ops import contact as detector
+
+CONTACT_KEY = "contact"
+SLIP_KEY = "slip"
+SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string()), ("slip_pred", pa.bool_())]
+PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the predictions
+# deform-gru's leak when trained on contacts: 30 s at 10 ms frames, far longer than a hold (its sums
+# lose 1.3% over a 40-frame ch4 grasp), so a contact that never ends keeps them bounded.
+DEFAULT_MEMORY_FRAMES = 3000
+MAX_CONTACT_FRAMES = 60_000  # a material model sees at most the last 10 min (at 10 ms) of a contact: bounded state
+RELEASE_SHARE = 0.1  # a contact ends when the estimate falls under this share of the largest training force
+
+
+def is_session_model(model) -> bool:
+    return CONTACT_KEY in (model.input_spec or {})
+
+
+def contact_config(model) -> detector.ContactConfig:
+    return detector.ContactConfig(**model.input_spec[CONTACT_KEY])
+
+
+class Stream:
+    """One stream's state (a session, or a trial): the detector's numbers and the force model's state
+    inside the current contact (None between contacts)."""
+
+    def __init__(self, model, material=None):
+        self.model, self.material = model, material
+        self.sums = collections.deque(maxlen=MAX_CONTACT_FRAMES)  # OFF and ON per frame of the current contact
+        self.config = contact_config(model)
+        self.slip = detector.SlipConfig(**model.input_spec.get(SLIP_KEY, {}))
+        self.contact = detector.ContactState.start(self.config)
+        self.inner = None
+
+    def step(self, counts: np.ndarray, t_us: np.ndarray):
+        """(force, phase, slip flag, material) per frame of frames (T, 2, H, W) at times (T,) µs; the
+        material (with a material model) on the frame where a contact ends, None elsewhere.
+
+        Frame by frame the detector says whether the frame is in a contact; the force model runs on
+        the frames of a contact, in one call per run of them until a release burst makes the end of
+        the contact possible, then frame by frame until its estimate says the contact is over."""
+        off, on, separation = detector.frame_stats(counts)
+        force = np.zeros(len(counts), dtype=np.float32)
+        phases = np.empty(len(counts), dtype=object)
+        slips = np.zeros(len(counts), dtype=bool)
+        materials = np.full(len(counts), None, dtype=object)
+        pending = []  # frames of the current contact waiting for one call of the force model
+        for k in range(len(counts)):
+            touching = self.contact.phase != detector.NONE
+            before = self.contact.onsets
+            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True)
+            if self.contact.onsets != before or phase == detector.NONE:
+                self._run(pending, counts, t_us, force)
+                self.inner = None
+            if self.contact.onsets != before:
+                self.sums.clear()
+            if phase != detector.NONE:
+                pending.append(k)
+                self.sums.append((off[k], on[k]))
+                if self.contact.released:
+                    self._run(pending, counts, t_us, force)
+                    if detector.end_by_force(self.config, self.contact, float(force[k])):
+                        phase, force[k], self.inner = detector.NONE, 0.0, None
+            if touching and phase == detector.NONE:
+                materials[k] = self._material()
+            phases[k] = phase
+            slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
+        self._run(pending, counts, t_us, force)
+        return force, phases, slips, materials
+
+    def _material(self):
+        """The material model's class for the contact that just ended (its OFF and ON per frame)."""
+        if self.material is None or not self.sums:
+            return None
+        sums = np.asarray(self.sums, dtype=np.float32).reshape(-1, 2, 1, 1)
+        self.sums.clear()
+        data = shaping.Sequences(trials=["contact"], counts=[sums], t=[np.zeros(len(sums), np.int64)],
+                                 frame=[np.arange(len(sums), dtype=np.int32)], force=[np.full(len(sums), np.nan, np.float32)],
+                                 phase=[np.full(len(sums), None, dtype=object)])
+        return self.material.classes[int(self.material.proba(data)[0].argmax())]
+
+    def _run(self, pending: list, counts, t_us, force):
+        """The force model on the pending frames (consecutive), carrying its state; empties `pending`."""
+        if pending:
+            begin, end = pending[0], pending[-1] + 1
+            estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
+            force[begin:end] = estimate[0]
+            pending.clear()
+
+
+# ---------------------------------------------------------------- training
+
+
+MARGIN_BEFORE, MARGIN_AFTER = 2, 30  # frames of rest kept around each true contact for training
+
+
+def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
+    """The frames of every contact, one trial per contact (`STREAM@FRAME`), and what was found:
+    {"sessions", "contacts", "frames", "frames_in_contacts", "from"}.
+
+    Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
+    of frames whose phase is not none, with MARGIN_BEFORE frames of rest before it (the detector
+    finds onsets within a frame or two) and MARGIN_AFTER after it (the model learns to read zero
+    once released, which ends the contact at run time); without phases, the runs the detector finds."""
+    sch.validate(table.schema, "frames")
+    data = shaping.sequences(table)
+    labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
+    row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(table.column("trial").to_pylist(), table.column("frame").to_numpy().tolist()))}
+    rows, names = [], []
+    for trial, counts, frames, phases in zip(data.trials, data.counts, data.frame, data.phase):
+        if labelled:
+            runs = _widened(metrics.runs(np.asarray([p not in (None, "none") for p in phases])), len(frames))
+        else:
+            off, on = detector.frame_sums(counts)
+            runs = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
+        for begin, end in runs:
+            rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
+            names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
+    if not rows:
+        raise ModelError("found no contact in the training frames (no phase other than none, and no burst of OFF "
+                         "events above the background); check the crop covers the contact, or train without --contacts")
+    found = table.take(pa.array(rows, pa.int64()))
+    found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
+    summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
+               "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector"}
+    return found, summary
+
+
+def _widened(runs: list, length: int) -> list:
+    """Runs grown by the margins, clipped to the stream, overlapping ones merged."""
+    out = []
+    for begin, end in runs:
+        begin, end = max(0, begin - MARGIN_BEFORE), min(length, end + MARGIN_AFTER)
+        if out and begin <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], end))
+        else:
+            out.append((begin, end))
+    return out
+
+
+def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = None,
+          slip: detector.SlipConfig | None = None, **options):
+    """Train the force model of `spec` on the contacts found in `table` (sessions or trials); the model
+    file then carries the detector's settings and runs on unbounded streams."""
+    from neurotac_cli.model import core
+
+    config = config or detector.ContactConfig(release_force_n=release_force(table))
+    if spec["model"] == "deform-gru":
+        spec = {"memory_frames": DEFAULT_MEMORY_FRAMES, **spec}
+    found, summary = contacts_table(table, config)
+    progress = options.get("progress")
+    if progress:
+        progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
+                 f"{summary['frames_in_contacts']} of {summary['frames']} frames")
+    model = core.train(found, spec, **options)
+    slip = slip or detector.SlipConfig()
+    model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
+    model.training = dict(model.training, contacts=summary)
+    return model
+
+
+def release_force(table: pa.Table) -> float:
+    """A contact is over when the estimate falls under RELEASE_SHARE of the largest training force."""
+    force = table.column("force").to_numpy(zero_copy_only=False)
+    known = force[~np.isnan(force)] if len(force) else force
+    return RELEASE_SHARE * float(np.abs(known).max()) if len(known) else detector.ContactConfig.release_force_n
+
+
+# ---------------------------------------------------------------- running
+
+
+def predictions_schema(table_schema: pa.Schema, model, material=None) -> pa.Schema:
+    from neurotac_cli.model.core import FORCE_FIELDS, _predictions_schema
+
+    extra = [(name, table_schema.field(name).type) for name in PASSED_ON if name in table_schema.names]
+    named = [("material_pred", pa.string())] if material is not None else []
+    schema, _ = _predictions_schema(table_schema, FORCE_FIELDS + SESSION_FIELDS + named + extra, model)
+    return schema
+
+
+def predict_table(model, table: pa.Table, material=None) -> pa.Table:
+    """Force, contact and phase for every frame, each trial streamed from its start (same as `stream`)."""
+    schema, batches = stream(model, table.schema, table.to_batches(), material)
+    return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def stream(model, schema: pa.Schema, batches, material=None):
+    """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
+    With `material` (a material model on frames pooled to one pixel, at the same window), each
+    contact's material in `material_pred` on the frame where it ends.
+
+    Frames of a trial must arrive in order (as `frame` writes them)."""
+    from neurotac_cli.model.core import check_input
+
+    if model.task != "force":
+        raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    if material is not None:
+        check_material(model, material)
+    check_input(model, schema)
+    out_schema = predictions_schema(schema, model, material)
+    streams = {}
+
+    def run():
+        for batch in batches:
+            if batch.num_rows == 0:
+                continue
+            yield _predict_batch(model, material, batch, out_schema, streams)
+
+    return out_schema, run()
+
+
+def check_material(model, material):
+    """A material model for contacts: trained on frames pooled to one pixel, at the force model's window."""
+    spec = material.input_spec
+    if not is_session_model(model):
+        raise ModelError(f"a material per contact needs a force model trained with --contacts (model {model.name!r} "
+                         "was trained on whole trials); train it with `neurotac train --contacts`")
+    if material.task != "material":
+        raise ModelError(f"the material model {material.name!r} estimates force; give a classifier (material-dnn, material-curves)")
+    if (spec.get("height"), spec.get("width")) != (1, 1) or spec.get("accumulated"):
+        raise ModelError(f"the material model {material.name!r} was trained on {spec.get('width')}x{spec.get('height')} "
+                         f"{'accumulated ' if spec.get('accumulated') else ''}frames; a contact's material needs one trained on "
+                         "plain counts pooled to one pixel (`neurotac crop --pool all`)")
+    if spec.get("window_us") != model.input_spec.get("window_us"):
+        raise ModelError(f"the material model was trained on {spec.get('window_us')} µs windows, the force model on "
+                         f"{model.input_spec.get('window_us')} µs; frame both the same way")
+
+
+def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatch:
+    trials = batch.column("trial").to_pylist()
+    counts = sch.counts_numpy(batch.column("counts"))
+    t = batch.column("t").to_numpy().astype(np.int64)
+    force = np.empty(batch.num_rows, dtype=np.float32)
+    phase = np.empty(batch.num_rows, dtype=object)
+    slip = np.zeros(batch.num_rows, dtype=bool)
+    named = np.full(batch.num_rows, None, dtype=object)
+    edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
+    for begin, end in zip(edges[:-1], edges[1:]):
+        if trials[begin] not in streams:
+            streams[trials[begin]] = Stream(model, material)
+        one = streams[trials[begin]]
+        force[begin:end], phase[begin:end], slip[begin:end], named[begin:end] = one.step(counts[begin:end], t[begin:end])
+    columns = {
+        "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
+        "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()), "force_pred": pa.array(force),
+        "contact_pred": pa.array(phase != detector.NONE, pa.bool_()), "phase_pred": pa.array(phase.tolist(), pa.string()),
+        "slip_pred": pa.array(slip, pa.bool_()), "material_pred": pa.array(named.tolist(), pa.string()),
+    }
+    for field in out_schema:
+        if field.name not in columns:
+            columns[field.name] = batch.column(field.name)
+    return pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
+
+
+def session_rows(predictions: pa.Table) -> list:
+    """`metrics.session_rows` of a predictions table that has the detector's columns."""
+    names = predictions.schema.names
+    column = lambda name: predictions.column(name).to_numpy(zero_copy_only=False) if name in names else None  # noqa: E731
+    grasp = predictions.column("grasp").cast(pa.float64()).fill_null(np.nan).to_numpy() if "grasp" in names else None
+    slip = predictions.column("slip").fill_null(False).to_numpy(zero_copy_only=False) if "slip" in names else None
+    return metrics.session_rows(
+        predictions.column("trial").to_pylist(), column("frame"), column("t"), predictions.column("phase").to_pylist(),
+        column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),
+        slip=slip, slip_pred=column("slip_pred"), window_us=sch.get_meta(predictions.schema, sch.WINDOW),
+    )
+
+
+def summary_lines(figures: dict) -> list[str]:
+    """`eval`'s stderr lines for the session figures (scope `all` of `metrics.session_rows`)."""
+    get = lambda name: figures.get(name, float("nan"))  # noqa: E731
+    lines = [f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max {get('rest_max_abs'):.3g} N, "
+             f"drift {get('drift_n_per_min'):.3g} N/min; RMSE in contact {get('contact_rmse'):.3g} N, "
+             f"per grasp {get('grasp_rmse_mean'):.3g} N (mean over {int(figures.get('grasps', 0))})"]
+    if "contact_f1" in figures:
+        lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
+                     f"{int(get('contact_found'))} detected), onset {get('contact_onset_frames_mean'):.2g} frames late on average, "
+                     f"{100 * get('contact_within_2'):.0f}% within 2 frames; per frame F1 {get('contact_frame_f1'):.3f}")
+    if "slip_f1" in figures:
+        lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
+                     f"{int(get('slip_found'))} flagged), {100 * get('slip_within_20'):.0f}% within 20 ms")
+    return lines

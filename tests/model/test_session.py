@@ -1,0 +1,294 @@
+"""Sessions: the event-driven contact detector, force models run on unbounded streams, session scores."""
+
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from neurotac_cli import metrics
+from neurotac_cli import model as models
+from neurotac_cli import schema as sch
+from neurotac_cli import tables
+from neurotac_cli.errors import ModelError
+from neurotac_cli.model import evaluate, session
+from neurotac_cli.ops import contact
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+SIZE = 9
+WINDOW_US = 10_000
+
+
+def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
+    """A session of grasp-like contacts between rests: OFF events while the force rises, ON while it
+    falls, a little activity while held, background everywhere. Returns (frames table, true onsets)."""
+    rng = np.random.default_rng(seed)
+    force, phase, grasp, onsets = [], [], [], []
+    for g in range(grasps):
+        gap = int(rng.integers(*rest))
+        force += [0.0] * gap
+        phase += ["none"] * gap
+        grasp += [-1] * gap
+        peak = rng.uniform(1, 3)
+        hold = int(rng.integers(5, 30))
+        onsets.append(len(force))
+        shape = np.concatenate([np.linspace(peak / 4, peak, 4), np.full(hold, peak), np.linspace(peak * 0.6, 0, 3)])
+        force += shape.tolist()
+        phase += ["grasping"] * 4 + ["holding"] * hold + ["releasing"] * 2 + ["none"]
+        grasp += [g] * (len(shape) - 1) + [-1]
+    force += [0.0] * int(rng.integers(*rest))
+    phase += ["none"] * (len(force) - len(phase))
+    grasp += [-1] * (len(force) - len(grasp))
+    force = np.asarray(force)
+    change = np.diff(force, prepend=0.0)
+    off = rng.poisson(background + 3 * np.clip(change, 0, None)[:, None, None], (len(force), SIZE, SIZE))
+    on = rng.poisson(background + 3 * np.clip(-change, 0, None)[:, None, None], (len(force), SIZE, SIZE))
+    return frames_table(trial, np.stack([off, on], axis=1), force, phase, np.asarray(grasp)), onsets
+
+
+def frames_table(trial, counts, force, phase, grasp):
+    n = len(counts)
+    schema = sch.frames_schema(SIZE, SIZE, window_us=WINDOW_US, extra=[("grasp", pa.int32())])
+    columns = [pa.array([trial] * n), pa.array(np.arange(n, dtype=np.int32)), pa.array(np.arange(n, dtype=np.int64) * WINDOW_US),
+               sch.counts_array(counts.astype(np.uint16)), pa.array(force, pa.float32()), pa.array(phase, pa.string()),
+               pa.array(grasp, pa.int32(), mask=grasp < 0)]
+    return pa.Table.from_arrays(columns, schema=schema)
+
+
+@pytest.fixture(scope="module")
+def sessions():
+    return pa.concat_tables([tiny_session(6, seed=s, trial=f"s{s}")[0] for s in range(3)])
+
+
+@pytest.fixture(scope="module")
+def trained(sessions):
+    return session.train(sessions, models.make_spec("deform-gru", epochs=3, hidden=8), seed=0)
+
+
+# ---------------------------------------------------------------- the detector
+
+
+def test_detector_finds_every_contact_within_two_frames_and_ends_it_at_the_release():
+    table, onsets = tiny_session(grasps=8, seed=3)
+    off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
+    phases, found, _, _ = contact.detect(contact.ContactConfig(), off, on)
+    assert np.flatnonzero(found).tolist() == onsets
+    truth = np.asarray(table.column("phase").to_pylist()) != "none"
+    true_runs, found_runs = metrics.runs(truth), metrics.runs(phases != contact.NONE)
+    assert len(found_runs) == len(true_runs)
+    for (a, b), (c, d) in zip(true_runs, found_runs):
+        assert abs(c - a) <= 2 and abs(d - b) <= 2
+    assert {"grasping", "holding"} <= set(phases[truth])
+
+
+def test_detector_phases_through_a_grasp():
+    """Rest; an OFF burst (grasping) that settles (holding), a hold's ripple, an ON-dominated run that
+    grows to a full release (releasing, then rest), and the membrane's ON tail after it (still rest)."""
+    off = [3] * 50 + [1000, 2000, 300, 20, 60, 10, 10, 10, 12, 3, 2, 3, 3]
+    on = [8] * 50 + [10, 10, 30, 25, 70, 10, 10, 60, 50, 3000, 300, 60, 10]
+    phases, onsets, _, _ = contact.detect(contact.ContactConfig(), np.array(off), np.array(on))
+    assert phases[:50].tolist() == ["none"] * 50 and np.flatnonzero(onsets).tolist() == [50]
+    assert phases[50:].tolist() == ["grasping", "grasping", "holding", "holding", "holding", "holding", "holding",
+                                    "releasing", "releasing", "none", "none", "none", "none"]
+
+
+def test_detector_in_pieces_equals_one_pass():
+    table, _ = tiny_session(grasps=5, seed=4)
+    off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
+    config = contact.ContactConfig()
+    whole, _, _, _ = contact.detect(config, off, on)
+    state, parts = None, []
+    for start in range(0, len(off), 7):
+        part, _, _, state = contact.detect(config, off[start:start + 7], on[start:start + 7], state)
+        parts.append(part)
+    assert np.concatenate(parts).tolist() == whole.tolist()
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), scale=st.floats(0.0, 5000.0))
+def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
+    """Whatever the stream (bursts, silence, a contact that never ends), the state is a few bounded numbers."""
+    rng = np.random.default_rng(seed)
+    n = 20_000
+    off = rng.poisson(scale * rng.random(n) ** 4)
+    on = rng.poisson(scale * rng.random(n) ** 4)
+    config = contact.ContactConfig()
+    _, _, _, state = contact.detect(config, off, on)
+    largest = float(max(off.max(), on.max(), config.background_off, config.background_on)) + 1
+    assert 0 <= state.mean_off <= largest and 0 <= state.mean_on <= largest
+    assert 0 <= state.off_since <= largest * (config.memory_frames + 1)
+    assert state.phase in (contact.NONE, contact.GRASPING, contact.HOLDING, contact.RELEASING)
+
+
+# ---------------------------------------------------------------- models on streams
+
+
+def test_a_model_trained_on_contacts_carries_the_detector_and_round_trips(trained, sessions, tmp_path):
+    assert session.is_session_model(trained)
+    assert trained.training["contacts"]["contacts"] == 18
+    assert trained.config.memory_frames == session.DEFAULT_MEMORY_FRAMES
+    models.save(trained, str(tmp_path / "m.model"))
+    again = models.load(str(tmp_path / "m.model"))
+    assert session.is_session_model(again)
+    a = models.predict_table(trained, sessions).column("force_pred").to_numpy()
+    b = models.predict_table(again, sessions).column("force_pred").to_numpy()
+    np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_a_session_streamed_in_pieces_gives_the_forces_eval_gives(trained):
+    table, _ = tiny_session(grasps=5, seed=9, trial="test")
+    whole = models.predict_table(trained, table)
+    schema, batches = models.stream(trained, table.schema, iter(table.to_batches(max_chunksize=5)))
+    streamed = pa.Table.from_batches(list(batches), schema=schema)
+    np.testing.assert_allclose(streamed.column("force_pred").to_numpy(), whole.column("force_pred").to_numpy(), atol=1e-5)
+    assert streamed.column("phase_pred").to_pylist() == whole.column("phase_pred").to_pylist()
+    assert streamed.column("grasp").to_pylist() == table.column("grasp").to_pylist()
+
+
+def test_a_session_with_no_grasp_reads_zero_throughout(trained):
+    table, _ = tiny_session(grasps=0, seed=5, rest=(3000, 3001))
+    predictions = models.predict_table(trained, table)
+    assert not any(predictions.column("contact_pred").to_pylist())
+    assert np.abs(predictions.column("force_pred").to_numpy()).max() < 0.01
+
+
+def test_force_reads_zero_between_contacts_and_runs_inside_them(trained):
+    table, _ = tiny_session(grasps=6, seed=11, trial="test")
+    predictions = models.predict_table(trained, table)
+    phase = np.asarray(predictions.column("phase").to_pylist())
+    pred = predictions.column("force_pred").to_numpy()
+    true = predictions.column("force").to_numpy()
+    rest = (phase == "none") & ~predictions.column("contact_pred").to_numpy(zero_copy_only=False)
+    assert np.all(pred[rest] == 0)
+    assert np.all(pred[predictions.column("contact_pred").to_numpy(zero_copy_only=False)] != 0)
+    assert np.abs(pred - true)[rest].max() < 0.01
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_model_state_stays_bounded_on_long_random_streams(trained, seed):
+    """A long stream of random activity (contacts that may never end): the force model's state is
+    dropped at every rest, and inside a contact deform-gru's leaky sums stay under their bound."""
+    rng = np.random.default_rng(seed)
+    one = session.Stream(trained)
+    largest = 0.0
+    for _ in range(20):
+        length = 200
+        level = rng.choice([0.0, 0.05, 2.0, 6.0])
+        counts = rng.poisson(level * rng.random((length, 1, 1, 1)) ** 2, (length, 2, SIZE, SIZE)).astype(np.uint16)
+        force, phases, _, _ = one.step(counts, np.arange(length, dtype=np.int64) * WINDOW_US)
+        assert np.all(np.isfinite(force))
+        largest = max(largest, float(counts.max()))
+        if phases[-1] == contact.NONE:
+            assert one.inner is None
+        else:
+            memory = trained.config.memory_frames
+            assert float(one.inner["deformation"].abs().max()) <= largest * (memory + 1)
+            assert float(one.inner["h"].abs().max()) <= 1.0
+
+
+# ---------------------------------------------------------------- scores
+
+
+def test_session_scores_rest_drift_grasps_and_contacts():
+    frame = np.arange(12)
+    phase = ["none"] * 3 + ["grasping", "holding", "holding", "releasing"] + ["none"] * 5
+    true = np.array([0, 0, 0, 1, 2, 2, 1, 0, 0, 0, 0, 0], dtype=float)
+    pred = np.array([0.1, 0, 0, 0, 2, 2, 1, 0.3, 0.2, 0.1, 0.1, 0.1])
+    contact_pred = np.array([0, 0, 0, 0, 1, 1, 1, 1, 0, 0, 0, 0], dtype=bool)
+    grasp = np.where(np.isin(phase, ["none"]), np.nan, 0)
+    rows = metrics.session_rows(["s"] * 12, frame, frame * 60e6, phase, true, pred, grasp=grasp, contact_pred=contact_pred)
+    figures = {m: v for s, m, v in rows if s == "all"}
+    rest = np.array([0.1, 0, 0, 0.3, 0.2, 0.1, 0.1, 0.1])
+    assert figures["rest_mean_abs"] == pytest.approx(rest.mean())
+    assert figures["rest_max_abs"] == pytest.approx(0.3)
+    assert figures["drift_n_per_min"] == pytest.approx(np.polyfit([0, 1, 2, 7, 8, 9, 10, 11], rest, 1)[0])
+    assert figures["contact_f1"] == 1.0 and figures["contact_onset_frames_mean"] == 1.0
+    assert figures["contact_frame_f1"] == pytest.approx(2 * 3 / (4 + 4))
+    assert {m: v for s, m, v in rows if s == "grasp:s/0"}["rmse"] == pytest.approx(np.sqrt(1 / 4))
+
+
+def test_detection_f1_counts_misses_and_false_alarms():
+    truth = [np.array([0, 1, 1, 0, 0, 1, 1, 0, 0, 0], bool)]
+    found = [np.array([0, 0, 1, 0, 0, 0, 0, 0, 1, 0], bool)]
+    figures = metrics.detection_figures(truth, found, "slip", unit=10.0, suffix="latency_ms", tolerance=20)
+    assert figures["slip_hits"] == 1 and figures["slip_true"] == 2 and figures["slip_found"] == 2
+    assert figures["slip_f1"] == 0.5
+    assert figures["slip_latency_ms_mean"] == 10.0 and figures["slip_within_20"] == 1.0
+
+
+def test_eval_of_a_stream_model_reports_session_figures(trained):
+    table, _ = tiny_session(grasps=4, seed=12, trial="test")
+    _, rows = evaluate.evaluate_model(trained, table)
+    names = {m for s, m, v in rows if s == "all"}
+    assert {"rest_mean_abs", "drift_n_per_min", "contact_f1", "grasp_rmse_mean", "contact_rmse"} <= names
+    assert any(s.startswith("grasp:test/") for s, m, v in rows)
+
+
+# ---------------------------------------------------------------- commands
+
+
+def run(args, stdin=None):
+    code = "from neurotac_cli.cli import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *args], stdin=stdin, capture_output=True)
+
+
+def test_train_contacts_then_predict_writes_contact_and_phase(sessions, tmp_path):
+    tables.write(str(tmp_path / "s.arrows"), sessions)
+    with open(tmp_path / "s.arrows", "rb") as stdin:
+        done = run(["train", "--model", "deform-gru", "--contacts", "--epochs", "2", "--hidden", "4", "-o", str(tmp_path / "m.model")], stdin)
+    assert done.returncode == 0, done.stderr
+    assert b"contacts: 18 in 3 streams" in done.stderr
+    with open(tmp_path / "s.arrows", "rb") as stdin:
+        done = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "p.arrows")], stdin)
+    assert done.returncode == 0, done.stderr
+    out = tables.read([str(tmp_path / "p.arrows")])
+    assert {"force_pred", "contact_pred", "phase_pred", "grasp"} <= set(out.schema.names)
+
+
+def test_train_contacts_refuses_a_classifier(tmp_path):
+    done = run(["train", "--model", "material-dnn", "--contacts", "-o", str(tmp_path / "m.model")])
+    assert done.returncode == 2 and b"--contacts trains force models" in done.stderr
+
+
+def test_the_sessions_example_runs_quick(tmp_path):
+    """examples/sessions.py --quick end to end (simulate, frame, train on contacts, score) writes its table."""
+    script = ROOT / "examples" / "sessions.py"
+    done = subprocess.run([sys.executable, str(script), "--quick", "--models", "deform-gru", "--out", str(tmp_path)],
+                          capture_output=True, check=False)
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    table = (tmp_path / "sessions.md").read_text()
+    assert "| deform-gru |" in table and "contact F1" in table
+
+
+def pooled_material_model():
+    """A material classifier trained on tiny labelled trials pooled to one pixel (`crop --pool all`)."""
+    from neurotac_cli.ops.crop import CropSpec, crop_table
+    from tests.model.helpers import tiny_frames
+
+    pooled = crop_table(tiny_frames(trials=6, size=(SIZE, SIZE)), CropSpec(pool="all"))
+    return models.train(pooled, models.make_spec("material-dnn", epochs=3), seed=0)
+
+
+def test_predict_names_each_contacts_material_when_it_ends(trained):
+    material = pooled_material_model()
+    table, _ = tiny_session(grasps=4, seed=13, trial="test")
+    predictions = session.predict_table(trained, table, material=material)
+    touching = predictions.column("contact_pred").to_numpy(zero_copy_only=False)
+    ends = [end for _, end in metrics.runs(touching) if end < len(touching)]
+    named = predictions.column("material_pred").to_pylist()
+    assert [k for k, v in enumerate(named) if v is not None] == ends
+    assert {named[k] for k in ends} <= set(material.classes)
+
+
+def test_a_material_model_on_unpooled_frames_is_refused(trained):
+    from tests.model.helpers import tiny_frames
+
+    unpooled = models.train(tiny_frames(trials=4, size=(SIZE, SIZE)), models.make_spec("material-dnn", epochs=1), seed=0)
+    table, _ = tiny_session(grasps=1, seed=1)
+    with pytest.raises(ModelError, match="pooled to one pixel"):
+        session.predict_table(trained, table, material=unpooled)
