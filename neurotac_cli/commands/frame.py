@@ -41,7 +41,8 @@ class PadTo(ParamType):
     "--phases",
     default="auto",
     show_default=True,
-    help="Phase per frame: `auto` (from the force: rise, plateau, fall), `none`, or three inclusive frame ranges "
+    help="Phase per frame: `auto` (from the force: rise, plateau, fall), `session` (many grasps per trial: phases per "
+    "grasp, and an int32 `grasp` column, -1 between grasps), `none`, or three inclusive frame ranges "
     "for grasping, holding, releasing, e.g. 0-21,22-121,122-143 (thesis ch. 3).",
 )
 @click.option("--accumulate", is_flag=True, help="Counts cumulated from the trial's start (thesis ch. 3 inputs; with `crop --pool all`).")
@@ -79,7 +80,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     from neurotac_cli.ops import frame as fr
     from neurotac_cli.ops.phases import parse_ranges
 
-    if phases not in ("auto", "none"):
+    if phases not in ("auto", "none", "session"):
         phases = tuple(parse_ranges(phases))
     if scale is not None:
         try:

@@ -23,10 +23,39 @@ def _progress_printer():
     return show
 
 
+# The objects a session draws from when neither --objects nor --preset says: every material, flat and rounded faces, three bolt sizes.
+SESSION_OBJECTS = ("foam:hex:1", "silicone:hex:1", "rubber:hex:1", "steel:hex:1", "steel:bolt8:1", "steel:bolt12:1",
+                   "steel:bolt16:1", "rubber:sphere10:1", "silicone:sphere16:1")
+
+
 @click.command()
-@click.option("--preset", type=click.Choice(["ch3", "ch4", "ch5"]), default="ch4", show_default=True,
+@click.option("--preset", type=click.Choice(["ch3", "ch4", "ch5"]), default=None,
               help="Experiment design of the thesis: ch3 (48 hex prisms of 4 materials, FlexiForce), "
-                   "ch4 (35 bolts of 8/12/16 mm, Nano17), ch5 (60 bolts of 12/15/18 mm, 0-25 N, two gripper forces).")
+                   "ch4 (35 bolts of 8/12/16 mm, Nano17), ch5 (60 bolts of 12/15/18 mm, 0-25 N, two gripper forces).  "
+                   "[default: ch4; with --session, ch4's rig with a mixed pool of objects of every material]")
+@click.option("--session", is_flag=True,
+              help="Write sessions instead of trials: one camera file and force log per session, one LED blink at its "
+                   "start, then --grasps grasps after rests, with re-grasps, force changes, partial releases and slips "
+                   "(needs --out; manifest.csv has a row per session, grasps.csv every grasp's and slip's true times).")
+@click.option("--grasps", type=click.IntRange(min=0), default=50, show_default=True,
+              help="With --session: grasps per session, objects drawn from --objects (or the preset's groups), weighted by count.")
+@click.option("--sessions", type=click.IntRange(min=1), default=1, show_default=True,
+              help="With --session: how many sessions to write (session00, session01, ...), each its own seed stream.")
+@click.option("--duration", type=Duration(), default=None,
+              help="With --session: the shortest session, e.g. 5min (the last rest is stretched; with --grasps 0, a session at rest).")
+@click.option("--illumination-drift", type=float, default=None, metavar="SHARE",
+              help="With --session: slow drift of the lighting, its relative amplitude (0.05 = +-5% over "
+                   "illumination_period_us, 60 s).")
+@click.option("--gripper", type=click.Choice(["position", "force"]), default=None,
+              help="position: the squeeze relaxes with the material while held (the thesis's rig); force: a "
+                   "force-controlled grip holds each grasp's peak force, drawn independently of the material.  [default: position]")
+@click.option("--vary", default=None, metavar="FAMILY,...|all",
+              help="Domain randomisation: draw these parameter families per trial (per session with --session) from "
+                   "wide ranges: pixels, membrane, optics, noise, sensor, objects, or all (ranges: docs/simulator.md).")
+@click.option("--hold-out", "hold_out", default=None, metavar="FAMILY",
+              help="Training data: draw FAMILY from the lower two thirds of each of its ranges only (varied even if not in --vary).")
+@click.option("--unseen", default=None, metavar="FAMILY",
+              help="Test data: draw FAMILY from the upper third of each of its ranges only, physics --hold-out training never saw.")
 @click.option("--trials", type=click.IntRange(min=1), default=None,
               help="Simulate only this many grasps, spread over the preset's groups in turn (a small, fast data set).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
@@ -50,8 +79,9 @@ def _progress_printer():
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
                    "(the full list with units and sources: docs/simulator.md).")
 @click.option("--keep-led", is_flag=True, help="With --synced: keep the LED blink's events in each trial, as `sync --keep-led` does (by default they are left out: they mark the instant, they are not touch).")
-def command(preset, trials, out_dir, synced, output, seed, groups, force_range, hold, force_sensor,
-            background_rate, sensor_size, settings, keep_led):
+def command(preset, session, grasps, sessions, duration, illumination_drift, gripper, vary, hold_out, unseen, trials,
+            out_dir, synced, output, seed, groups, force_range, hold, force_sensor, background_rate, sensor_size, settings,
+            keep_led):
     """Simulate grasps on the neuromorphic tactile sensor: camera files, force logs and a manifest.
 
     A physical model (contact mechanics of the object on the silicone membrane, optics, a DVS pixel
@@ -59,22 +89,34 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
     camera's own clock, starting with an LED blink whose switch-off is a spike of OFF events, and a
     500 Hz force log whose time 0 is that switch-off. The same seed writes the same bytes.
 
+    With --session, one long recording per session instead: grasps of mixed objects at random times,
+    speeds and forces, with the events a robot's grip has while it holds. `--vary` draws the physics
+    from wide ranges (domain randomisation); `--hold-out`/`--unseen` keep one family's training and
+    test ranges apart.
+
     \b
         neurotac simulate --preset ch4 --seed 1 --out sim/
         neurotac simulate --preset ch3 --trials 8 --synced | neurotac frame --window 7ms
+        neurotac simulate --session --grasps 50 --duration 5min --seed 3 --out s/
+        neurotac sync --manifest s/manifest.csv | neurotac frame --window 10ms --phases session
+        neurotac simulate --trials 24 --vary all --hold-out membrane --gripper force --out train/
     """
     from neurotac_cli import tables
     from neurotac_cli.errors import NeurotacError
     from neurotac_cli.sim.config import parse_value, preset_config
+    from neurotac_cli.sim.physics import parse_variation
     from neurotac_cli.units import parse_size
 
-    if not out_dir and not synced:
-        raise NeurotacError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
-    if output and not synced:
-        raise NeurotacError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
+    _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift)
     overrides = {name: parse_value(name, value) for name, value in settings}
     if groups:
         overrides["groups"] = parse_value("groups", groups)
+    elif session and preset is None:
+        overrides["groups"] = SESSION_OBJECTS
+    if gripper:
+        overrides["gripper"] = gripper
+    if illumination_drift is not None:
+        overrides["illumination_drift"] = illumination_drift
     if force_range:
         overrides["force_min_n"], overrides["force_max_n"] = _force_range(force_range)
     if hold is not None:
@@ -85,7 +127,13 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
         overrides["background_rate_hz"] = background_rate
     if sensor_size:
         overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
-    config = preset_config(preset, **overrides)
+    config = preset_config(preset or "ch4", **overrides)
+    variation = parse_variation(vary, hold_out, unseen)
+    if session:
+        from neurotac_cli.sim.session import write_sessions
+
+        write_sessions(config, seed, grasps, out_dir, sessions, variation, duration or 0, _progress_printer())
+        return
     if synced and output in (None, "-"):
         tables.refuse_terminal()  # before minutes of work, not after
 
@@ -93,13 +141,36 @@ def command(preset, trials, out_dir, synced, output, seed, groups, force_range, 
 
     if out_dir:
         prepare_folder(out_dir)
-    simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer())
+    simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer(), variation=variation)
     if out_dir:
         write_dataset(simulation, out_dir)
     if synced:
         args = {"preset": preset, "trials": trials, "seed": seed, "keep_led": keep_led,
                 **{k: _plain(v) for k, v in overrides.items()}}
         tables.write(output, recordings(simulation, keep_led=keep_led), step=("simulate", args))
+
+
+def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift):
+    """Options that belong to one mode only are refused in the other, rather than ignored."""
+    from neurotac_cli.errors import NeurotacError
+
+    if session:
+        if not out_dir:
+            raise NeurotacError("--session writes files: give --out DIR (then `neurotac sync --manifest DIR/manifest.csv`)")
+        if synced or output or trials is not None:
+            raise NeurotacError("--synced, -o and --trials are for trials, not --session (sync the session with "
+                             "`neurotac sync --manifest DIR/manifest.csv`; --grasps sets a session's grasps)")
+        return
+    if not out_dir and not synced:
+        raise NeurotacError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
+    if output and not synced:
+        raise NeurotacError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
+    ctx = click.get_current_context()
+    given = [f"--{name.replace('_', '-')}" for name in ("grasps", "sessions")
+             if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT]
+    given += [flag for flag, value in (("--duration", duration), ("--illumination-drift", illumination_drift)) if value is not None]
+    if given:
+        raise NeurotacError(f"{', '.join(given)} only apply with --session (add --session, or leave them out)")
 
 
 def _force_range(text):

@@ -225,8 +225,8 @@ class Framing:
                 raise NeurotacError("a scale only applies to --dtype float32")
             if len(self.scale) != 2 or min(self.scale) <= 0:
                 raise NeurotacError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
-        if not (self.phases in ("auto", "none") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
-            raise NeurotacError(f"phases must be auto, none or three frame ranges, got {self.phases!r}")
+        if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
+            raise NeurotacError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
 
     def args(self) -> dict:
         """The settings as history records them."""
@@ -405,7 +405,8 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
                     peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
             scale = [float(max(peak, 1)) for peak in peaks]
         report.scale = scale
-    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=window, sensor=sch.sensor_meta(width, height))
+    extra = (("grasp", pa.int32()),) if framing.phases == "session" else ()
+    out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=window, sensor=sch.sensor_meta(width, height), extra=extra)
     if scale is not None:
         out_schema = sch.set_meta(out_schema, scale=scale)
     out_schema = _keep_meta(table.schema, out_schema)
@@ -414,8 +415,11 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             counts = counts_of(events, n_real, n_total)
             force = frame_force(force_t, force_v, window, n_total, framing.force_at)
-            phase = _phases(force, n_real, n_total, framing.phases)
-            yield _frames_batch(out_schema, trial, counts, force, phase, label_values, labels, window, scale)
+            if framing.phases == "session":
+                phase, grasp = ph.session_columns(force, n_real, n_total)
+            else:
+                phase, grasp = _phases(force, n_real, n_total, framing.phases), None
+            yield _frames_batch(out_schema, trial, counts, force, phase, label_values, labels, window, scale, grasp=grasp)
 
     return out_schema, batches()
 
@@ -481,7 +485,7 @@ def _keep_meta(source: pa.Schema, target: pa.Schema) -> pa.Schema:
     return target.with_metadata(metadata)
 
 
-def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0) -> pa.RecordBatch:
+def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0, grasp=None) -> pa.RecordBatch:
     n = len(counts)
     if scale is not None:
         counts = counts.astype(np.float32) / np.asarray(scale, dtype=np.float32)[None, :, None, None]
@@ -493,6 +497,8 @@ def _frames_batch(schema, trial, counts, force, phase, label_values, labels, win
         pa.array(force, pa.float32(), from_pandas=True) if force is not None else pa.nulls(n, pa.float32()),
         pa.array(list(phase), pa.string()) if phase is not None else pa.nulls(n, pa.string()),
     ]
+    if grasp is not None:
+        columns.append(pa.array(grasp, pa.int32()))
     columns += [pa.array([label_values.get(name)] * n, pa.string()) for name in labels]
     names = schema.names
     for extra in names[len(columns):]:
@@ -517,7 +523,7 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
         raise SchemaError("events table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
     width, height = sensor
     window = framing.window_us
-    if framing.phases not in ("auto", "none"):
+    if framing.phases not in ("auto", "none", "session"):
         phases = framing.phases
     else:
         phases = None

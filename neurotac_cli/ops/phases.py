@@ -99,3 +99,120 @@ def phases_from_ranges(n_frames: int, ranges: list[tuple[int, int]]) -> np.ndarr
     for name, (first, last) in zip(PHASES, ranges):
         labels[first:last + 1] = name
     return labels
+
+
+# ---------------------------------------------------------------- sessions: many grasps in one trial
+
+# Shares of a grasp's own peak (above the rest level), per frame or in total.
+MOVE_SHARE = 0.15  # a move of the gripper changes the force by at least this much
+SLOPE_SHARE = 0.02  # per frame: a slower change is a held force settling (relaxation, regulation), not a move
+TAIL_SHARE = 0.006  # per frame: a move goes on while the force keeps changing its way at least this fast
+MERGE_FRAMES = 2  # contact dips of at most this many frames do not split a grasp
+
+
+def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_share: float = MOVE_SHARE,
+                  slope_share: float = SLOPE_SHARE) -> tuple[np.ndarray, np.ndarray]:
+    """(phase per frame, grasp index per frame as int32, -1 for none) of a trial holding many grasps.
+
+    A grasp is a run of frames in contact: force above the rest level (5th percentile) by more than
+    `contact_share` of the force scale (95th percentile above rest) and by 5 noise s.d. (the noise is
+    read from frame-to-frame differences); dips of at most MERGE_FRAMES frames stay in the grasp; a
+    run whose peak is within 10 noise s.d. of rest is noise, not a grasp. The frame that first reads
+    below contact after a grasp is its last (releasing), as in `detect_phases`.
+
+    Inside a grasp, a *move* is a run of frames in which the force changes the same way by more than
+    `slope_share` of the grasp's peak per frame, by `move_share` of it in total, extended while it
+    keeps changing that way by TAIL_SHARE of the peak (and 3 noise s.d.) per frame. Rising moves are grasping, falling moves
+    releasing, everything else holding. So: the first rise is grasping from first contact; a
+    re-grasp (loosen, tighten) is releasing then grasping; a partial release (a fall to a lower
+    level that is then held) is releasing then holding; a force change while held slower than
+    `slope_share` per frame, and a viscoelastic object relaxing, stay holding; after the last fall
+    every frame to the end of contact is releasing.
+    """
+    force = np.asarray(force, dtype=np.float64)
+    n = len(force)
+    phase = np.full(n, NONE, dtype=object)
+    grasp = np.full(n, -1, dtype=np.int32)
+    known = ~np.isnan(force)
+    if not known.any():
+        return phase, grasp
+    rest = float(np.percentile(force[known], 5))
+    filled = np.where(known, force, rest)
+    noise = 1.4826 * float(np.median(np.abs(np.diff(filled) - np.median(np.diff(filled))))) / np.sqrt(2) if n > 2 else 0.0
+    scale = float(np.percentile(filled, 95)) - rest
+    threshold = rest + max(contact_share * scale, 5 * noise, 1e-6)
+    index = 0
+    for first, last in _contact_runs(filled > threshold):
+        if filled[first:last + 1].max() < rest + max(10 * noise, 1e-6):
+            continue
+        end = min(last + 2, n)  # the first frame below contact is the grasp's last
+        grasp[first:end] = index
+        before = filled[first - 1] if first > 0 else rest
+        phase[first:end] = _grasp_phases(filled[first:end], before, rest, noise, move_share, slope_share,
+                                         ends_in_contact=end == last + 1)
+        index += 1
+    return phase, grasp
+
+
+def _contact_runs(touching: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) frames of each run of contact, runs apart by at most MERGE_FRAMES frames merged."""
+    frames = np.flatnonzero(touching)
+    if not frames.size:
+        return []
+    breaks = np.flatnonzero(np.diff(frames) > MERGE_FRAMES + 1)
+    starts = np.concatenate([[frames[0]], frames[breaks + 1]])
+    ends = np.concatenate([frames[breaks], [frames[-1]]])
+    return list(zip(starts.tolist(), ends.tolist()))
+
+
+def _grasp_phases(f: np.ndarray, before: float, rest: float, noise: float, move_share, slope_share,
+                  ends_in_contact: bool) -> np.ndarray:
+    """Phases of one grasp's frames (f: its force, `before`: the frame before it)."""
+    peak = max(float(f.max()) - rest, 1e-9)
+    change = np.diff(np.concatenate([[before], f]))
+    labels = np.full(len(f), "holding", dtype=object)
+    moves = _moves(change, peak, move_share, slope_share, tail=max(TAIL_SHARE * peak, 3 * noise))
+    rises = [m for m in moves if m[2] > 0]
+    first_rise_end = rises[0][1] if rises and rises[0][0] <= _first_move(moves) else 0
+    labels[:first_rise_end + 1] = "grasping"
+    for start, stop, sign in moves:
+        labels[start:stop + 1] = "grasping" if sign > 0 else "releasing"
+    falls = [m for m in moves if m[2] < 0]
+    if falls and (not rises or falls[-1][0] > rises[-1][0]):
+        labels[falls[-1][0]:] = "releasing"
+    if not ends_in_contact:
+        labels[-1] = "releasing"
+    return labels
+
+
+def _first_move(moves) -> int:
+    return moves[0][0] if moves else 0
+
+
+def _moves(change: np.ndarray, peak: float, move_share: float, slope_share: float, tail: float) -> list[tuple[int, int, int]]:
+    """(first, last frame, +1 rising / -1 falling) of each move: fast same-way runs, extended while slower, big enough."""
+    sign = np.where(change > slope_share * peak, 1, np.where(change < -slope_share * peak, -1, 0))
+    moves = []
+    k = 0
+    while k < len(sign):
+        if sign[k] == 0:
+            k += 1
+            continue
+        way, start, stop = int(sign[k]), k, k
+        while stop + 1 < len(sign) and way * change[stop + 1] > tail:
+            stop += 1
+        while start - 1 >= 0 and way * change[start - 1] > tail and (not moves or start - 1 > moves[-1][1]):
+            start -= 1
+        if way * change[start:stop + 1].sum() >= move_share * peak:
+            moves.append((start, stop, way))
+        k = stop + 1
+    return moves
+
+
+def session_columns(force: np.ndarray, n_real: int, n_total: int) -> tuple[np.ndarray, np.ndarray]:
+    """`frame --phases session`: phase and grasp index of the first n_real frames, padding frames none / -1."""
+    phase = np.full(n_total, NONE, dtype=object)
+    grasp = np.full(n_total, -1, dtype=np.int32)
+    if n_real and not np.isnan(force[:n_real]).all():
+        phase[:n_real], grasp[:n_real] = label_session(force[:n_real])
+    return phase, grasp

@@ -132,6 +132,21 @@ class SimConfig:
     hot_rate_hz: float = 40.0
     step_us: int = 250  # simulation step; events are timed to the µs inside it
     still_us: int = 2_000_000  # length of the still-scene (noise only) recording
+    # ------------------------------------------------------------ gripper control
+    gripper: str = "position"  # position: the squeeze relaxes with the material; force: the grip holds its force
+    # ------------------------------------------------------------ sessions (simulate --session)
+    session_rest_us: tuple = (300_000, 3_000_000)  # rest before each grasp, uniform range
+    session_hold_us: tuple = (500_000, 6_000_000)  # holding time of a grasp, uniform range
+    session_speed: tuple = (0.3, 3.0)  # gripper speed factor of a grasp, log-uniform range
+    regrasp_share: float = 0.2  # share of grasps that loosen and tighten again while held
+    change_share: float = 0.3  # share of grasps whose force changes while held
+    partial_share: float = 0.2  # share of grasps released partly before the final release
+    slip_share: float = 0.3  # share of grasps in which the object slips
+    slip_speed_mm_s: tuple = (5.0, 40.0)  # speed of the contact patch along the membrane during a slip
+    slip_us: tuple = (50_000, 300_000)  # length of a slip
+    slip_force_drop: tuple = (0.0, 0.5)  # share of the normal force lost during a slip
+    illumination_drift: float = 0.0  # slow drift of the lighting: relative amplitude (0.05 = +-5%)
+    illumination_period_us: int = 60_000_000  # period of that drift
 
 
 def _groups(*entries):
@@ -234,6 +249,17 @@ def _scalar(name, text, default, parse_duration_us):
 
 def validate(config: SimConfig):
     problems = []
+    if config.gripper not in ("position", "force"):
+        problems.append(f"gripper={config.gripper!r} (use position or force)")
+    for name in ("regrasp_share", "change_share", "partial_share", "slip_share"):
+        if not 0 <= getattr(config, name) <= 1:
+            problems.append(f"{name} must be in [0, 1]")
+    for name in ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_s", "slip_us", "slip_force_drop"):
+        low, high = getattr(config, name)
+        if not 0 <= low <= high or (name == "session_speed" and low <= 0):
+            problems.append(f"{name} must be a range LOW..HIGH with 0 {'<' if name == 'session_speed' else '<='} LOW <= HIGH")
+    if not 0 <= config.illumination_drift < 1 or config.illumination_period_us <= 0:
+        problems.append("illumination_drift in [0, 1) and illumination_period_us > 0")
     if config.force_sensor not in ("nano17", "flexiforce"):
         problems.append(f"force_sensor={config.force_sensor!r} (use nano17 or flexiforce)")
     if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:

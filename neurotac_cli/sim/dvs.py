@@ -157,7 +157,7 @@ def membrane_force(config, force: np.ndarray, step_us: int) -> np.ndarray:
     return (1 - config.creep) * sat + config.creep * slow
 
 
-def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual, progress=None):
+def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual, progress=None, exact=False, state=None):
     """Step the contact regions of all grasps together. Returns per-grasp (t_rel_us, x, y, p).
 
     forces: (n, K) true force at t_k = k * step; motions: (n, K, 2) pixels; residual: (n, H, W) the
@@ -166,7 +166,9 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     The pixels near each contact (the face grown by the largest motion and a margin) of all grasps
     form one flat vector, stepped together. The geometry of each face is computed once at rest; the
     small rigid motion d moves it to first order (rho(x - d) = rho(x) - d . grad rho), and the tilt
-    term of the flat punch, linear in position, folds into each grasp's approach.
+    term of the flat punch, linear in position, folds into each grasp's approach. `exact` recomputes
+    the geometry at the moved position every step instead (a slip moves the face by many pixels).
+    `state`, a dict, receives the pixels stepped (x, y) and their reference-minus-level at the end.
     """
     n, steps = forces.shape
     step = config.step_us
@@ -174,7 +176,7 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     reach = float(np.abs(motions).max()) if motions.size else 0.0
     blocks = []
     for i, g in enumerate(grasps):  # per-grasp set-up (dozens), not per pixel
-        blocks.append(_contact_block(config, camera, g, i, fm[i], motions[i], reach, residual[i]))
+        blocks.append(_contact_block(config, camera, g, i, fm[i], motions[i] * (not exact), reach, residual[i]))
     flat = np.concatenate([b["flat"] for b in blocks])
     trial = np.concatenate([b["trial"] for b in blocks])
     xs = np.concatenate([b["x"] for b in blocks])
@@ -204,12 +206,17 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     touching = (drive > 0).any(axis=0) | (peak > 0).any(axis=0)
     active = np.convolve(touching.astype(float), np.ones(int(20_000 / step) + 1), mode="full")[:steps] > 0
     out = []
+    geometry = _exact_geometry(config, grasps, blocks, trial) if exact else None
     for k in range(steps):  # a loop over time steps; every pixel of every grasp at once
         if not active[k]:
             continue
         dx = mx[trial, k]
         dy = my[trial, k]
-        rho = (field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]) / spread[trial, k]
+        if exact:
+            rho, field["gap"] = geometry(dx, dy)
+            rho = rho / spread[trial, k]
+        else:
+            rho = (field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]) / spread[trial, k]
         s = np.empty_like(rho)
         if not is_sphere:
             # flat punch: rho = hex norm, coverage from the rim distance, Boussinesq rim factor, foundation pressure
@@ -240,7 +247,36 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
             progress(k, steps)
     if progress is not None:
         progress(steps, steps)
+    if state is not None:
+        state.update(x=xs, y=ys, residual=reference - filtered)
     return _split(out, n, trial, xs, ys)
+
+
+def _exact_geometry(config, grasps, blocks, trial):
+    """(dx, dy) -> (rho, gap) of every stepped pixel with each face moved by (dx, dy) pixels."""
+    from neurotac_cli.sim.contact import hex_norm
+
+    pitch = np.float32(config.pixel_pitch_mm)
+    per = {name: np.array([value(g) for g in grasps], np.float32)[trial] for name, value in (
+        ("cx", lambda g: g.center_px[0]), ("cy", lambda g: g.center_px[1]),
+        ("cos", lambda g: np.cos(g.orientation)), ("sin", lambda g: np.sin(g.orientation)),
+        ("tilt", lambda g: g.tilt), ("tx", lambda g: g.tilt_dir[0]), ("ty", lambda g: g.tilt_dir[1]),
+        ("apothem", lambda g: g.shape.size_mm / 2), ("flat", lambda g: g.shape.face == "hex"))}
+    px = np.concatenate([b["x"] for b in blocks]).astype(np.float32) + np.float32(0.5)
+    py = np.concatenate([b["y"] for b in blocks]).astype(np.float32) + np.float32(0.5)
+    flat = per["flat"] > 0
+    corner = per["apothem"] / np.float32(contact.SQRT3_2)
+
+    def at(dx, dy):
+        u = px - per["cx"] - dx
+        v = py - per["cy"] - dy
+        uu = (u * per["cos"] + v * per["sin"]) * pitch
+        vv = (-u * per["sin"] + v * per["cos"]) * pitch
+        rho = np.where(flat, hex_norm(uu, vv, per["apothem"]), np.hypot(uu, vv))
+        gap = np.where(flat, per["tilt"] * ((uu * per["tx"] + vv * per["ty"]) + corner) * np.float32(1e-3), 0)
+        return rho.astype(np.float32), gap.astype(np.float32)
+
+    return at
 
 
 def _contact_block(config, camera, grasp, index, membrane_force_n, motion, reach, residual):

@@ -167,15 +167,16 @@ def true_force(config: SimConfig, grasp: Grasp, t_us: np.ndarray) -> np.ndarray:
     """
     t = np.asarray(t_us, dtype=float)
     mat = MATERIALS[grasp.material]
+    relaxation = mat.relaxation if config.gripper == "position" else 0.0  # a force-controlled grip holds its force
     peak = grasp.peak_force_n
     load = np.clip((t - grasp.contact_us) / max(1, grasp.loaded_us - grasp.contact_us), 0, 1)
     force = peak * load**1.5
     held = np.clip(t - grasp.loaded_us, 0, None)
-    relax = 1.0 - mat.relaxation * -np.expm1(-held / mat.relaxation_us)
+    relax = 1.0 - relaxation * -np.expm1(-held / mat.relaxation_us)
     ripple = config.force_vibration * _ripple(config, grasp, t)
     settle = 0.06 * np.exp(-held / max(1, config.settle_us)) * np.sin(2 * np.pi * config.settle_hz * held * 1e-6)
     force = force * (relax + (ripple + settle) * (t > grasp.loaded_us))
-    level_at_release = peak * (1.0 - mat.relaxation * -np.expm1(-(grasp.release_us - grasp.loaded_us) / mat.relaxation_us))
+    level_at_release = peak * (1.0 - relaxation * -np.expm1(-(grasp.release_us - grasp.loaded_us) / mat.relaxation_us))
     unload = np.clip((t - grasp.release_us) / max(1, grasp.released_us - grasp.release_us), 0, 1)
     after = t >= grasp.release_us
     force = np.where(after, level_at_release * (1.0 - unload) ** 1.5, force)

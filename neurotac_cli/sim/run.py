@@ -39,12 +39,45 @@ class Simulation:
     still: tuple  # (t, x, y, p) of the still-scene recording
 
 
-def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progress=None) -> Simulation:
-    """Every grasp of the design (or the first `trials`, spread over its groups), same seed same result."""
+def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progress=None, variation=None) -> Simulation:
+    """Every grasp of the design (or the first `trials`, spread over its groups), same seed same result.
+
+    With a `variation` (sim.physics), each trial gets its own physics and camera, drawn from the
+    varied families' ranges, and is simulated on its own; its drawn values go to `grasp.extra["physics"]`.
+    """
     streams = np.random.SeedSequence(seed).spawn(4)
     camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
     grasps = plan_grasps(config, np.random.default_rng(streams[1]), trials)
     noise_rngs = [np.random.default_rng(s) for s in streams[2].spawn(len(grasps) + 1)]  # one per trial + the still scene
+    if variation is None:
+        result = _simulate_trials(config, camera, grasps, noise_rngs, progress)
+    else:
+        result = []
+        for grasp, noise_rng, seq in zip(grasps, noise_rngs, streams[3].spawn(len(grasps))):
+            rng = np.random.default_rng(seq)
+            varied, physics = variation.draw(config, rng)
+            grasp = replan(varied, rng, grasp)
+            grasp.extra["physics"] = physics
+            result += _simulate_trials(varied, dvs.make_camera(varied, rng), [grasp], [noise_rng], None)
+    still_rng = noise_rngs[-1]
+    start = int(still_rng.uniform(*config.camera_offset_us))
+    still = dvs.noise_events(config, camera, start, start + config.still_us, still_rng)
+    order = np.argsort(still[0], kind="stable")
+    still = tuple(a[order] for a in still)
+    return Simulation(config, seed, result, (still[0], still[1].astype(np.uint16), still[2].astype(np.uint16), still[3].astype(np.uint8)))
+
+
+def replan(config: SimConfig, rng: np.random.Generator, grasp: Grasp) -> Grasp:
+    """The same grasp (trial id, object, labels, peak force) with timing and pose drawn under other physics."""
+    from neurotac_cli.sim.grasp import _plan_one
+
+    custom = {k: v for k, v in grasp.labels.items() if k not in ("material", "object", "size_mm")}
+    index = int(grasp.trial.rsplit("-", 1)[1])
+    return _plan_one(config, rng, grasp.material, grasp.shape, custom, grasp.peak_force_n, index)
+
+
+def _simulate_trials(config, camera, grasps, noise_rngs, progress) -> list:
+    """The trials of `grasps` on one camera, stepped in lockstep; noise_rngs[i] draws trial i's blink, noise and force log."""
     step = config.step_us
     end = max(g.end_us for g in grasps) if grasps else 0
     steps = int(np.ceil(end / step)) + 1
@@ -77,12 +110,7 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
         force_t, measured, truth = _force_log(config, g, rng)
         result.append(Trial(g, t[sel], x[sel].astype(np.uint16), y[sel].astype(np.uint16), p[sel].astype(np.uint8),
                             force_t, measured, truth))
-    still_rng = noise_rngs[-1]
-    start = int(still_rng.uniform(*config.camera_offset_us))
-    still = dvs.noise_events(config, camera, start, start + config.still_us, still_rng)
-    order = np.argsort(still[0], kind="stable")
-    still = tuple(a[order] for a in still)
-    return Simulation(config, seed, result, (still[0], still[1].astype(np.uint16), still[2].astype(np.uint16), still[3].astype(np.uint8)))
+    return result
 
 
 def _force_log(config, grasp, rng):
@@ -115,6 +143,7 @@ def manifest_rows(simulation: Simulation) -> list[dict]:
             "true_release_ms": f"{g.release_us / 1000:.3f}",
             "true_released_ms": f"{g.released_us / 1000:.3f}",
             "true_duration_ms": f"{g.end_us / 1000:.3f}",
+            **{f"true_{name}": f"{value:.6g}" for name, value in g.extra.get("physics", {}).items()},
         })
     return rows
 
