@@ -47,7 +47,9 @@ def features(data: Sequences, config: Config) -> np.ndarray:
 
 
 def feature_count(config: Config) -> int:
-    return {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points, "rich": 6 * config.points + 3}[config.inputs]
+    widths = {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points, "rich": 6 * config.points + 3,
+              "dynamics": 4 * config.points + DYNAMICS, "timing": DYNAMICS}
+    return widths[config.inputs]
 
 
 def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np.ndarray:
@@ -63,8 +65,13 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
         return resample(acc, points).T.reshape(-1)
     totals = acc[-1] if len(acc) else np.zeros(2)
     shape = acc / np.maximum(totals, 1.0)
-    if config.inputs == "curves":
-        return np.concatenate([np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)])
+    if config.inputs in ("curves", "dynamics"):
+        curves = [np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)]
+        if config.inputs == "dynamics":
+            curves.append(dynamics(sums, counts.reshape(len(counts), 2, -1)))
+        return np.concatenate(curves)
+    if config.inputs == "timing":
+        return dynamics(sums, counts.reshape(len(counts), 2, -1))
     active = (counts.reshape(len(counts), 2, -1) > 0).sum(axis=2).astype(np.float64)
     parts = [
         resample(shape, points).T.reshape(-1),
@@ -74,6 +81,45 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
         [np.log((totals[1] + 1.0) / (totals[0] + 1.0))],
     ]
     return np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
+
+
+DYNAMICS = 16  # features of `dynamics`
+
+
+def _crossing(curve: np.ndarray, shares) -> np.ndarray:
+    """Fractional frame at which an accumulating curve first reaches each share of its final value."""
+    total = curve[-1] if len(curve) else 0.0
+    if total <= 0:
+        return np.zeros(len(shares))
+    return np.interp(np.asarray(shares) * total, curve, np.arange(len(curve), dtype=np.float64))
+
+
+def dynamics(rates: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """How a grasp's events unfold in time, as scalars that depend on the material more than on the
+    force. The loading's ON burst rises more slowly into a softer object (the gripper travels further
+    for the same force: travel = force / stiffness of membrane and object in series), so the times at
+    which the ON events reach 10-70% of their total, counted from 5%, carry the stiffness; the same for
+    the release's OFF burst. Beside them the amounts (log totals and peak rates), the OFF/ON ratio,
+    the share of OFF events that come while the object is held (it relaxes under a fixed grip) and
+    the contact's extent in pixels.
+
+    `rates`: (T, 2) ON and OFF events per frame; `pixels`: (T, 2, P) the counts of every pixel.
+    """
+    on, off = rates[:, 0], rates[:, 1]
+    if not len(on) or on.sum() <= 0:
+        return np.zeros(DYNAMICS)
+    frames = np.arange(len(off))
+    late_off = np.where(frames >= int(np.argmax(on)), off, 0.0)  # the LED switch-off's OFF spike comes before
+    rise = _crossing(np.cumsum(on), (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7))
+    fall = _crossing(np.cumsum(late_off), (0.05, 0.2, 0.5, 0.8)) if late_off.sum() > 0 else np.zeros(4)
+    burst = max(int(np.argmax(late_off)) - 3, 0)
+    log = np.log1p
+    return np.concatenate([
+        log(rise[1:] - rise[0]), log(fall[1:] - fall[0]),
+        log([on.sum(), late_off.sum(), on.max(), late_off.max()]),
+        [log(late_off.sum()) - log(on.sum()), late_off[:burst].sum() / max(late_off.sum(), 1.0),
+         log((pixels[:, 0] > 0).sum(axis=0).max())],
+    ])
 
 
 class Net(nn.Module):
