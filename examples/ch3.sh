@@ -24,7 +24,7 @@ if [[ $MODE != quick ]]; then
     GP_FIT=(--max-points 500 --restarts 1)
     MATERIAL_CV=kfold:8
     SEEDS=5
-    PROTOCOL="Protocol: standard (\\`make reproduce\\`): all 48 grasps, the thesis's grids and early stopping; leave-one-out for force, the GP on 500 frames with 1 restart (thesis: Bayesian-optimised on all), the material grid in 8 folds instead of leave-one-out, the chosen classifiers over $SEEDS seeds."
+    PROTOCOL="Protocol: standard (\`make reproduce\`): all 48 grasps, the thesis's grids and early stopping; leave-one-out for force, the GP on 500 frames with 1 restart (thesis: Bayesian-optimised on all), the material grid in 8 folds instead of leave-one-out, the chosen classifiers over $SEEDS seeds."
   fi
 else
   TRIALS=(--trials 8)                        # two grasps per material
@@ -75,7 +75,7 @@ figure "$FIGURES/ch3-confusion.png" --cv "$MATERIAL_CV" --model-spec material-dn
 # The thesis's chosen DNN, the force-only network and ours, each over several seeds for a ± over seeds.
 study material-dnn-k2-n30 --cv "$CV" --model-spec material-dnn --layers 2 --units 30 --val-per material --repeats "$SEEDS" \
   "${FIT[@]}" "$FRAMES"
-for model in material-force material-curves; do
+for model in material-force material-curves material-timing; do
   study "$model" --cv "$CV" --model-spec "$model" --val-per material --repeats "$SEEDS" "${FIT[@]}" "$FRAMES"
 done
 

@@ -385,7 +385,8 @@ def chapter3(folder, page, figures_dir, run) -> str:
     rows = []
     for name, figures, thesis in (("material-dnn (k=2, n=30), events", chosen, "79.17"),
                                   ("material-force (force only)", force_only, f"{THESIS_FORCE_ONLY_ACCURACY:.2f}"),
-                                  ("material-curves (ours), events", found.get(("material-curves", ())), "–")):
+                                  ("material-curves (ours), events", found.get(("material-curves", ())), "–"),
+                                  ("material-timing (ours), events", found.get(("material-timing", ())), "–")):
         if figures:
             recalls = [fmt(100 * get(figures, f"class:{c}", "recall"), 1) for c in THESIS_RECALL]
             rows.append([name, fmt(100 * get(figures, "all", "accuracy"), 1), mean_sd(per_seed(figures, "accuracy"), 100, 1),

@@ -41,3 +41,15 @@ def test_a_trial_without_events_gives_zeros_and_widths_match_the_features():
         config = material.Config(inputs=inputs)
         x = material._trial_features(counts[0], np.zeros(60), config)
         assert x.shape == (material.feature_count(config),) and np.isfinite(x).all()
+
+
+def test_the_discriminant_separates_classes_that_differ_along_a_correlated_direction():
+    rng = np.random.default_rng(0)
+    shared = rng.standard_normal((200, 1))
+    z = np.hstack([shared, shared + 0.05 * rng.standard_normal((200, 1))])  # two nearly equal features
+    y = np.repeat([0, 1], 100)
+    z[y == 1, 1] += 0.3  # the classes differ only in the small difference between them
+    weight, bias = material.discriminant(z, y, 3)
+    predicted = np.argmax(z @ weight.T + bias, axis=1)
+    assert (predicted == y).mean() > 0.95
+    assert bias[2] < -1e8  # a class absent from training never wins

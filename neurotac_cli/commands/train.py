@@ -5,7 +5,7 @@ import click
 from neurotac_cli.options import input_paths, seed_option
 
 FORCE = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
-MATERIAL = ("material-dnn", "material-force", "material-curves")
+MATERIAL = ("material-dnn", "material-force", "material-curves", "material-timing")
 
 # (option, parameter, type, help); None defaults take each model's thesis value.
 HYPERPARAMETERS = [
@@ -87,7 +87,7 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
 @input_paths
 @click.option("--model", "model_name", type=click.Choice(FORCE + MATERIAL), required=True,
               help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), deform-gru (ours); "
-              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves.")
+              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves, material-timing (loading and release timing, linear discriminant).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
 @hyperparameter_options
 @validation_options

@@ -13,7 +13,7 @@ from neurotac_cli.model import data as shaping
 from neurotac_cli.model.fit import FitConfig, fit
 
 FORCE_MODELS = ("tdnn", "gp", "lstm", "cnnlstm", "convlstm", "deform-gru")
-MATERIAL_MODELS = ("material-dnn", "material-force", "material-curves")
+MATERIAL_MODELS = ("material-dnn", "material-force", "material-curves", "material-timing")
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
 
@@ -262,7 +262,7 @@ def _train_material(name, config, fit_config, train_set, val_set, input_spec, tr
     x = torch.as_tensor(material.features(train_set, config))
     y = encode(train_set)
     net = material.Net(config, len(classes))
-    net.calibrate(x.numpy())
+    net.calibrate(x.numpy(), y.numpy())
     val_x = torch.as_tensor(material.features(val_set, config)) if len(val_set) else None
     val_y = encode(val_set) if len(val_set) else None
     loss = torch.nn.CrossEntropyLoss()
