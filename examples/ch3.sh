@@ -23,7 +23,7 @@ if [[ $MODE != quick ]]; then
     # restart (n^3: about 1/27 of the fit) keeps the leave-one-out; the material grid in 8 folds.
     GP_FIT=(--max-points 500 --restarts 1)
     MATERIAL_CV=kfold:8
-    SEEDS=5
+    SEEDS=3
     PROTOCOL="Protocol: standard (\`make reproduce\`): all 48 grasps, the thesis's grids and early stopping; leave-one-out for force, the GP on 500 frames with 1 restart (thesis: Bayesian-optimised on all), the material grid in 8 folds instead of leave-one-out, the chosen classifiers over $SEEDS seeds."
   fi
 else

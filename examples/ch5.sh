@@ -24,7 +24,7 @@ elif [[ $MODE == standard ]]; then
   # A 70x75 ConvLSTM training costs 188-500 CPU s (300 of them: 28 CPU h). Pooled 10x10 to 14x15,
   # with the methods the thesis reports figures for (FS-1, TES-2 at 0.5) and both combinations.
   POOL=10x10
-  SEEDS=5
+  SEEDS=3
   FIT=()
   SHIFTS=(-1)
   ZETAS=()
