@@ -358,7 +358,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         parts += [
             "#### Material DNN validation accuracy, k layers × n units (thesis Table 3.3)",
             "",
-            "Mean over the leave-one-out folds of the accuracy (%) on each fold's validation grasps, the "
+            "Mean over the folds (the protocol line names them) of the accuracy (%) on each fold's validation grasps, the "
             "thesis's number in brackets; highest in bold (ours) and italics (the thesis's).",
             "",
             grid_table(material, "val_accuracy_fold_mean", scale=100, digits=1, thesis=THESIS_MATERIAL_VAL,
@@ -372,7 +372,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         parts += [
             "#### Material DNN, k layers × n units (thesis Table 3.4)",
             "",
-            "Accuracy (%) on the left-out grasp over the leave-one-out folds; the thesis's number in brackets.",
+            "Accuracy (%) on the left-out grasps over the folds; the thesis's number in brackets.",
             "",
             grid_table(material, "accuracy", scale=100, digits=1, thesis=THESIS_MATERIAL_TEST,
                        thesis_cols=THESIS_MATERIAL_UNITS, mark="highest"),
@@ -480,7 +480,7 @@ def sweep_section(sweep, page, figures_dir) -> list:
     return [
         "#### Validation error against the number of hidden layers (thesis Fig. 4.4(a))",
         "",
-        "Mean ± σ over the leave-one-out folds of the MSE on each fold's validation grasps (one per bolt "
+        "Mean ± σ over the folds of the MSE on each fold's validation grasps (one per bolt "
         "size, the early-stopping set; every frame with a measured force), at the weights early stopping "
         "restored; the lowest per model in bold. Beside it, the pooled test MSE on the left-out grasps "
         "(non-zero force). The thesis gives this figure as a plot only; it names the depths of its "
@@ -539,7 +539,7 @@ def chapter4(folder, page, figures_dir, run) -> str:
         ])
     if rows:
         parts += [
-            "#### Leave-one-out force estimation, all phases (thesis Table 4.3)",
+            "#### Force estimation on left-out grasps, all phases (thesis Table 4.3)",
             "",
             "Pooled over the out-of-fold predictions of every left-out grasp, non-zero force only (as the "
             "thesis); σ is the standard deviation of the absolute (MAE) and squared (MSE) errors.",
