@@ -10,9 +10,8 @@
   separated from *how many*, which mostly carries the force), into one layer of 30 sigmoid units.
   Separating the two lets the network weigh the stiffness apart from the force (its accuracy
   against the thesis DNN's: docs/design.md).
-- `material-timing`: when the loading's ON events and the release's OFF events come (`dynamics`:
-  a softer object loads more slowly for the same force), their amounts and the contact's extent,
-  16 numbers, classified by linear discriminant analysis: class means and one covariance pooled
+- `material-timing`: when the loading's ON events come (`dynamics`: a softer object loads more
+  slowly for the same force) beside the amounts of ON and OFF events, 11 numbers, classified by linear discriminant analysis: class means and one covariance pooled
   within classes, fitted in closed form, which weighs the strongly correlated rise times against
   each other better than a small network trained on 40-odd grasps (docs/design.md). The training
   loop then fits only the scale of its logits (a temperature), which leaves its decisions alone.
@@ -77,10 +76,10 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     if config.inputs in ("curves", "dynamics"):
         curves = [np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)]
         if config.inputs == "dynamics":
-            curves.append(dynamics(sums, counts.reshape(len(counts), 2, -1)))
+            curves.append(dynamics(sums))
         return np.concatenate(curves)
     if config.inputs == "timing":
-        return dynamics(sums, counts.reshape(len(counts), 2, -1))
+        return dynamics(sums)
     active = (counts.reshape(len(counts), 2, -1) > 0).sum(axis=2).astype(np.float64)
     parts = [
         resample(shape, points).T.reshape(-1),
@@ -92,7 +91,7 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     return np.concatenate([np.asarray(p, dtype=np.float64) for p in parts])
 
 
-DYNAMICS = 16  # features of `dynamics`
+DYNAMICS = 11  # features of `dynamics`
 
 
 def _crossing(curve: np.ndarray, shares) -> np.ndarray:
@@ -103,31 +102,28 @@ def _crossing(curve: np.ndarray, shares) -> np.ndarray:
     return np.interp(np.asarray(shares) * total, curve, np.arange(len(curve), dtype=np.float64))
 
 
-def dynamics(rates: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """How a grasp's events unfold in time, as scalars that depend on the material more than on the
-    force. The loading's ON burst rises more slowly into a softer object (the gripper travels further
-    for the same force: travel = force / stiffness of membrane and object in series), so the times at
-    which the ON events reach 10-70% of their total, counted from 5%, carry the stiffness; the same for
-    the release's OFF burst. Beside them the amounts (log totals and peak rates), the OFF/ON ratio,
-    the share of OFF events that come while the object is held (it relaxes under a fixed grip) and
-    the contact's extent in pixels.
+def dynamics(rates: np.ndarray) -> np.ndarray:
+    """How a grasp's loading unfolds in time, as numbers that depend on the material more than on
+    the force: the loading's ON burst rises more slowly into a softer object (the gripper travels
+    further for the same force: travel = force / stiffness of membrane and object in series), so the
+    frames at which the ON events reach 10-70% of their total, counted from 5%, carry the stiffness.
+    Beside them the amounts (log totals and peak rates of ON and, after the loading's peak, OFF
+    events) and the OFF/ON ratio, which carry the force the rise times are read against. The
+    release's OFF fall times, the OFF share while held and the contact's extent were tried and left
+    out: they separated no materials and made the discriminant noisier (docs/journal.md).
 
-    `rates`: (T, 2) ON and OFF events per frame; `pixels`: (T, 2, P) the counts of every pixel.
+    `rates`: (T, 2) ON and OFF events per frame.
     """
     on, off = rates[:, 0], rates[:, 1]
     if not len(on) or on.sum() <= 0:
         return np.zeros(DYNAMICS)
-    frames = np.arange(len(off))
-    late_off = np.where(frames >= int(np.argmax(on)), off, 0.0)  # the LED switch-off's OFF spike comes before
+    late_off = np.where(np.arange(len(off)) >= int(np.argmax(on)), off, 0.0)  # the LED switch-off's OFF spike comes before
     rise = _crossing(np.cumsum(on), (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7))
-    fall = _crossing(np.cumsum(late_off), (0.05, 0.2, 0.5, 0.8)) if late_off.sum() > 0 else np.zeros(4)
-    burst = max(int(np.argmax(late_off)) - 3, 0)
     log = np.log1p
     return np.concatenate([
-        log(rise[1:] - rise[0]), log(fall[1:] - fall[0]),
+        log(rise[1:] - rise[0]),
         log([on.sum(), late_off.sum(), on.max(), late_off.max()]),
-        [log(late_off.sum()) - log(on.sum()), late_off[:burst].sum() / max(late_off.sum(), 1.0),
-         log((pixels[:, 0] > 0).sum(axis=0).max())],
+        [log(late_off.sum()) - log(on.sum())],
     ])
 
 
