@@ -421,6 +421,12 @@ def chapter3(folder, page, figures_dir, run) -> str:
         if force_only:
             gap = 100 * (value - get(force_only, "all", "accuracy"))
             said.append(f"{abs(gap):.1f} points {'above' if gap >= 0 else 'below'} the force-only classifier (thesis: 29.17 above)")
+    for name in ("material-curves", "material-timing"):
+        if found.get((name, ())):
+            figures = found[(name, ())]
+            worst = min(THESIS_RECALL, key=lambda c: get(figures, f"class:{c}", "recall", 1.0))
+            said.append(f"our {name} reaches {fmt(100 * get(figures, 'all', 'accuracy'), 1)}%, its lowest recall "
+                        f"{worst} {fmt(100 * get(figures, f'class:{worst}', 'recall'), 1)}% (thesis DNN 79.17%, lowest recall foam 63.6%)")
     parts += verdict(said, "\n".join([
         "The grasps are simulated (`neurotac simulate --preset ch3`):",
         "the simulator's membrane, DVS thresholds and noise are physical models with handbook parameters,",
@@ -609,6 +615,10 @@ def chapter4(folder, page, figures_dir, run) -> str:
         said.append(f"by overall MSE our models rank {ranking} (thesis: {thesis_ranking})")
         if "convlstm" in ours:
             said.append(f"our ConvLSTM's {fmt(ours['convlstm'])} N² is {ratio(ours['convlstm'], 0.145)} the thesis's 0.145")
+        if "deform-gru" in models:
+            mine = get(models["deform-gru"], "all", "mse")
+            best = min(ours, key=ours.get)
+            said.append(f"ours (deform-gru) scores {fmt(mine)} N², {ratio(mine, ours[best])} the best of the thesis's models here ({best})")
         if held and "convlstm" in ours:
             said.append(f"on the unseen 12 mm bolt it scores {fmt(get(held, 'all', 'mse'))} N², "
                         f"{ratio(get(held, 'all', 'mse'), ours['convlstm'])} its leave-one-out error (thesis: 0.159 against 0.145)")

@@ -59,6 +59,8 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     write_metrics(folder / "gp.metrics.parquet", force_rows(0.22))
     write_metrics(folder / "material-dnn@layers=2,units=30.metrics.parquet", [("all", "accuracy", 0.75), ("class:steel", "recall", 1.0)])
     write_metrics(folder / "material-force.metrics.parquet", [("all", "accuracy", 0.5)])
+    write_metrics(folder / "material-timing.metrics.parquet", [("all", "accuracy", 0.97)] +
+                  [(f"class:{c}", "recall", r) for c, r in (("foam", 1.0), ("rubber", 0.95), ("silicone", 1.0), ("steel", 0.9))])
     page = tmp_path / "results.md"
     page.write_text(PAGE)
 
@@ -71,6 +73,7 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     assert "Lowest: k=4, n=40: 0.200" in text
     assert "| material-dnn (k=2, n=30), events | 75.0 | – | 79.17 |" in text
     assert "25.0 points above the force-only classifier" in text
+    assert "our material-timing reaches 97.0%, its lowest recall steel 90.0%" in text
     assert "](" not in text and "\n\n\n" not in text  # figures not drawn: no link and no gap where they would be
 
     results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
@@ -81,7 +84,7 @@ def test_a_missing_section_is_appended_with_its_markers(tmp_path):
     results = load("chapters")
     folder = tmp_path / "ch4"
     folder.mkdir()
-    for model, mse in (("lstm", 0.3), ("convlstm", 0.2)):
+    for model, mse in (("lstm", 0.3), ("convlstm", 0.2), ("deform-gru", 0.05)):
         write_metrics(folder / f"{model}.metrics.parquet", force_rows(mse))
     write_metrics(folder / "heldout.metrics.parquet", force_rows(0.4))
     page = tmp_path / "page.md"
@@ -90,6 +93,7 @@ def test_a_missing_section_is_appended_with_its_markers(tmp_path):
     assert text.count("<!-- results:ch4:start -->") == 1 and "<!-- results:ch4:end -->" in text
     assert "our models rank convlstm < lstm (thesis: convlstm < lstm)" in text
     assert "2.0× its leave-one-out error" in text
+    assert "ours (deform-gru) scores 0.050 N², 0.2× the best of the thesis's models here (convlstm)" in text
 
 
 def test_chapter5_orders_methods_and_draws_its_figures(tmp_path):
