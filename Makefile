@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench docs reproduce reproduce-quick clean
+.PHONY: demo test bench docs reproduce reproduce-full reproduce-quick clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,9 @@ docs: $(STAMP)
 
 reproduce: $(STAMP)
 	PATH="$(abspath $(BIN)):$$PATH" $(MAKE) -C examples reproduce
+
+reproduce-full: $(STAMP)
+	PATH="$(abspath $(BIN)):$$PATH" $(MAKE) -C examples reproduce-full
 
 reproduce-quick: $(STAMP)
 	PATH="$(abspath $(BIN)):$$PATH" $(MAKE) -C examples reproduce-quick

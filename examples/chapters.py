@@ -249,6 +249,45 @@ def section_text(parts) -> str:
     return "\n".join(part for part in parts if part is not None)
 
 
+def stamp_tables(body: str, protocol: str) -> str:
+    """The protocol line under every table's heading, so a table copied on its own still says how it
+    was made (where it departs from the thesis, its seeds, the wall time)."""
+    if not protocol:
+        return body
+    lines = []
+    for line in body.split("\n"):
+        lines.append(line)
+        if line.startswith("#### "):
+            lines += ["", f"*{protocol}*"]
+    return "\n".join(lines)
+
+
+def per_seed(figures, metric) -> list:
+    """The metric of each seed (repeat) of a study, from its per-fold rows: a fold's value weighted by
+    its number of test trials (`n`; one per fold when absent)."""
+    seeds: dict = {}
+    for scope, values in (figures or {}).items():
+        if scope.startswith("fold:") and metric in values:
+            repeat = scope[len("fold:"):].split("/")[0]
+            weight = values.get("n", 1.0)
+            total = seeds.setdefault(repeat, [0.0, 0.0])
+            total[0] += weight * values[metric]
+            total[1] += weight
+    return [value / weight for value, weight in seeds.values() if weight]
+
+
+def mean_sd(values, scale=1.0, digits=3) -> str:
+    """`mean ± σ` over seeds; the mean alone with one seed."""
+    import statistics
+
+    if not values:
+        return "–"
+    mean = statistics.fmean(values) * scale
+    if len(values) < 2:
+        return fmt(mean, digits)
+    return f"{fmt(mean, digits)} ± {fmt(statistics.stdev(values) * scale, digits)}"
+
+
 def verdict(said, why) -> list:
     """A chapter's closing paragraphs: what we found against the thesis (when anything was), then
     where and why the numbers differ."""
@@ -297,11 +336,12 @@ def chapter3(folder, page, figures_dir, run) -> str:
     gp = found.get(("gp", ()))
     if gp or tdnn:
         rows = []
-        for name, figures in (("tdnn (k=4, n=40)", tdnn.get((4, 40))), ("gp", gp)):
+        for name, figures in (("tdnn (k=4, n=40)", tdnn.get((4, 40))), ("gp", gp), ("deform-gru (ours)", found.get(("deform-gru", ())))):
             if figures:
-                thesis = 0.16 if name.startswith("tdnn") else THESIS_GP_MSE
+                thesis = {"tdnn": 0.16, "gp": THESIS_GP_MSE}.get(name.split()[0])
+                thesis = "–" if thesis is None else f"{thesis:.2f}"
                 rows.append([name, fmt(get(figures, "all", "mse_fold_mean")), fmt(get(figures, "all", "mse_fold_sd")),
-                             *(fmt(get(figures, f"phase:{p}", "mse")) for p in PHASES), f"{thesis:.2f}"])
+                             *(fmt(get(figures, f"phase:{p}", "mse")) for p in PHASES), thesis])
         if rows:
             parts += [
                 "#### TDNN and GP (thesis 3.7.1: 0.16 and 0.17)",
@@ -318,7 +358,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         parts += [
             "#### Material DNN validation accuracy, k layers × n units (thesis Table 3.3)",
             "",
-            "Mean over the leave-one-out folds of the accuracy (%) on each fold's validation grasps, the "
+            "Mean over the folds (the protocol line names them) of the accuracy (%) on each fold's validation grasps, the "
             "thesis's number in brackets; highest in bold (ours) and italics (the thesis's).",
             "",
             grid_table(material, "val_accuracy_fold_mean", scale=100, digits=1, thesis=THESIS_MATERIAL_VAL,
@@ -332,7 +372,7 @@ def chapter3(folder, page, figures_dir, run) -> str:
         parts += [
             "#### Material DNN, k layers × n units (thesis Table 3.4)",
             "",
-            "Accuracy (%) on the left-out grasp over the leave-one-out folds; the thesis's number in brackets.",
+            "Accuracy (%) on the left-out grasps over the folds; the thesis's number in brackets.",
             "",
             grid_table(material, "accuracy", scale=100, digits=1, thesis=THESIS_MATERIAL_TEST,
                        thesis_cols=THESIS_MATERIAL_UNITS, mark="highest"),
@@ -340,19 +380,24 @@ def chapter3(folder, page, figures_dir, run) -> str:
             f"Best: k={key[0]}, n={key[1]}: {fmt(100 * value, 1)}% (thesis: k=2, n=30, 79.17%).",
             "",
         ]
-    chosen = material.get((2, 30)) if material else None
+    chosen = found.get(("material-dnn-k2-n30", ())) or (material.get((2, 30)) if material else None)
     force_only = found.get(("material-force", ()))
     rows = []
-    for name, figures, thesis in (("material-dnn (k=2, n=30), events", chosen, 79.17),
-                                  ("material-force (force only)", force_only, THESIS_FORCE_ONLY_ACCURACY)):
+    for name, figures, thesis in (("material-dnn (k=2, n=30), events", chosen, "79.17"),
+                                  ("material-force (force only)", force_only, f"{THESIS_FORCE_ONLY_ACCURACY:.2f}"),
+                                  ("material-curves (ours), events", found.get(("material-curves", ())), "–"),
+                                  ("material-timing (ours), events", found.get(("material-timing", ())), "–")):
         if figures:
             recalls = [fmt(100 * get(figures, f"class:{c}", "recall"), 1) for c in THESIS_RECALL]
-            rows.append([name, fmt(100 * get(figures, "all", "accuracy"), 1), f"{thesis:.2f}", *recalls])
+            rows.append([name, fmt(100 * get(figures, "all", "accuracy"), 1), mean_sd(per_seed(figures, "accuracy"), 100, 1),
+                         thesis, *recalls])
     if rows:
         parts += [
             "#### Events against the force sensor alone (thesis 3.7.2)",
             "",
-            md_table(["classifier", "accuracy (%)", "thesis (%)", *(f"recall {c}" for c in THESIS_RECALL)], rows),
+            "Accuracy pooled over every seed's out-of-fold predictions, and its mean ± σ over seeds.",
+            "",
+            md_table(["classifier", "accuracy (%)", "per seed (%)", "thesis (%)", *(f"recall {c}" for c in THESIS_RECALL)], rows),
             "",
             "Thesis recall (Fig. 3.13): " + ", ".join(f"{c} {v}%" for c, v in THESIS_RECALL.items()) + ".",
             "",
@@ -376,6 +421,12 @@ def chapter3(folder, page, figures_dir, run) -> str:
         if force_only:
             gap = 100 * (value - get(force_only, "all", "accuracy"))
             said.append(f"{abs(gap):.1f} points {'above' if gap >= 0 else 'below'} the force-only classifier (thesis: 29.17 above)")
+    for name in ("material-curves", "material-timing"):
+        if found.get((name, ())):
+            figures = found[(name, ())]
+            worst = min(THESIS_RECALL, key=lambda c: get(figures, f"class:{c}", "recall", 1.0))
+            said.append(f"our {name} reaches {fmt(100 * get(figures, 'all', 'accuracy'), 1)}%, its lowest recall "
+                        f"{worst} {fmt(100 * get(figures, f'class:{worst}', 'recall'), 1)}% (thesis DNN 79.17%, lowest recall foam 63.6%)")
     parts += verdict(said, "\n".join([
         "The grasps are simulated (`neurotac simulate --preset ch3`):",
         "the simulator's membrane, DVS thresholds and noise are physical models with handbook parameters,",
@@ -435,7 +486,7 @@ def sweep_section(sweep, page, figures_dir) -> list:
     return [
         "#### Validation error against the number of hidden layers (thesis Fig. 4.4(a))",
         "",
-        "Mean ± σ over the leave-one-out folds of the MSE on each fold's validation grasps (one per bolt "
+        "Mean ± σ over the folds of the MSE on each fold's validation grasps (one per bolt "
         "size, the early-stopping set; every frame with a measured force), at the weights early stopping "
         "restored; the lowest per model in bold. Beside it, the pooled test MSE on the left-out grasps "
         "(non-zero force). The thesis gives this figure as a plot only; it names the depths of its "
@@ -494,7 +545,7 @@ def chapter4(folder, page, figures_dir, run) -> str:
         ])
     if rows:
         parts += [
-            "#### Leave-one-out force estimation, all phases (thesis Table 4.3)",
+            "#### Force estimation on left-out grasps, all phases (thesis Table 4.3)",
             "",
             "Pooled over the out-of-fold predictions of every left-out grasp, non-zero force only (as the "
             "thesis); σ is the standard deviation of the absolute (MAE) and squared (MSE) errors.",
@@ -538,14 +589,21 @@ def chapter4(folder, page, figures_dir, run) -> str:
             md_table(header, rows),
             "",
         ]
-    held = found.get(("heldout", ()))
-    if held:
+    held_out = {name: found.get((f"heldout-{name}", ())) for name in CH4_MODELS}
+    held_out = {name: figures for name, figures in held_out.items() if figures}
+    held = held_out.get("convlstm") or found.get(("heldout", ()))
+    if held_out:
+        rows = [[name, fmt(get(figures, "all", "mse")), mean_sd(per_seed(figures, "mse")), fmt(get(figures, "all", "mae")),
+                 fmt(get(figures, "all", "rmse_pct_range"), 1),
+                 *((f"{THESIS_HELD_OUT[0]:.3f}", f"{THESIS_HELD_OUT[1]:.3f}") if name == "convlstm" else ("–", "–"))]
+                for name, figures in held_out.items()]
         parts += [
             "#### Held-out object size (thesis 4.6: ConvLSTM trained on 8 and 16 mm, tested on 12 mm)",
             "",
-            md_table(["model", "MSE (N²)", "MAE (N)", "thesis MSE", "thesis MAE"],
-                     [["convlstm", fmt(get(held, "all", "mse")), fmt(get(held, "all", "mae")),
-                       f"{THESIS_HELD_OUT[0]:.3f}", f"{THESIS_HELD_OUT[1]:.3f}"]]),
+            "Every model trained on the 8 and 16 mm bolts and tested on every 12 mm grasp (non-zero force); "
+            "MSE pooled over the seeds' predictions and its mean ± σ over seeds.",
+            "",
+            md_table(["model", "MSE (N²)", "per seed (N²)", "MAE (N)", "RMSE % of range", "thesis MSE", "thesis MAE"], rows),
             "",
         ]
     parts.append(figure_link(page, figures_dir, "ch4-convlstm.png", "ConvLSTM: measured and estimated force, and per-phase scatter (thesis Fig. 4.5)"))
@@ -557,6 +615,10 @@ def chapter4(folder, page, figures_dir, run) -> str:
         said.append(f"by overall MSE our models rank {ranking} (thesis: {thesis_ranking})")
         if "convlstm" in ours:
             said.append(f"our ConvLSTM's {fmt(ours['convlstm'])} N² is {ratio(ours['convlstm'], 0.145)} the thesis's 0.145")
+        if "deform-gru" in models:
+            mine = get(models["deform-gru"], "all", "mse")
+            best = min(ours, key=ours.get)
+            said.append(f"ours (deform-gru) scores {fmt(mine)} N², {ratio(mine, ours[best])} the best of the thesis's models here ({best})")
         if held and "convlstm" in ours:
             said.append(f"on the unseen 12 mm bolt it scores {fmt(get(held, 'all', 'mse'))} N², "
                         f"{ratio(get(held, 'all', 'mse'), ours['convlstm'])} its leave-one-out error (thesis: 0.159 against 0.145)")
@@ -593,12 +655,15 @@ def ch5_method(name: str) -> str:
 def chapter5(folder, page, figures_dir, run) -> str:
     found = studies(folder)
     parts = [run, ""]
-    results = {}
+    results, ours = {}, {}  # the ConvLSTM's studies by training set; deform-gru's (deform-gru@set=NAME)
     for (name, params), figures in found.items():
         mean = get(figures, "all", "mse_fold_mean", get(figures, "all", "mse"))
         sd = get(figures, "all", "mse_fold_sd", math.nan)
         folds = sum(1 for scope in figures if scope.startswith("fold:"))
-        results[name] = (mean, sd, folds)
+        if name == "deform-gru":
+            ours[dict(params).get("set")] = (mean, sd, folds)
+        else:
+            results[name] = (mean, sd, folds)
     if not results:
         return "\n".join(parts + ["(no results yet)"])
     order = [n for n in ("none", "rot45", "resize", "noise") if n in results]
@@ -606,22 +671,33 @@ def chapter5(folder, page, figures_dir, run) -> str:
     order += sorted((n for n in results if n.startswith("tes")), key=lambda n: (int(n[3:].split("_")[0]), n))
     order += [n for n in ("independent", "hybrid") if n in results]
     baseline = results.get("none", (math.nan,))[0]
+    ours_baseline = ours.get("none", (math.nan,))[0]
+
+    def change(mean, base):
+        return "–" if not (mean == mean and base == base and base) else f"{(mean / base - 1) * 100:+.0f}%"
+
     rows = []
     for name in order:
         mean, sd, folds = results[name]
         thesis = THESIS_CH5.get(ch5_method(name))
-        change = (mean / baseline - 1) * 100 if baseline == baseline and baseline else math.nan
-        rows.append([CH5_LABELS.get(name, ch5_method(name).upper()), fmt(mean), fmt(sd), folds,
-                     "–" if change != change else f"{change:+.0f}%",
-                     f"{thesis[0]:.2f} ({thesis[1]:.2f})" if thesis else "–"])
+        row = [CH5_LABELS.get(name, ch5_method(name).upper()), fmt(mean), fmt(sd), folds, change(mean, baseline),
+               f"{thesis[0]:.2f} ({thesis[1]:.2f})" if thesis else "–"]
+        if ours:
+            mine = ours.get(name, (math.nan, math.nan, 0))
+            row += [fmt(mine[0]), fmt(mine[1]), change(mine[0], ours_baseline)]
+        rows.append(row)
+    header = ["method", "ConvLSTM MSE mean (N²)", "σ over seeds", "seeds", "vs none", "thesis mean (σ)"]
+    if ours:
+        header += ["deform-gru MSE mean (N²)", "σ over seeds", "vs none"]
     parts += [
         "#### Augmentation on the medium bolt (thesis Figs. 5.6–5.8 and 5.11)",
         "",
         "Training on the small and large bolts plus one augmented copy of each grasp per method",
         "validation drawn from the training trials, testing on the medium bolt; mean and σ of the MSE",
-        "(N²) over the seeds (one training per seed).",
+        "(N²) over the seeds (one training per seed); the thesis's ConvLSTM and ours (deform-gru) on the same",
+        "training sets.",
         "",
-        md_table(["method", "MSE mean (N²)", "σ over seeds", "seeds", "vs none", "thesis mean (σ)"], rows),
+        md_table(header, rows),
         "",
     ]
     draw_ch5(results, order, figures_dir)
@@ -639,6 +715,12 @@ def chapter5(folder, page, figures_dir, run) -> str:
             ind, hyb = results["independent"][0], results["hybrid"][0]
             said.append(f"independent combination {'beats' if ind < hyb else 'does not beat'} hybrid, "
                         f"{fmt(ind)} against {fmt(hyb)} (thesis: 5.71 against 7.20)")
+    helped = [n for n in ours if n != "none" and ours[n][0] < ours_baseline]
+    if ours and ours_baseline == ours_baseline:
+        best = min(ours, key=lambda n: ours[n][0])
+        said.append(f"deform-gru without augmentation scores {fmt(ours_baseline)} N² against the ConvLSTM's {fmt(baseline)}; "
+                    f"{len(helped)} of {len(ours) - 1} methods lower its error, its best being "
+                    f"{CH5_LABELS.get(best, ch5_method(best).upper())} at {fmt(ours[best][0])} N²")
     parts += verdict(said, "\n".join([
         "The 60 grasps are simulated (`simulate --preset ch5`:",
         "bolts of 12, 15 and 18 mm, 8–25 N, two gripper settings, an 8 mm shore-50A membrane). The",
@@ -720,6 +802,8 @@ def main(argv=None):
     parser.add_argument("page", help="the markdown page to update (created when missing)")
     parser.add_argument("--figures", default=None, help="folder of the chapter's PNGs (default: beside the page)")
     parser.add_argument("--run", default="", help="one line saying how the numbers were made (default: FOLDER/run.md)")
+    parser.add_argument("--protocol", default="",
+                        help="one line under every table: where the run departs from the thesis, its seeds and wall time")
     parser.add_argument("--section", default=None,
                         help="the page's section to write, between <!-- results:SECTION:start/end --> (default: the chapter)")
     args = parser.parse_args(argv)
@@ -728,7 +812,7 @@ def main(argv=None):
     run = args.run
     if not run and (pathlib.Path(args.folder) / "run.md").is_file():
         run = (pathlib.Path(args.folder) / "run.md").read_text().strip()
-    body = CHAPTERS[args.chapter](args.folder, page, figures, run)
+    body = stamp_tables(CHAPTERS[args.chapter](args.folder, page, figures, run), args.protocol)
     text = page.read_text() if page.exists() else "# Reproduced results\n"
     page.parent.mkdir(parents=True, exist_ok=True)
     temporary = page.with_name(page.name + ".tmp")

@@ -1,11 +1,14 @@
 # Shared by ch3.sh, ch4.sh, ch5.sh (sourced, not run).
 #
 # Environment:
-#   MODE      full (the thesis's protocol), quick (fewer grasps, smaller grids, few epochs) or tiny
+#   MODE      standard (the thesis's experiments sized for 2 cores: every grasp, the thesis's splits
+#             where affordable, several seeds; `make reproduce`), full (the thesis's protocol to the
+#             letter, for a cluster), quick (fewer grasps, smaller grids, few epochs; CI) or tiny
 #             (ch3.sh only: one grid point, two epochs; the test suite runs it to check the script works)
-#   OUT       output folder (default examples/out or examples/out-quick); one subfolder per chapter
-#   RESULTS   the page the tables go into (full: docs/results.md; quick: $OUT/results.md)
-#   FIGURES   where the PNGs go (full: docs/results/; quick: $OUT/figures)
+#   OUT       output folder (default examples/out, examples/out-full or examples/out-quick); one
+#             subfolder per chapter
+#   RESULTS   the page the tables go into (standard, full: docs/results.md; quick: $OUT/results.md)
+#   FIGURES   where the PNGs go (standard, full: docs/results/; quick: $OUT/figures)
 #   SEED      the seed of the simulation and of every study (default 1)
 #   NEUROTAC_JOBS / NEUROTAC_SCHEDULER / NEUROTAC_CACHE: where the studies run (docs/studies.md).
 #     The cache defaults to $OUT/cache, so an interrupted run resumes where it stopped; full runs
@@ -15,17 +18,28 @@ set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 MODE=${MODE:-quick}
 case $MODE in
-  full) OUT=${OUT:-$HERE/out}; RESULTS=${RESULTS:-$HERE/../docs/results.md}; FIGURES=${FIGURES:-$HERE/../docs/results} ;;
+  standard) OUT=${OUT:-$HERE/out}; RESULTS=${RESULTS:-$HERE/../docs/results.md}; FIGURES=${FIGURES:-$HERE/../docs/results} ;;
+  full) OUT=${OUT:-$HERE/out-full}; RESULTS=${RESULTS:-$HERE/../docs/results.md}; FIGURES=${FIGURES:-$HERE/../docs/results} ;;
   quick|tiny) OUT=${OUT:-$HERE/out-$MODE}; RESULTS=${RESULTS:-$OUT/results.md}; FIGURES=${FIGURES:-$OUT/figures} ;;
-  *) echo "MODE must be full, quick or tiny, got $MODE" >&2; exit 2 ;;
+  *) echo "MODE must be standard, full, quick or tiny, got $MODE" >&2; exit 2 ;;
 esac
+# A quick run's figures say little about the sensor: it must never overwrite the published page.
+inside() { local path; path=$(realpath -m "$1"); [[ $path == "$2" || $path == "$2"/* ]]; }
+if [[ $MODE == quick || $MODE == tiny ]]; then
+  for path in "$OUT" "$RESULTS" "$FIGURES" "${NEUROTAC_CACHE:-$OUT}"; do
+    if inside "$path" "$(realpath -m "$HERE/../docs")"; then
+      echo "$(basename "$0" .sh): error: a quick run cannot write to $path (its reduced figures are not the protocol's; leave OUT, RESULTS and FIGURES under examples/, or run MODE=standard)" >&2
+      exit 2
+    fi
+  done
+fi
 SEED=${SEED:-1}
 PYTHON=${PYTHON:-python}
 export NEUROTAC_CACHE=${NEUROTAC_CACHE:-$OUT/cache}
-# Each task trains on one thread (so results do not depend on where it ran): a full run uses every
+# Each task trains on one thread (so results do not depend on where it ran): a standard or full run uses every
 # core through a process pool unless a Dask scheduler is given. Quick runs stay in-process, where
 # starting worker processes would cost more than their few small trainings.
-if [[ $MODE == full && -z ${NEUROTAC_SCHEDULER:-} ]]; then
+if [[ $MODE != quick && $MODE != tiny && -z ${NEUROTAC_SCHEDULER:-} ]]; then
   export NEUROTAC_JOBS=${NEUROTAC_JOBS:-0}
 fi
 mkdir -p "$OUT" "$FIGURES"
@@ -43,8 +57,15 @@ once() {
     return
   fi
   say "$name: neurotac $verb $*"
+  local started=$SECONDS
   neurotac "$verb" "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
+  # The study's wall time, kept beside it so a resumed run still reports what the whole chapter cost
+  # (a study resumed from the cache reports only its last part).
+  echo $((SECONDS - started)) > "$DIR/$name.seconds"
 }
+
+# wall_time: the seconds the chapter's finished studies took, summed over every invocation.
+wall_time() { cat "$DIR"/*.seconds 2>/dev/null | awk '{s += $1} END {print s + 0}'; }
 
 # study NAME ARGS...: one `neurotac eval` cross-validation; grid NAME ARGS...: one `neurotac study`
 # grid (one table, one column per grid parameter).
@@ -60,15 +81,17 @@ figure() {
 
 join() { local IFS=,; echo "$*"; }
 
-# publish CHAPTER "how it was run": write the chapter's tables into $RESULTS (the line is kept in
-# $DIR/run.md so `make publish-quick` can put the same tables into docs/results.md later).
+# publish CHAPTER "how it was run" "protocol": write the chapter's tables into $RESULTS. The protocol
+# line (where the run departs from the thesis, its seeds, the chapter's wall time) goes under every
+# table.
 publish() {
-  local run=$2
-  if [[ $MODE != full ]]; then
+  local run=$2 protocol="$3 Wall time $(wall_time) s on $(machine), summed over the chapter's studies."
+  if [[ $MODE == quick || $MODE == tiny ]]; then
     run="**Reduced run** (\`make reproduce-quick\`): it checks the whole pipeline in minutes; its figures are not the thesis's protocol and say little about the sensor. $run"
+    protocol="Reduced run, not the thesis's protocol. $protocol"
   fi
   printf '%s\n' "$run" > "$DIR/run.md"
-  "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$run"
+  "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$run" --protocol "$protocol"
 }
 
 machine() { echo "$(nproc) CPUs, $(uname -m)"; }

@@ -60,6 +60,8 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     write_metrics(folder / "gp.metrics.parquet", force_rows(0.22))
     write_metrics(folder / "material-dnn@layers=2,units=30.metrics.parquet", [("all", "accuracy", 0.75), ("class:steel", "recall", 1.0)])
     write_metrics(folder / "material-force.metrics.parquet", [("all", "accuracy", 0.5)])
+    write_metrics(folder / "material-timing.metrics.parquet", [("all", "accuracy", 0.97)] +
+                  [(f"class:{c}", "recall", r) for c, r in (("foam", 1.0), ("rubber", 0.95), ("silicone", 1.0), ("steel", 0.9))])
     page = tmp_path / "results.md"
     page.write_text(PAGE)
 
@@ -70,8 +72,9 @@ def test_chapter3_tables_sit_beside_the_thesis_and_leave_other_sections_alone(tm
     assert "| k=4 | 0.250 (0.180) | **0.200** (0.160) |" in text  # ours (thesis Table 3.2), our lowest in bold
     assert "| k=1 | 0.400 (0.160) | 0.300 (*0.150*) |" in text  # the thesis's lowest of the cells shown
     assert "Lowest: k=4, n=40: 0.200" in text
-    assert "| material-dnn (k=2, n=30), events | 75.0 | 79.17 |" in text
+    assert "| material-dnn (k=2, n=30), events | 75.0 | – | 79.17 |" in text
     assert "25.0 points above the force-only classifier" in text
+    assert "our material-timing reaches 97.0%, its lowest recall steel 90.0%" in text
     assert "](" not in text and "\n\n\n" not in text  # figures not drawn: no link and no gap where they would be
 
     results.main(["ch3", str(folder), str(page), "--run", "Run: test."])
@@ -82,7 +85,7 @@ def test_a_missing_section_is_appended_with_its_markers(tmp_path):
     results = load("chapters")
     folder = tmp_path / "ch4"
     folder.mkdir()
-    for model, mse in (("lstm", 0.3), ("convlstm", 0.2)):
+    for model, mse in (("lstm", 0.3), ("convlstm", 0.2), ("deform-gru", 0.05)):
         write_metrics(folder / f"{model}.metrics.parquet", force_rows(mse))
     write_metrics(folder / "heldout.metrics.parquet", force_rows(0.4))
     page = tmp_path / "page.md"
@@ -91,6 +94,7 @@ def test_a_missing_section_is_appended_with_its_markers(tmp_path):
     assert text.count("<!-- results:ch4:start -->") == 1 and "<!-- results:ch4:end -->" in text
     assert "our models rank convlstm < lstm (thesis: convlstm < lstm)" in text
     assert "2.0× its leave-one-out error" in text
+    assert "ours (deform-gru) scores 0.050 N², 0.2× the best of the thesis's models here (convlstm)" in text
 
 
 def test_chapter5_orders_methods_and_draws_its_figures(tmp_path):
@@ -106,6 +110,77 @@ def test_chapter5_orders_methods_and_draws_its_figures(tmp_path):
     assert methods == ["No augmentation", "FS-1", "FS+1", "TES-2(0.50)", "TES-1(0.25)", "Resize + FS-1, hybrid"]
     assert "| FS-1 | 5.500 | 0.500 | 0 | -31% | 5.51 (0.41) |" in text
     assert (tmp_path / "fig" / "ch5-methods.png").is_file() and (tmp_path / "fig" / "ch5-tes.png").is_file()
+
+
+def test_every_table_carries_the_protocol_line(tmp_path):
+    results = load("chapters")
+    folder = tmp_path / "ch4"
+    folder.mkdir()
+    for model, mse in (("lstm", 0.3), ("convlstm", 0.2)):
+        write_metrics(folder / f"{model}.metrics.parquet", force_rows(mse))
+    page = tmp_path / "page.md"
+    results.main(["ch4", str(folder), str(page), "--protocol", "Protocol: pooled 4x4, 5 seeds. Wall time 9 s."])
+    lines = page.read_text().splitlines()
+    headings = [i for i, line in enumerate(lines) if line.startswith("#### ")]
+    assert len(headings) >= 3
+    assert all(lines[i + 2] == "*Protocol: pooled 4x4, 5 seeds. Wall time 9 s.*" for i in headings)
+
+
+def test_held_out_size_table_lists_every_model_with_its_spread_over_seeds(tmp_path):
+    results = load("chapters")
+    folder = tmp_path / "ch4"
+    folder.mkdir()
+    for model, mse in (("convlstm", 0.4), ("deform-gru", 0.03)):
+        seeds = [(f"fold:{r}/0", "mse", mse * (1 + r)) for r in range(2)] + [(f"fold:{r}/0", "n", 100.0) for r in range(2)]
+        write_metrics(folder / f"heldout-{model}.metrics.parquet", force_rows(mse) + seeds)
+    page = tmp_path / "page.md"
+    results.main(["ch4", str(folder), str(page)])
+    text = page.read_text()
+    assert "| convlstm | 0.400 | 0.600 ± 0.283 | 0.200 | – | 0.159 | 0.385 |" in text
+    assert "| deform-gru | 0.030 | 0.045 ± 0.021 | 0.015 | – | – | – |" in text
+
+
+def test_chapter5_sets_deform_gru_beside_the_convlstm_on_each_training_set(tmp_path):
+    results = load("chapters")
+    folder = tmp_path / "ch5"
+    folder.mkdir()
+    for name, mse, ours in (("none", 8.0, 1.0), ("fs-1", 5.5, 1.2)):
+        write_metrics(folder / f"{name}.metrics.parquet", [("all", "mse_fold_mean", mse), ("all", "mse_fold_sd", 0.5)])
+        write_metrics(folder / f"deform-gru@set={name}.metrics.parquet", [("all", "mse_fold_mean", ours), ("all", "mse_fold_sd", 0.1)])
+    page = tmp_path / "page.md"
+    results.main(["ch5", str(folder), str(page), "--figures", str(tmp_path / "fig")])
+    text = page.read_text()
+    assert "| FS-1 | 5.500 | 0.500 | 0 | -31% | 5.51 (0.41) | 1.200 | 0.100 | +20% |" in text
+    assert "0 of 1 methods lower its error" in text
+
+
+def shell_paths(**env):
+    """OUT, RESULTS and FIGURES as lib.sh sets them, or its exit status and stderr when it refuses."""
+    import os
+
+    script = f'source "{EXAMPLES}/lib.sh"; echo "$OUT"; echo "$RESULTS"; echo "$FIGURES"'
+    return subprocess.run(["bash", "-c", script], capture_output=True, text=True, env={**os.environ, **env})
+
+
+def test_a_quick_run_writes_under_examples_only(tmp_path):
+    done = shell_paths(MODE="quick", OUT=str(tmp_path / "q"))
+    assert done.returncode == 0
+    assert done.stdout.split() == [str(tmp_path / "q"), str(tmp_path / "q" / "results.md"), str(tmp_path / "q" / "figures")]
+    default = shell_paths(MODE="quick")
+    assert all(pathlib.Path(path).resolve().is_relative_to(EXAMPLES) for path in default.stdout.split())
+
+
+@pytest.mark.parametrize("target", ["RESULTS", "FIGURES", "OUT", "NEUROTAC_CACHE"])
+def test_a_quick_run_cannot_write_into_docs(tmp_path, target):
+    docs = EXAMPLES.parent / "docs"
+    before = sorted((path, path.stat().st_mtime_ns) for path in docs.rglob("*"))
+    where = docs / "results.md" if target == "RESULTS" else docs / "x" / ".." / "results"
+    done = shell_paths(MODE="quick", **{"OUT": str(tmp_path / "q"), target: str(where)})
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "error: a quick run cannot write to" in done.stderr
+    assert sorted((path, path.stat().st_mtime_ns) for path in docs.rglob("*")) == before
+    standard = shell_paths(MODE="standard", OUT=str(tmp_path / "s"))
+    assert standard.stdout.split()[1] == str(EXAMPLES / ".." / "docs" / "results.md")
 
 
 def test_frames_tool_selects_by_label_and_stacks_originals_with_copies(tmp_path):

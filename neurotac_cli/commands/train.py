@@ -9,7 +9,7 @@ from neurotac_cli.options import (PlotPath, TablePath, history, hyperparameter_o
 @input_paths
 @click.option("--model", "model_name", type=click.Choice(FORCE_MODELS + MATERIAL_MODELS), required=True,
               help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), deform-gru (ours); "
-              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves.")
+              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves, material-timing (loading timing, linear discriminant).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
 @hyperparameter_options
 @validation_options

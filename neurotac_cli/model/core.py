@@ -258,7 +258,7 @@ def _train_material(name, config, fit_config, train_set, val_set, input_spec, tr
     x = torch.as_tensor(material.features(train_set, config))
     y = encode(train_set)
     net = material.Net(config, len(classes))
-    net.calibrate(x.numpy())
+    net.calibrate(x.numpy(), y.numpy())
     val_x = torch.as_tensor(material.features(val_set, config)) if len(val_set) else None
     val_y = encode(val_set) if len(val_set) else None
     loss = torch.nn.CrossEntropyLoss()
