@@ -17,6 +17,15 @@ class InputError(NeurotacError):
     """Input that cannot be read: a missing file, an unknown format, a stream cut short."""
 
 
+def cannot_open(path, error: OSError) -> InputError:
+    """The one-line error for an input path that cannot be opened for reading."""
+    if isinstance(error, FileNotFoundError):
+        return InputError(f"{path}: no such file")
+    if isinstance(error, PermissionError):
+        return InputError(f"{path}: permission denied")
+    return InputError(f"{path}: cannot open ({error.strerror})")
+
+
 class SchemaError(NeurotacError):
     """A table of the wrong kind, or with missing, mistyped or out-of-range columns."""
 

@@ -21,7 +21,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 
 from neurotac_cli import __version__, bridges, schema as sch
-from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError
+from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, cannot_open
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -112,12 +112,8 @@ def open_binary(path: str):
         raise InputError(f"{path} is a directory, not a file")
     try:
         return open(path, "rb")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except PermissionError:
-        raise InputError(f"{path}: permission denied") from None
     except OSError as error:
-        raise InputError(f"{path}: cannot open ({error.strerror})") from None
+        raise cannot_open(path, error) from None
 
 
 def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBatch]]]:

@@ -116,10 +116,6 @@ def test_no_import_circle_inside_the_package():
 
 
 LONGEST_FUNCTION = 60  # lines, decorators excluded
-# Functions still longer, to be split: only ops/frame.py, io/kernels.py and sim/ may appear here.
-STILL_LONG = {
-    "sim/dvs.py:simulate_contacts",
-}
 
 
 def _is_numba_kernel(node) -> bool:
@@ -144,12 +140,8 @@ def long_functions(package: pathlib.Path = PACKAGE) -> list:
     return found
 
 
-def test_the_allow_list_of_long_functions_holds_only_frame_kernels_and_simulator_code():
-    assert all(entry.split(":")[0] in ("ops/frame.py", "io/kernels.py") or entry.startswith("sim/") for entry in STILL_LONG)
-
-
 def test_no_function_is_longer_than_60_lines_outside_the_numba_kernels():
-    too_long = [f"{name} ({lines} lines)" for name, lines in long_functions() if name not in STILL_LONG]
+    too_long = [f"{name} ({lines} lines)" for name, lines in long_functions()]
     assert not too_long, "split these functions: " + ", ".join(too_long)
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import FormatError, InputError
+from neurotac_cli.errors import FormatError, InputError, cannot_open
 
 STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "es", "dat")
 POLL_S = 0.001  # a followed file is checked for new bytes this often (a pipe wakes the reader itself)
@@ -157,12 +157,8 @@ def _open_fd(path) -> int:
         raise InputError(f"{path} is a directory, not a file (give the camera files inside it)")
     try:
         return os.open(path, os.O_RDONLY)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except PermissionError:
-        raise InputError(f"{path}: permission denied") from None
     except OSError as error:
-        raise InputError(f"{path}: cannot open ({error.strerror})") from None
+        raise cannot_open(path, error) from None
 
 
 def _close(fd: int, path):

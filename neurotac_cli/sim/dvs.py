@@ -174,21 +174,9 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     step = config.step_us
     fm = membrane_force(config, forces, step)
     reach = float(np.abs(motions).max()) if motions.size else 0.0
-    blocks = []
-    for i, g in enumerate(grasps):  # per-grasp set-up (dozens), not per pixel
-        blocks.append(_contact_block(config, camera, g, i, fm[i], motions[i] * (not exact), reach, residual[i]))
-    flat = np.concatenate([b["flat"] for b in blocks])
-    trial = np.concatenate([b["trial"] for b in blocks])
-    xs = np.concatenate([b["x"] for b in blocks])
-    ys = np.concatenate([b["y"] for b in blocks])
-    field = {name: np.concatenate([b[name] for b in blocks]).astype(np.float32)
-             for name in ("rho", "grad_x", "grad_y", "gap", "stiffness", "apothem", "bright", "on", "off", "residual")}
-    # per grasp and step: the flat punch's approach (tilt motion folded in) or the sphere's radius and peak pressure
-    drive = np.stack([b["drive"] for b in blocks]).astype(np.float32)  # (n, K)
-    peak = np.stack([b["peak"] for b in blocks]).astype(np.float32)
-    spread = np.stack([b["spread"] for b in blocks]).astype(np.float32)  # 1 + lateral bulge of the face
-    mx = motions[:, :, 0].astype(np.float32)
-    my = motions[:, :, 1].astype(np.float32)
+    blocks = [_contact_block(config, camera, g, i, fm[i], motions[i] * (not exact), reach, residual[i])  # per grasp, not pixel
+              for i, g in enumerate(grasps)]
+    flat, trial, xs, ys, field, drive, peak, spread = _stack_blocks(blocks)
     is_flat = flat.all()
     is_sphere = (~flat).all()
     bright = field["bright"]
@@ -199,41 +187,19 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
     two_pi_fc = np.float32(2 * np.pi * config.cutoff_hz * step * 1e-6)
     contrast = np.float32(config.object_contrast)
     dark = np.float32(config.dark_level)
-    cap = np.float32(config.edge_factor_max)
-    scale = np.float32(1.0 / config.pressure_scale_pa)
-    inv_pitch = np.float32(1.0 / config.pixel_pitch_mm)
-    # A grasp needs stepping only while it touches and a little after (the filtered level settles).
-    touching = (drive > 0).any(axis=0) | (peak > 0).any(axis=0)
+    touching = (drive > 0).any(axis=0) | (peak > 0).any(axis=0)  # stepped while touching, and 20 ms after (the level settles)
     active = np.convolve(touching.astype(float), np.ones(int(20_000 / step) + 1), mode="full")[:steps] > 0
     out = []
     geometry = _exact_geometry(config, grasps, blocks, trial) if exact else None
     for k in range(steps):  # a loop over time steps; every pixel of every grasp at once
         if not active[k]:
             continue
-        dx = mx[trial, k]
-        dy = my[trial, k]
-        if exact:
-            rho, field["gap"] = geometry(dx, dy)
-            rho = rho / spread[trial, k]
-        else:
-            rho = (field["rho"] - dx * field["grad_x"] - dy * field["grad_y"]) / spread[trial, k]
-        s = np.empty_like(rho)
-        if not is_sphere:
-            # flat punch: rho = hex norm, coverage from the rim distance, Boussinesq rim factor, foundation pressure
-            f = flat if not is_flat else slice(None)
-            r = rho[f]
-            cover = np.clip(np.float32(0.5) + (np.float32(1.0) - r) * field["apothem"][f] * inv_pitch, 0, 1)
-            edge = np.minimum(np.float32(0.5) / np.sqrt(np.clip(np.float32(1.0) - r * r, np.float32(1e-6), None)), cap)
-            pressure = field["stiffness"][f] * np.clip(drive[trial[f], k] - field["gap"][f], 0, None) * edge
-            s[f] = -np.expm1(-pressure * scale) * cover
-        if not is_flat:
-            # Hertz: rho = distance from the centre (mm), drive = contact radius (mm), peak = p0 (Pa)
-            f = ~flat if not is_sphere else slice(None)
-            r = rho[f]
-            a = drive[trial[f], k]
-            inside = np.clip(np.float32(1.0) - (r * r) / np.maximum(a * a, np.float32(1e-12)), 0, None)
-            cover = np.clip(np.float32(0.5) + (a - r) * inv_pitch, 0, 1)
-            s[f] = -np.expm1(-peak[trial[f], k] * np.sqrt(inside) * scale) * cover
+        dx = motions[trial, k, 0].astype(np.float32)
+        dy = motions[trial, k, 1].astype(np.float32)
+        # exact: the geometry at the moved position; else moved to first order
+        rho, field["gap"] = geometry(dx, dy) if exact else (field["rho"] - dx * field["grad_x"] - dy * field["grad_y"], field["gap"])
+        rho = rho / spread[trial, k]
+        s = _shading(config, rho, flat, is_flat, is_sphere, field, drive[trial, k], peak[trial, k])
         intensity = bright * (np.float32(1.0) - contrast * s)
         target = np.log(intensity + dark)
         alpha = -np.expm1(-two_pi_fc * np.maximum(intensity, np.float32(0.02)))
@@ -251,6 +217,47 @@ def simulate_contacts(config, camera: Camera, grasps, forces, motions, residual,
         state.update(x=xs, y=ys, residual=reference - filtered)
     return _split(out, n, trial, xs, ys)
 
+
+def _stack_blocks(blocks):
+    """The grasps' contact blocks as one flat vector of pixels: (flat, trial, x, y, per-pixel fields,
+    and per grasp and step the drive, peak and spread)."""
+    flat = np.concatenate([b["flat"] for b in blocks])
+    trial = np.concatenate([b["trial"] for b in blocks])
+    xs = np.concatenate([b["x"] for b in blocks])
+    ys = np.concatenate([b["y"] for b in blocks])
+    field = {name: np.concatenate([b[name] for b in blocks]).astype(np.float32)
+             for name in ("rho", "grad_x", "grad_y", "gap", "stiffness", "apothem", "bright", "on", "off", "residual")}
+    # per grasp and step: the flat punch's approach (tilt motion folded in) or the sphere's radius and peak pressure
+    drive = np.stack([b["drive"] for b in blocks]).astype(np.float32)  # (n, K)
+    peak = np.stack([b["peak"] for b in blocks]).astype(np.float32)
+    spread = np.stack([b["spread"] for b in blocks]).astype(np.float32)  # 1 + lateral bulge of the face
+    return flat, trial, xs, ys, field, drive, peak, spread
+
+
+def _shading(config, rho, flat, is_flat, is_sphere, field, drive, peak):
+    """The share of each pixel's light the contact takes at one step: flat punches (hex norm, rim
+    coverage, Boussinesq rim factor, foundation pressure) and spheres (Hertz); `drive` and `peak`
+    are each pixel's grasp's approach or contact radius and peak pressure at that step."""
+    cap = np.float32(config.edge_factor_max)
+    scale = np.float32(1.0 / config.pressure_scale_pa)
+    inv_pitch = np.float32(1.0 / config.pixel_pitch_mm)
+    s = np.empty_like(rho)
+    if not is_sphere:
+        f = flat if not is_flat else slice(None)
+        r = rho[f]
+        cover = np.clip(np.float32(0.5) + (np.float32(1.0) - r) * field["apothem"][f] * inv_pitch, 0, 1)
+        edge = np.minimum(np.float32(0.5) / np.sqrt(np.clip(np.float32(1.0) - r * r, np.float32(1e-6), None)), cap)
+        pressure = field["stiffness"][f] * np.clip(drive[f] - field["gap"][f], 0, None) * edge
+        s[f] = -np.expm1(-pressure * scale) * cover
+    if not is_flat:
+        # rho = distance from the centre (mm), drive = contact radius (mm), peak = p0 (Pa)
+        f = ~flat if not is_sphere else slice(None)
+        r = rho[f]
+        a = drive[f]
+        inside = np.clip(np.float32(1.0) - (r * r) / np.maximum(a * a, np.float32(1e-12)), 0, None)
+        cover = np.clip(np.float32(0.5) + (a - r) * inv_pitch, 0, 1)
+        s[f] = -np.expm1(-peak[f] * np.sqrt(inside) * scale) * cover
+    return s
 
 def _exact_geometry(config, grasps, blocks, trial):
     """(dx, dy) -> (rho, gap) of every stepped pixel with each face moved by (dx, dy) pixels."""
