@@ -217,18 +217,30 @@ def under_ulimit(command: str, cwd: Path):
     return subprocess.run(["bash", "-c", f"ulimit -v {LIMIT_KB}; {command}"], capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
-def test_running_out_of_memory_is_one_line_and_leaves_no_output(tmp_path):
-    """Windows of 1 µs over 0.4 s of a 240x180 sensor: 400,000 frames of 170 kB, far past the limit."""
+def _one_trial(tmp_path, span_us: int, width: int, height: int):
     rng = np.random.default_rng(0)
-    t = np.sort(rng.integers(0, 400_000, 5_000))
+    t = np.sort(rng.integers(0, span_us, 5_000))
     recordings = sch.recordings_table(
-        [{"trial": "a", "t0": 0, "events": (t, rng.integers(0, 240, 5_000), rng.integers(0, 180, 5_000), rng.integers(0, 2, 5_000)),
-          "force": (np.arange(0, 400_000, 2000), np.ones(200))}], 240, 180)
+        [{"trial": "a", "t0": 0, "events": (t, rng.integers(0, width, 5_000), rng.integers(0, height, 5_000), rng.integers(0, 2, 5_000)),
+          "force": (np.arange(0, span_us, 2000), np.ones(span_us // 2000))}], width, height)
     tables.write(str(tmp_path / "r.arrows"), recordings)
+
+
+def test_a_window_too_small_for_the_recording_is_one_line_and_leaves_no_output(tmp_path):
+    """Windows of 1 µs over 2 s of a 240x180 sensor: 2,000,000 frames of 170 kB, past the frame limit."""
+    _one_trial(tmp_path, 2_000_000, 240, 180)
     done = under_ulimit("neurotac frame --window 1us -o f.arrows r.arrows", tmp_path)
     assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
-    assert [": error: " in line for line in done.stderr.splitlines()].count(True) == 1
+    assert [": error: " in line for line in done.stderr.splitlines()].count(True) == 1 and "--max-frames" in done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.arrows"]
+
+
+def test_framing_a_recording_into_many_frames_stays_within_a_small_memory_limit(tmp_path):
+    """400,000 frames of 1 µs (32x32) stream to the output under the memory limit: none is held."""
+    _one_trial(tmp_path, 400_000, 32, 32)
+    done = under_ulimit("neurotac frame --window 1us r.arrows | wc -c", tmp_path)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert int(done.stdout) > 400_000 * 2 * 32 * 32 * 2
 
 
 def test_torch_running_out_of_memory_is_one_line(tmp_path):
