@@ -373,8 +373,8 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
     """Write a table, or an iterable of record batches with `schema`, to `output` (None = stdout).
 
     `step = (command, args)` is appended to the history. With an iterable, batches are written
-    as they come, so memory does not grow with the input; `flush_each` hands the schema and each batch
-    on stdout to the reader at once (a live stream) rather than when the pipe's buffer fills.
+    as they come, so memory does not grow with the input; `flush_each` hands each batch on stdout
+    to the reader at once (a live stream) rather than when the pipe's buffer fills.
     """
     if isinstance(data, pa.Table):
         schema = data.schema
@@ -388,8 +388,6 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
         refuse_terminal()
         sink = getattr(sys.stdout, "buffer", sys.stdout)
         writer = ipc.new_stream(sink, schema)
-        if flush_each:  # the reader opens its stream (and loads what it needs) before the first batch
-            sink.flush()
         for batch in batches:
             writer.write_batch(_with_schema(batch, schema))
             if flush_each:

@@ -117,7 +117,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         max_frames=max_frames, sort=sort,
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)
-    tables.write(output, batches, step=("frame", args), schema=schema, flush_each=output in (None, "-"))
+    tables.write(output, flushed(batches) if output in (None, "-") else batches, step=("frame", args), schema=schema)
     for line in report.warnings(lead_in_expected=source.kind == "recordings") + report.notes:
         click.echo(f"neurotac frame: warning: {line}", err=True)
     if source.kind == "events" and report.dropped and not report.warnings():
@@ -126,6 +126,15 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             f"(before start {report.before_start}, after end {report.after_end}, out of time order {report.late})",
             err=True,
         )
+
+
+def flushed(batches):
+    """Each frames batch reaches the reader at once (a live pipe): stdout is flushed once it is written."""
+    import sys
+
+    for batch in batches:
+        yield batch
+        sys.stdout.buffer.flush()
 
 
 def camera_file_stem(schema) -> str | None:

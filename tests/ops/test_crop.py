@@ -1,6 +1,7 @@
 """crop: boxes, centres, pooling on frames, recordings and events; what is cut is counted."""
 
 import os
+import select
 import subprocess
 import sys
 
@@ -181,6 +182,7 @@ def test_a_frame_leaves_crop_through_a_pipe_before_its_input_ends():
         writer = ipc.new_stream(process.stdin, frames.schema)
         writer.write_batch(frames.slice(0, 1).to_batches()[0])
         process.stdin.flush()
+        assert select.select([process.stdout], [], [], 30)[0], "crop held its first frame back"
         reader = ipc.open_stream(process.stdout)
         first = reader.read_next_batch()  # arrives while crop's input is still open
         assert first.column("frame").to_pylist() == [0] and sch.frames_shape(reader.schema) == (5, 6)
