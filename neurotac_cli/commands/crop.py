@@ -18,7 +18,8 @@ class Pool(ParamType):
 @click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="Keep this box: left, top, width, height in pixels.")
 @click.option("--size", type=Size(), default=None, help="Keep a WxH box centred at --center (thesis: 115x115 in ch. 4, 140x150 in ch. 5).")
 @click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
-              help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (recorded in history).")
+              help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (recorded in history; "
+              "`auto` reads the whole input before writing a frame, so on a live stream give X,Y).")
 @click.option("--pool", type=Pool(), default=None, help="Sum KxL neighbouring pixels (2x2: 140x150 -> 70x75), or `all`: one pixel per channel.")
 @click.option("--warn-above", type=click.FloatRange(0, 1), default=0.9, show_default=True,
               help="Warn on stderr when the crop cuts away more than this share of the events or counts (a crop to the "
@@ -27,8 +28,12 @@ class Pool(ParamType):
 def command(paths, output, box, size, center, pool, warn_above, sensor):
     """Crop and sum-pool frames, recordings or events to the contact area.
 
-    The output is the kind that came in, with neurotac:sensor set to the new size. What the box
-    cuts away is counted (events, or frame counts) in history and, above --warn-above, on stderr.
+    The output is the kind that came in, with neurotac:sensor set to the new size. With a fixed box
+    (--box, --size with --center X,Y, or --pool alone) each batch is written, and flushed on stdout,
+    as soon as it arrives (a live pipe flows through, memory stays flat), pooled uint16 counts are
+    written as uint32, and what the box cuts away (events, or frame counts) is counted on stderr at
+    the end; with --center auto the whole input is read first and the count goes to history. Above
+    --warn-above, a warning on stderr.
 
     \b
         neurotac frame --window 10ms < rec.arrows | neurotac crop --size 115x115 --center auto > f.arrows
@@ -41,5 +46,5 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
     spec = crop.CropSpec(box=box, size=size, center=center, pool=pool)
     source = tables.open_input(paths, kind=("frames", "recordings", "events"))
     schema, cropped, report = crop.crop(source.schema, source.batches, spec, sensor=sensor)
-    tables.write(output, cropped, step=history(report=report.history()), schema=schema)
+    tables.write(output, cropped, step=history(report=report.history()), schema=schema, flush_each=output in (None, "-"))
     echo_lines("crop", report.messages(warn_above))

@@ -17,32 +17,59 @@ def command(paths, output, model_path, material_path, threads):
 
     Each trial's recurrent state is carried from frame to frame (nothing is re-run), so a controller
     can read estimates through a pipe while the sensor records. The output equals `eval` on the same
-    frames. A model trained with `train --contacts` runs on unbounded streams (sessions of many
-    grasps) and also writes, per frame, whether it is in contact (`contact_pred`), the phase
-    (`phase_pred`) and a slip flag (`slip_pred`), all from the events alone.
+    frames.
 
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
     """
-    import importlib
     import itertools
-    import threading
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
     from neurotac_cli.model.store import read_header
 
     read_header(model_path)  # a wrong model file fails at once
+    # torch takes seconds to import: torch and the model are loaded beside the wait for the first
+    # frame (in a pipe, while the verbs upstream start), so that frame's force is not delayed by
+    # them, and an empty input is refused without waiting for them
+    loaded = in_background(load_model, model_path, threads)
     source = tables.open_input(paths, kind="frames")
-    # torch takes seconds to import: it is imported beside the wait for the first frame (in a pipe,
-    # while the verbs upstream work), and an empty input is refused without waiting for it
-    threading.Thread(target=importlib.import_module, args=("torch",), daemon=True).start()
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
+    material = models.load(material_path) if material_path else None
+    schema, batches = models.stream(loaded(), source.schema, itertools.chain([first], frames), material=material)
+    tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+
+
+def load_model(path: str, threads: int):
     import torch
 
+    from neurotac_cli import model as models
+
     torch.set_num_threads(max(1, threads))
-    model = models.load(model_path)
-    material = models.load(material_path) if material_path else None
-    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material)
-    tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+    return models.load(path)
+
+
+def in_background(function, *args):
+    """Run `function(*args)` in a daemon thread (the process may exit before it ends); the returned
+    callable waits for its result, or raises its error."""
+    import threading
+
+    outcome = {}
+
+    def run():
+        try:
+            outcome["value"] = function(*args)
+        except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
+            outcome["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+
+    def result():
+        thread.join()
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome["value"]
+
+    return result

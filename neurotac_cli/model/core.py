@@ -326,6 +326,8 @@ def stream_trials(model: Model, schema: pa.Schema, batches):
     check_input(model, schema)
     out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
     states = {}
+    # a first step pays its one-off costs (allocations, kernel choices) now, not on the first frame
+    model.step(np.zeros((1, 1, len(CHANNELS), *sch.frames_shape(schema)), np.float32), np.zeros((1, 1), np.int64))
 
     def run():
         for batch in batches:

@@ -80,12 +80,16 @@ class CropReport:
         return out
 
     def history(self):
-        """The report as the history records it: its figures, or a note for a stream still to run."""
-        return "streamed: the count of cut events is written to stderr" if self.streamed else self.as_dict()
+        """The report as the history records it: its figures; for a stream (its history is written before
+        its first batch), what is known then, and a note that the cut count goes to stderr."""
+        if not self.streamed:
+            return self.as_dict()
+        known = {key: value for key, value in self.as_dict().items() if key not in ("kept", "cut", "counted")}
+        return {**known, "streamed": "the count of what was cut is written to stderr"}
 
     def messages(self, threshold: float) -> list[str]:
         """Lines for stderr once the output is written: a stream's cut count, then the warnings."""
-        counted = [f"cut {self.cut} of {self.kept + self.cut} events"] if self.streamed else []
+        counted = [f"cut {self.cut:.15g} of {self.kept + self.cut:.15g} {self.unit}"] if self.streamed else []
         return counted + [f"warning: {line}" for line in self.warnings(threshold)]
 
     def warnings(self, threshold: float) -> list[str]:
@@ -217,33 +221,64 @@ def pool_counts(counts: np.ndarray, pool, report: CropReport | None = None) -> n
 
 
 def crop_frames(table: pa.Table, box, pool, report: CropReport) -> pa.Table:
-    """Crop and pool a frames table. Pooled uint16 counts that pass 65535 widen the whole table's
-    counts to uint32 (a whole-sensor sum of accumulated counts easily does): nothing is clipped."""
-    height, width = sch.frames_shape(table.schema)
-    x0, y0, w, h = box if box is not None else (0, 0, width, height)
-    new_w, new_h = pooled_size(w, h, pool)
+    """Crop and pool a whole frames table. Pooled uint16 counts that pass 65535 widen the whole
+    table's counts to uint32 (a whole-sensor sum of accumulated counts easily does): nothing is clipped."""
     dtype = np.dtype(table.schema.field("counts").type.value_type.to_pandas_dtype())
-    report.unit = "frame counts"
-    pieces = []
-    for batch in table.to_batches():
-        counts = sch.counts_numpy(batch.column("counts"))
-        inner = counts[:, :, y0:y0 + h, x0:x0 + w]
-        total = float(counts.sum(dtype=np.float64))
-        kept = float(inner.sum(dtype=np.float64))
-        report.kept += kept if dtype.kind == "f" else int(kept)
-        report.cut += (total - kept) if dtype.kind == "f" else int(total - kept)
-        pieces.append((batch, pool_counts(np.ascontiguousarray(inner), pool)))
+    _cropped_frames_schema(table.schema, box, pool, dtype)  # a pool that does not divide the box fails first
+    pieces = [(batch, _crop_counts(batch, box, pool, report)) for batch in table.to_batches()]
     out_dtype = dtype
     if pool is not None and dtype == np.uint16 and any(len(c) and c.max() > MAX_COUNT for _, c in pieces):
         out_dtype = np.dtype(np.uint32)
         report.widened = "uint32"
-    schema = _frames_schema_like(table.schema, new_h, new_w, out_dtype)
-    batches = []
-    for batch, pooled in pieces:
-        columns = list(batch.columns)
-        columns[batch.schema.get_field_index("counts")] = sch.counts_array(pooled.astype(out_dtype))
-        batches.append(pa.RecordBatch.from_arrays(columns, schema=schema))
+    schema = _cropped_frames_schema(table.schema, box, pool, out_dtype)
+    batches = [_frames_batch_like(batch, pooled, schema) for batch, pooled in pieces]
     return pa.Table.from_batches(batches, schema=schema)
+
+
+def crop_frames_batches(schema: pa.Schema, batches, box, pool, report: CropReport):
+    """Crop and pool a frames stream batch by batch; returns (schema, iterator), the report filling as
+    it runs. The output's type is fixed before the first frame, so pooled uint16 counts are written
+    as uint32 (a sum of K*L uint16 counts can pass 65535, and a stream cannot widen later)."""
+    dtype = np.dtype(schema.field("counts").type.value_type.to_pandas_dtype())
+    out_dtype = np.dtype(np.uint32) if pool is not None and dtype == np.uint16 else dtype
+    if out_dtype != dtype:
+        report.widened = "uint32"
+    out_schema = _cropped_frames_schema(schema, box, pool, out_dtype)
+
+    def generate():
+        for batch in batches:
+            yield _frames_batch_like(batch, _crop_counts(batch, box, pool, report), out_schema)
+
+    return out_schema, generate()
+
+
+def _crop_counts(batch: pa.RecordBatch, box, pool, report: CropReport) -> np.ndarray:
+    """One batch's cropped and pooled counts; what the box cuts is counted in `report`."""
+    counts = sch.counts_numpy(batch.column("counts"))
+    height, width = counts.shape[2:]
+    x0, y0, w, h = box if box is not None else (0, 0, width, height)
+    inner = counts[:, :, y0:y0 + h, x0:x0 + w]
+    total = float(counts.sum(dtype=np.float64))
+    kept = float(inner.sum(dtype=np.float64))
+    integer = counts.dtype.kind != "f"
+    report.unit = "frame counts"
+    report.kept += int(kept) if integer else kept
+    report.cut += int(total - kept) if integer else (total - kept)
+    return pool_counts(np.ascontiguousarray(inner), pool)
+
+
+def _cropped_frames_schema(schema: pa.Schema, box, pool, dtype) -> pa.Schema:
+    height, width = sch.frames_shape(schema)
+    _, _, w, h = box if box is not None else (0, 0, width, height)
+    new_w, new_h = pooled_size(w, h, pool)
+    return _frames_schema_like(schema, new_h, new_w, dtype)
+
+
+def _frames_batch_like(batch: pa.RecordBatch, counts: np.ndarray, schema: pa.Schema) -> pa.RecordBatch:
+    columns = list(batch.columns)
+    dtype = schema.field("counts").type.value_type.to_pandas_dtype()
+    columns[batch.schema.get_field_index("counts")] = sch.counts_array(counts.astype(dtype, copy=False))
+    return pa.RecordBatch.from_arrays(columns, schema=schema)
 
 
 def _frames_schema_like(schema: pa.Schema, height: int, width: int, dtype) -> pa.Schema:
@@ -289,29 +324,41 @@ def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropRepor
 
 
 def crop_recordings(table: pa.Table, box, pool, report: CropReport, sensor=None) -> pa.Table:
-    width, height = sensor or sensor_size(table.schema)
+    schema, batches = crop_recordings_batches(table.schema, table.to_batches(), box, pool, report, sensor)
+    return pa.Table.from_batches(list(batches), schema=schema)
+
+
+def crop_recordings_batches(schema: pa.Schema, batches, box, pool, report: CropReport, sensor=None):
+    """Crop a recordings stream trial batch by trial batch; returns (schema, iterator)."""
+    width, height = sensor or sensor_size(schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
-    schema = sch.set_meta(table.schema, sensor=sch.sensor_meta(new_w, new_h))
-    batches = []
-    for batch in table.to_batches():
-        events = batch.column("events")
-        offsets = events.offsets.to_numpy() - events.offsets.to_numpy()[0]
-        values = events.values.slice(events.offsets.to_numpy()[0], offsets[-1]) if len(offsets) else events.values
-        arrays = [values.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
-        (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
-        if inside is not None:
-            kept_before = np.concatenate([[0], np.cumsum(inside)])
-            new_offsets = kept_before[offsets].astype(np.int32)
-        else:
-            new_offsets = offsets.astype(np.int32)
-        report.kept += len(t)
-        report.cut += len(arrays[0]) - len(t)
-        nested = pa.ListArray.from_arrays(pa.array(new_offsets), sch.events_array(t, x, y, p), type=pa.list_(sch.EVENT_STRUCT))
-        columns = list(batch.columns)
-        columns[batch.schema.get_field_index("events")] = nested
-        batches.append(pa.RecordBatch.from_arrays(columns, schema=schema))
-    return pa.Table.from_batches(batches, schema=schema)
+    out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
+
+    def generate():
+        for batch in batches:
+            yield _crop_recordings_batch(batch, box, pool, report, out_schema)
+
+    return out_schema, generate()
+
+
+def _crop_recordings_batch(batch: pa.RecordBatch, box, pool, report: CropReport, schema: pa.Schema) -> pa.RecordBatch:
+    events = batch.column("events")
+    offsets = events.offsets.to_numpy() - events.offsets.to_numpy()[0]
+    values = events.values.slice(events.offsets.to_numpy()[0], offsets[-1]) if len(offsets) else events.values
+    arrays = [values.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
+    (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
+    if inside is not None:
+        kept_before = np.concatenate([[0], np.cumsum(inside)])
+        new_offsets = kept_before[offsets].astype(np.int32)
+    else:
+        new_offsets = offsets.astype(np.int32)
+    report.kept += len(t)
+    report.cut += len(arrays[0]) - len(t)
+    nested = pa.ListArray.from_arrays(pa.array(new_offsets), sch.events_array(t, x, y, p), type=pa.list_(sch.EVENT_STRUCT))
+    columns = list(batch.columns)
+    columns[batch.schema.get_field_index("events")] = nested
+    return pa.RecordBatch.from_arrays(columns, schema=schema)
 
 
 # ---------------------------------------------------------------- one call
@@ -336,18 +383,25 @@ def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None
     return pa.Table.from_batches(list(batches), schema=schema)
 
 
+STREAMERS = {"frames": crop_frames_batches, "events": crop_events_batches, "recordings": crop_recordings_batches}
+
+
 def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Schema, object, CropReport]:
     """`neurotac crop`: (schema, batches or table, report) of a frames, recordings or events input.
 
-    A plain events stream (no automatic centre) is cropped batch by batch, so memory does not grow
-    with it: its report fills as the batches are written. Anything else is read whole (the
-    automatic centre needs all of it) and cropped at once."""
+    With a fixed box (--box, --size with --center X,Y, or only --pool) the input is cropped batch by
+    batch as it arrives, so memory does not grow with it and a live stream flows through; the report
+    fills as the batches are written. The automatic centre needs the whole input: it is read whole."""
     report = CropReport()
+    kind = sch.kind_of(schema) or sch._guess_kind(schema)
     try:
-        if sch.kind_of(schema) == "events" and spec.center != "auto":
-            box = resolve_box(spec, sensor or sensor_size(schema))
+        if spec.center != "auto" and kind in STREAMERS:
+            dims = sensor_size(schema) if kind == "frames" else (sensor or sensor_size(schema))
+            box = resolve_box(spec, dims, report=report)
             report.box, report.streamed = (list(box) if box else None), True
-            out_schema, out = crop_events_batches(schema, batches, box, spec.pool, report, sensor=sensor)
+            report.pool = list(spec.pool) if isinstance(spec.pool, tuple) else spec.pool
+            extra = {} if kind == "frames" else {"sensor": sensor}
+            out_schema, out = STREAMERS[kind](schema, batches, box, spec.pool, report, **extra)
             return out_schema, out, report
         table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report, sensor=sensor)
     except OutsideSensorError as error:

@@ -27,6 +27,7 @@ the model's accuracy).
     NEUROTAC_BENCH_LIVE_UNTIL    `import`, `frame`, `crop` or `predict` (default): the last stage of the
                                  pipe, whose output is timed (to see where a delay comes from); for
                                  `import`, a window is out with the first batch holding its last millisecond
+    NEUROTAC_BENCH_LIVE_DUMP     a path: write each window's latency there (window, ms), one a line
 """
 
 import os
@@ -219,6 +220,8 @@ def _read_forces(stdout, ready, arrived):
 def _report(camera: Camera, arrived: dict, memory: list):
     frames = np.array(sorted(k for k in arrived if k < len(camera.closed) and np.isfinite(camera.closed[k])))
     latency = (np.array([arrived[k] for k in frames]) - camera.closed[frames]) * 1000
+    if os.environ.get("NEUROTAC_BENCH_LIVE_DUMP"):  # window, latency (ms) per row, to see when the slow ones come
+        np.savetxt(os.environ["NEUROTAC_BENCH_LIVE_DUMP"], np.c_[frames, latency], fmt="%.3f")
     latency = latency[frames >= 20]  # after the processes have warmed up
     print(f"\nlive pipe to {UNTIL}, {INPUT}, {SECONDS:g} s of camera time at x{SPEED:g}: {len(arrived)} rows out, "
           f"{int(np.isfinite(camera.closed).sum())} windows written")

@@ -1,6 +1,7 @@
 """crop: boxes, centres, pooling on frames, recordings and events; what is cut is counted."""
 
 import os
+import select
 import subprocess
 import sys
 
@@ -146,3 +147,50 @@ def test_a_box_past_a_sensor_guessed_from_the_events_says_how_to_give_the_size(t
     lines = done.stderr.decode().strip().splitlines()
     assert done.returncode == 1 and len(lines) == 1
     assert "larger than the 20x15 input" in lines[0] and "neurotac import --sensor WxH" in lines[0]
+
+
+# ---------------------------------------------------------------- streams
+
+
+@pytest.mark.parametrize("spec", [cr.CropSpec(box=(2, 3, 12, 10)), cr.CropSpec(size=(12, 10), center=(10, 9), pool=(2, 2)),
+                                  cr.CropSpec(pool="all")])
+def test_a_streamed_crop_equals_the_crop_of_the_whole_table(spec):
+    frames, events = frames_of(3)
+    small = frames.to_batches(max_chunksize=2)  # a stream arrives a few frames at a time
+    schema, batches, report = cr.crop(frames.schema, iter(small), spec)
+    assert report.streamed and report.kept == 0  # nothing is read before the first batch is asked for
+    streamed = pa.Table.from_batches(list(batches), schema=schema)
+    whole_report = cr.CropReport()
+    whole = cr.crop_table(frames, spec, whole_report)
+    assert sch.frames_shape(streamed.schema) == sch.frames_shape(whole.schema)
+    assert np.array_equal(sch.counts_numpy(streamed.column("counts")), sch.counts_numpy(whole.column("counts")))
+    assert streamed.drop_columns(["counts"]).equals(whole.drop_columns(["counts"]))
+    assert (report.kept, report.cut) == (whole_report.kept, whole_report.cut) and report.kept + report.cut == len(events[0])
+    recordings = sch.recordings_table([{"trial": "a", "t0": 0, "events": events, "force": (np.zeros(1), np.zeros(1))}], W, H)
+    schema, batches, _ = cr.crop(recordings.schema, iter(recordings.to_batches()), spec)
+    assert pa.Table.from_batches(list(batches), schema=schema).equals(cr.crop_table(recordings, spec), check_metadata=True)
+
+
+def test_a_frame_leaves_crop_through_a_pipe_before_its_input_ends():
+    """The input stays open: the first cropped frame must arrive while crop still waits for more."""
+    import pyarrow.ipc as ipc
+
+    frames, _ = frames_of(4)
+    process = subprocess.Popen(["neurotac", "crop", "--size", "12x10", "--center", "10,9", "--pool", "2x2"],
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        writer = ipc.new_stream(process.stdin, frames.schema)
+        writer.write_batch(frames.slice(0, 1).to_batches()[0])
+        process.stdin.flush()
+        assert select.select([process.stdout], [], [], 30)[0], "crop held its first frame back"
+        reader = ipc.open_stream(process.stdout)
+        first = reader.read_next_batch()  # arrives while crop's input is still open
+        assert first.column("frame").to_pylist() == [0] and sch.frames_shape(reader.schema) == (5, 6)
+        assert process.poll() is None
+        writer.write_batch(frames.slice(1).to_batches()[0])
+        writer.close()
+        process.stdin.close()
+        assert reader.read_all().num_rows == frames.num_rows - 1 and process.wait(timeout=30) == 0
+        assert b"cut " in process.stderr.read()
+    finally:
+        process.kill()
