@@ -91,6 +91,19 @@ def test_frames_through_duckdb_and_polars_score_the_same_in_eval(tmp_path):
         assert rows == expected
 
 
+def test_frames_through_pandas_score_the_same_in_eval(tmp_path):
+    pytest.importorskip("pandas")
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("tdnn", epochs=2), seed=0)
+    _, expected = evaluate.evaluate_model(model, frames)
+    frame = frames.to_pandas()  # counts become flat numpy arrays, one per row
+    frame.to_parquet(tmp_path / "p.parquet")
+    back = tables.read([str(tmp_path / "p.parquet")], kind="frames")
+    assert back.schema.field("counts").type == frames.schema.field("counts").type
+    _, rows = evaluate.evaluate_model(model, back)
+    assert rows == expected
+
+
 def test_evlib_events_with_a_duration_and_signed_polarity(tmp_path):
     t = pa.array([1_000, 2_500, 4_000], pa.duration("us"))
     evlib = pa.table({"x": pa.array([1, 2, 3], pa.int16()), "y": pa.array([0, 1, 2], pa.int16()), "t": t,
