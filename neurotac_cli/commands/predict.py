@@ -26,50 +26,16 @@ def command(paths, output, model_path, material_path, threads):
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
-    from neurotac_cli.model.store import read_header
+    from neurotac_cli.model.store import load_in_background, read_header
 
     read_header(model_path)  # a wrong model file fails at once
     # torch takes seconds to import: torch and the model are loaded beside the wait for the first
     # frame (in a pipe, while the verbs upstream start), so that frame's force is not delayed by
     # them, and an empty input is refused without waiting for them
-    loaded = in_background(load_model, model_path, threads)
+    loaded = load_in_background(model_path, threads)
     source = tables.open_input(paths, kind="frames")
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
     material = models.load(material_path) if material_path else None
     schema, batches = models.stream(loaded(), source.schema, itertools.chain([first], frames), material=material)
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)
-
-
-def load_model(path: str, threads: int):
-    import torch
-
-    from neurotac_cli import model as models
-
-    torch.set_num_threads(max(1, threads))
-    return models.load(path)
-
-
-def in_background(function, *args):
-    """Run `function(*args)` in a daemon thread (the process may exit before it ends); the returned
-    callable waits for its result, or raises its error."""
-    import threading
-
-    outcome = {}
-
-    def run():
-        try:
-            outcome["value"] = function(*args)
-        except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
-            outcome["error"] = error
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-
-    def result():
-        thread.join()
-        if "error" in outcome:
-            raise outcome["error"]
-        return outcome["value"]
-
-    return result

@@ -83,3 +83,32 @@ def load(path: str):
     except RuntimeError as error:
         raise ModelError(f"{path}: weights do not match the header's architecture ({str(error).splitlines()[0]})") from None
     return Model(name, config, net, spec, header.get("classes"), header.get("training"))
+
+
+def load_in_background(path: str, threads: int = 1):
+    """Start loading a model file (torch's import included, which takes seconds) in a daemon thread;
+    the returned callable waits for the model, or raises the loader's error. A verb reading a pipe
+    loads its model while the verbs upstream start, not after its first input arrives."""
+    import threading
+
+    outcome = {}
+
+    def run():
+        try:
+            import torch
+
+            torch.set_num_threads(max(1, threads))
+            outcome["model"] = load(path)
+        except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
+            outcome["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+
+    def result():
+        thread.join()
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome["model"]
+
+    return result
