@@ -77,3 +77,17 @@ def test_aedat4_is_read_by_the_reference_decoder(tmp_path):
     decoded = np.concatenate([packet["events"] for packet in decoder])
     for name, column in zip(("t", "x", "y", "on"), columns(table)):
         np.testing.assert_array_equal(decoded[name].astype(np.int64), column)
+
+
+def test_evt3_is_read_back_equal_by_evlib(tmp_path):
+    evlib = pytest.importorskip("evlib")
+    table = events()
+    export(table, str(tmp_path / "e.raw"))
+    theirs = evlib.load_events(str(tmp_path / "e.raw"))
+    theirs = theirs.collect() if hasattr(theirs, "collect") else theirs
+    t = theirs["t"]
+    t = t.dt.total_microseconds() if t.dtype.is_temporal() else t
+    assert t.to_numpy().tolist() == table.column("t").to_pylist()
+    assert theirs["x"].to_numpy().tolist() == table.column("x").to_pylist()
+    assert theirs["y"].to_numpy().tolist() == table.column("y").to_pylist()
+    assert (theirs["polarity"].to_numpy() > 0).astype(int).tolist() == table.column("p").to_pylist()
