@@ -1,4 +1,5 @@
-"""Force models on sessions of many grasps: the table of issue 15's goals.
+"""Force models on sessions of many grasps: error in contact against the same grasps cut into trials,
+at rest, drift, contact and slip detection, in one table.
 
 Simulates training and test sessions (`neurotac simulate --session`, test seeds that training never
 saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),

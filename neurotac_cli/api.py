@@ -151,6 +151,11 @@ class Stepper:
     def __init__(self, model):
         if model.task != "force":
             raise NeurotacError(f"model {model.name!r} classifies materials; only force models are stepped")
+        from neurotac_cli.model.session import is_session_model
+
+        if is_session_model(model):
+            raise NeurotacError(f"model {model.name!r} was trained on contacts (train --contacts) and needs its contact "
+                                "detector: feed it through neurotac_cli.model.stream, as `neurotac predict` does")
         self.model, self.state = model, None
 
     def step(self, counts: np.ndarray, t_us) -> np.ndarray:

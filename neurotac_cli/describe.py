@@ -419,7 +419,8 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     from neurotac_cli.io import camera, events
 
     paths = list(paths) or ["-"]
-    is_tables = [camera.is_table(path) or not _exists(path) for path in paths]
+    # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes)
+    is_tables = [not _exists(path) or camera.is_table(path) for path in paths]
     if all(is_tables):
         opened = tables.open_input(paths, allow_empty=True)
         return describe(opened.schema, opened.batches, everything=everything)

@@ -41,6 +41,9 @@ def evt3_bytes(t, x, y, p, width: int, height: int) -> tuple[bytes, int]:
     t = np.asarray(t, dtype=np.int64)
     if len(t) and np.any(np.diff(t) < 0):
         raise NeurotacError("EVT 3.0 cannot go back in time: the events are not in time order (sort them by t first)")
+    if len(t) and t[0] < 0:
+        raise NeurotacError(f"EVT 3.0 times start at 0, the first event is at {int(t[0])} µs (export a recordings trial "
+                            "with --trial, which puts it back on the camera's clock, or shift the times)")
     if width > 2048 or height > 2048:
         raise NeurotacError(f"EVT 3.0 addresses 2048x2048 pixels at most, the sensor is {width}x{height}")
     header = f"% evt 3.0\n% format EVT3;height={height};width={width}\n% geometry {width}x{height}\n% end\n".encode()

@@ -91,3 +91,9 @@ def test_evt3_is_read_back_equal_by_evlib(tmp_path):
     assert theirs["x"].to_numpy().tolist() == table.column("x").to_pylist()
     assert theirs["y"].to_numpy().tolist() == table.column("y").to_pylist()
     assert (theirs["polarity"].to_numpy() > 0).astype(int).tolist() == table.column("p").to_pylist()
+
+
+def test_events_before_time_zero_are_refused_in_one_line(tmp_path):
+    table = sch.events_table([-5, 3], [0, 1], [0, 1], [1, 0], 4, 4)
+    with pytest.raises(NeurotacError, match="first event is at -5"):
+        evt3_bytes(*columns(table), 4, 4)

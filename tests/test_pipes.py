@@ -84,3 +84,15 @@ def test_info_after_crop_does_not_claim_the_file_gave_the_size():
     sensor = [line for line in done.stdout.decode().splitlines() if line.startswith("sensor")]
     assert done.returncode == 0 and sensor and sensor[0].split()[1] == "100x80"
     assert "from the file" not in sensor[0]
+
+
+def test_sync_and_info_read_a_process_substitution(tmp_path):
+    """A pipe's first bytes are not peeked at and lost: sync and info take `<(...)` like a file."""
+    sim = tmp_path / "sim"
+    assert sh(f"neurotac simulate --preset ch4 --trials 1 --seed 3 --out {sim}").returncode == 0
+    camera = next(p for p in sim.glob("*.aedat") if p.name != "still.aedat")
+    force = sim / f"{camera.stem}_force.csv"
+    synced = sh(f"neurotac sync <(cat {camera}) --force {force} -o {tmp_path / 'r.arrows'}")
+    assert synced.returncode == 0, synced.stderr
+    described = sh(f"neurotac info <(cat {tmp_path / 'r.arrows'})")
+    assert described.returncode == 0 and b"recordings" in described.stdout, described.stderr

@@ -2,7 +2,7 @@
 
 import click
 
-from neurotac_cli.options import Duration, Size, history, output_option
+from neurotac_cli.options import Duration, Size, echo_lines, history, output_option
 
 FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"]
 
@@ -71,19 +71,9 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     stop = _stop_on_signals() if is_live else (lambda: False)
     stream = events.import_events(paths, sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
                                 speed=(speed or 1.0) if realtime else None, stop=stop)
-    rows = [0]
-
-    def counted():
-        for batch in stream.batches:
-            rows[0] += batch.num_rows
-            yield batch
-            if is_live and output in (None, "-"):
-                click.get_binary_stream("stdout").flush()  # each batch goes on as soon as it is read
-
-    tables.write(output, counted(), schema=stream.schema, step=history(paths=paths))
-    for note in stream.notes:
-        click.echo(f"neurotac import: warning: {note}", err=True)
-    if not rows[0]:
+    tables.write(output, stream.batches, schema=stream.schema, step=history(paths=paths), flush_each=is_live)
+    echo_lines("import", stream.notes, prefix="warning: ")
+    if not stream.rows:
         click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)
 
 

@@ -29,13 +29,15 @@ def command(paths, output, model_path, material_path, threads):
     from neurotac_cli.model.store import load_in_background, read_header
 
     read_header(model_path)  # a wrong model file fails at once
+    if material_path:
+        read_header(material_path)
     # torch takes seconds to import: torch and the model are loaded beside the wait for the first
     # frame (in a pipe, while the verbs upstream start), so that frame's force is not delayed by
     # them, and an empty input is refused without waiting for them
     loaded = load_in_background(model_path, threads)
+    material = load_in_background(material_path, threads) if material_path else lambda: None
     source = tables.open_input(paths, kind="frames")
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
-    material = models.load(material_path) if material_path else None
-    schema, batches = models.stream(loaded(), source.schema, itertools.chain([first], frames), material=material)
+    schema, batches = models.stream(loaded(), source.schema, itertools.chain([first], frames), material=material())
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)

@@ -79,4 +79,12 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
         stream = live.Stream(*import_files(paths, sensor=sensor, fmt=fmt))
     if speed is not None:
         stream.batches = live.replay(stream.batches, speed, stop)
+    stream.batches = _counted(stream, stream.batches)
     return stream
+
+
+def _counted(stream: live.Stream, batches):
+    """The batches, counting their events into `stream.rows` as they pass."""
+    for batch in batches:
+        stream.rows += batch.num_rows
+        yield batch

@@ -46,6 +46,7 @@ class Stream:
     schema: pa.Schema
     batches: Iterator[pa.RecordBatch]
     notes: list = field(default_factory=list)
+    rows: int = 0  # events read so far (by `io.events.import_events`'s batches)
 
 
 def is_stream(path) -> bool:

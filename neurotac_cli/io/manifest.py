@@ -37,7 +37,7 @@ class ForceOptions:
 
 def read_camera(path: str, sensor=None) -> pa.Table:
     """A camera file in any format `import` reads, or an events table, as one events table."""
-    if is_table(path):
+    if os.path.isfile(path) and is_table(path):  # a pipe is not peeked at: its first bytes would be lost
         table = tables.read([path], kind="events")
         if sensor is not None:
             table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)

@@ -12,14 +12,12 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
 - touching -> releasing on an ON-dominated burst (`dominance` times more ON than OFF events);
 - releasing -> rest: with a force model (`end_by_force`), once its estimate has stayed under
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
-  tightens it 6-18 frames later: ending at the first low frame split 7 of 11 re-grasps into two
-  contacts on a simulated 50-grasp session), or once the OFF activity since the burst has been at the
-  background's level for about `quiet_frames` frames (a hold keeps a ripple of OFF events: a
-  20-frame mean 9.2 or more in 95% of holds, at most 10.2 at rest, background 8.6, on simulated
-  sessions at 40x30); alone, when the ON events of that run of bursts reach
-  `release_share` of the OFF events since the onset. The event counts alone cannot tell a full
-  release from a partial one or a re-grasp (measured on simulated sessions: ON-run / OFF-since
-  0.005-0.42 at full releases, up to 0.39 inside a grasp), the force estimate can.
+  tightens it some frames later, so the first low frame is not yet the end), or once the OFF
+  activity since the burst has been at the background's level for about `quiet_frames` frames (a
+  hold keeps a ripple of OFF events above the background); alone, when the ON events of that run
+  of bursts reach `release_share` of the OFF events since the onset. The event counts alone cannot
+  tell a full release from a partial one or a re-grasp (their ranges overlap on simulated sessions),
+  the force estimate can. The figures that chose these rules are in docs/journal.md.
 
 The background (mean OFF and ON counts per frame) is a running mean over rest frames with a time
 constant of `background_frames`, so slow illumination changes and hot pixels move it. The OFF sum

@@ -11,7 +11,8 @@ automatically, and refused when it was given.
 
 Pooling sums K x L neighbouring pixels (K along x, L along y): 140x150 pooled 2x2 gives 70x75
 (thesis 5.4.1). `pool="all"` keeps one pixel per channel (thesis ch. 3: no spatial information).
-Pooled uint16 counts that pass 65535 widen the table's counts to uint32 (recorded in history).
+Pooled uint16 counts are never clipped: streamed (a fixed box) they are uint32, read whole they widen
+to uint32 when a sum passes 65535 (recorded in history).
 
 What lies outside the box is counted (events, or frame counts) in a `CropReport`.
 """

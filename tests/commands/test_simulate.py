@@ -79,9 +79,7 @@ def test_out_writes_camera_files_force_logs_still_and_manifest(dataset):
 
 
 def test_camera_files_read_back_with_the_project_reader(dataset):
-    io = pytest.importorskip("neurotac_cli.io")
-    if not hasattr(io, "read_events_table"):
-        pytest.skip("reader not available yet")
+    from neurotac_cli import io
     with open(dataset / "manifest.csv") as handle:
         row = next(csv.DictReader(handle))
     table = io.read_events_table(str(dataset / row["events"]))
