@@ -222,6 +222,8 @@ def header_length(fmt: str, data: bytes, at_end: bool) -> int | None:
                 raise FormatError(f"the camera header is cut short: the input ended mid-line after {len(data)} bytes (is it the whole file?)")
             return None
         # a DAT header is followed by its event type and size bytes (absent in a file with no events)
+        if fmt == "dat" and len(data) < found + 2 and not at_end:
+            return None
         length = found + 2 if fmt == "dat" and len(data) >= found + 2 else found
     if length <= len(data):
         return length

@@ -109,8 +109,9 @@ class Dat(_Records):
     def __init__(self, header: bytes, sensor):
         from neurotac_cli.io import prophesee
 
-        _, fields = prophesee.header_of(None, header[:-2])
-        if len(header) >= 2 and header[-2:-1] != b"%":
+        typed = not header.endswith(b"\n")  # the type and size bytes follow the lines (not in a file with no events)
+        _, fields = prophesee.header_of(None, header[:-2] if typed else header)
+        if typed:
             prophesee.check_dat_kind(header[-2:])
         self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
         self.state = {"last": None, "loop": 0}
