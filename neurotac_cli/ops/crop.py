@@ -89,8 +89,9 @@ class CropReport:
         return {**known, "streamed": "the count of what was cut is written to stderr"}
 
     def messages(self, threshold: float) -> list[str]:
-        """Lines for stderr once the output is written: a stream's cut count, then the warnings."""
-        counted = [f"cut {self.cut:.15g} of {self.kept + self.cut:.15g} {self.unit}"] if self.streamed else []
+        """Lines for stderr once the output is written: a stream's cut count (when it cut anything: its
+        history cannot hold it), then the warnings."""
+        counted = [f"cut {self.cut:.15g} of {self.kept + self.cut:.15g} {self.unit}"] if self.streamed and self.cut else []
         return counted + [f"warning: {line}" for line in self.warnings(threshold)]
 
     def warnings(self, threshold: float) -> list[str]:
