@@ -169,17 +169,24 @@ def write_dataset(simulation: Simulation, folder: str) -> list[str]:
         written += [path, force_path]
     still = os.path.join(folder, "still.aedat")
     write_aedat2(still, *simulation.still, config.sensor_width, config.sensor_height)
-    rows = manifest_rows(simulation)
-    names = []
+    manifest = write_csv(os.path.join(folder, "manifest.csv"), manifest_rows(simulation))
+    return written + [still, manifest]
+
+
+def write_csv(path: str, rows: list[dict], columns: list | None = None) -> str:
+    """Rows as a CSV file (`columns` first, then every other key in the order met), written whole or not at all."""
+    from neurotac_cli.tables import atomic_file
+
+    names = list(columns or [])
     for row in rows:
-        names += [k for k in row if k not in names]
+        names += [key for key in row if key not in names]
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=names, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    manifest = os.path.join(folder, "manifest.csv")
-    _write_text(manifest, buffer.getvalue())
-    return written + [still, manifest]
+    with atomic_file(path) as temporary, open(temporary, "w", encoding="utf-8", newline="") as sink:
+        sink.write(buffer.getvalue())
+    return path
 
 
 def prepare_folder(folder: str) -> None:

@@ -24,8 +24,6 @@ Memory stays bounded: the recording is generated and written one grasp (and the 
 a time; the largest thing held is one grasp's events.
 """
 
-import csv
-import io
 import os
 from dataclasses import dataclass, field
 
@@ -451,7 +449,7 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
                    min_duration_us: int = 0, progress=None) -> list[str]:
     """Write `sessions` sessions (`sessionNN.aedat`, `sessionNN_force.csv`), manifest.csv and grasps.csv; returns the paths."""
     from neurotac_cli.io.writers import aedat2_bytes
-    from neurotac_cli.sim.run import prepare_folder
+    from neurotac_cli.sim.run import prepare_folder, write_csv
     from neurotac_cli.tables import atomic_file
 
     prepare_folder(folder)
@@ -475,8 +473,8 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
         rows.append(session_row(result))
         grasp_rows += [grasp_row(name, planned) for planned in result.session.grasps]
         written += [events_path, force_path]
-    written.append(_write_csv(os.path.join(folder, "manifest.csv"), rows))
-    written.append(_write_csv(os.path.join(folder, "grasps.csv"), grasp_rows, GRASP_COLUMNS))
+    written.append(write_csv(os.path.join(folder, "manifest.csv"), rows))
+    written.append(write_csv(os.path.join(folder, "grasps.csv"), grasp_rows, GRASP_COLUMNS))
     return written
 
 
@@ -514,18 +512,3 @@ def grasp_row(session_name: str, planned: SessionGrasp) -> dict:
                    slip_force_drop=f"{s.force_drop:.3f}", slip_dx_mm=f"{length_mm * s.direction[0]:.3f}",
                    slip_dy_mm=f"{length_mm * s.direction[1]:.3f}")
     return row
-
-
-def _write_csv(path: str, rows: list[dict], columns: list | None = None) -> str:
-    from neurotac_cli.tables import atomic_file
-
-    names = list(columns or [])
-    for row in rows:
-        names += [key for key in row if key not in names]
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=names, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    with atomic_file(path) as temporary, open(temporary, "w", encoding="utf-8", newline="") as sink:
-        sink.write(buffer.getvalue())
-    return path
