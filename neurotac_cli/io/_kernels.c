@@ -33,6 +33,11 @@ static int take(PyObject *object, Buf *b, int writable, Py_ssize_t item, const c
     return 0;
 }
 
+/* The four event outputs every decoder fills, from b[0]: t (int64), x, y (uint16), p (uint8). */
+static int take_events(PyObject *ot, PyObject *ox, PyObject *oy, PyObject *op, Buf *b) {
+    return take(ot, &b[0], 1, 8, "t") || take(ox, &b[1], 1, 2, "x") || take(oy, &b[2], 1, 2, "y") || take(op, &b[3], 1, 1, "p");
+}
+
 #define ITEMS(b, type) ((b).view.len / (Py_ssize_t)sizeof(type))
 #define DATA(b, type) ((type *)(b).view.buf)
 
@@ -181,8 +186,7 @@ static PyObject *evt3_decode(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOOOOO", &ow, &os, &ot, &ox, &oy, &op)) return NULL;
     Buf b[6];
     memset(b, 0, sizeof b);
-    if (take(ow, &b[0], 0, 2, "words") || take(os, &b[1], 1, 8, "state") || take(ot, &b[2], 1, 8, "t") || take(ox, &b[3], 1, 2, "x") ||
-        take(oy, &b[4], 1, 2, "y") || take(op, &b[5], 1, 1, "p")) { release(b, 6); return NULL; }
+    if (take(ow, &b[0], 0, 2, "words") || take(os, &b[1], 1, 8, "state") || take_events(ot, ox, oy, op, &b[2])) { release(b, 6); return NULL; }
     const unsigned char *w = b[0].view.buf;
     Py_ssize_t n = b[0].view.len / 2, cap = ITEMS(b[2], int64_t);
     int64_t s[7];
@@ -244,8 +248,7 @@ static PyObject *evt2_decode(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOOOOO", &ow, &os, &ot, &ox, &oy, &op)) return NULL;
     Buf b[6];
     memset(b, 0, sizeof b);
-    if (take(ow, &b[0], 0, 4, "words") || take(os, &b[1], 1, 8, "state") || take(ot, &b[2], 1, 8, "t") || take(ox, &b[3], 1, 2, "x") ||
-        take(oy, &b[4], 1, 2, "y") || take(op, &b[5], 1, 1, "p")) { release(b, 6); return NULL; }
+    if (take(ow, &b[0], 0, 4, "words") || take(os, &b[1], 1, 8, "state") || take_events(ot, ox, oy, op, &b[2])) { release(b, 6); return NULL; }
     const unsigned char *w = b[0].view.buf;
     Py_ssize_t n = b[0].view.len / 4, cap = ITEMS(b[2], int64_t);
     int64_t s[3];
@@ -354,8 +357,7 @@ static PyObject *davis_decode(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OLOOOO", &od, &height, &ot, &ox, &oy, &op)) return NULL;
     Buf b[5];
     memset(b, 0, sizeof b);
-    if (take(od, &b[0], 0, 8, "records") || take(ot, &b[1], 1, 8, "t") || take(ox, &b[2], 1, 2, "x") || take(oy, &b[3], 1, 2, "y") ||
-        take(op, &b[4], 1, 1, "p")) { release(b, 5); return NULL; }
+    if (take(od, &b[0], 0, 8, "records") || take_events(ot, ox, oy, op, &b[1])) { release(b, 5); return NULL; }
     const unsigned char *d = b[0].view.buf;
     Py_ssize_t n = b[0].view.len / 8, cap = ITEMS(b[1], int64_t), k = 0;
     int64_t *t = DATA(b[1], int64_t);
@@ -389,8 +391,7 @@ static PyObject *es_decode(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OLLpOOOOO", &od, &width, &height, &atis, &os, &ot, &ox, &oy, &op)) return NULL;
     Buf b[6];
     memset(b, 0, sizeof b);
-    if (take(od, &b[0], 0, 1, "data") || take(os, &b[1], 1, 8, "state") || take(ot, &b[2], 1, 8, "t") || take(ox, &b[3], 1, 2, "x") ||
-        take(oy, &b[4], 1, 2, "y") || take(op, &b[5], 1, 1, "p")) { release(b, 6); return NULL; }
+    if (take(od, &b[0], 0, 1, "data") || take(os, &b[1], 1, 8, "state") || take_events(ot, ox, oy, op, &b[2])) { release(b, 6); return NULL; }
     const unsigned char *d = b[0].view.buf;
     Py_ssize_t n = b[0].view.len, cap = ITEMS(b[2], int64_t), k = 0;
     int64_t *s = DATA(b[1], int64_t), *t = DATA(b[2], int64_t);
@@ -482,8 +483,7 @@ static PyObject *parse_text(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOpLOOOO", &od, &oroles, &comma, &time_digits, &ot, &ox, &oy, &op)) return NULL;
     Buf b[6];
     memset(b, 0, sizeof b);
-    if (take(od, &b[0], 0, 1, "data") || take(oroles, &b[1], 0, 8, "roles") || take(ot, &b[2], 1, 8, "t") || take(ox, &b[3], 1, 2, "x") ||
-        take(oy, &b[4], 1, 2, "y") || take(op, &b[5], 1, 1, "p")) { release(b, 6); return NULL; }
+    if (take(od, &b[0], 0, 1, "data") || take(oroles, &b[1], 0, 8, "roles") || take_events(ot, ox, oy, op, &b[2])) { release(b, 6); return NULL; }
     const unsigned char *data = b[0].view.buf;
     const int64_t *roles = DATA(b[1], int64_t);
     Py_ssize_t n = b[0].view.len, ncols = ITEMS(b[1], int64_t), cap = ITEMS(b[2], int64_t), row = 0, line_start = 0, field = 0;
