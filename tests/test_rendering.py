@@ -120,3 +120,11 @@ def test_colours_are_white_for_nothing_red_for_on_blue_for_off():
     assert image[0, 0].tolist() == [1, 1, 1]
     assert image[0, 1].tolist() == [1, 0, 0]
     assert image[0, 2].tolist() == [0, 0, 1]
+
+
+def test_crop_view_takes_the_centre_found_automatically_from_the_command_line(tmp_path):
+    """As docs/seeing.md runs it: `render --view crop --size WxH --center auto`."""
+    result = run(write_input(tmp_path, frames_table()), "--view", "crop", "--size", "8x8", "--center", "auto",
+                 "-o", str(tmp_path / "c.png"))
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "c.png").stat().st_size > 0

@@ -22,7 +22,7 @@ from neurotac_cli.options import Duration, Size, input_paths
 @click.option("--fps", type=click.FloatRange(0.1, 120), default=10.0, show_default=True, help="Pictures per second of a GIF or MP4.")
 @click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="--view crop: the box, as `neurotac crop --box`.")
 @click.option("--size", type=Size(), default=None, help="--view crop: a WxH box centred at --center, as `neurotac crop --size`.")
-@click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto"), default=None,
+@click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
               help="--view crop: centre of the --size box, X,Y or `auto` (the contact area of the whole input, as crop finds it).")
 def command(paths, output, view, trial, slices, slice_us, columns, every, fps, box, size, center):
     """Draw events, recordings or frames: ON/OFF counts over time, the force under them, a crop box,
