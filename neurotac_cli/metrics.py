@@ -244,7 +244,7 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     t_us, true, pred = np.asarray(t_us, dtype=np.float64), np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
     order = np.lexsort((np.asarray(frame), trial))
     sessions = [order[trial[order] == one] for one in dict.fromkeys(trial[order])]
-    rest = np.isin(phase, REST_PHASES) | np.asarray([p is None for p in phase])
+    rest = np.isin(phase, REST_PHASES)
     known = ~np.isnan(true)
     spread = float(np.nanmax(true) - np.nanmin(true)) if known.any() else float("nan")
     pct = (lambda v: 100 * v / spread) if spread > 0 else (lambda v: float("nan"))
@@ -255,7 +255,7 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     figures = {"rest_frames": int(rest.sum())}
     touching = ~rest & known
     if touching.any():  # the grasps' own frames: comparable between a session and its grasps cut into trials
-        figures["contact_rmse"] = float(np.sqrt(np.mean((pred[touching] - true[touching]) ** 2)))
+        figures["contact_rmse"] = regression(true[touching], pred[touching])["rmse"]
     if len(at_rest):
         figures.update(rest_mean_abs=float(at_rest.mean()), rest_max_abs=float(at_rest.max()),
                        rest_mean_abs_pct_range=pct(float(at_rest.mean())))
@@ -289,7 +289,7 @@ def _grasp_rows(rows, trial, grasp, true, pred) -> dict:
     keys = dict.fromkeys(zip(trial[inside], grasp[inside].astype(int)))
     for one, index in keys:
         mask = inside & (trial == one) & (grasp == index)
-        error = pred[mask] - true[mask]
-        rmse.append(float(np.sqrt(np.mean(error**2))))
-        rows += [(f"grasp:{one}/{index}", "rmse", rmse[-1]), (f"grasp:{one}/{index}", "mae", float(np.mean(np.abs(error))))]
+        figures = regression(true[mask], pred[mask])
+        rmse.append(figures["rmse"])
+        rows += [(f"grasp:{one}/{index}", "rmse", figures["rmse"]), (f"grasp:{one}/{index}", "mae", figures["mae"])]
     return {"grasp_rmse_mean": float(np.mean(rmse)), "grasp_rmse_max": float(np.max(rmse)), "grasps": len(rmse)} if rmse else {}

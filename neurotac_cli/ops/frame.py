@@ -576,7 +576,7 @@ class _StreamFramer:
         self.emitted += len(frames)
         self.report.frames += len(frames)
         phases = self.framing.phases
-        phase = ph.phases_from_ranges(self.emitted, list(phases))[first:] if isinstance(phases, tuple) else None
+        phase = ph.phases_from_ranges(self.emitted, list(phases), start=first) if isinstance(phases, tuple) else None
         return _frames_batch(self.schema, self.framing.trial, frames, None, phase, {}, (), self.window, self.scale, first_frame=first)
 
     def _finish(self):

@@ -94,10 +94,13 @@ def parse_ranges(text: str) -> list[tuple[int, int]]:
     return ranges
 
 
-def phases_from_ranges(n_frames: int, ranges: list[tuple[int, int]]) -> np.ndarray:
-    labels = np.full(n_frames, NONE, dtype=object)
+def phases_from_ranges(n_frames: int, ranges: list[tuple[int, int]], start: int = 0) -> np.ndarray:
+    """The phase of frames `start`..`n_frames - 1` given inclusive (first, last) frame ranges per phase."""
+    labels = np.full(n_frames - start, NONE, dtype=object)
     for name, (first, last) in zip(PHASES, ranges):
-        labels[first:last + 1] = name
+        low, high = max(first, start), min(last + 1, n_frames)
+        if low < high:
+            labels[low - start:high - start] = name
     return labels
 
 
