@@ -24,8 +24,7 @@ def carry(table: pa.Table, inputs: list[pa.Schema]) -> pa.Table:
     its history (`import`'s step) in its metadata: one source stays a dict, several become a list."""
     cameras = []
     for schema in inputs:
-        found = sch.get_meta(schema, sch.SOURCE)
-        cameras += found if isinstance(found, list) else [found] if found else []
+        cameras += sch.camera_sources(schema)
     entries = {}
     if cameras:
         entries["source"] = cameras[0] if len(cameras) == 1 else cameras
@@ -38,6 +37,5 @@ def carry(table: pa.Table, inputs: list[pa.Schema]) -> pa.Table:
 
 def checksums(schema: pa.Schema) -> list[dict]:
     """[{file, sha256}] of the camera files behind a table, for a history entry."""
-    found = sch.get_meta(schema, sch.SOURCE)
-    cameras = found if isinstance(found, list) else [found] if found else []
-    return [{"file": camera.get("file"), "sha256": camera.get("sha256")} for camera in cameras if isinstance(camera, dict)]
+    return [{"file": camera.get("file"), "sha256": camera.get("sha256")} for camera in sch.camera_sources(schema)
+            if isinstance(camera, dict)]

@@ -48,6 +48,12 @@ def camera_source(schema: pa.Schema) -> dict:
     return source if isinstance(source, dict) else {}
 
 
+def camera_sources(schema: pa.Schema) -> list[dict]:
+    """What `import` recorded of every camera file behind a table (one or several)."""
+    found = get_meta(schema, SOURCE)
+    return found if isinstance(found, list) else [found] if found else []
+
+
 def get_meta(schema: pa.Schema, key: str, default=None):
     raw = (schema.metadata or {}).get(key.encode())
     if raw is None:

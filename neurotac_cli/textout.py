@@ -13,6 +13,7 @@ import math
 
 import pyarrow as pa
 
+from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError
 
 FORMATS = ("csv", "json", "ndjson")
@@ -21,7 +22,7 @@ FLAT = "write .parquet, .arrow or .arrows instead; CSV, JSON and NDJSON take pre
 
 def check_writable(schema: pa.Schema, fmt: str) -> None:
     """Refuse columns that `fmt` cannot hold, naming the first one."""
-    kind = (schema.metadata or {}).get(b"neurotac:kind", b'"table"').decode().strip('"')
+    kind = sch.kind_of(schema) or "table"
     for field in schema:
         if isinstance(field.type, pa.BaseExtensionType) or pa.types.is_fixed_size_list(field.type):
             raise NeurotacError(f"cannot write a {kind} table as {fmt.upper()}: column {field.name!r} holds tensors "

@@ -20,11 +20,11 @@ FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"
 )
 @click.option("--follow", is_flag=True, help="Read FILE while the camera still writes it (like `tail -f`), passing events on "
               "as they arrive; ends when FILE stops growing for --idle-timeout, or on Ctrl-C, with the output complete.")
-@click.option("--idle-timeout", type=Duration(), default="2s", show_default=True,
+@click.option("--idle-timeout", type=Duration(positive=True), default="2s", show_default=True,
               help="With --follow: end once FILE (or the pipe) has not grown for this long.")
 @click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
               "when that much time has passed since the first event (to test a controller against a recording).")
-@click.option("--speed", type=float, default=None, help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1].")
+@click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=None, help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1].")
 @click.option("--one-stream", is_flag=True, help="Several files: read them in order as one events table instead of one "
               "trial per file.")
 def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, one_stream):
@@ -55,14 +55,8 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     from neurotac_cli import datasets, tables
     from neurotac_cli.io import events, live
 
-    if follow and len(paths) > 1:
-        raise click.UsageError("--follow reads one file; follow each file in its own `neurotac import`")
     if speed is not None and not realtime:
         raise click.UsageError("--speed sets the pace of a replay: give it with --realtime")
-    if speed is not None and not speed > 0:
-        raise click.BadParameter(f"{speed:g} is not a speed (give a number above 0, e.g. 10 for ten times faster)", param_hint="--speed")
-    if idle_timeout <= 0:
-        raise click.BadParameter("give a duration above 0, e.g. 2s", param_hint="--idle-timeout")
     files = datasets.expand(paths)
     if len(files) > 1 and not one_stream and not (follow or realtime):
         return tables.write(output, datasets.recordings_per_file(files, sensor, fmt), step=history(paths=files))

@@ -8,7 +8,7 @@ from typing import Iterator
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import InputError
+from neurotac_cli.errors import InputError, UsageError
 from neurotac_cli.io import camera, live
 
 
@@ -48,17 +48,18 @@ def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema,
             raise InputError(f"{path} is already a table, not a camera file (pass it to the next command directly)")
         opened.append(read_events(path, sensor, fmt))
     schema = opened[0][0]
-    sizes = {sch.sensor_of(s) for s, _ in opened}
-    if len(sizes) > 1:
-        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, (sch.sensor_of(s) for s, _ in opened)))
+    sizes = [sch.sensor_of(s) for s, _ in opened]
+    if len(set(sizes)) > 1:
+        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, sizes))
         raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
     if len(opened) > 1:
         sources = [sch.get_meta(s, sch.SOURCE) for s, _ in opened]
-        triggers = [t for s, _ in opened for t in (sch.get_meta(s, "neurotac:triggers") or [])]
-        schema = sch.set_meta(schema, source=sources, triggers=triggers if any(sch.get_meta(s, "neurotac:triggers") is not None for s, _ in opened) else None)
+        found = [sch.get_meta(s, "neurotac:triggers") for s, _ in opened]
+        triggers = [t for each in found for t in (each or [])]
+        schema = sch.set_meta(schema, source=sources, triggers=triggers if any(each is not None for each in found) else None)
 
     def batches():
-        for other, part in opened:
+        for _, part in opened:
             for batch in part:
                 yield pa.RecordBatch.from_arrays(batch.columns, schema=schema)
 
@@ -72,7 +73,7 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
     times its recorded pace. `stop()` turning true ends a followed file, a pipe or a replay cleanly."""
     paths = list(paths)
     if follow and len(paths) != 1:
-        raise InputError(f"--follow reads one file at a time, got {len(paths)}; follow each in its own `neurotac import`")
+        raise UsageError(f"--follow reads one file at a time, got {len(paths)}; follow each in its own `neurotac import`")
     if follow or (len(paths) == 1 and live.is_stream(paths[0])):
         stream = live.open_stream(paths[0], sensor, fmt, follow=follow, idle_timeout=idle_timeout, stop=stop)
     else:
