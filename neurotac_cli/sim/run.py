@@ -148,10 +148,16 @@ def manifest_rows(simulation: Simulation) -> list[dict]:
     return rows
 
 
+FORCE_HEADER = "t_ms,force_N\n"
+
+
+def force_lines(t_us: np.ndarray, force_n: np.ndarray) -> str:
+    """Force-log rows as the rig's CSV writes them: time in ms, force in N."""
+    return "".join(f"{t / 1000:g},{v:.4f}\n" for t, v in zip(t_us.tolist(), force_n.tolist()))
+
+
 def force_csv(trial: Trial) -> str:
-    lines = ["t_ms,force_N"]
-    lines += [f"{t / 1000:g},{v:.4f}" for t, v in zip(trial.force_t_us.tolist(), trial.force_n.tolist())]
-    return "\n".join(lines) + "\n"
+    return FORCE_HEADER + force_lines(trial.force_t_us, trial.force_n)
 
 
 def write_dataset(simulation: Simulation, folder: str) -> list[str]:

@@ -449,7 +449,7 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
                    min_duration_us: int = 0, progress=None) -> list[str]:
     """Write `sessions` sessions (`sessionNN.aedat`, `sessionNN_force.csv`), manifest.csv and grasps.csv; returns the paths."""
     from neurotac_cli.io.writers import aedat2_bytes
-    from neurotac_cli.sim.run import prepare_folder, write_csv
+    from neurotac_cli.sim.run import FORCE_HEADER, force_lines, prepare_folder, write_csv
     from neurotac_cli.tables import atomic_file
 
     prepare_folder(folder)
@@ -463,11 +463,11 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
         with atomic_file(events_path) as events_tmp, open(events_tmp, "wb") as events, \
                 atomic_file(force_path) as force_tmp, open(force_tmp, "w", encoding="utf-8", newline="") as forces:
             events.write(aedat2_bytes([], [], [], [], width, height))
-            forces.write("t_ms,force_N\n")
+            forces.write(FORCE_HEADER)
             result = simulate_session(
                 config, seq, n_grasps,
                 lambda t, x, y, p: events.write(aedat2_bytes(t, x, y, p, width, height)[header:]),
-                lambda t, v: forces.write("".join(f"{a / 1000:g},{b:.4f}\n" for a, b in zip(t.tolist(), v.tolist()))),
+                lambda t, v: forces.write(force_lines(t, v)),
                 name, variation, min_duration_us, progress,
             )
         rows.append(session_row(result))
