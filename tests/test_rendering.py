@@ -1,5 +1,7 @@
 """`neurotac render`: every view and picture format is written, readable, and of the size it says."""
 
+import pathlib
+
 import numpy as np
 import pyarrow as pa
 import pytest
@@ -128,3 +130,18 @@ def test_crop_view_takes_the_centre_found_automatically_from_the_command_line(tm
                  "-o", str(tmp_path / "c.png"))
     assert result.exit_code == 0, result.output
     assert (tmp_path / "c.png").stat().st_size > 0
+
+
+def test_every_command_on_the_seeing_page_runs_and_draws_its_picture(tmp_path):
+    """docs/seeing.md's pictures come from its own commands: run them, writing the pictures here."""
+    import re
+    import subprocess
+
+    page = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "seeing.md").read_text()
+    blocks = re.findall(r"```bash\n(.*?)```", page, re.S)
+    script = "".join(blocks).replace("docs/img/", "img/")
+    pictures = re.findall(r"img/(render_\w+\.\w+)", script)
+    (tmp_path / "img").mkdir()
+    done = subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert len(pictures) >= 5 and all((tmp_path / "img" / name).stat().st_size > 0 for name in pictures)
