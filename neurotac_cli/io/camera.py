@@ -214,15 +214,20 @@ def _batches(name, fmt, decoded: Decoded, sensor, schema, cleanup) -> Iterator[p
         for t, x, y, p in _guarded(name, fmt, decoded.chunks()):
             if not len(t):
                 continue
-            if int(x.max()) >= width or int(y.max()) >= height:
-                bad = int(np.count_nonzero((x >= width) | (y >= height)))
-                raise FormatError(
-                    f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
-                    f"y={int(y.max())}); the file is damaged, or give the right size with --sensor WxH"
-                )
+            check_inside(name, x, y, width, height, "file")
             yield sch.events_batch(t, x, y, p, schema)
     finally:
         cleanup()
+
+
+def check_inside(name, x, y, width: int, height: int, what: str) -> None:
+    """Refuse a chunk with events outside the sensor: the `what` (file, stream) is damaged, or its size wrong."""
+    if int(x.max()) >= width or int(y.max()) >= height:
+        bad = int(np.count_nonzero((x >= width) | (y >= height)))
+        raise FormatError(
+            f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
+            f"y={int(y.max())}); the {what} is damaged, or give the right size with --sensor WxH"
+        )
 
 
 def _named(name: str, error: NeurotacError) -> NeurotacError:

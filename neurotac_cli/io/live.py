@@ -266,7 +266,7 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
                 del pending[:usable]
                 t, x, y, p = camera._guarded_call(name, fmt, lambda: decoder.decode(block))
                 if len(t):
-                    _check_inside(name, x, y, width, height)
+                    camera.check_inside(name, x, y, width, height, "stream")
                     yield sch.events_batch(t, x, y, p, schema)
             if decoder.finished:
                 break
@@ -282,15 +282,6 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
     finally:
         decoder.close()
         cleanup()
-
-
-def _check_inside(name, x, y, width, height):
-    if int(x.max()) >= width or int(y.max()) >= height:
-        bad = int(np.count_nonzero((x >= width) | (y >= height)))
-        raise FormatError(
-            f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
-            f"y={int(y.max())}); the stream is damaged, or give the right size with --sensor WxH"
-        )
 
 
 def _decoder(fmt: str, header: bytes, sensor):
