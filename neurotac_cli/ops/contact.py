@@ -84,14 +84,14 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     state.off_since = state.off_since * keep + off
     state.held_before = state.held
     if state.phase == NONE:
-        if off > state.mean_off + max(config.onset_sigma * np.sqrt(state.mean_off + 1.0), config.min_events):
+        if _above(config, off, state.mean_off):
             state.phase, state.onsets = GRASPING, state.onsets + 1
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
         else:
             _update_background(config, state, off, on)
         return state.phase
-    pressing = off > state.mean_off + max(config.onset_sigma * np.sqrt(state.mean_off + 1.0), config.min_events)
-    burst = on > state.mean_on + max(config.onset_sigma * np.sqrt(state.mean_on + 1.0), config.min_events)
+    pressing = _above(config, off, state.mean_off)
+    burst = _above(config, on, state.mean_on)
     if state.released:
         state.since_release += 1
         state.quiet += (off - state.quiet) / config.quiet_frames
@@ -114,6 +114,11 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         state.phase, state.on_run, state.released = NONE, 0.0, False
     state.held = 0 if state.phase == GRASPING else state.held + 1
     return state.phase
+
+
+def _above(config: ContactConfig, count: float, mean: float) -> bool:
+    """A count above the background `mean` by `onset_sigma` Poisson σ and by at least `min_events`."""
+    return count > mean + max(config.onset_sigma * np.sqrt(mean + 1.0), config.min_events)
 
 
 def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> bool:
