@@ -199,15 +199,11 @@ def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
 
 def events_of(recordings: pa.Table, trial: str) -> pa.Table:
     """One trial of a recordings table as an events table, times relative to its t0."""
-    import pyarrow.compute as pc
-
-    row = recordings.filter(pc.equal(recordings.column("trial"), trial))
-    if row.num_rows == 0:
+    found = sch.trial_recording(recordings, trial)
+    if found is None:
         raise NeurotacError(f"no trial {trial!r} in the recordings")
-    events = row.column("events").combine_chunks().flatten()
     sensor = sch.sensor_of(recordings.schema) or (None, None)
-    return sch.events_table(*(events.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")),
-                            width=sensor[0], height=sensor[1])
+    return sch.events_table(*found[1], width=sensor[0], height=sensor[1])
 
 
 def render(table: pa.Table, path: str, **spec) -> dict:

@@ -113,8 +113,6 @@ def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
 def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
     """(t, x, y, p, width, height) of an events table, or of one trial of a recordings table on the
     camera's clock (t0 added back)."""
-    import pyarrow.compute as pc
-
     kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
     sensor = sch.sensor_of(table.schema)
     if sensor is None:
@@ -130,12 +128,10 @@ def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
     if trial is None and len(trials) > 1:
         raise NeurotacError(f"the recordings hold {len(trials)} trials: pick one with --trial (e.g. {trials[0]})")
     name = trial or trials[0]
-    row = table.filter(pc.equal(table.column("trial"), name))
-    if row.num_rows == 0:
+    found = sch.trial_recording(table, name)
+    if found is None:
         raise NeurotacError(f"no trial {name!r} in the recordings (trials: {', '.join(trials[:6])})")
-    events = row.column("events").combine_chunks().flatten()
-    t0 = int(row.column("t0")[0].as_py())
-    t, x, y, p = (events.field(n).to_numpy(zero_copy_only=False) for n in ("t", "x", "y", "p"))
+    t0, (t, x, y, p), _ = found
     return (t.astype(np.int64) + t0, x, y, p, *sensor)
 
 

@@ -105,13 +105,10 @@ def steps_of(table: pa.Table, trial: str, spec: RenderSpec) -> Steps:
     if kind == "frames":
         return _frame_steps(table, trial)
     if kind == "recordings":
-        row = table.filter(pc.equal(table.column("trial"), trial)).slice(0, 1)
-        events = row.column("events").combine_chunks().flatten()
-        force = row.column("force").combine_chunks().flatten()
-        t, x, y, p = (events.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p"))
+        _, (t, x, y, p), (force_t, force_n) = sch.trial_recording(table, trial)
         steps = _slice_steps(trial, t, x, y, p, _sensor(table.schema, x, y), spec)
-        steps.force_t_ms = force.field("t").to_numpy(zero_copy_only=False) / 1000.0
-        steps.force_n = force.field("value").to_numpy(zero_copy_only=False).astype(float)
+        steps.force_t_ms = force_t / 1000.0
+        steps.force_n = force_n.astype(float)
         return steps
     if kind == "events":
         t, x, y, p = (table.column(name).to_numpy() for name in ("t", "x", "y", "p"))

@@ -54,6 +54,21 @@ def camera_sources(schema: pa.Schema) -> list[dict]:
     return found if isinstance(found, list) else [found] if found else []
 
 
+def trial_recording(recordings: pa.Table, trial: str):
+    """One trial of a recordings table: (t0, its events (t, x, y, p) relative to t0, its force (t,
+    value)), or None when the table has no such trial."""
+    import pyarrow.compute as pc
+
+    row = recordings.filter(pc.equal(recordings.column("trial"), trial)).slice(0, 1)
+    if row.num_rows == 0:
+        return None
+    events = row.column("events").combine_chunks().flatten()
+    force = row.column("force").combine_chunks().flatten()
+    columns = tuple(events.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p"))
+    return (int(row.column("t0")[0].as_py()), columns,
+            (force.field("t").to_numpy(zero_copy_only=False), force.field("value").to_numpy(zero_copy_only=False)))
+
+
 def get_meta(schema: pa.Schema, key: str, default=None):
     raw = (schema.metadata or {}).get(key.encode())
     if raw is None:
