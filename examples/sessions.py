@@ -5,7 +5,10 @@ Simulates training and test sessions (`neurotac simulate --session`, test seeds 
 saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),
 adds each frame's slip truth from grasps.csv, trains deform-gru, the thesis's LSTM and ConvLSTM on
 the contacts the event detector finds (`train --contacts`), and scores each on the test sessions and
-on the same grasps cut into trials. Prints a markdown table and writes it to OUT/sessions.md.
+on the same grasps cut into trials. Prints a markdown table and writes it to OUT/sessions.md; the
+full run also writes it into docs/results.md (section "Sessions of many grasps"), the quick run never.
+The run resumes: framed sessions and trained models found in OUT are reused (a model's training time
+is kept beside it in NAME.seconds), so a run cut off, or one adding a model, trains only what is missing.
 
     python examples/sessions.py --quick            # seconds to a minute: tiny sessions, few epochs
     python examples/sessions.py --out out/sessions # the goals' size: 50-grasp sessions of >= 5 min
@@ -29,6 +32,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import tables
+from chapters import replace_section  # beside this script
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
@@ -110,11 +114,20 @@ def score(model, table: pa.Table) -> dict:
     return {metric: value for scope, metric, value in rows if scope == "all"}
 
 
-def train_one(name, train, size, seed=1):
+def train_one(name, train, size, out, seed=1):
+    """The model trained on `train`, and its training's wall seconds; one saved in `out` before is reused."""
+    path, seconds_path = os.path.join(out, f"{name}.model"), os.path.join(out, f"{name}.seconds")
+    if os.path.exists(path) and os.path.exists(seconds_path):
+        with open(seconds_path, encoding="utf-8") as source:
+            return models.load(path), float(source.read())
     spec = models.make_spec(name, **MODELS[name], epochs=size["epochs"][name], patience=size["patience"])
     started = time.monotonic()
     model = session.train(train, spec, val_fraction=0.15, seed=seed)
-    return model, time.monotonic() - started
+    seconds = time.monotonic() - started
+    models.save(model, path)
+    with open(seconds_path, "w", encoding="utf-8") as sink:
+        sink.write(f"{seconds:.1f}\n")
+    return model, seconds
 
 
 def table_rows(results: dict, force_range: float) -> list[str]:
@@ -164,19 +177,37 @@ def main(argv=None):
     force_range = float(np.nanmax(force) - np.nanmin(force))
     results = {}
     for name in args.models.split(","):
-        model, seconds = train_one(name, train, size)
-        models.save(model, os.path.join(out, f"{name}.model"))
+        model, seconds = train_one(name, train, size, out)
         results[name] = (score(model, test), score(model, cut), seconds, score(model, empty))
         print(f"{name}: trained in {seconds:.0f} s", file=sys.stderr)
     minutes = test.num_rows * WINDOW_MS / 60000
     grasps = len(set(cut.column("trial").to_pylist()))
     lines = [f"Test: {size['test_sessions']} session(s), {grasps} grasps, {minutes:.1f} min (seed {TEST_SEED}); "
              f"training: {size['train_sessions']} session(s) of {size['train_grasps']} grasps (seed {TRAIN_SEED}); "
-             f"force range {force_range:.2f} N; frames 40x30 (240x180 pooled 6x6), 10 ms.", ""] + table_rows(results, force_range)
+             f"force range {force_range:.2f} N; frames 40x30 (240x180 pooled 6x6), 10 ms; "
+             f"epochs at most {', '.join(f'{k} {v}' for k, v in size['epochs'].items())}.", ""] + table_rows(results, force_range)
     text = "\n".join(lines) + "\n"
     print(text)
     with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:
         sink.write(text)
+    if publishes(args):
+        publish(text)
+
+
+def publishes(args) -> bool:
+    """Only a run at the goals' size goes on the published page; a quick or resized run stays in OUT."""
+    resized = args.epochs or any(getattr(args, key) is not None for key in ("train_sessions", "train_grasps", "test_sessions"))
+    return not args.quick and not resized
+
+
+def publish(text: str, page: str = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "results.md")):
+    """The table into `page` (docs/results.md), between its `results:sessions` markers."""
+    with open(page, encoding="utf-8") as source:
+        before = source.read()
+    body = f"Made by `make -C examples sessions` (`examples/sessions.py`).\n\n{text}"
+    with open(page, "w", encoding="utf-8") as sink:
+        sink.write(replace_section(before, "sessions", body, title="Sessions of many grasps"))
+    print(f"wrote {os.path.abspath(page)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ to end at a tiny size."""
 import importlib.util
 import pathlib
 import subprocess
+import sys
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -14,6 +15,9 @@ EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 
 
 def load(name):
+    # the example scripts import each other (`from chapters import ...`), as when run from examples/
+    if str(EXAMPLES) not in sys.path:
+        sys.path.insert(0, str(EXAMPLES))
     spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -306,3 +310,21 @@ def test_results_counts_the_nonzero_frames_of_each_phase_per_grasp(tmp_path, mon
     assert line.startswith("Non-zero frames per grasp (min-median-max): grasping 1-1.5-2, holding 1-1.5-2, releasing 1-1-1.")
     assert "in the grasping, holding and releasing phases it rests on at most 2 values" in line and "0.0001 N² floor" in line
     assert "D_B fits" not in results.d_b_caveat({"holding": (22, 25, 29)})[0]
+
+
+def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
+    sessions = load("sessions")
+    parse = lambda *words: sessions.argparse.Namespace(  # noqa: E731
+        quick="--quick" in words, epochs="convlstm=2" if "--epochs" in words else None,
+        train_sessions=1 if "--train-sessions" in words else None, train_grasps=None, test_sessions=None)
+    assert sessions.publishes(parse())
+    assert not sessions.publishes(parse("--quick"))
+    assert not sessions.publishes(parse("--epochs"))
+    assert not sessions.publishes(parse("--train-sessions"))
+    page = tmp_path / "results.md"
+    page.write_text("# Reproduced results\n\n## Chapter 3\n\nkept\n")
+    sessions.publish("| model | RMSE |\n|---|---|\n| deform-gru | 0.5 |\n", str(page))
+    sessions.publish("| model | RMSE |\n|---|---|\n| deform-gru | 0.4 |\n", str(page))
+    text = page.read_text()
+    assert "kept" in text and text.count("## Sessions of many grasps") == 1
+    assert "| deform-gru | 0.4 |" in text and "0.5" not in text

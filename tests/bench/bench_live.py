@@ -28,6 +28,8 @@ the model's accuracy).
                                  pipe, whose output is timed (to see where a delay comes from); for
                                  `import`, a window is out with the first batch holding its last millisecond
     NEUROTAC_BENCH_LIVE_DUMP     a path: write each window's latency there (window, ms), one a line
+    NEUROTAC_BENCH_LIVE_MEMDUMP  a path: write the memory samples there (camera seconds, then each
+                                 process's RSS in kB), one a line, to see whether memory grows or spikes
 """
 
 import os
@@ -228,6 +230,8 @@ def _report(camera: Camera, arrived: dict, memory: list):
     print(f"window close -> its row on stdout: p50 {np.percentile(latency, 50):.2f} ms, p99 {np.percentile(latency, 99):.2f} ms, "
           f"max {latency.max():.2f} ms (goal: p99 < 5 ms)")
     names = STAGES[: 1 + STAGES.index(UNTIL)]
+    if os.environ.get("NEUROTAC_BENCH_LIVE_MEMDUMP"):
+        np.savetxt(os.environ["NEUROTAC_BENCH_LIVE_MEMDUMP"], [[seconds, *rss] for seconds, rss in memory], fmt="%.1f")
     settled_at = 60.0 if SECONDS >= 120 else SECONDS / 4
     settled = next((rss for seconds, rss in memory if seconds >= settled_at), memory[-1][1])
     peak = np.max([rss for _, rss in memory], axis=0)
