@@ -94,4 +94,5 @@ publish() {
   "$PYTHON" "$HERE/chapters.py" "$1" "$DIR" "$RESULTS" --figures "$FIGURES" --run "$run" --protocol "$protocol"
 }
 
-machine() { echo "$(nproc) CPUs, $(uname -m)"; }
+# the machine's cores, not `nproc`'s count, which OMP_NUM_THREADS lowers
+machine() { echo "$(getconf _NPROCESSORS_ONLN) CPUs, $(uname -m)"; }
