@@ -24,6 +24,7 @@ COMMANDS = {
     "eval": ("eval", "Score a model on frames: predictions, metrics, plots, cross-validation."),
     "classify": ("classify", "Predict each trial's material with a trained classifier."),
     "predict": ("predict", "Stream force estimates frame by frame, as frames arrive."),
+    "sense": ("sense", "The sensor in one process: camera in, each window's force out as it closes."),
     "study": ("study", "Run a grid x folds x seeds study, locally or on a Dask cluster."),
     # data: seeing and carrying tables
     "render": ("render", "Draw events, frames, a crop box or augmented copies as PNG, GIF or MP4."),

@@ -125,6 +125,57 @@ def output_option(function):
     )(function)
 
 
+class Pool(ParamType):
+    name = "KxL|all"
+
+    def convert(self, value, param, ctx):
+        if value in (None, "all") or isinstance(value, tuple):
+            return value
+        return Size().convert(value, param, ctx)
+
+
+def crop_box_options(function):
+    """--box, --size, --center, --pool: the contact area to keep (crop, sense)."""
+    for option in reversed([
+        click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="Keep this box: left, top, width, height in pixels."),
+        click.option("--size", type=Size(), default=None, help="Keep a WxH box centred at --center (thesis: 115x115 in ch. 4, 140x150 in ch. 5)."),
+        click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
+                     help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (recorded in history; "
+                     "`auto` reads the whole input before writing a frame, so on a live stream give X,Y)."),
+        click.option("--pool", type=Pool(), default=None, help="Sum KxL neighbouring pixels (2x2: 140x150 -> 70x75), or `all`: one pixel per channel."),
+    ]):
+        function = option(function)
+    return function
+
+
+CAMERA_FORMATS = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"]
+
+
+def camera_input_options(function):
+    """--format, --follow, --idle-timeout, --realtime, --speed: how a camera is read (import, sense)."""
+    for option in reversed([
+        click.option("--format", "fmt", type=click.Choice(CAMERA_FORMATS), default=None,
+                     help="Read the files as this format instead of telling it from their first bytes."),
+        click.option("--follow", is_flag=True, help="Read the file while the camera still writes it (like `tail -f`), passing events on "
+                     "as they arrive; ends when it stops growing for --idle-timeout, or on Ctrl-C, with the output complete."),
+        click.option("--idle-timeout", type=Duration(positive=True), default="2s", show_default=True,
+                     help="With --follow: end once the file (or the pipe) has not grown for this long."),
+        click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
+                     "when that much time has passed since the first event (to test a controller against a recording)."),
+        click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=None,
+                     help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1]."),
+    ]):
+        function = option(function)
+    return function
+
+
+def replay_speed(realtime: bool, speed: float | None) -> float | None:
+    """The replay pace `import_events` takes (None: no replay); --speed alone is a usage error."""
+    if speed is not None and not realtime:
+        raise click.UsageError("--speed sets the pace of a replay: give it with --realtime")
+    return (speed or 1.0) if realtime else None
+
+
 def seed_option(function):
     return click.option(
         "--seed", type=int, default=0, show_default=True, help="Seed of every random draw: same seed, same bytes."

@@ -74,6 +74,7 @@ CASES = {
     "eval": (["eval", "--model", "{d}/m.model", "--metrics", "m.jsn"], ["eval", "--model", "{d}/m.model"]),
     "classify": (["classify", "--model", "{d}/c.model", "-o", "p.txt"], ["classify", "--model", "{d}/c.model"]),
     "predict": (["predict", "--model", "{d}/m.model", "-o", "p.txt"], ["predict", "--model", "{d}/m.model"]),
+    "sense": (["sense", "-", "--model", "{d}/m.model", "-o", "p.txt"], ["sense", "-", "--model", "{d}/m.model"]),
     "render": (["render", "-o", "r.txt"], ["render", "-o", "r.png"]),
     "select": (["select", "-o", "s.arrows"], ["select", "--where", "trial = 'a'"]),
     "concat": (["concat"], ["concat", "-", "{d}/f.arrows"]),

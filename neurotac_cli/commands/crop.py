@@ -1,26 +1,12 @@
 import click
 
-from neurotac_cli.options import IntTuple, ParamType, Size, echo_lines, history, input_paths, output_option
-
-
-class Pool(ParamType):
-    name = "KxL|all"
-
-    def convert(self, value, param, ctx):
-        if value in (None, "all") or isinstance(value, tuple):
-            return value
-        return Size().convert(value, param, ctx)
+from neurotac_cli.options import Size, crop_box_options, echo_lines, history, input_paths, output_option
 
 
 @click.command()
 @input_paths
 @output_option
-@click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="Keep this box: left, top, width, height in pixels.")
-@click.option("--size", type=Size(), default=None, help="Keep a WxH box centred at --center (thesis: 115x115 in ch. 4, 140x150 in ch. 5).")
-@click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
-              help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (recorded in history; "
-              "`auto` reads the whole input before writing a frame, so on a live stream give X,Y).")
-@click.option("--pool", type=Pool(), default=None, help="Sum KxL neighbouring pixels (2x2: 140x150 -> 70x75), or `all`: one pixel per channel.")
+@crop_box_options
 @click.option("--warn-above", type=click.FloatRange(0, 1), default=0.9, show_default=True,
               help="Warn on stderr when the crop cuts away more than this share of the events or counts (a crop to the "
               "contact area normally cuts the background and the LED flash at t0, often over half).")

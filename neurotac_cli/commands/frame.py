@@ -106,6 +106,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         neurotac import rec.aedat | neurotac frame --window 10ms -o frames.parquet
     """
     from neurotac_cli import tables
+    from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.ops import frame as fr
     from neurotac_cli.ops.phases import parse_ranges
 
@@ -127,11 +128,3 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             err=True,
         )
 
-
-def camera_file_stem(schema) -> str | None:
-    """The trial id of the single camera file `import` recorded (`rec.evt3.raw` -> `rec`), if any."""
-    from neurotac_cli import schema as sch
-    from neurotac_cli.io.camera import trial_name
-
-    name = sch.camera_source(schema).get("file")
-    return trial_name(name) if name else None

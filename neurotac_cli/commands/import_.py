@@ -2,29 +2,14 @@
 
 import click
 
-from neurotac_cli.options import Duration, Size, echo_lines, history, output_option
-
-FORMAT_CHOICES = ["aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text"]
+from neurotac_cli.options import Size, camera_input_options, echo_lines, history, output_option, replay_speed
 
 
 @click.command("import")
 @click.argument("paths", nargs=-1, required=True, metavar="FILE...")
 @output_option
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the file does not say (DAT, text), or to override it.")
-@click.option(
-    "--format",
-    "fmt",
-    type=click.Choice(FORMAT_CHOICES),
-    default=None,
-    help="Read the files as this format instead of telling it from their first bytes.",
-)
-@click.option("--follow", is_flag=True, help="Read FILE while the camera still writes it (like `tail -f`), passing events on "
-              "as they arrive; ends when FILE stops growing for --idle-timeout, or on Ctrl-C, with the output complete.")
-@click.option("--idle-timeout", type=Duration(positive=True), default="2s", show_default=True,
-              help="With --follow: end once FILE (or the pipe) has not grown for this long.")
-@click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
-              "when that much time has passed since the first event (to test a controller against a recording).")
-@click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=None, help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1].")
+@camera_input_options
 @click.option("--one-stream", is_flag=True, help="Several files: read them in order as one events table instead of one "
               "trial per file.")
 def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, one_stream):
@@ -55,33 +40,17 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     from neurotac_cli import datasets, tables
     from neurotac_cli.io import events, live
 
-    if speed is not None and not realtime:
-        raise click.UsageError("--speed sets the pace of a replay: give it with --realtime")
+    pace = replay_speed(realtime, speed)
     files = datasets.expand(paths)
     if len(files) > 1 and not one_stream and not (follow or realtime):
         return tables.write(output, datasets.recordings_per_file(files, sensor, fmt), step=history(paths=files))
     paths = files
     is_live = follow or realtime or any(live.is_stream(p) for p in paths)
-    stop = _stop_on_signals() if is_live else (lambda: False)
+    stop = live.stop_on_signals() if is_live else (lambda: False)
     stream = events.import_events(paths, sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
-                                speed=(speed or 1.0) if realtime else None, stop=stop)
+                                speed=pace, stop=stop)
     tables.write(output, stream.batches, schema=stream.schema, step=history(paths=paths), flush_each=is_live)
     echo_lines("import", stream.notes, prefix="warning: ")
     if not stream.rows:
         click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)
 
-
-def _stop_on_signals():
-    """A stop request that Ctrl-C and SIGTERM set instead of interrupting, so live input ends with
-    the output complete; a second signal interrupts as usual."""
-    import signal
-    import threading
-
-    requested = threading.Event()
-
-    def handler(number, frame):
-        requested.set()
-        signal.signal(number, previous[number])
-
-    previous = {number: signal.signal(number, handler) for number in (signal.SIGINT, signal.SIGTERM)}
-    return requested.is_set

@@ -2,8 +2,7 @@
 
 import click
 
-from neurotac_cli.commands.crop import IntTuple
-from neurotac_cli.options import Duration, Size, input_paths
+from neurotac_cli.options import Duration, IntTuple, Size, input_paths
 
 
 @click.command()

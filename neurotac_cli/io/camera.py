@@ -264,3 +264,9 @@ def _short(error: Exception) -> str:
     return text[0][:200] if text else type(error).__name__
 
 
+
+
+def camera_file_stem(schema) -> str | None:
+    """The trial id of the single camera file `import` recorded (`rec.evt3.raw` -> `rec`), if any."""
+    name = sch.camera_source(schema).get("file")
+    return trial_name(name) if name else None

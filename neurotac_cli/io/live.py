@@ -316,3 +316,19 @@ def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable
                 return
             yield batch.slice(begin, end - begin)
         last = int(slices[-1])
+
+
+def stop_on_signals() -> Callable[[], bool]:
+    """A stop request that Ctrl-C and SIGTERM set instead of interrupting, so live input ends with
+    the output complete; a second signal interrupts as usual."""
+    import signal
+    import threading
+
+    requested = threading.Event()
+
+    def handler(number, frame):
+        requested.set()
+        signal.signal(number, previous[number])
+
+    previous = {number: signal.signal(number, handler) for number in (signal.SIGINT, signal.SIGTERM)}
+    return requested.is_set

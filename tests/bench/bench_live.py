@@ -27,6 +27,8 @@ the model's accuracy).
     NEUROTAC_BENCH_LIVE_UNTIL    `import`, `frame`, `crop` or `predict` (default): the last stage of the
                                  pipe, whose output is timed (to see where a delay comes from); for
                                  `import`, a window is out with the first batch holding its last millisecond
+    NEUROTAC_BENCH_LIVE_PIPE     `pipe` (the four processes above; default) or `sense` (the same stages in one
+                                 process: `neurotac sense`, reading the followed file or stdin)
     NEUROTAC_BENCH_LIVE_DUMP     a path: write each window's latency there (window, ms), one a line
     NEUROTAC_BENCH_LIVE_MEMDUMP  a path: write the memory samples there (camera seconds, then each
                                  process's RSS in kB), one a line, to see whether memory grows or spikes
@@ -53,6 +55,7 @@ SPEED = float(os.environ.get("NEUROTAC_BENCH_LIVE_SPEED", "1"))
 INPUT = os.environ.get("NEUROTAC_BENCH_LIVE_INPUT", "follow")
 STAGES = ["import", "frame", "crop", "predict"]
 UNTIL = os.environ.get("NEUROTAC_BENCH_LIVE_UNTIL", "predict")
+PIPE = os.environ.get("NEUROTAC_BENCH_LIVE_PIPE", "pipe")
 STARTUP_S = 20.0
 ENV = dict(os.environ, PATH=os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", ""))
 
@@ -150,7 +153,13 @@ def _rss_kb(pid: int) -> int:
 
 
 def _pipe(folder, camera_path):
-    """The live pipe as four processes, each one's stdout the next one's stdin."""
+    """The live pipe as four processes, each one's stdout the next one's stdin (or `sense`, one process)."""
+    if PIPE == "sense":
+        source = ["--follow", "--idle-timeout", "3600s", str(camera_path)] if INPUT == "follow" else ["-"]
+        command = ["neurotac", "sense", *source, "--model", str(folder / "m.model"), "--threads", "1",
+                   "--window", "10ms", "--size", "115x115", "--center", "120,90"]
+        stdin = subprocess.PIPE if INPUT == "stdin" else subprocess.DEVNULL
+        return [subprocess.Popen(command, stdin=stdin, stdout=subprocess.PIPE, env=ENV)]
     first = ["neurotac", "import", "--follow", "--idle-timeout", "3600s", str(camera_path)] if INPUT == "follow" else ["neurotac", "import", "-"]
     commands = [first, ["neurotac", "frame", "--window", "10ms"], ["neurotac", "crop", "--size", "115x115", "--center", "120,90"],
                 ["neurotac", "predict", "--model", str(folder / "m.model"), "--threads", "1"]]
@@ -225,11 +234,11 @@ def _report(camera: Camera, arrived: dict, memory: list):
     if os.environ.get("NEUROTAC_BENCH_LIVE_DUMP"):  # window, latency (ms) per row, to see when the slow ones come
         np.savetxt(os.environ["NEUROTAC_BENCH_LIVE_DUMP"], np.c_[frames, latency], fmt="%.3f")
     latency = latency[frames >= 20]  # after the processes have warmed up
-    print(f"\nlive pipe to {UNTIL}, {INPUT}, {SECONDS:g} s of camera time at x{SPEED:g}: {len(arrived)} rows out, "
+    print(f"\nlive {'sense, one process' if PIPE == 'sense' else 'pipe to ' + UNTIL}, {INPUT}, {SECONDS:g} s of camera time at x{SPEED:g}: {len(arrived)} rows out, "
           f"{int(np.isfinite(camera.closed).sum())} windows written")
     print(f"window close -> its row on stdout: p50 {np.percentile(latency, 50):.2f} ms, p99 {np.percentile(latency, 99):.2f} ms, "
           f"max {latency.max():.2f} ms (goal: p99 < 5 ms)")
-    names = STAGES[: 1 + STAGES.index(UNTIL)]
+    names = ["sense"] if PIPE == "sense" else STAGES[: 1 + STAGES.index(UNTIL)]
     if os.environ.get("NEUROTAC_BENCH_LIVE_MEMDUMP"):
         np.savetxt(os.environ["NEUROTAC_BENCH_LIVE_MEMDUMP"], [[seconds, *rss] for seconds, rss in memory], fmt="%.1f")
     settled_at = 60.0 if SECONDS >= 120 else SECONDS / 4

@@ -1,0 +1,51 @@
+"""The sensor in one process: a camera's events in, each window's force (and, for models trained on
+contacts, its contact state, phase, slip flag and material) out, as `import | frame | crop | predict`
+writes it.
+
+Why one process: in the four-process pipe each window crosses three pipes, and every stage must be
+woken and given a core before the next can start; on a machine with fewer cores than stages that
+waiting, not the computing (about 0.6 ms a frame), is most of the time from a window's close to its
+force. Here the same core calls are chained as generators on one thread, so a window is framed,
+cropped and estimated in the read that closed it. The numbers that chose this: docs/journal.md.
+"""
+
+from dataclasses import dataclass, field
+
+import pyarrow as pa
+
+from neurotac_cli.errors import UsageError
+from neurotac_cli.io import live
+from neurotac_cli.model import core, predict
+from neurotac_cli.ops import crop as cropping
+from neurotac_cli.ops import frame as framing_ops
+
+
+@dataclass
+class SenseReport:
+    """What framing and cropping left out, complete once the output has been written."""
+
+    framing: framing_ops.FramingReport = field(default_factory=framing_ops.FramingReport)
+    crop: cropping.CropReport = field(default_factory=cropping.CropReport)
+
+    def messages(self, warn_above: float = 0.9) -> list[str]:
+        """Lines for stderr, as `frame` and `crop` would write them."""
+        warned = [f"warning: {line}" for line in self.framing.warnings() + self.framing.notes]
+        dropped = []
+        if self.framing.dropped and not self.framing.warnings():
+            dropped = [f"{self.framing.dropped} of {self.framing.events} events lie outside the frames (before start "
+                       f"{self.framing.before_start}, after end {self.framing.after_end}, out of time order {self.framing.late})"]
+        return warned + dropped + self.crop.messages(warn_above)
+
+
+def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec,
+          material: core.Model | None = None, sensor=None) -> tuple[pa.Schema, object, SenseReport]:
+    """(predictions schema, batches, report) of an events `stream`: framed by `framing`, cropped to a
+    fixed `box`, estimated by `model`, each window as soon as it has closed."""
+    if box.center == "auto":
+        raise UsageError("sense streams, and --center auto needs the whole input: give the centre as X,Y "
+                         "(`neurotac info` or `neurotac crop --center auto` on a recording shows it)")
+    report = SenseReport()
+    schema, frames = framing_ops.frame_events(stream.schema, stream.batches, framing, report.framing, sensor=sensor)
+    schema, cropped, report.crop = cropping.crop(schema, frames, box)
+    schema, batches = predict.stream(model, schema, cropped, material=material)
+    return schema, batches, report

@@ -1,0 +1,75 @@
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from neurotac_cli import tables
+
+BOX = ["--size", "60x60", "--center", "120,90", "--pool", "4x4"]
+
+
+def neurotac(*args, stdin=None):
+    code = "from neurotac_cli.cli import main; main()"
+    return subprocess.run([sys.executable, "-c", code, *args], stdin=stdin, capture_output=True, text=True, timeout=300)
+
+
+def shell(command: str):
+    code = f'{sys.executable} -c "from neurotac_cli.cli import main; main()"'
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", command.replace("neurotac ", code + " ")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return done
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """Two simulated ch4 grasps, their camera file, and a deform-gru trained on their frames for one epoch."""
+    folder = tmp_path_factory.mktemp("sense")
+    shell(f"neurotac simulate --preset ch4 --trials 2 --seed 3 --out {folder}/sim")
+    shell(f"neurotac sync --manifest {folder}/sim/manifest.csv | neurotac frame --window 10ms "
+          f"| neurotac crop {' '.join(BOX)} -o {folder}/frames.parquet")
+    shell(f"neurotac train --model deform-gru --epochs 1 {folder}/frames.parquet -o {folder}/m.model")
+    camera = sorted(pathlib.Path(folder, "sim").glob("*.aedat"))[0]
+    return folder, camera
+
+
+def test_sense_writes_the_rows_of_the_four_process_pipe(rig):
+    folder, camera = rig
+    shell(f"neurotac import {camera} | neurotac frame --window 10ms | neurotac crop {' '.join(BOX)} "
+          f"| neurotac predict --model {folder}/m.model -o {folder}/pipe.arrows")
+    done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", "--window", "10ms", *BOX, "-o", f"{folder}/one.arrows")
+    assert done.returncode == 0, done.stderr
+    pipe, one = tables.read([f"{folder}/pipe.arrows"]), tables.read([f"{folder}/one.arrows"])
+    assert one.num_rows == pipe.num_rows > 30
+    assert one.column("trial").to_pylist() == pipe.column("trial").to_pylist()
+    assert one.column("frame").to_pylist() == pipe.column("frame").to_pylist()
+    np.testing.assert_allclose(one.column("force_pred").to_numpy(), pipe.column("force_pred").to_numpy(), atol=1e-6)
+    assert "cut" in done.stderr  # what the box left out is counted, as crop counts it
+
+
+def test_sense_reads_a_camera_on_stdin(rig):
+    folder, camera = rig
+    with open(camera, "rb") as source:  # decoded as its bytes arrive, as from a camera driver
+        done = neurotac("sense", "-", "--model", f"{folder}/m.model", *BOX, "-o", f"{folder}/stdin.arrows", stdin=source)
+    assert done.returncode == 0, done.stderr
+    whole = neurotac("sense", str(camera), "--model", f"{folder}/m.model", *BOX, "-o", f"{folder}/file.arrows")
+    assert whole.returncode == 0, whole.stderr
+    a, b = tables.read([f"{folder}/stdin.arrows"]), tables.read([f"{folder}/file.arrows"])
+    np.testing.assert_allclose(a.column("force_pred").to_numpy(), b.column("force_pred").to_numpy(), atol=1e-6)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--center", "auto", "--size", "60x60"], "--center auto needs the whole input"),
+    (["--speed", "2"], "--speed sets the pace of a replay"),
+])
+def test_sense_refuses_what_cannot_stream_in_one_line(rig, args, words):
+    folder, camera = rig
+    done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", *args)
+    assert done.returncode == 2 and words in done.stderr and "Traceback" not in done.stderr
+
+
+def test_sense_refuses_a_missing_model_in_one_line(rig, tmp_path):
+    _, camera = rig
+    done = neurotac("sense", str(camera), "--model", str(tmp_path / "none.model"), *BOX)
+    assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1
