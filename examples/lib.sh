@@ -76,7 +76,8 @@ grid() { once study "$@"; }
 # cache already (the same study ran before), so this only scores and draws.
 figure() {
   local png=$1; shift
-  [[ -s $png ]] || neurotac eval "$@" --seed "$SEED" --plot "$png" > /dev/null
+  # a figure older than the chapter's frames is another run's (a fresh clone's copy): drawn again
+  [[ -s $png && $png -nt $DIR/frames.parquet ]] || neurotac eval "$@" --seed "$SEED" --plot "$png" > /dev/null
 }
 
 join() { local IFS=,; echo "$*"; }
