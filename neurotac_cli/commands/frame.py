@@ -120,11 +120,5 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)
     tables.write(output, batches, step=("frame", args), schema=schema, flush_each=True)
-    echo_lines("frame", report.warnings(lead_in_expected=source.kind == "recordings") + report.notes, prefix="warning: ")
-    if source.kind == "events" and report.dropped and not report.warnings():
-        click.echo(
-            f"neurotac frame: {report.dropped} of {report.events} events lie outside the frames "
-            f"(before start {report.before_start}, after end {report.after_end}, out of time order {report.late})",
-            err=True,
-        )
+    echo_lines("frame", report.messages(lead_in_expected=source.kind == "recordings"))
 

@@ -29,12 +29,7 @@ class SenseReport:
 
     def messages(self, warn_above: float = 0.9) -> list[str]:
         """Lines for stderr, as `frame` and `crop` would write them."""
-        warned = [f"warning: {line}" for line in self.framing.warnings() + self.framing.notes]
-        dropped = []
-        if self.framing.dropped and not self.framing.warnings():
-            dropped = [f"{self.framing.dropped} of {self.framing.events} events lie outside the frames (before start "
-                       f"{self.framing.before_start}, after end {self.framing.after_end}, out of time order {self.framing.late})"]
-        return warned + dropped + self.crop.messages(warn_above)
+        return self.framing.messages() + self.crop.messages(warn_above)
 
 
 def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec,

@@ -153,6 +153,16 @@ class FramingReport:
             out["scale"] = self.scale
         return out
 
+    def messages(self, lead_in_expected: bool = False) -> list[str]:
+        """Lines for stderr once the frames are written: warnings (with `warning: `), then, for an events
+        stream whose drops stayed under the warning's threshold, their count all the same."""
+        warned = self.warnings(lead_in_expected=lead_in_expected)
+        lines = [f"warning: {line}" for line in warned + self.notes]
+        if self.dropped and not warned and not lead_in_expected:
+            lines.append(f"{self.dropped} of {self.events} events lie outside the frames (before start {self.before_start}, "
+                         f"after end {self.after_end}, out of time order {self.late})")
+        return lines
+
     def warnings(self, threshold: float = 0.01, lead_in_expected: bool = False) -> list[str]:
         """Lines for stderr: drops above `threshold` of the events, and any saturation.
 

@@ -493,3 +493,13 @@ def test_a_frame_leaves_through_a_pipe_as_soon_as_its_window_has_closed():
         assert rest.column("frame").to_pylist() == [1] and process.wait(timeout=30) == 0
     finally:
         process.kill()
+
+
+def test_the_report_counts_a_streams_small_drops_and_warns_on_large_ones():
+    from neurotac_cli.ops.frame import FramingReport
+
+    small = FramingReport(events=10_000, late=5)
+    assert small.messages() == ["5 of 10000 events lie outside the frames (before start 0, after end 0, out of time order 5)"]
+    assert small.messages(lead_in_expected=True) == []  # a synced trial's lead-in is dropped by design
+    large = FramingReport(events=100, after_end=50)
+    assert [line.startswith("warning: 50 of 100 events") for line in large.messages()] == [True]
