@@ -56,7 +56,7 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     framing = Framing(window_us=window, trial=camera_file_stem(stream.schema) or "events")
     schema, batches, report = sense.sense(stream, loaded(), framing, CropSpec(box=box, size=size, center=center, pool=pool),
                                           material=material(), sensor=sensor)
-    tables.write(output, batches, step=history(paths=[path]), schema=schema, flush_each=True)
+    tables.write(output, batches, step=history(), schema=schema, flush_each=True)
     echo_lines("sense", [f"warning: {note}" for note in stream.notes] + report.messages())
     if not stream.rows:
         click.echo(f"neurotac sense: warning: {path}: no events in the camera input (an empty table was written)", err=True)

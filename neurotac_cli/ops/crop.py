@@ -99,7 +99,7 @@ class CropReport:
         if self.cut and self.share_cut > threshold:
             advice = ("the activity is spread wider than the box (a real scene, not a membrane?): give a larger --size, "
                       "or --box from `neurotac info`" if self.center_from == "auto"
-                      else "check the box against `neurotac info`, or use --center auto")
+                      else "check the box against `neurotac info`, or find the contact's centre with `neurotac crop --center auto` on a recording")
             lines.append(f"the crop cut away {self.cut} of {self.kept + self.cut} {self.unit} ({100 * self.share_cut:.1f}%); {advice}")
         return lines
 
