@@ -5,8 +5,10 @@ Simulates training and test sessions (`neurotac simulate --session`, test seeds 
 saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),
 adds each frame's slip truth from grasps.csv, trains deform-gru, the thesis's LSTM and ConvLSTM on
 the contacts the event detector finds (`train --contacts`), and scores each on the test sessions and
-on the same grasps cut into trials. Prints a markdown table and writes it to OUT/sessions.md; the
-full run also writes it into docs/results.md (section "Sessions of many grasps"), the quick run never.
+on the same grasps cut into trials, and on sessions whose physics training never saw (`simulate
+--vary all`: pixels, membrane, optics, noise, force sensor and objects drawn from wide ranges). Prints
+markdown tables and writes them to OUT/sessions.md; the
+full run also writes them into docs/results.md (section "Sessions of many grasps"), the quick run never.
 The run resumes: framed sessions and trained models found in OUT are reused (a model's training time
 is kept beside it in NAME.seconds), so a run cut off, or one adding a model, trains only what is missing.
 
@@ -36,23 +38,28 @@ from chapters import replace_section  # beside this script
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
-FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min",
+FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min", unseen_sessions=3, unseen_grasps=20,
             epochs={"deform-gru": 200, "lstm": 60, "convlstm": 10}, patience=15)
-QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
+QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s", unseen_sessions=1, unseen_grasps=2,
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
-TRAIN_SEED, TEST_SEED = 1501, 3501  # not 2501: that session chose the contact detector's low_frames
+TRAIN_SEED, TEST_SEED, UNSEEN_SEED, RANDOMISED_SEED = 1501, 3501, 4501, 5501  # not 2501: that session chose the detector's settings
+# Domain randomisation: every physics family drawn per session from wide ranges, the membrane's from the
+# lower two thirds of its ranges for training and from the upper third for the unseen test sessions.
+RANDOMISED, UNSEEN = ("--vary", "all", "--hold-out", "membrane"), ("--vary", "all", "--unseen", "membrane")
+RANDOMISED_MODELS = "deform-gru,lstm"  # the ConvLSTM trains for about 45 min a set on 2 cores: default physics only
 CUT_MARGIN = 20  # frames kept before a grasp's first contact and after its release when cut into a trial
 WINDOW_MS = 10
 
 
-def simulate(folder, seed, sessions, grasps, duration):
-    """Session recordings into `folder`, framed into folder/frames.arrows (with a slip truth column)."""
+def simulate(folder, seed, sessions, grasps, duration, physics=()):
+    """Session recordings into `folder` (`physics`: more simulate options), framed into
+    folder/frames.arrows (with a slip truth column)."""
     frames = os.path.join(folder, "frames.arrows")
     if os.path.exists(frames):
         return tables.read([frames])
     args = ["simulate", "--session", "--grasps", str(grasps), "--sessions", str(sessions), "--seed", str(seed), "--out", folder]
-    run_cli(args + (["--duration", duration] if duration else []))
+    run_cli(args + (["--duration", duration] if duration else []) + list(physics))
     pipe = (f"neurotac sync --manifest {folder}/manifest.csv | neurotac crop --pool 6x6 "
             f"| neurotac frame --window {WINDOW_MS}ms --phases session")
     done = subprocess.run(pipe, shell=True, capture_output=True, check=False)
@@ -114,9 +121,10 @@ def score(model, table: pa.Table) -> dict:
     return {metric: value for scope, metric, value in rows if scope == "all"}
 
 
-def train_one(name, train, size, out, seed=1):
-    """The model trained on `train`, and its training's wall seconds; one saved in `out` before is reused."""
-    path, seconds_path = os.path.join(out, f"{name}.model"), os.path.join(out, f"{name}.seconds")
+def train_one(name, train, size, out, seed=1, tag=""):
+    """The model trained on `train`, and its training's wall seconds; one saved in `out` (as NAME`tag`.model)
+    before is reused."""
+    path, seconds_path = os.path.join(out, f"{name}{tag}.model"), os.path.join(out, f"{name}{tag}.seconds")
     if os.path.exists(path) and os.path.exists(seconds_path):
         with open(seconds_path, encoding="utf-8") as source:
             return models.load(path), float(source.read())
@@ -147,6 +155,28 @@ def table_rows(results: dict, force_range: float) -> list[str]:
     return lines
 
 
+def span(table: pa.Table) -> float:
+    force = table.column("force").to_numpy(zero_copy_only=False)
+    return float(np.nanmax(force) - np.nanmin(force))
+
+
+def unseen_rows(results: dict, unseen_range: float, force_range: float) -> list[str]:
+    """Each model on unseen physics against itself on the default-physics test sessions (errors as shares of
+    each set's force range, so a wider range of forces does not pass for a larger error)."""
+    lines = ["| model | RMSE in contact (N) | % of range | default-physics test sessions (% of range) | ratio (goal <= 1.5) "
+             "| rest mean abs error (% of range) | drift (% of range per min) | contact F1 | onsets within 2 frames | slip F1 "
+             "| slips within 20 ms | R² | train (s) |",
+             "|" + "---|" * 13]
+    for name, (v, seen, seconds) in results.items():
+        share, seen_share = 100 * v["contact_rmse"] / unseen_range, 100 * seen["contact_rmse"] / force_range
+        lines.append(
+            f"| {name} | {v['contact_rmse']:.3f} | {share:.1f} | {seen_share:.1f} | {share / seen_share:.2f} "
+            f"| {100 * v['rest_mean_abs'] / unseen_range:.2f} | {100 * abs(v['drift_n_per_min']) / unseen_range:.3f} "
+            f"| {v['contact_f1']:.3f} | {v.get('contact_within_2', float('nan')):.3f} | {v.get('slip_f1', float('nan')):.3f} "
+            f"| {v.get('slip_within_20', float('nan')):.3f} | {v['r2']:.3f} | {seconds:.0f} |")
+    return lines
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="tiny sessions and few epochs (seconds to a minute)")
@@ -155,6 +185,8 @@ def main(argv=None):
     parser.add_argument("--train-sessions", type=int, default=None, help="override the mode's number of training sessions")
     parser.add_argument("--train-grasps", type=int, default=None, help="override the grasps per training session")
     parser.add_argument("--test-sessions", type=int, default=None, help="override the number of test sessions")
+    parser.add_argument("--randomised-models", default=RANDOMISED_MODELS,
+                        help=f"comma-separated models also trained on domain-randomised sessions (default {RANDOMISED_MODELS}; '' for none)")
     parser.add_argument("--epochs", default=None, metavar="MODEL=N,...", help="override the most epochs per model, e.g. convlstm=2")
     args = parser.parse_args(argv)
     size = dict(QUICK if args.quick else FULL)
@@ -173,19 +205,34 @@ def main(argv=None):
     test = simulate(os.path.join(out, "test"), TEST_SEED, size["test_sessions"], size["test_grasps"], size["duration"])
     cut = cut_into_trials(test)
     empty = simulate(os.path.join(out, "empty"), TEST_SEED + 1, 1, 0, size["empty"])
-    force = test.column("force").to_numpy(zero_copy_only=False)
-    force_range = float(np.nanmax(force) - np.nanmin(force))
-    results = {}
+    unseen = simulate(os.path.join(out, "unseen"), UNSEEN_SEED, size["unseen_sessions"], size["unseen_grasps"], None, UNSEEN)
+    force_range = span(test)
+    results, on_unseen = {}, {}
     for name in args.models.split(","):
         model, seconds = train_one(name, train, size, out)
         results[name] = (score(model, test), score(model, cut), seconds, score(model, empty))
+        on_unseen[name] = (score(model, unseen), results[name][0], seconds)
         print(f"{name}: trained in {seconds:.0f} s", file=sys.stderr)
+    randomised = [name for name in args.randomised_models.split(",") if name]
+    if randomised:
+        train_randomised = simulate(os.path.join(out, "train-randomised"), RANDOMISED_SEED, size["train_sessions"],
+                                    size["train_grasps"], None, RANDOMISED)
+        for name in randomised:
+            model, seconds = train_one(name, train_randomised, size, out, tag="-randomised")
+            on_unseen[f"{name}, randomised"] = (score(model, unseen), score(model, test), seconds)
     minutes = test.num_rows * WINDOW_MS / 60000
     grasps = len(set(cut.column("trial").to_pylist()))
     lines = [f"Test: {size['test_sessions']} session(s), {grasps} grasps, {minutes:.1f} min (seed {TEST_SEED}); "
              f"training: {size['train_sessions']} session(s) of {size['train_grasps']} grasps (seed {TRAIN_SEED}); "
              f"force range {force_range:.2f} N; frames 40x30 (240x180 pooled 6x6), 10 ms; "
              f"epochs at most {', '.join(f'{k} {v}' for k, v in size['epochs'].items())}.", ""] + table_rows(results, force_range)
+    lines += ["", f"On physics training never saw: {size['unseen_sessions']} session(s) of {size['unseen_grasps']} grasps "
+              f"(seed {UNSEEN_SEED}), each with its pixels, optics, noise, force sensor and objects drawn from the simulator's "
+              f"wide ranges and its membrane from the upper third of its ranges (`{' '.join(UNSEEN)}`); force range "
+              f"{span(unseen):.2f} N. Each model trained on the default physics above, and (randomised) on "
+              f"{size['train_sessions']} session(s) of {size['train_grasps']} grasps with every family drawn from its ranges "
+              f"and the membrane from their lower two thirds (`{' '.join(RANDOMISED)}`, seed {RANDOMISED_SEED}).", ""]
+    lines += unseen_rows(on_unseen, span(unseen), force_range)
     text = "\n".join(lines) + "\n"
     print(text)
     with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:

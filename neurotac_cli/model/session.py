@@ -111,6 +111,7 @@ class Stream:
             begin, end = pending[0], pending[-1] + 1
             estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
             force[begin:end] = estimate[0]
+            self.contact.peak_force = max(self.contact.peak_force, float(estimate[0].max()))
             pending.clear()
 
 

@@ -13,8 +13,10 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
 - releasing -> rest: with a force model (`end_by_force`), once its estimate has stayed under
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
   tightens it some frames later, so the first low frame is not yet the end), or once the OFF
-  activity since the burst has been at the background's level for about `quiet_frames` frames (a
-  hold keeps a ripple of OFF events above the background); alone, when the ON events of that run
+  activity since the burst has been at the background's level for about `quiet_frames` frames
+  while the estimate is under `quiet_force_share` of its peak in the contact (a model may read a
+  little force after a release for a while; a steady hold is as quiet as rest, so the quiet alone
+  would end it, and an ON flicker while the object settles looks like a release); alone, when the ON events of that run
   of bursts reach `release_share` of the OFF events since the onset. The event counts alone cannot
   tell a full release from a partial one or a re-grasp (their ranges overlap on simulated sessions),
   the force estimate can. The figures that chose these rules are in docs/journal.md.
@@ -41,6 +43,8 @@ class ContactConfig:
     low_frames: int = 20  # ... for this many frames in a row (a re-grasp loosens the grip and tightens it again 6-18 frames later)
     quiet_frames: int = 20  # ... or when the OFF activity since the burst (running mean over about this many frames) ...
     quiet_sigma: float = 3.0  # ... is within this many standard errors of the background (the membrane is at rest)
+    quiet_force_share: float = 0.5  # ... while the estimate is under this share of its peak in the contact
+    quiet_release_share: float = 0.3  # ... or after release bursts whose ON events reach this share of the press's peak OFF
     dominance: float = 2.0  # a release burst has this many times more ON than OFF events
     background_frames: float = 100.0  # time constant of the background's running mean (frames)
     memory_frames: float = 3000.0  # time constant of the sums since the onset (frames): bounded state
@@ -64,8 +68,11 @@ class ContactState:
     released: bool = False  # an ON-dominated burst since the last OFF burst: the contact may be over
     held: int = 0  # frames since the phase was last grasping (a press: the object may still be settling)
     held_before: int = 0  # `held` before the last frame
+    press_after: int = 0  # `held` when the current press began (0 at an onset): a press of a settled hold may be a slip
     quiet: float = 0.0  # running mean of OFF events since the last release burst
     since_release: int = 0  # frames since the last release burst
+    released_on: float = 0.0  # ON events above the background in the release bursts since the last press
+    peak_force: float = 0.0  # the force model's largest estimate in this contact (set by its caller)
     low: int = 0  # frames in a row the force estimate has been under release_force_n since the burst
     onsets: int = 0  # contacts begun so far (a new one resets the force model's state)
     slipping: bool = False
@@ -87,6 +94,7 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         if _above(config, off, state.mean_off):
             state.phase, state.onsets = GRASPING, state.onsets + 1
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
+            state.peak_force, state.press_after = 0.0, 0
         else:
             _update_background(config, state, off, on)
         return state.phase
@@ -98,20 +106,20 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     if burst and on > config.dominance * off:
         state.on_run += on
         if not state.released:
-            state.quiet, state.since_release, state.low = off, 0, 0
+            state.quiet, state.since_release, state.low, state.released_on = off, 0, 0, 0.0
+        state.released_on += on - state.mean_on
         state.phase, state.released = RELEASING, True
         if not by_force and state.on_run >= config.release_share * state.off_since:
             state.phase, state.on_run = NONE, 0.0
     elif pressing and off > config.settled_share * state.peak_off:
+        if state.phase != GRASPING:
+            state.press_after = state.held
         state.phase, state.on_run, state.released = GRASPING, 0.0, False
         state.peak_off = max(state.peak_off, off)
     else:
         state.on_run = 0.0
         if state.phase == RELEASING or off < config.settled_share * state.peak_off:
             state.phase = HOLDING
-    if by_force and state.released and state.since_release >= config.quiet_frames and state.quiet < (
-            state.mean_off + config.quiet_sigma * np.sqrt(state.mean_off / (2 * config.quiet_frames))):
-        state.phase, state.on_run, state.released = NONE, 0.0, False
     state.held = 0 if state.phase == GRASPING else state.held + 1
     return state.phase
 
@@ -124,11 +132,17 @@ def _above(config: ContactConfig, count: float, mean: float) -> bool:
 def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> bool:
     """After a release burst, the contact is over once the force model has read under `release_force_n`
     for `low_frames` frames in a row (a partial release or a re-grasp loosens the grip as suddenly, but
-    the estimate stays up, or comes back up as the grip tightens again)."""
+    the estimate stays up, or comes back up as the grip tightens again), or once the membrane has been
+    quiet for `quiet_frames` frames since the burst while the estimate is under `quiet_force_share` of
+    its peak in the contact (`peak_force`, which the caller keeps)."""
     if state.phase == NONE or not state.released:
         return False
     state.low = state.low + 1 if force_n < config.release_force_n else 0
-    if state.low >= config.low_frames:
+    fallen = force_n < config.quiet_force_share * state.peak_force
+    large = state.released_on >= config.quiet_release_share * max(state.peak_off - state.mean_off, 1.0)
+    quiet = (state.since_release >= config.quiet_frames and (fallen or large)
+             and state.quiet < state.mean_off + config.quiet_sigma * np.sqrt(state.mean_off / (2 * config.quiet_frames)))
+    if state.low >= config.low_frames or quiet:
         state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
         return True
     return False
@@ -184,7 +198,7 @@ def frame_sums(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class SlipConfig:
     min_events: float = 50.0  # OFF and ON each above their background by at least this many events
     separation_px: float = 0.0  # centroids of OFF and ON events at least this far apart (frame pixels)
-    hold_frames: int = 2  # a slip ends after this many frames without evidence
+    hold_frames: int = 3  # a slip ends after this many frames without evidence
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
 
     def to_dict(self) -> dict:
@@ -211,7 +225,8 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     touching = state.phase != NONE
     evidence = (touching and off - state.mean_off >= config.min_events and on - state.mean_on >= config.min_events
                 and separation >= config.separation_px)
-    starts = evidence and state.held_before > config.settle_frames
+    settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
+    starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
     state.slipping = touching and (starts or (state.slipping and (evidence or state.slip_quiet < config.hold_frames)))
     return state.slipping

@@ -108,6 +108,44 @@ def test_detector_in_pieces_equals_one_pass():
     assert np.concatenate(parts).tolist() == whole.tolist()
 
 
+def held_contact(config, release_on):
+    """A detector state through an onset, a settled hold and an ON-dominated burst of `release_on` events:
+    a flicker while the object settles, or a release."""
+    state = contact.ContactState.start(config)
+    for off, on in [(3, 8)] * 50 + [(1000, 10), (2000, 10), (300, 30)] + [(3, 8)] * 10 + [(3, release_on)]:
+        contact.step(config, state, off, on, by_force=True)
+    assert state.released
+    return state
+
+
+@pytest.mark.parametrize("release_on, estimate, ends", [(200, 2.0, False), (200, 0.5, True), (3000, 2.0, True)])
+def test_a_quiet_hold_stays_a_contact_unless_the_estimate_or_the_release_says_otherwise(release_on, estimate, ends):
+    """After an ON flicker a steady hold makes no more events than rest: the estimate tells them apart,
+    and a release as bright as the press was dark ends the contact even where the estimate stays up."""
+    config = contact.ContactConfig()
+    state = held_contact(config, release_on)
+    state.peak_force = 2.2
+    ended = False
+    for _ in range(4 * config.quiet_frames):
+        if contact.step(config, state, 3, 8, by_force=True) == contact.NONE:
+            break
+        ended = contact.end_by_force(config, state, estimate)
+        if ended:
+            break
+    assert ended == ends
+
+
+def test_a_slip_that_begins_as_a_press_of_a_settled_hold_is_flagged():
+    """A fast slip darkens the membrane first (the detector sees a press), then both polarities burst."""
+    config, slip = contact.ContactConfig(), contact.SlipConfig()
+    off = [3] * 50 + [1000, 2000, 300] + [3] * 20 + [600, 700, 650, 700, 3, 3]
+    on = [8] * 50 + [10, 10, 30] + [8] * 20 + [10, 300, 320, 310, 8, 8]
+    phases, _, slips, _ = contact.detect(config, np.array(off), np.array(on), separation=np.full(len(off), 2.0), slip=slip)
+    assert phases[73] == contact.GRASPING and not slips[73]
+    assert slips[74:77].all()
+    assert not slips[:73].any()
+
+
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(0.0, 5000.0))
 def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
@@ -258,11 +296,12 @@ def test_train_contacts_refuses_a_classifier(tmp_path):
 def test_the_sessions_example_runs_quick(tmp_path):
     """examples/sessions.py --quick end to end (simulate, frame, train on contacts, score) writes its table."""
     script = ROOT / "examples" / "sessions.py"
-    done = subprocess.run([sys.executable, str(script), "--quick", "--models", "deform-gru", "--out", str(tmp_path)],
+    done = subprocess.run([sys.executable, str(script), "--quick", "--models", "deform-gru", "--randomised-models", "deform-gru",
+                           "--out", str(tmp_path)],
                           capture_output=True, check=False)
     assert done.returncode == 0, done.stderr.decode()[-2000:]
     table = (tmp_path / "sessions.md").read_text()
-    assert "| deform-gru |" in table and "contact F1" in table
+    assert table.count("| deform-gru |") == 2 and "contact F1" in table and "default-physics test sessions" in table and "deform-gru, randomised" in table
 
 
 def pooled_material_model():
