@@ -31,7 +31,10 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, cannot_open
 
 STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "es", "dat")
-POLL_S = 0.001  # a followed file is checked for new bytes this often (a pipe wakes the reader itself)
+POLL_S = 0.0002  # a followed file is checked for new bytes this often while it grows (a pipe wakes the reader itself):
+# a camera writes every millisecond or so, and the poll's wait is part of every window's latency
+IDLE_POLL_S = 0.002  # ... and this often once nothing has arrived for IDLE_AFTER_S (a fifth of the CPU time)
+IDLE_AFTER_S = 0.1
 WAKE_S = 0.05  # a reader blocked on a pipe looks at the stop request this often
 READ_BYTES = 1 << 20  # at most this much is decoded into one batch
 SNIFF_BYTES = 1 << 16
@@ -83,7 +86,7 @@ class Feed:
         if self.regular:
             data = os.read(self.fd, READ_BYTES)
             if not data and self.follow:
-                time.sleep(POLL_S)
+                time.sleep(POLL_S if time.monotonic() - self.last < IDLE_AFTER_S else IDLE_POLL_S)
         else:
             ready, _, _ = select.select([self.fd], [], [], WAKE_S)
             data = os.read(self.fd, READ_BYTES) if ready else b""

@@ -16,8 +16,8 @@ every process of the pipe has started (predict's schema has arrived). Measured:
    the memory after the first minute of camera time (after the first quarter in a replay shorter
    than two minutes). Goal: under 1.2 times (flat).
 
-The recording is simulated ch4 grasps (`neurotac simulate`) repeated, back to back, to the length
-asked for; the model is a deform-gru trained for 2 epochs on them (what is measured is the pipe, not
+The recording is simulated ch4 grasps (`neurotac simulate`) repeated to the length asked for, each
+followed by 200 ms of the membrane at rest (the simulator's still recording: background activity); the model is a deform-gru trained for 2 epochs on them (what is measured is the pipe, not
 the model's accuracy).
 
     NEUROTAC_BENCH_LIVE_SECONDS  camera seconds replayed (default 20; 1800 for the 30-minute check)
@@ -72,12 +72,15 @@ def rig(tmp_path_factory):
     _sh(f"neurotac sync --manifest {folder}/rig/manifest.csv | neurotac frame --window 10ms "
         f"| neurotac crop --size 115x115 --center 120,90 -o {folder}/frames.arrows")
     _sh(f"neurotac train --model deform-gru --epochs 2 --seed 1 -o {folder}/m.model < {folder}/frames.arrows")
-    grasps = []
+    grasps, still = [], None
     for path in sorted((folder / "rig").glob("*.aedat")):
-        if path.name != "still.aedat":
-            table = read_events_table(path)
-            grasps.append([table[c].to_numpy() for c in ("t", "x", "y", "p")])
-    return folder, grasps
+        table = read_events_table(path)
+        events = [table[c].to_numpy() for c in ("t", "x", "y", "p")]
+        if path.name == "still.aedat":
+            still = events
+        else:
+            grasps.append(events)
+    return folder, (grasps, still)
 
 
 def _records(t, x, y, p, height=180) -> bytes:
@@ -88,34 +91,44 @@ def _records(t, x, y, p, height=180) -> bytes:
     return words.tobytes()
 
 
-def _recording(grasps, seconds: float):
-    """The grasps over and over, each 200 ms after the one before, until `seconds` of camera time:
-    (t, x, y, p) per grasp, t from 0."""
+GAP_US = 200_000
+
+
+def _recording(rig_events, seconds: float):
+    """The grasps over and over, each followed by 200 ms of the membrane at rest (the simulator's
+    still recording: a camera's background activity never stops, so no window waits long to close),
+    until `seconds` of camera time: (t, x, y, p) per piece, t from 0."""
+    grasps, still = rig_events
     offset, span_us = 0, int(seconds * 1e6)
+    rest_t = still[0] - still[0][0]
+    rest = rest_t < GAP_US  # the still recording lasts 2 s: the gap is its first 200 ms
     while offset < span_us:
         for t, x, y, p in grasps:
-            shifted = t - t[0] + offset
-            keep = shifted < span_us
-            yield shifted[keep], x[keep], y[keep], p[keep]
-            offset = int(shifted[-1]) + 200_000
-            if offset >= span_us:
-                return
+            for piece_t, piece_x, piece_y, piece_p in ((t - t[0], x, y, p), (rest_t[rest] + 1, *(c[rest] for c in still[1:]))):
+                shifted = piece_t + offset
+                keep = shifted < span_us
+                if keep.any():
+                    yield shifted[keep], piece_x[keep], piece_y[keep], piece_p[keep]
+                offset = int(shifted[-1]) + 1
+                if offset >= span_us:
+                    return
+            offset += GAP_US - 1 - int(rest_t[rest][-1])
 
 
 class Camera(threading.Thread):
     """Writes the recording to `sink` a millisecond of camera time at a time, at `speed` times the
     recorded pace; `closed[k]` = the wall-clock instant window k's last millisecond was written."""
 
-    def __init__(self, sink, grasps, seconds, speed):
+    def __init__(self, sink, rig_events, seconds, speed):
         super().__init__(daemon=True)
-        self.sink, self.grasps, self.seconds, self.speed = sink, grasps, seconds, speed
+        self.sink, self.rig_events, self.seconds, self.speed = sink, rig_events, seconds, speed
         self.closed = np.full(int(seconds * 1e6) // WINDOW_US + 1, np.nan)
         self.start_wall = None
 
     def run(self):
         self.start_wall = time.monotonic()
         per_window = WINDOW_US // SLICE_US
-        for i, (t, x, y, p) in enumerate(_recording(self.grasps, self.seconds)):
+        for i, (t, x, y, p) in enumerate(_recording(self.rig_events, self.seconds)):
             if i == 0:  # its first event went out with the header
                 t, x, y, p = t[1:], x[1:], y[1:], p[1:]
             edges = np.searchsorted(t, np.arange((int(t[0]) // SLICE_US + 1) * SLICE_US, int(t[-1]) + SLICE_US + 1, SLICE_US))
@@ -175,12 +188,12 @@ def _pipe(folder, camera_path):
 
 
 def test_live_pipe_latency_and_memory(rig):
-    folder, grasps = rig
+    folder, rig_events = rig
     camera_path = folder / "cam.aedat"
     camera_path.write_bytes(b"")
     processes = _pipe(folder, camera_path)
     sink = processes[0].stdin if INPUT == "stdin" else open(camera_path, "wb")
-    camera = Camera(sink, grasps, SECONDS, SPEED)
+    camera = Camera(sink, rig_events, SECONDS, SPEED)
     arrived, memory = {}, []
     done = threading.Event()
 
@@ -191,11 +204,15 @@ def test_live_pipe_latency_and_memory(rig):
 
     sampler = threading.Thread(target=sample, daemon=True)
     # the header and the first event (a header is known to be complete once a record follows it)
-    t, x, y, p = grasps[0]
+    t, x, y, p = rig_events[0][0]
     sink.write((HEADER + DAVIS240C).encode("ascii") + _records(t[:1] - t[0], x[:1], y[:1], p[:1]))
     sink.flush()
+    # the rows are timed by a process of their own: a thread here would wait for the camera thread's
+    # turn at the interpreter lock before it could read the clock
+    reader = subprocess.Popen([sys.executable, __file__, "--read"], stdin=processes[-1].stdout, stdout=subprocess.PIPE, env=ENV)
+    processes[-1].stdout.close()
     ready = threading.Event()
-    reading = threading.Thread(target=_read_forces, args=(processes[-1].stdout, ready, arrived), daemon=True)
+    reading = threading.Thread(target=_collect, args=(reader.stdout, ready, arrived), daemon=True)
     reading.start()
     # the camera starts once predict's schema has arrived (every process has started), or after
     # STARTUP_S when a stage holds its output back
@@ -205,18 +222,31 @@ def test_live_pipe_latency_and_memory(rig):
     threading.Thread(target=_end_after, args=(camera, processes[0]), daemon=True).start()
     reading.join()
     done.set()
-    for process in processes:
+    for process in processes + [reader]:
         process.wait(timeout=60)
-    assert all(p.returncode == 0 for p in processes), [p.returncode for p in processes]
+    assert all(p.returncode == 0 for p in processes + [reader]), [p.returncode for p in processes + [reader]]
     if started_early:
         print(f"\nthe camera started after {STARTUP_S:g} s without predict's schema: a stage of the pipe holds its output back")
     _report(camera, arrived, memory)
 
 
-def _read_forces(stdout, ready, arrived):
-    """Predict's rows as they arrive: `arrived[frame]` = the wall-clock instant."""
-    reader = pa.ipc.open_stream(stdout)
-    ready.set()
+def _collect(stdout, ready, arrived):
+    """The timing process's lines: `ready` once the pipe's schema has arrived, then `frame instant` per row."""
+    for line in stdout:
+        if line.strip() == b"ready":
+            ready.set()
+        else:
+            frame, instant = line.split()
+            arrived.setdefault(int(frame), float(instant))
+
+
+def _read_forces(stdin, stdout):
+    """The last stage's rows as they arrive (`--read`): `ready` once its schema has arrived, then at the
+    end, one line per window: its frame and the monotonic-clock instant its row arrived."""
+    arrived = {}
+    reader = pa.ipc.open_stream(stdin)
+    stdout.write(b"ready\n")
+    stdout.flush()
     for batch in reader:
         now = time.monotonic()
         if "frame" in batch.schema.names:
@@ -226,6 +256,8 @@ def _read_forces(stdout, ready, arrived):
             frames = np.unique(t[t % WINDOW_US >= WINDOW_US - SLICE_US] // WINDOW_US).tolist()
         for frame in frames:
             arrived.setdefault(frame, now)
+    stdout.write("".join(f"{frame} {instant!r}\n" for frame, instant in arrived.items()).encode())
+    stdout.flush()
 
 
 def _report(camera: Camera, arrived: dict, memory: list):
@@ -247,3 +279,7 @@ def _report(camera: Camera, arrived: dict, memory: list):
     for name, first, top in zip(names, settled, peak):
         print(f"  {name:8s} RSS after {settled_at:g} s {first / 1024:7.1f} MB, peak {top / 1024:7.1f} MB, x{top / max(first, 1):.2f} (goal < 1.2)")
     assert len(latency) > 0
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--read"]:
+    _read_forces(sys.stdin.buffer, sys.stdout.buffer)
