@@ -94,6 +94,7 @@ def load_in_background(path: str, threads: int = 1):
     garbage collector's reach (`gc.freeze`): a full collection scans every object and took 85-100 ms
     with torch loaded, stalling whichever frame it fell on; frozen, the stream's collections scan only
     the objects it makes itself. Refcounting frees everything as before."""
+    import atexit
     import gc
     import threading
 
@@ -107,6 +108,7 @@ def load_in_background(path: str, threads: int = 1):
             outcome["model"] = load(path)
             gc.collect()
             gc.freeze()
+            atexit.register(gc.unfreeze)  # at exit the frozen objects are collected as any others
         except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
             outcome["error"] = error
 

@@ -14,11 +14,13 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
   tightens it some frames later, so the first low frame is not yet the end), or once the OFF
   activity since the burst has been at the background's level for about `quiet_frames` frames
-  while the estimate is under `quiet_force_share` of its peak in the contact (a model may read a
-  little force after a release for a while; a steady hold is as quiet as rest, so the quiet alone
-  would end it, and an ON flicker while the object settles looks like a release); alone, when the ON events of that run
-  of bursts reach `release_share` of the OFF events since the onset. The event counts alone cannot
-  tell a full release from a partial one or a re-grasp (their ranges overlap on simulated sessions),
+  while the estimate is under `quiet_force_share` of its peak in the contact, or the release bursts
+  brightened the membrane by `quiet_release_share` of the press's peak OFF count (a model may read a
+  little force after a release for a while, or not fall at all; a steady hold is as quiet as rest,
+  so the quiet alone would end it, and an ON flicker while the object settles looks like a
+  release); alone, when the ON events of that run of bursts reach `release_share` of the OFF events
+  since the onset. The event counts alone cannot tell a full release from a partial one or a
+  re-grasp (their ranges overlap on simulated sessions),
   the force estimate can. The figures that chose these rules are in docs/journal.md.
 
 The background (mean OFF and ON counts per frame) is a running mean over rest frames with a time
@@ -134,7 +136,8 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
     for `low_frames` frames in a row (a partial release or a re-grasp loosens the grip as suddenly, but
     the estimate stays up, or comes back up as the grip tightens again), or once the membrane has been
     quiet for `quiet_frames` frames since the burst while the estimate is under `quiet_force_share` of
-    its peak in the contact (`peak_force`, which the caller keeps)."""
+    its peak in the contact (`peak_force`, which the caller keeps) or the release was bright
+    (`quiet_release_share`)."""
     if state.phase == NONE or not state.released:
         return False
     state.low = state.low + 1 if force_n < config.release_force_n else 0
