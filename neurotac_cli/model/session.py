@@ -17,6 +17,7 @@ to this module. A model trained on single grasps has no `contact` and runs as be
 """
 
 import collections
+import dataclasses
 
 import numpy as np
 import pyarrow as pa
@@ -43,7 +44,21 @@ def is_session_model(model) -> bool:
 
 
 def contact_config(model) -> detector.ContactConfig:
-    return detector.ContactConfig(**model.input_spec[CONTACT_KEY])
+    return _settings(model, detector.ContactConfig, CONTACT_KEY)
+
+
+def slip_config(model) -> detector.SlipConfig:
+    return _settings(model, detector.SlipConfig, SLIP_KEY)
+
+
+def _settings(model, kind, key):
+    """The detector's settings kept in a model file; one this version does not know is refused, not dropped."""
+    given = model.input_spec.get(key, {})
+    unknown = sorted(set(given) - {f.name for f in dataclasses.fields(kind)})
+    if unknown:
+        raise ModelError(f"model {model.name!r} carries detector settings this neurotac does not know ({', '.join(unknown)}): "
+                         "it was written by a newer version; upgrade neurotac to run it")
+    return kind(**given)
 
 
 class Stream:
@@ -54,7 +69,7 @@ class Stream:
         self.model, self.material = model, material
         self.sums = collections.deque(maxlen=MAX_CONTACT_FRAMES)  # OFF and ON per frame of the current contact
         self.config = contact_config(model)
-        self.slip = detector.SlipConfig(**model.input_spec.get(SLIP_KEY, {}))
+        self.slip = slip_config(model)
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
 

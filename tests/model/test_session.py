@@ -177,6 +177,17 @@ def test_a_model_trained_on_contacts_carries_the_detector_and_round_trips(traine
     np.testing.assert_allclose(a, b, atol=1e-6)
 
 
+def test_a_model_with_detector_settings_from_a_newer_version_is_refused_in_one_line(trained):
+    newer = trained
+    spec = dict(newer.input_spec)
+    newer.input_spec = dict(spec, contact=dict(spec["contact"], future_setting=1.0))
+    try:
+        with pytest.raises(ModelError, match="future_setting.*newer version"):
+            session.predict_table(newer, tiny_session(1)[0])
+    finally:
+        newer.input_spec = spec
+
+
 def test_a_session_streamed_in_pieces_gives_the_forces_eval_gives(trained):
     table, _ = tiny_session(grasps=5, seed=9, trial="test")
     whole = models.predict_table(trained, table)
