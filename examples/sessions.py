@@ -5,10 +5,12 @@ Simulates training and test sessions (`neurotac simulate --session`, test seeds 
 saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),
 adds each frame's slip truth from grasps.csv, trains deform-gru, the thesis's LSTM and ConvLSTM on
 the contacts the event detector finds (`train --contacts`), and scores each on the test sessions and
-on the same grasps cut into trials, and on sessions whose physics training never saw (`simulate
---vary all`: pixels, membrane, optics, noise, force sensor and objects drawn from wide ranges). Prints
-markdown tables and writes them to OUT/sessions.md; the
-full run also writes them into docs/results.md (section "Sessions of many grasps"), the quick run never.
+on the same grasps cut into trials; then on sessions whose physics training never saw (`simulate
+--vary all --unseen membrane`: pixels, optics, noise, force sensor and objects drawn from wide ranges,
+the membrane from the upper third of its ranges), beside deform-gru and the LSTM trained on randomised
+sessions (`--vary all --hold-out membrane`). Prints markdown tables and writes them to
+OUT/sessions.md; the full run also writes them into docs/results.md (section "Sessions of many
+grasps"), the quick run never.
 The run resumes: framed sessions and trained models found in OUT are reused (a model's training time
 is kept beside it in NAME.seconds), so a run cut off, or one adding a model, trains only what is missing.
 
@@ -39,9 +41,11 @@ from chapters import replace_section  # beside this script
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
-FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min", unseen_sessions=3, unseen_grasps=20,
+FULL = dict(train_sessions=4, train_grasps=50, test_sessions=2, test_grasps=50, duration="5min", empty="2min",
+            unseen_sessions=3, unseen_grasps=20,
             epochs={"deform-gru": 200, "lstm": 60, "convlstm": 10}, patience=15)
-QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s", unseen_sessions=1, unseen_grasps=2,
+QUICK = dict(train_sessions=1, train_grasps=4, test_sessions=1, test_grasps=2, duration=None, empty="10s",
+             unseen_sessions=1, unseen_grasps=2,
              epochs={"deform-gru": 15, "lstm": 3, "convlstm": 1}, patience=5)
 MODELS = {"deform-gru": {}, "lstm": {"layers": 2}, "convlstm": {}}
 TRAIN_SEED, TEST_SEED, UNSEEN_SEED, RANDOMISED_SEED = 1501, 3501, 4501, 5501  # not 2501: that session chose the detector's settings
