@@ -100,11 +100,11 @@ def _recording(rig_events, seconds: float):
     until `seconds` of camera time: (t, x, y, p) per piece, t from 0."""
     grasps, still = rig_events
     offset, span_us = 0, int(seconds * 1e6)
-    rest_t = still[0] - still[0][0]
-    rest = rest_t < GAP_US  # the still recording lasts 2 s: the gap is its first 200 ms
+    keep_rest = still[0] - still[0][0] < GAP_US  # the still recording lasts 2 s: the gap is its first 200 ms
+    rest = (still[0][keep_rest] - still[0][0] + 1, *(c[keep_rest] for c in still[1:]))
     while offset < span_us:
         for t, x, y, p in grasps:
-            for piece_t, piece_x, piece_y, piece_p in ((t - t[0], x, y, p), (rest_t[rest] + 1, *(c[rest] for c in still[1:]))):
+            for piece_t, piece_x, piece_y, piece_p in ((t - t[0], x, y, p), rest):
                 shifted = piece_t + offset
                 keep = shifted < span_us
                 if keep.any():
@@ -112,7 +112,7 @@ def _recording(rig_events, seconds: float):
                 offset = int(shifted[-1]) + 1
                 if offset >= span_us:
                     return
-            offset += GAP_US - 1 - int(rest_t[rest][-1])
+            offset += GAP_US - int(rest[0][-1])
 
 
 class Camera(threading.Thread):
