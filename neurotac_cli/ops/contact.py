@@ -23,12 +23,16 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   re-grasp (their ranges overlap on simulated sessions),
   the force estimate can. The figures that chose these rules are in docs/journal.md.
 
-The background (mean OFF and ON counts per frame) is a running mean over rest frames with a time
-constant of `background_frames`, so slow illumination changes and hot pixels move it. The OFF sum
+The background (mean OFF and ON counts per frame) starts as the median of a stream's first
+`warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
+and one learnt only from rest frames never recovers from a first contact begun against a wrong one
+(every later frame then looks like a burst); the median passes over an LED blink in those frames.
+From there it is a running mean over rest frames with a time constant of `background_frames`, so
+slow illumination changes and hot pixels move it. The OFF sum
 since the onset leaks with `memory_frames`, so a contact that never ends keeps them bounded.
 """
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -50,8 +54,9 @@ class ContactConfig:
     dominance: float = 2.0  # a release burst has this many times more ON than OFF events
     background_frames: float = 100.0  # time constant of the background's running mean (frames)
     memory_frames: float = 3000.0  # time constant of the sums since the onset (frames): bounded state
-    background_off: float = 5.0  # starting background, events per frame (until rest frames refine it)
+    background_off: float = 5.0  # starting background, events per frame (until the first frames replace it)
     background_on: float = 10.0
+    warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -79,6 +84,8 @@ class ContactState:
     onsets: int = 0  # contacts begun so far (a new one resets the force model's state)
     slipping: bool = False
     slip_quiet: int = 0  # frames since the last evidence of a slip
+    warmup: list = field(default_factory=list)  # (OFF, ON) of the stream's first frames, until `warmup_frames` of them
+    warm: bool = False  # the background has been set from the first frames
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
@@ -92,6 +99,9 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     keep = np.exp(-1.0 / config.memory_frames)
     state.off_since = state.off_since * keep + off
     state.held_before = state.held
+    if not state.warm:
+        _warm_up(config, state, off, on)
+        return state.phase
     if state.phase == NONE:
         if _above(config, off, state.mean_off):
             state.phase, state.onsets = GRASPING, state.onsets + 1
@@ -149,6 +159,13 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
         state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
         return True
     return False
+
+
+def _warm_up(config, state, off, on):
+    state.warmup.append((off, on))
+    if len(state.warmup) >= config.warmup_frames:
+        state.mean_off, state.mean_on = (float(v) for v in np.median(np.asarray(state.warmup), axis=0))
+        state.warmup, state.warm = [], True
 
 
 def _update_background(config, state, off, on):

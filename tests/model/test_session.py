@@ -96,6 +96,20 @@ def test_detector_phases_through_a_grasp():
                                     "releasing", "releasing", "none", "none", "none", "none"]
 
 
+def test_detector_learns_a_background_far_from_its_start_and_passes_over_a_blink():
+    """A camera with ten times the starting background, and an LED blink in its first frames: no
+    contact until the grasp, which is found and ends at its release (a background learnt only at
+    rest would start a contact at the blink and read every later frame as a burst)."""
+    rng = np.random.default_rng(0)
+    off, on = rng.poisson(50, 120).astype(float), rng.poisson(150, 120).astype(float)
+    on[2], off[4] = 5000, 5000  # the LED on, then off
+    off[40:42] += [2000, 3000]
+    on[80:82] += [2500, 1500]
+    phases, onsets, _, _ = contact.detect(contact.ContactConfig(), off, on)
+    assert np.flatnonzero(onsets).tolist() == [40]
+    assert metrics.runs(phases != contact.NONE) == [(40, 80)]
+
+
 def test_detector_in_pieces_equals_one_pass():
     table, _ = tiny_session(grasps=5, seed=4)
     off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
