@@ -79,17 +79,22 @@ class Feed:
         self.regular = stat.S_ISREG(os.fstat(fd).st_mode)
         self.last = time.monotonic()
         self.ended = False
+        # every read lands in this one buffer: os.read(fd, READ_BYTES) asks malloc for READ_BYTES each
+        # time and shrinks it to the few kB that came; glibc carves those requests out of its heap, and
+        # the holes they leave, each a little short of the next request, grew a live import's memory
+        # for as long as it ran
+        self.chunk = bytearray(READ_BYTES)
 
     def read(self) -> bytes | None:
         if self.ended or self.stop():
             return None
         if self.regular:
-            data = os.read(self.fd, READ_BYTES)
+            data = self._read()
             if not data and self.follow:
                 time.sleep(POLL_S if time.monotonic() - self.last < IDLE_AFTER_S else IDLE_POLL_S)
         else:
             ready, _, _ = select.select([self.fd], [], [], WAKE_S)
-            data = os.read(self.fd, READ_BYTES) if ready else b""
+            data = self._read() if ready else b""
             if ready and not data:
                 self.ended = True
                 return None
@@ -104,6 +109,10 @@ class Feed:
             self.ended = True
             return None
         return b""
+
+    def _read(self) -> bytes:
+        count = os.readv(self.fd, [self.chunk])
+        return bytes(memoryview(self.chunk)[:count])
 
 
 def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False, idle_timeout: float = 2.0,
