@@ -21,6 +21,7 @@ order, after their frame has left), saturated events. Nothing unbounded is writt
 """
 
 import dataclasses
+import sys
 import tempfile
 from dataclasses import dataclass, field
 
@@ -462,6 +463,8 @@ class _StreamFramer:
         self.window = framing.window_us
         self.capacity = int(min(256, max(2, BUFFER_CELLS // (2 * self.height * self.width))))
         self.buffer = np.empty((self.capacity, 2, self.height, self.width), dtype=np.uint16)
+        self.free_refs = sys.getrefcount(self.buffer)  # a buffer's count of references while only this framer holds it
+        self.spare = None  # the buffer before this one, reused once no frame of it is held downstream
         self.zero_frames = None  # one block of zero frames, shared by every run of empty windows
         self.start = framing.start_us  # camera time of window 0: --start, else the first event's
         self.floor = None  # events before it are out of time order: the first event, when it sets the start
@@ -536,8 +539,17 @@ class _StreamFramer:
             t, x, y, p = t[rest_of_batch], x[rest_of_batch], y[rest_of_batch], p[rest_of_batch]
             next_base = int(windows[rest_of_batch].min())
             yield from self._emit(next_base)
-            self.buffer = np.empty_like(self.buffer)  # the frames that left are views of the old one
+            self.buffer = self._next_buffer()
             self.base, self.zeroed = next_base, 0
+
+    def _next_buffer(self) -> np.ndarray:
+        """A buffer for the next windows. The frames that left are views of the current one, so it is
+        kept aside; the one before it is reused if nothing downstream holds a view of it any more.
+        Why not a fresh array each time: the first touch of a new 8 MiB array's pages (huge pages,
+        which numpy asks for at that size) stalled one frame in twelve by about 5 ms in a live stream."""
+        spare = self.spare if self.spare is not None and sys.getrefcount(self.spare) <= self.free_refs else None
+        self.spare = self.buffer
+        return spare if spare is not None else np.empty_like(self.buffer)
 
     def _refuse_disorder(self, back: int, first: int, t: np.ndarray, rest):
         """Refuse events more than one window back in time, counting them over the rest of the input."""

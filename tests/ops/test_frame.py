@@ -129,6 +129,22 @@ def test_streamed_frames_hold_no_stale_counts_across_gaps_and_batch_sizes(seed, 
     assert np.array_equal(streamed, fr.count_frames(t, x, y, p, 5_000, len(streamed), H, W, start=int(t[0])))
 
 
+def test_a_stream_whose_frames_are_let_go_counts_into_two_buffers_in_turn(monkeypatch):
+    """A fresh buffer's first touch costs page faults (a stalled frame in a live stream); once the
+    frames of a buffer have been let go downstream, it is reused."""
+    monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 4)
+    made = []
+    empty_like = np.empty_like
+    monkeypatch.setattr(np, "empty_like", lambda a, *args, **kw: made.append(a.shape) or empty_like(a, *args, **kw))
+    t, x, y, p = random_events(5, n=20_000, span=900_000)
+    table = sch.events_table(t, x, y, p, W, H)
+    schema, batches = fr.frame_events(table.schema, table.to_batches(max_chunksize=500), fr.Framing(window_us=5_000), fr.FramingReport())
+    streamed = np.concatenate([counts_of(pa.Table.from_batches([b])).copy() for b in batches])
+    assert len(streamed) == 180
+    assert made == [(4, 2, H, W)]  # the first buffer, then the second, then the two in turn
+    assert np.array_equal(streamed, fr.count_frames(t, x, y, p, 5_000, len(streamed), H, W, start=int(t[0])))
+
+
 def test_frames_held_downstream_keep_their_counts_while_later_frames_are_counted(monkeypatch):
     monkeypatch.setattr(fr, "BUFFER_CELLS", 2 * H * W * 4)
     t, x, y, p = random_events(4, n=20_000, span=900_000)
