@@ -81,8 +81,8 @@ class Feed:
         self.ended = False
         # every read lands in this one buffer: os.read(fd, READ_BYTES) asks malloc for READ_BYTES each
         # time and shrinks it to the few kB that came; glibc carves those requests out of its heap, and
-        # the holes they leave, each a little short of the next request, grew a live import's memory
-        # for as long as it ran
+        # the holes they leave, each a little short of the next request, make a live import's memory
+        # grow for as long as it runs
         self.chunk = bytearray(READ_BYTES)
 
     def read(self) -> bytes | None:

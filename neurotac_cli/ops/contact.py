@@ -28,8 +28,8 @@ The background (mean OFF and ON counts per frame) starts as the median of a stre
 and one learnt only from rest frames never recovers from a first contact begun against a wrong one
 (every later frame then looks like a burst); the median passes over an LED blink in those frames.
 From there it is a running mean over rest frames with a time constant of `background_frames`, so
-slow illumination changes and hot pixels move it. The OFF sum
-since the onset leaks with `memory_frames`, so a contact that never ends keeps them bounded.
+slow illumination changes and hot pixels move it. The OFF sum since the onset leaks with
+`memory_frames`, so a contact that never ends keeps it bounded.
 """
 
 from dataclasses import asdict, dataclass, field
@@ -56,7 +56,7 @@ class ContactConfig:
     memory_frames: float = 3000.0  # time constant of the sums since the onset (frames): bounded state
     background_off: float = 5.0  # starting background, events per frame (until the first frames replace it)
     background_on: float = 10.0
-    warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them
+    warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them (0: none)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -89,7 +89,7 @@ class ContactState:
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
-        return cls(mean_off=config.background_off, mean_on=config.background_on)
+        return cls(mean_off=config.background_off, mean_on=config.background_on, warm=config.warmup_frames <= 0)
 
 
 def step(config: ContactConfig, state: ContactState, off: float, on: float, by_force: bool = False) -> str:

@@ -546,7 +546,7 @@ class _StreamFramer:
         """A buffer for the next windows. The frames that left are views of the current one, so it is
         kept aside; the one before it is reused if nothing downstream holds a view of it any more.
         Why not a fresh array each time: the first touch of a new 8 MiB array's pages (huge pages,
-        which numpy asks for at that size) stalled one frame in twelve by about 5 ms in a live stream."""
+        which numpy asks for at that size) costs about 5 ms on one frame in twelve of a live stream."""
         spare = self.spare if self.spare is not None and sys.getrefcount(self.spare) <= self.free_refs else None
         self.spare = self.buffer
         return spare if spare is not None else np.empty_like(self.buffer)

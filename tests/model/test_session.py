@@ -108,6 +108,8 @@ def test_detector_learns_a_background_far_from_its_start_and_passes_over_a_blink
     phases, onsets, _, _ = contact.detect(contact.ContactConfig(), off, on)
     assert np.flatnonzero(onsets).tolist() == [40]
     assert metrics.runs(phases != contact.NONE) == [(40, 80)]
+    phases, onsets, _, _ = contact.detect(contact.ContactConfig(warmup_frames=0), off, on)  # the starting background kept
+    assert onsets[0] and onsets.sum() > 20  # every other frame passes for a press, the next for a release
 
 
 def test_detector_in_pieces_equals_one_pass():
