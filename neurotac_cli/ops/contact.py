@@ -20,8 +20,7 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   so the quiet alone would end it, and an ON flicker while the object settles looks like a
   release); alone, when the ON events of that run of bursts reach `release_share` of the OFF events
   since the onset. The event counts alone cannot tell a full release from a partial one or a
-  re-grasp (their ranges overlap on simulated sessions),
-  the force estimate can. The figures that chose these rules are in docs/journal.md.
+  re-grasp (their ranges overlap on simulated sessions), the force estimate can. The figures that chose these rules are in docs/journal.md.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
@@ -84,12 +83,11 @@ class ContactState:
     onsets: int = 0  # contacts begun so far (a new one resets the force model's state)
     slipping: bool = False
     slip_quiet: int = 0  # frames since the last evidence of a slip
-    warmup: list = field(default_factory=list)  # (OFF, ON) of the stream's first frames, until `warmup_frames` of them
-    warm: bool = False  # the background has been set from the first frames
+    warmup: list | None = field(default_factory=list)  # (OFF, ON) of the stream's first frames; None once they set the background
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
-        return cls(mean_off=config.background_off, mean_on=config.background_on, warm=config.warmup_frames <= 0)
+        return cls(mean_off=config.background_off, mean_on=config.background_on, warmup=[] if config.warmup_frames > 0 else None)
 
 
 def step(config: ContactConfig, state: ContactState, off: float, on: float, by_force: bool = False) -> str:
@@ -99,7 +97,7 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     keep = np.exp(-1.0 / config.memory_frames)
     state.off_since = state.off_since * keep + off
     state.held_before = state.held
-    if not state.warm:
+    if state.warmup is not None:
         _warm_up(config, state, off, on)
         return state.phase
     if state.phase == NONE:
@@ -165,7 +163,7 @@ def _warm_up(config, state, off, on):
     state.warmup.append((off, on))
     if len(state.warmup) >= config.warmup_frames:
         state.mean_off, state.mean_on = (float(v) for v in np.median(np.asarray(state.warmup), axis=0))
-        state.warmup, state.warm = [], True
+        state.warmup = None
 
 
 def _update_background(config, state, off, on):
