@@ -108,6 +108,7 @@ def load_in_background(path: str, threads: int = 1):
             outcome["model"] = load(path)
             gc.collect()
             gc.freeze()
+            atexit.unregister(gc.unfreeze)  # once per process, however many models it loads
             atexit.register(gc.unfreeze)  # at exit the frozen objects are collected as any others
         except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
             outcome["error"] = error
