@@ -17,8 +17,9 @@ every process of the pipe has started (predict's schema has arrived). Measured:
    than two minutes). Goal: under 1.2 times (flat).
 
 The recording is simulated ch4 grasps (`neurotac simulate`) repeated to the length asked for, each
-followed by 200 ms of the membrane at rest (the simulator's still recording: background activity); the model is a deform-gru trained for 2 epochs on them (what is measured is the pipe, not
-the model's accuracy).
+followed by 200 ms of the membrane at rest (the simulator's still recording: background activity);
+the model is a deform-gru trained for 2 epochs on them (what is measured is the pipe, not the
+model's accuracy).
 
     NEUROTAC_BENCH_LIVE_SECONDS  camera seconds replayed (default 20; 1800 for the 30-minute check)
     NEUROTAC_BENCH_LIVE_SPEED    replay speed: 1 = real time (default); 6 replays 30 minutes in 5
