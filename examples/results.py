@@ -50,11 +50,13 @@ def metrics(path) -> dict:
     return {(s, m): v for s, m, v in zip(table.column("scope").to_pylist(), table.column("metric").to_pylist(), table.column("value").to_pylist())}
 
 
-def frames(work: pathlib.Path, preset: str, pipeline: str) -> pathlib.Path:
-    path = work / f"{preset}.arrows"
+def frames(work: pathlib.Path, name: str, pipeline: str, simulate: str = "--seed 1") -> pathlib.Path:
+    """Frames of a simulated data set, made once: `name` is the preset, or the preset and a tag
+    (ch3-force-gripper), `simulate` the rest of simulate's arguments."""
+    path = work / f"{name}.arrows"
     if not path.exists():
-        part = work / f"{preset}.part.arrows"
-        sh(f"{neurotac()} simulate --preset {preset} --seed 1 --synced | {pipeline} > {part}")
+        part = work / f"{name}.part.arrows"
+        sh(f"{neurotac()} simulate --preset {name.split('-')[0]} {simulate} --synced | {pipeline} > {part}")
         part.rename(path)
     return path
 
@@ -235,9 +237,26 @@ def latency_section() -> list:
             md_table(["model", "p50 ms", "p99 ms"], rows), ""]
 
 
+MATERIAL_PIPELINE = "{n} frame --window 7ms | {n} crop --size 116x116 --center auto --pool 4x4"
+
+
+def material_rows(work, data, tag, folds, repeats, timing, plot=False) -> dict:
+    """Cross-validated accuracy of the thesis's classifiers and ours on one frames table."""
+    plot = f" --plot {ROOT}/docs/img/results_material_ours.png" if plot else ""
+    runs = {"ours (material-timing)": ("timing", f"material-timing{plot}"),
+            "ours, curves (material-curves)": ("curves", "material-curves"),
+            "thesis DNN, k=2 n=30": ("dnn-k2-n30", "material-dnn --layers 2 --units 30"),  # the grid's cell, reused
+            "force only (piezo baseline)": ("force", "material-force")}
+    return {row: evaluate(work, data, f"{tag}-{name}", f"--cv {folds} --model-spec {spec} --repeats {repeats} --seed 1", timing)
+            for row, (name, spec) in runs.items()}
+
+
+def recalls(m) -> str:
+    return ", ".join(f"{c} {fmt(100 * m[(f'class:{c}', 'recall')], 0)}%" for c in ("foam", "rubber", "silicone", "steel") if (f"class:{c}", "recall") in m)
+
+
 def material_section(work, quick, repeats, timing) -> list:
-    pipeline = f"{neurotac()} frame --window 7ms | {neurotac()} crop --size 116x116 --center auto --pool 4x4"
-    data = frames(work, "ch3", pipeline)
+    data = frames(work, "ch3", MATERIAL_PIPELINE.format(n=neurotac()))
     folds = "kfold:8"
     layers = [1, 2] if quick else [1, 2, 3, 4, 5, 6]
     units = [10, 30] if quick else [5, 10, 15, 20, 25, 30]
@@ -246,9 +265,9 @@ def material_section(work, quick, repeats, timing) -> list:
         for n in units:
             m = evaluate(work, data, f"ch3-dnn-k{k}-n{n}", f"--cv {folds} --model-spec material-dnn --layers {k} --units {n} --repeats {repeats} --seed 1", timing)
             grid[(k, n)] = m.get(("all", "accuracy"))
-    ours = evaluate(work, data, "ch3-ours", f"--cv {folds} --model-spec material-curves --repeats {repeats} --seed 1 --plot {ROOT}/docs/img/results_material_ours.png", timing)
-    force = evaluate(work, data, "ch3-force", f"--cv {folds} --model-spec material-force --repeats {repeats} --seed 1", timing)
-    thesis = evaluate(work, data, "ch3-dnn-k2-n30", f"--cv {folds} --model-spec material-dnn --layers 2 --units 30 --repeats {repeats} --seed 1", timing)
+    rows = material_rows(work, data, "ch3", folds, repeats, timing, plot=True)
+    force_data = frames(work, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), "--gripper force --seed 2")
+    independent = material_rows(work, force_data, "ch3-force-gripper", folds, repeats, timing)
     lines = [
         "### Materials (thesis Table 3.4 in shape)",
         "",
@@ -266,19 +285,97 @@ def material_section(work, quick, repeats, timing) -> list:
         "Deep sigmoid stacks (k >= 4) stay near chance (25%): with Adam at 1e-3 and early stopping after 20",
         "epochs they stop before leaving the sigmoid plateau (the thesis trained with scaled conjugate gradient).",
         "",
-        md_table(["Classifier", "accuracy %", "per-fold mean ± σ %"], [
-            ["thesis DNN, k=2 n=30", *accuracy(thesis)],
-            ["thesis DNN, best of the grid", fmt(100 * best, 1), ""],
-            ["force only (piezo baseline)", *accuracy(force)],
-            ["ours (material-curves)", *accuracy(ours)],
-        ]),
+        "The thesis's preset ties peak force to material (its position-controlled gripper's squeeze relaxes",
+        "with the material). The second column is the same design with a force-controlled gripper",
+        "(`simulate --gripper force`, seed 2): each grasp's peak force is drawn independently of its",
+        "material, so a classifier that reads the force loses it there.",
         "",
-        "Recall per class, ours: " + ", ".join(f"{c} {fmt(100 * ours[(f'class:{c}', 'recall')], 0)}%" for c in ("foam", "rubber", "silicone", "steel") if (f"class:{c}", "recall") in ours),
+        md_table(["Classifier", "accuracy %", "per-fold mean ± σ %", "force independent of material, accuracy %", "per-fold mean ± σ %"],
+                 [[row, *accuracy(rows[row]), *accuracy(independent[row])] for row in rows]
+                 + [["thesis DNN, best of the grid", fmt(100 * best, 1), "", "", ""]]),
+        "",
+        f"Recall per class, ours: {recalls(rows['ours (material-timing)'])}; with force independent of material: "
+        f"{recalls(independent['ours (material-timing)'])}.",
         "",
         "![confusion matrix of ours](img/results_material_ours.png)",
         "",
     ]
     return lines
+
+
+PHYSICS = "--vary all"  # every family drawn from the simulator's wide ranges (docs/simulator.md)
+
+
+def trained(work, data, tag: str, args: str) -> pathlib.Path:
+    """`neurotac train ARGS < DATA`, kept in WORK under the tag."""
+    path = work / f"{tag}.model"
+    if not path.exists():
+        sh(f"{neurotac()} train {args} --threads 1 -o {work / tag}.part.model < {data}", log=work / f"{tag}.log")
+        os.replace(f"{work / tag}.part.model", path)
+    return path
+
+
+def unseen_scores(work, train, tests: dict, tag: str, spec: str, seeds: int, metric: str, timing: dict) -> dict:
+    """`metric` of one model spec trained on TRAIN (one model per seed) and scored on each test set:
+    test name -> list over seeds."""
+    scores = {name: [] for name in tests}
+    for seed in range(1, seeds + 1):
+        model = trained(work, train, f"{tag}-{seed}", f"--model {spec} --seed {seed}")
+        for name, data in tests.items():
+            m = evaluate(work, data, f"{tag}-{seed}-{name}", f"--model {model} --nonzero --no-per-trial" if metric != "accuracy" else f"--model {model}", timing)
+            scores[name].append(m[("all", metric)])
+    return scores
+
+
+def mean_sd(values, scale=1.0, digits=1) -> str:
+    import numpy as np
+
+    values = scale * np.asarray(values, dtype=float)
+    return f"{fmt(values.mean(), digits)} ± {fmt(values.std(), digits)}"
+
+
+def physics_section(work, seeds, timing) -> list:
+    """Every model trained on physics drawn from wide ranges with the membrane's upper third held
+    out, scored on held-out grasps of the training physics and on grasps whose membrane training never saw."""
+    import numpy as np
+
+    force_pipeline = f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
+    train = frames(work, "ch4-physics-train", force_pipeline, f"--seed 11 {PHYSICS} --hold-out membrane")
+    tests = {"seen": frames(work, "ch4-physics-seen", force_pipeline, f"--seed 12 {PHYSICS} --hold-out membrane"),
+             "unseen": frames(work, "ch4-physics-unseen", force_pipeline, f"--seed 13 {PHYSICS} --unseen membrane")}
+    rows = []
+    for name in FORCE_MODELS:
+        scores = unseen_scores(work, train, tests, f"physics-{name}", name, seeds, "rmse_pct_range", timing)
+        ratio = np.mean(scores["unseen"]) / np.mean(scores["seen"])
+        rows.append([name, mean_sd(scores["seen"]), mean_sd(scores["unseen"]), f"{ratio:.2f}"])
+    material_train = frames(work, "ch3-physics-train", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 21 --gripper force {PHYSICS} --hold-out membrane")
+    material_tests = {"seen": frames(work, "ch3-physics-seen", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 22 --gripper force {PHYSICS} --hold-out membrane"),
+                      "unseen": frames(work, "ch3-physics-unseen", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 23 --gripper force {PHYSICS} --unseen membrane")}
+    material = []
+    for name, spec in (("material-timing (ours)", "material-timing"), ("material-curves (ours)", "material-curves"),
+                       ("thesis DNN, k=2 n=30", "material-dnn --layers 2 --units 30"), ("force only", "material-force")):
+        scores = unseen_scores(work, material_train, material_tests, f"physics-{spec.split()[0]}", spec, seeds, "accuracy", timing)
+        material.append([name, mean_sd(scores["seen"], 100), mean_sd(scores["unseen"], 100)])
+    return [
+        "### Physics training never saw",
+        "",
+        "Every family of the simulator's physics (pixels, membrane, optics, noise, force sensor, objects) drawn per grasp",
+        f"from its wide range (`simulate {PHYSICS}`, [simulator.md](simulator.md)). Training grasps draw the membrane from",
+        "the lower two thirds of its ranges (`--hold-out membrane`); each model is scored on other grasps of that",
+        "physics (seen) and on grasps whose membrane comes from the upper third (`--unseen membrane`, physics",
+        f"training never saw). {seeds} seed(s), one model per seed; `± σ` over seeds.",
+        "",
+        "Force: the `ch4` design (35 grasps of bolts 8, 12 and 16 mm per set; training seed 11, tests 12 and 13), frames as",
+        "in the tables above. RMSE as % of the test set's force range, non-zero force only:",
+        "",
+        md_table(["Network", "seen physics RMSE %", "unseen physics RMSE %", "unseen / seen"], rows),
+        "",
+        "Materials: the `ch3` design with a force-controlled gripper (peak force independent of material;",
+        "48 grasps per set, training seed 21, tests 22 and 23), frames as in the materials table above. Accuracy %:",
+        "",
+        md_table(["Classifier", "seen physics", "unseen physics"], material),
+        "",
+    ]
 
 
 def write_section(lines: list):
@@ -294,6 +391,7 @@ def main():
     parser.add_argument("--repeats", type=int, default=10, help="seeds per held-out-size force configuration (thesis 10)")
     parser.add_argument("--kfold-repeats", type=int, default=3, help="seeds per configuration of the 3-fold force section")
     parser.add_argument("--material-repeats", type=int, default=10, help="seeds per material configuration (thesis 10)")
+    parser.add_argument("--physics-repeats", type=int, default=3, help="seeds per model on physics training never saw")
     parser.add_argument("--quick", action="store_true", help="a 2x2 DNN grid instead of 6x6")
     args = parser.parse_args()
     work = pathlib.Path(args.work)
@@ -308,6 +406,7 @@ def main():
     lines += trials_section(work, args.kfold_repeats, timing)
     lines += latency_section()
     lines += material_section(work, args.quick, args.material_repeats, timing)
+    lines += physics_section(work, args.physics_repeats, timing)
     write_section(lines)
 
 

@@ -264,7 +264,7 @@ HYPERPARAMETERS = [
     ("--beta2", "beta2", float, "Adam beta2 (thesis 0.999)."),
     ("--batch-size", "batch_size", int, "Trials per minibatch (default 8)."),
     ("--epochs", "epochs", int, "Most epochs (default 500); early stopping usually ends sooner."),
-    ("--patience", "patience", int, "Stop after this many epochs without validation improvement, restoring the best weights (thesis 20)."),
+    ("--patience", "patience", int, "Stop after this many epochs without validation improvement, restoring the best weights (thesis 20; deform-gru 40)."),
     ("--weight-decay", "weight_decay", float, "Adam weight decay (default 0)."),
 ]
 

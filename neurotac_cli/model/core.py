@@ -50,7 +50,8 @@ def split_spec(spec: dict):
     config = _default_config(name)
     arch = {k: v for k, v in spec.items() if k in {f.name for f in dataclasses.fields(config)}}
     fitted = {k: v for k, v in spec.items() if k in {f.name for f in dataclasses.fields(FitConfig)}}
-    return name, dataclasses.replace(config, **arch), FitConfig(**fitted)
+    fit_defaults = getattr(_module(name), "FIT_DEFAULTS", {})  # a model of ours may train longer than the thesis's protocol
+    return name, dataclasses.replace(config, **arch), FitConfig(**{**fit_defaults, **fitted})
 
 
 class Model:

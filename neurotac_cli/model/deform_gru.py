@@ -13,6 +13,9 @@ force is better described by a few physical quantities that change smoothly with
   percentile on the training trials): the membrane's pixels saturate, so the patch's area stops
   growing with the force while how much of the patch reaches which depth keeps telling it
   (docs/design.md has the correlations);
+- with `excess`, the map's mass above each of those depths: a pixel's pressure grows faster than
+  its depth as it nears saturation, so sums of the excess over a level carry the force a deep
+  patch adds after its area and depths stop changing;
 - a coarse `layout_grid` x `layout_grid` layout of the deformation map and of the frame's events, as shares of
   their totals (so they do not scale with object size).
 
@@ -34,6 +37,11 @@ from torch import nn
 from neurotac_cli.model.base import ForceNet
 
 
+# Its validation error still falls, slowly, after 20 epochs without a new best; waiting 40 lowers
+# the held-out error (docs/journal.md).
+FIT_DEFAULTS = {"patience": 40}
+
+
 @dataclass(frozen=True)
 class Config:
     hidden: int = 32
@@ -42,6 +50,11 @@ class Config:
     layout_grid: int = 0  # 0 = none: a layout learns where the seen sizes press, which an unseen size does not share
     dropout: float = 0.0
     memory_frames: int = 0  # time constant of the deformation map and counts, in frames (0: sums since the start)
+    excess: bool = True  # the map's mass above each depth level
+
+
+# What a setting missing from an older model file's header meant when that file was written.
+ABSENT_MEANS = {"excess": False}
 
 
 class Net(ForceNet):
@@ -50,7 +63,7 @@ class Net(ForceNet):
         self.config = config
         _, height, width = shape
         self.shape = (height, width)
-        width_features = 10 + config.levels + 4 * config.layout_grid * config.layout_grid
+        width_features = 10 + config.levels * (2 if config.excess else 1) + 4 * config.layout_grid * config.layout_grid
         self.register_buffer("feature_mean", torch.zeros(width_features))
         self.register_buffer("feature_std", torch.ones(width_features))
         self.register_buffer("level_unit", torch.ones(1))
@@ -94,6 +107,9 @@ class Net(ForceNet):
             steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32) / self.config.levels * self.level_unit
             above = (deformation.unsqueeze(2) >= steps.view(1, 1, -1, 1, 1)).sum(dim=(-1, -2)).float()
             parts.append(torch.log1p(above))
+            if self.config.excess:
+                excess = (deformation.unsqueeze(2) - steps.view(1, 1, -1, 1, 1)).clamp_min(0).sum(dim=(-1, -2))
+                parts.append(torch.log1p(excess))
         grid = self.config.layout_grid
         if grid:
             flat = lambda x: x.reshape(batch * length, -1, *self.shape)  # noqa: E731

@@ -70,7 +70,8 @@ def load(path: str):
     module = _module(name)
     config_type = module.Config
     known = {f.name for f in dataclasses.fields(config_type)}
-    config = config_type(**{k: v for k, v in header["architecture"].items() if k in known})
+    settings = {**getattr(module, "ABSENT_MEANS", {}), **header["architecture"]}
+    config = config_type(**{k: v for k, v in settings.items() if k in known})
     spec = header["input"]
     if header["task"] == "material":
         net = module.Net(config, len(header["classes"]))

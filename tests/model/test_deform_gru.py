@@ -9,6 +9,7 @@ from click.testing import CliRunner  # noqa: E402
 
 from neurotac_cli import model as models  # noqa: E402
 from neurotac_cli.errors import ModelError  # noqa: E402
+from neurotac_cli.model.core import split_spec  # noqa: E402
 from tests.model.helpers import tiny_frames, write_stream  # noqa: E402
 
 
@@ -28,3 +29,34 @@ def test_the_spec_field_is_layout_grid():
     assert models.make_spec("deform-gru", layout_grid=4)["layout_grid"] == 4
     with pytest.raises(ModelError, match="no option 'grid'"):
         models.make_spec("deform-gru", grid=4)
+
+
+def test_a_file_from_before_the_excess_masses_loads_as_it_was_trained(tmp_path):
+    """A header without `excess` means the feature set of its time (no excess masses), not today's default."""
+    import json
+
+    from safetensors import safe_open
+    from safetensors.torch import save_file
+
+    from neurotac_cli.model.store import HEADER_KEY
+
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("deform-gru", excess=False, epochs=1), seed=0)
+    path = tmp_path / "old.model"
+    models.save(model, str(path))
+    with safe_open(str(path), framework="pt") as handle:
+        header = json.loads(handle.metadata()[HEADER_KEY])
+        tensors = {key: handle.get_tensor(key) for key in handle.keys()}
+    del header["architecture"]["excess"]
+    save_file(tensors, str(path), metadata={HEADER_KEY: json.dumps(header)})
+    loaded = models.load(str(path))
+    assert loaded.config.excess is False
+    expected = models.predict_table(model, frames).column("force_pred").to_numpy()
+    assert (models.predict_table(loaded, frames).column("force_pred").to_numpy() == expected).all()
+    assert models.make_spec("deform-gru") == {"model": "deform-gru"} and split_spec({"model": "deform-gru"})[1].excess
+
+
+def test_deform_gru_waits_longer_than_the_thesis_protocol_unless_told():
+    assert split_spec({"model": "deform-gru"})[2].patience == 40
+    assert split_spec({"model": "deform-gru", "patience": 7})[2].patience == 7
+    assert split_spec({"model": "lstm"})[2].patience == 20
