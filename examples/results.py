@@ -2,11 +2,13 @@
 
 Writes the section between `<!-- results:models:start -->` and `<!-- results:models:end -->` of
 docs/results.md: tables in the shape of thesis Tables 4.3, 4.4, 4.5 (force, held-out object size) and
-3.4 (materials). Every figure is read from the metrics tables that `neurotac eval` writes in the
-same run; intermediate files go to --work and are reused when present, so an interrupted run resumes.
+3.4 (materials, also with peak force independent of material), then every model on physics training
+never saw and on rigs of other physics, each trained on its own grasps. Every figure is read from
+the metrics tables that `neurotac eval` writes in the same run; intermediate files go to --work and
+are reused when present, so an interrupted run resumes.
 
-    .venv/bin/python examples/results.py --work results-work           # as in docs/results.md
-    .venv/bin/python examples/results.py --work results-work --quick --repeats 1 --kfold-repeats 1 --material-repeats 1
+    make -C examples models                                            # as in docs/results.md
+    .venv/bin/python examples/results.py --work results-work --quick --repeats 1 --kfold-repeats 1 --material-repeats 1 --physics-repeats 1
 """
 
 import argparse
@@ -158,15 +160,22 @@ def d_b_caveat(counts: dict) -> list:
     return [line]
 
 
-def held_out_section(work, preset, repeats, timing) -> list:
-    crop, held, description = HELD_OUT[preset]
-    data = frames(work, preset, f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {crop}")
+def held_out_results(work, data, preset, repeats, timing) -> dict:
+    """Every force model's metrics on the preset's held-out size (the first tables of this page)."""
+    held = HELD_OUT[preset][1]
     results = {}
     for name in FORCE_MODELS:
         plot = f" --plot {ROOT}/docs/img/results_force_{name}.png" if preset == "ch4" and name in ("convlstm", "deform-gru") else ""
         results[name] = evaluate(work, data, f"{preset}-{name}",
                                  f"--cv group:object={held} --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1{plot}", timing,
                                  FORCE_SCORING)
+    return results
+
+
+def held_out_section(work, preset, repeats, timing) -> list:
+    crop, held, description = HELD_OUT[preset]
+    data = frames(work, preset, f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {crop}")
+    results = held_out_results(work, data, preset, repeats, timing)
     size = held.removeprefix("bolt")
     lines = [
         f"### Force: unseen object size, `{preset}` with the {size} mm bolt held out (thesis Tables 4.3, 4.4, 4.5 in shape)",
@@ -334,7 +343,72 @@ def mean_sd(values, scale=1.0, digits=1) -> str:
     return f"{fmt(values.mean(), digits)} ± {fmt(values.std(), digits)}"
 
 
-def physics_section(work, seeds, timing) -> list:
+def nonzero_force(data):
+    """The true forces of the frames `eval --nonzero` scores."""
+    import numpy as np
+
+    from neurotac_cli import tables
+    from neurotac_cli.metrics import NONZERO_N
+
+    force = tables.read([str(data)]).column("force").to_numpy()
+    return force[np.abs(force) > NONZERO_N]
+
+
+def constant_pct(train, test) -> float:
+    """RMSE (% of the test set's range) of the training set's mean non-zero force, a predictor that reads nothing."""
+    from neurotac_cli.metrics import regression
+
+    truth = nonzero_force(test)
+    return regression(truth, truth * 0 + nonzero_force(train).mean())["rmse_pct_range"]
+
+
+RIGS = (101, 102, 103)  # seeds of the rigs: every physics family drawn once, over its whole range
+
+
+def rig(seed: int):
+    """The physics of one rig (a fixed sensor: one draw of every family) as simulate's --set options, and a short description."""
+    import numpy as np
+
+    from neurotac_cli.sim import physics
+    from neurotac_cli.sim.config import preset_config
+
+    base = preset_config("ch4")
+    _, values = physics.Variation(tuple(physics.FAMILIES)).draw(base, np.random.default_rng(seed))
+    options = " ".join(f"--set {k}={round(v)}us" if k.endswith("_us") else f"--set {k}={v:.6g}" if isinstance(v, float) else f"--set {k}={v}"
+                       for k, v in values.items())
+    about = (f"ON/OFF thresholds {values['on_threshold']:.2f}/{values['off_threshold']:.2f}, membrane x{values['membrane_youngs_pa'] / base.membrane_youngs_pa:.2f} "
+             f"as stiff with creep {values['creep']:.2f}, saturation at {values['saturation_force_n']:.1f} N, face tilt s.d. {values['tilt_deg']:.2f}°, "
+             f"{values['hot_pixels']} hot pixels")
+    return options, about
+
+
+def rigs_section(work, repeats, timing, default: dict) -> list:
+    """The held-out-size study of `ch4` on rigs of other physics, each model trained on that rig's grasps."""
+    models = ("lstm", "convlstm", "deform-gru")
+    pipeline = f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
+    rows, notes = [], []
+    for number, seed in enumerate(RIGS, 1):
+        options, about = rig(seed)
+        data = frames(work, f"ch4-rig{seed}", pipeline, f"--seed 1 {options}")
+        found = {name: evaluate(work, data, f"rig{seed}-{name}", f"--cv group:object=bolt12 --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1",
+                                timing, FORCE_SCORING) for name in models}
+        rows.append([f"rig {number}", *(f"{fmt(found[name][('all', 'rmse_pct_range')], 1)} ({fmt(found[name][('all', 'rmse_pct_range')] / default[name][('all', 'rmse_pct_range')], 2)}x)"
+                                         for name in models)])
+        notes.append(f"rig {number} (seed {seed}): {about}")
+    return [
+        "Force on rigs of other physics, each trained on its own grasps: the `ch4` held-out-size study above (train on the",
+        "8 and 16 mm bolts, test on the 12 mm one) with every physics family drawn once for the whole rig from its full",
+        f"range, as a lab with another sensor would train on its own recordings; {repeats} seed(s). RMSE % of the range, and",
+        "in brackets its ratio to the same model on the default physics (the first table of this section):",
+        "",
+        md_table(["Rig", *models], [["default physics", *(fmt(default[name][("all", "rmse_pct_range")], 1) for name in models)], *rows]),
+        "",
+        *(f"- {note}" for note in notes),
+        "",
+    ]
+
+
+def physics_section(work, seeds, default_repeats, timing) -> list:
     """Every model trained on physics drawn from wide ranges with the membrane's upper third held
     out, scored on held-out grasps of the training physics and on grasps whose membrane training never saw."""
     import numpy as np
@@ -343,7 +417,7 @@ def physics_section(work, seeds, timing) -> list:
     train = frames(work, "ch4-physics-train", force_pipeline, f"--seed 11 {PHYSICS} --hold-out membrane")
     tests = {"seen": frames(work, "ch4-physics-seen", force_pipeline, f"--seed 12 {PHYSICS} --hold-out membrane"),
              "unseen": frames(work, "ch4-physics-unseen", force_pipeline, f"--seed 13 {PHYSICS} --unseen membrane")}
-    rows = []
+    rows = [["constant (training mean)", fmt(constant_pct(train, tests["seen"]), 1), fmt(constant_pct(train, tests["unseen"]), 1), ""]]
     for name in FORCE_MODELS:
         scores = unseen_scores(work, train, tests, f"physics-{name}", name, seeds, "rmse_pct_range", timing)
         ratio = np.mean(scores["unseen"]) / np.mean(scores["seen"])
@@ -370,6 +444,7 @@ def physics_section(work, seeds, timing) -> list:
         "",
         md_table(["Network", "seen physics RMSE %", "unseen physics RMSE %", "unseen / seen"], rows),
         "",
+        *rigs_section(work, seeds, timing, held_out_results(work, work / "ch4.arrows", "ch4", default_repeats, timing)),
         "Materials: the `ch3` design with a force-controlled gripper (peak force independent of material;",
         "48 grasps per set, training seed 21, tests 22 and 23), frames as in the materials table above. Accuracy %:",
         "",
@@ -406,7 +481,7 @@ def main():
     lines += trials_section(work, args.kfold_repeats, timing)
     lines += latency_section()
     lines += material_section(work, args.quick, args.material_repeats, timing)
-    lines += physics_section(work, args.physics_repeats, timing)
+    lines += physics_section(work, args.physics_repeats, args.repeats, timing)
     write_section(lines)
 
 

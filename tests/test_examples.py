@@ -328,3 +328,27 @@ def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
     text = page.read_text()
     assert "kept" in text and text.count("## Sessions of many grasps") == 1
     assert "| deform-gru | 0.4 |" in text and "0.5" not in text
+
+
+def test_a_rig_is_one_fixed_draw_of_the_physics_that_simulate_accepts(tmp_path, monkeypatch):
+    """The rigs of other physics: the same seed gives the same options, and simulate takes every one of them."""
+    from click.testing import CliRunner
+
+    from neurotac_cli.cli import cli
+
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    results = load("results")
+    options, about = results.rig(101)
+    assert results.rig(101) == (options, about) and results.rig(102)[0] != options
+    assert "tilt" in about and options.count("--set ") >= 30
+    done = CliRunner().invoke(cli, ["simulate", "--preset", "ch4", "--trials", "1", "--seed", "1", "--synced", *options.split()])
+    assert done.exit_code == 0, done.output[-500:]
+
+
+def test_the_constant_baseline_reads_the_training_mean_of_nonzero_force(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    results = load("results")
+    train, test = tmp_path / "train.parquet", tmp_path / "test.parquet"
+    pq.write_table(pa.table({"force": [0.0, 1.0, 3.0]}), train)  # mean of the non-zero forces: 2 N
+    pq.write_table(pa.table({"force": [0.0, 1.0, 3.0, 2.0]}), test)  # errors -1, 1, 0 over a 2 N range
+    assert results.constant_pct(train, test) == pytest.approx(100 * (2 / 3) ** 0.5 / 2)
