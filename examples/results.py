@@ -8,7 +8,7 @@ the metrics tables that `neurotac eval` writes in the same run; intermediate fil
 are reused when present, so an interrupted run resumes.
 
     make -C examples models                                            # as in docs/results.md
-    .venv/bin/python examples/results.py --work results-work --quick --repeats 1 --kfold-repeats 1 --material-repeats 1 --physics-repeats 1
+    .venv/bin/python examples/results.py --work results-work --repeats 1 --kfold-repeats 1 --material-repeats 1 --physics-repeats 1
 """
 
 import argparse
@@ -254,7 +254,7 @@ def material_rows(work, data, tag, folds, repeats, timing, plot=False) -> dict:
     plot = f" --plot {ROOT}/docs/img/results_material_ours.png" if plot else ""
     runs = {"ours (material-timing)": ("timing", f"material-timing{plot}"),
             "ours, curves (material-curves)": ("curves", "material-curves"),
-            "thesis DNN, k=2 n=30": ("dnn-k2-n30", "material-dnn --layers 2 --units 30"),  # the grid's cell, reused
+            "thesis DNN, k=2 n=30": ("dnn-k2-n30", "material-dnn --layers 2 --units 30"),
             "force only (piezo baseline)": ("force", "material-force")}
     return {row: evaluate(work, data, f"{tag}-{name}", f"--cv {folds} --model-spec {spec} --repeats {repeats} --seed 1", timing)
             for row, (name, spec) in runs.items()}
@@ -264,44 +264,25 @@ def recalls(m) -> str:
     return ", ".join(f"{c} {fmt(100 * m[(f'class:{c}', 'recall')], 0)}%" for c in ("foam", "rubber", "silicone", "steel") if (f"class:{c}", "recall") in m)
 
 
-def material_section(work, quick, repeats, timing) -> list:
+def material_section(work, repeats, timing) -> list:
     data = frames(work, "ch3", MATERIAL_PIPELINE.format(n=neurotac()))
     folds = "kfold:8"
-    layers = [1, 2] if quick else [1, 2, 3, 4, 5, 6]
-    units = [10, 30] if quick else [5, 10, 15, 20, 25, 30]
-    grid = {}
-    for k in layers:
-        for n in units:
-            m = evaluate(work, data, f"ch3-dnn-k{k}-n{n}", f"--cv {folds} --model-spec material-dnn --layers {k} --units {n} --repeats {repeats} --seed 1", timing)
-            grid[(k, n)] = m.get(("all", "accuracy"))
     rows = material_rows(work, data, "ch3", folds, repeats, timing, plot=True)
     force_data = frames(work, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), "--gripper force --seed 2")
     independent = material_rows(work, force_data, "ch3-force-gripper", folds, repeats, timing)
-    lines = [
+    return [
         "### Materials (thesis Table 3.4 in shape)",
         "",
         "Simulated `ch3` preset (48 grasps of hexagonal prisms of foam, rubber, silicone and steel, seed 1), 7 ms",
         f"frames cropped 116x116 and pooled 4x4; 8-fold cross-validation over grasps (the thesis used leave-one-out), {repeats} seed(s),",
-        "10% of each fold's training grasps per material for early stopping. Accuracy (%) on the held-out grasps of the",
-        "thesis DNN (k layers x n sigmoid units on the 2 x 30 accumulation curves):",
-        "",
-        md_table(["k \\ n", *(f"n={n}" for n in units)],
-                 [[f"k={k}", *(fmt(100 * grid[(k, n)], 1) if grid[(k, n)] is not None else "-" for n in units)] for k in layers]),
-    ]
-    best = max((v for v in grid.values() if v is not None), default=float("nan"))
-    lines += [
-        "",
-        "Deep sigmoid stacks (k >= 4) stay near chance (25%): with Adam at 1e-3 and early stopping after 20",
-        "epochs they stop before leaving the sigmoid plateau (the thesis trained with scaled conjugate gradient).",
-        "",
+        "10% of each fold's training grasps per material for early stopping; the thesis DNN's whole grid is in chapter 3's tables.",
         "The thesis's preset ties peak force to material (its position-controlled gripper's squeeze relaxes",
-        "with the material). The second column is the same design with a force-controlled gripper",
+        "with the material). The second pair of columns is the same design with a force-controlled gripper",
         "(`simulate --gripper force`, seed 2): each grasp's peak force is drawn independently of its",
         "material, so a classifier that reads the force loses it there.",
         "",
         md_table(["Classifier", "accuracy %", "per-fold mean ± σ %", "force independent of material, accuracy %", "per-fold mean ± σ %"],
-                 [[row, *accuracy(rows[row]), *accuracy(independent[row])] for row in rows]
-                 + [["thesis DNN, best of the grid", fmt(100 * best, 1), "", "", ""]]),
+                 [[row, *accuracy(rows[row]), *accuracy(independent[row])] for row in rows]),
         "",
         f"Recall per class, ours: {recalls(rows['ours (material-timing)'])}; with force independent of material: "
         f"{recalls(independent['ours (material-timing)'])}.",
@@ -309,7 +290,6 @@ def material_section(work, quick, repeats, timing) -> list:
         "![confusion matrix of ours](img/results_material_ours.png)",
         "",
     ]
-    return lines
 
 
 PHYSICS = "--vary all"  # every family drawn from the simulator's wide ranges (docs/simulator.md)
@@ -467,7 +447,6 @@ def main():
     parser.add_argument("--kfold-repeats", type=int, default=3, help="seeds per configuration of the 3-fold force section")
     parser.add_argument("--material-repeats", type=int, default=10, help="seeds per material configuration (thesis 10)")
     parser.add_argument("--physics-repeats", type=int, default=3, help="seeds per model on physics training never saw")
-    parser.add_argument("--quick", action="store_true", help="a 2x2 DNN grid instead of 6x6")
     args = parser.parse_args()
     work = pathlib.Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
@@ -480,7 +459,7 @@ def main():
     lines += held_out_section(work, "ch5", args.repeats, timing)
     lines += trials_section(work, args.kfold_repeats, timing)
     lines += latency_section()
-    lines += material_section(work, args.quick, args.material_repeats, timing)
+    lines += material_section(work, args.material_repeats, timing)
     lines += physics_section(work, args.physics_repeats, args.repeats, timing)
     write_section(lines)
 
