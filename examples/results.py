@@ -165,7 +165,7 @@ def held_out_results(work, data, preset, repeats, timing) -> dict:
     held = HELD_OUT[preset][1]
     results = {}
     for name in FORCE_MODELS:
-        plot = f" --plot {ROOT}/docs/img/results_force_{name}.png" if preset == "ch4" and name in ("convlstm", "deform-gru") else ""
+        plot = f" --plot {ROOT}/docs/img/results_force_{'ours' if name == 'deform-gru' else name}.png" if preset == "ch4" and name in ("convlstm", "deform-gru") else ""
         results[name] = evaluate(work, data, f"{preset}-{name}",
                                  f"--cv group:object={held} --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1{plot}", timing,
                                  FORCE_SCORING)
@@ -366,24 +366,31 @@ def rigs_section(work, repeats, timing, default: dict) -> list:
     """The held-out-size study of `ch4` on rigs of other physics, each model trained on that rig's grasps."""
     models = ("lstm", "convlstm", "deform-gru")
     pipeline = f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
-    rows, notes = [], []
+    base = {name: default[name][("all", "rmse_pct_range")] for name in models}
+    rows, notes, ours = [], [], []
     for number, seed in enumerate(RIGS, 1):
         options, about = rig(seed)
         data = frames(work, f"ch4-rig{seed}", pipeline, f"--seed 1 {options}")
-        found = {name: evaluate(work, data, f"rig{seed}-{name}", f"--cv group:object=bolt12 --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1",
-                                timing, FORCE_SCORING) for name in models}
-        rows.append([f"rig {number}", *(f"{fmt(found[name][('all', 'rmse_pct_range')], 1)} ({fmt(found[name][('all', 'rmse_pct_range')] / default[name][('all', 'rmse_pct_range')], 2)}x)"
-                                         for name in models)])
+        pct = {name: evaluate(work, data, f"rig{seed}-{name}", f"--cv group:object=bolt12 --model-spec {name} --repeats {repeats} --nonzero --no-per-trial --seed 1",
+                              timing, FORCE_SCORING)[("all", "rmse_pct_range")] for name in models}
+        rows.append([f"rig {number}", *(f"{fmt(pct[name], 1)} ({fmt(pct[name] / base[name], 2)}x)" for name in models)])
         notes.append(f"rig {number} (seed {seed}): {about}")
+        ours.append((number, pct["deform-gru"] / base["deform-gru"], pct["deform-gru"] <= min(pct.values())))
+    beyond = [f"rig {number}" for number, ratio, _ in ours if ratio > 1.5]
+    verdict = (f"deform-gru stays within 1.5 times its default-physics error on {len(ours) - len(beyond)} of {len(ours)} rigs"
+               + (f" (not on {', '.join(beyond)})" if beyond else "")
+               + (", and reads every rig better than the thesis's models." if all(best for *_, best in ours) else "."))
     return [
         "Force on rigs of other physics, each trained on its own grasps: the `ch4` held-out-size study above (train on the",
         "8 and 16 mm bolts, test on the 12 mm one) with every physics family drawn once for the whole rig from its full",
         f"range, as a lab with another sensor would train on its own recordings; {repeats} seed(s). RMSE % of the range, and",
         "in brackets its ratio to the same model on the default physics (the first table of this section):",
         "",
-        md_table(["Rig", *models], [["default physics", *(fmt(default[name][("all", "rmse_pct_range")], 1) for name in models)], *rows]),
+        md_table(["Rig", *models], [["default physics", *(fmt(base[name], 1) for name in models)], *rows]),
         "",
         *(f"- {note}" for note in notes),
+        "",
+        verdict,
         "",
     ]
 
@@ -397,11 +404,14 @@ def physics_section(work, seeds, default_repeats, timing) -> list:
     train = frames(work, "ch4-physics-train", force_pipeline, f"--seed 11 {PHYSICS} --hold-out membrane")
     tests = {"seen": frames(work, "ch4-physics-seen", force_pipeline, f"--seed 12 {PHYSICS} --hold-out membrane"),
              "unseen": frames(work, "ch4-physics-unseen", force_pipeline, f"--seed 13 {PHYSICS} --unseen membrane")}
-    rows = [["constant (training mean)", fmt(constant_pct(train, tests["seen"]), 1), fmt(constant_pct(train, tests["unseen"]), 1), ""]]
+    constant = constant_pct(train, tests["unseen"])
+    rows = [["constant (training mean)", fmt(constant_pct(train, tests["seen"]), 1), fmt(constant, 1), ""]]
+    unseen = {}
     for name in FORCE_MODELS:
         scores = unseen_scores(work, train, tests, f"physics-{name}", name, seeds, "rmse_pct_range", timing)
-        ratio = np.mean(scores["unseen"]) / np.mean(scores["seen"])
-        rows.append([name, mean_sd(scores["seen"]), mean_sd(scores["unseen"]), f"{ratio:.2f}"])
+        unseen[name] = np.mean(scores["unseen"])
+        rows.append([name, mean_sd(scores["seen"]), mean_sd(scores["unseen"]), f"{unseen[name] / np.mean(scores['seen']):.2f}"])
+    best = min(unseen, key=unseen.get)
     material_train = frames(work, "ch3-physics-train", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 21 --gripper force {PHYSICS} --hold-out membrane")
     material_tests = {"seen": frames(work, "ch3-physics-seen", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 22 --gripper force {PHYSICS} --hold-out membrane"),
                       "unseen": frames(work, "ch3-physics-unseen", MATERIAL_PIPELINE.format(n=neurotac()), f"--seed 23 --gripper force {PHYSICS} --unseen membrane")}
@@ -423,6 +433,11 @@ def physics_section(work, seeds, default_repeats, timing) -> list:
         "in the tables above. RMSE as % of the test set's force range, non-zero force only:",
         "",
         md_table(["Network", "seen physics RMSE %", "unseen physics RMSE %", "unseen / seen"], rows),
+        "",
+        f"Lowest error on the unseen physics: {best}, {unseen[best]:.1f}% against the constant's {constant:.1f}%. Every grasp",
+        "here is a sensor of its own and training holds 35 of them: the ratios near 1 say that the held-out membrane",
+        "costs little; the errors, that no model learns a reading that holds across sensors from so few grasps.",
+        "A lab's sensor keeps its physics from grasp to grasp; the rigs below measure that case.",
         "",
         *rigs_section(work, seeds, timing, held_out_results(work, work / "ch4.arrows", "ch4", default_repeats, timing)),
         "Materials: the `ch3` design with a force-controlled gripper (peak force independent of material;",
