@@ -23,7 +23,7 @@ step "augment the training grasps: temporal event shifting, the thesis's best se
 neurotac augment --tes -2 0.5 --seed 1 < "$out/frames-train.arrows" > "$out/frames-train-aug.arrows"
 
 step "train our force model (validation: a share of grasps per bolt size)"
-neurotac train --model deform-gru --seed 1 --val-fraction 0.15 --epochs 200 --plot "$out/force-training.png" \
+neurotac train --model deform-gru --seed 1 --val-fraction 0.15 --epochs 400 --plot "$out/force-training.png" \
   -o "$out/force.model" < "$out/frames-train-aug.arrows"
 
 step "force on the held-out grasps"
