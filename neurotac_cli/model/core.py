@@ -54,6 +54,13 @@ def split_spec(spec: dict):
     return name, dataclasses.replace(config, **arch), FitConfig(**{**fit_defaults, **fitted})
 
 
+def resolved_spec(spec: dict) -> dict:
+    """The spec with every setting its model would train with, defaults filled in: what a cached
+    training is keyed by, so that a change of a model's defaults is not answered from the cache."""
+    name, config, fit_config = split_spec(spec)
+    return {"model": name, **dataclasses.asdict(config), **dataclasses.asdict(fit_config)}
+
+
 class Model:
     """A trained model: the network, its config, and the input it expects."""
 

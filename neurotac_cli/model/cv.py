@@ -114,8 +114,11 @@ def validation_figures(model, train_table: pa.Table) -> dict:
 def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
                per: str | None, label: str = "material"):
     """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
+    from neurotac_cli.model.core import resolved_spec
+
     rng = np.random.default_rng(seed)
     groups = folds(data, cv, rng)
+    spec = resolved_spec(spec)
     tasks = []
     for repeat in range(repeats):
         for fold, test_trials in enumerate(groups):

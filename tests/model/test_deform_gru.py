@@ -60,3 +60,13 @@ def test_deform_gru_waits_longer_than_the_thesis_protocol_unless_told():
     assert split_spec({"model": "deform-gru"})[2].patience == 40
     assert split_spec({"model": "deform-gru", "patience": 7})[2].patience == 7
     assert split_spec({"model": "lstm"})[2].patience == 20
+
+
+def test_a_cross_validation_task_carries_every_default_it_trains_with():
+    """Study caches key trainings by their task: a model's changed default must change the key."""
+    from neurotac_cli.model.cv import fold_tasks
+    from neurotac_cli.model.data import sequences
+
+    data = sequences(tiny_frames(trials=4))
+    _, tasks = fold_tasks(data, {"model": "deform-gru"}, "kfold:2", 1, 0, 0.1, None)
+    assert tasks[0]["spec"]["patience"] == 40 and tasks[0]["spec"]["excess"] is True
