@@ -105,11 +105,10 @@ class Net(ForceNet):
         ]
         if self.config.levels:
             steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32) / self.config.levels * self.level_unit
-            above = (deformation.unsqueeze(2) >= steps.view(1, 1, -1, 1, 1)).sum(dim=(-1, -2)).float()
-            parts.append(torch.log1p(above))
+            depth_over = deformation.unsqueeze(2) - steps.view(1, 1, -1, 1, 1)  # one map per level, shared by both features
+            parts.append(torch.log1p((depth_over >= 0).sum(dim=(-1, -2)).float()))
             if self.config.excess:
-                excess = (deformation.unsqueeze(2) - steps.view(1, 1, -1, 1, 1)).clamp_min(0).sum(dim=(-1, -2))
-                parts.append(torch.log1p(excess))
+                parts.append(torch.log1p(depth_over.clamp_min(0).sum(dim=(-1, -2))))
         grid = self.config.layout_grid
         if grid:
             flat = lambda x: x.reshape(batch * length, -1, *self.shape)  # noqa: E731

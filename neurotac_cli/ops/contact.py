@@ -20,7 +20,8 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   so the quiet alone would end it, and an ON flicker while the object settles looks like a
   release); alone, when the ON events of that run of bursts reach `release_share` of the OFF events
   since the onset. The event counts alone cannot tell a full release from a partial one or a
-  re-grasp (their ranges overlap on simulated sessions), the force estimate can. The figures that chose these rules are in docs/journal.md.
+  re-grasp (their ranges overlap on simulated sessions), the force estimate can. The figures that
+  chose these rules are in docs/journal.md.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
