@@ -215,13 +215,41 @@ def frame_sums(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class SlipConfig:
-    min_events: float = 50.0  # OFF and ON each above their background by at least this many events
+    min_events: float = 50.0  # OFF and ON each above their background by at least this many events (`slip_for` sets it from a rig's presses)
+    noise_sigma: float = 4.0  # ... and by this many Poisson σ of their background (a bright background's noise is no slip)
     separation_px: float = 0.0  # centroids of OFF and ON events at least this far apart (frame pixels)
     hold_frames: int = 3  # a slip ends after this many frames without evidence
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+# How many events a slip makes follows the sensor's gain (its thresholds, the membrane's stiffness and
+# shading, the crop and pooling) as a press does: on simulated rigs of widely varied physics the
+# best fixed bar ran from 30 to 70 events while a typical press's peak ran from 370 to 1560. A bar at
+# SLIP_SHARE of the rig's median press peak (`slip_for`) carries over from rig to rig; the floor keeps
+# a background's noise from passing for a slip where presses are faint. Figures: docs/journal.md.
+SLIP_SHARE = 0.05
+SLIP_FLOOR_EVENTS = 10.0
+PRESS_FRAMES = 30  # a contact's press: the peak OFF frame among its first frames
+
+
+def press_peaks(off: np.ndarray, contacts, warmup_frames: int = ContactConfig.warmup_frames) -> list[float]:
+    """Each contact's press: its peak OFF count in the first PRESS_FRAMES frames (from two before its
+    start) above the stream's background, the median of its first `warmup_frames` frames as the
+    detector takes it. `contacts`: (start, end) frame runs of one stream's `off` counts."""
+    off = np.asarray(off, dtype=np.float64)
+    background = float(np.median(off[:max(warmup_frames, 1)])) if len(off) else 0.0
+    return [float(off[max(0, begin - 2):begin + PRESS_FRAMES].max()) - background for begin, _ in contacts]
+
+
+def slip_for(press_off: float | None) -> SlipConfig:
+    """The slip flag's bar for a rig whose contacts' median press peak (`press_peaks`) is `press_off`;
+    the default bar where it is unknown."""
+    if press_off is None or not np.isfinite(press_off) or press_off <= 0:
+        return SlipConfig()
+    return SlipConfig(min_events=round(max(SLIP_SHARE * float(press_off), SLIP_FLOOR_EVENTS), 1))
 
 
 def frame_stats(counts: np.ndarray):
@@ -242,10 +270,14 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    evidence = (touching and off - state.mean_off >= config.min_events and on - state.mean_on >= config.min_events
+    evidence = (touching and _excess(config, off, state.mean_off) and _excess(config, on, state.mean_on)
                 and separation >= config.separation_px)
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
     starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
     state.slipping = touching and (starts or (state.slipping and (evidence or state.slip_quiet < config.hold_frames)))
     return state.slipping
+
+
+def _excess(config: SlipConfig, count: float, mean: float) -> bool:
+    return count - mean >= max(config.min_events, config.noise_sigma * np.sqrt(mean + 1.0))

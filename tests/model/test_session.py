@@ -162,6 +162,38 @@ def test_a_slip_that_begins_as_a_press_of_a_settled_hold_is_flagged():
     assert not slips[:73].any()
 
 
+def test_a_press_peak_is_taken_above_the_streams_own_background():
+    off = np.array([40.0] * 10 + [40, 300, 900, 500, 60] + [40] * 20 + [40, 200, 100] + [40] * 10)
+    assert contact.press_peaks(off, [(10, 15), (35, 38)]) == [860.0, 160.0]
+
+
+@pytest.mark.parametrize("press, bar", [(1500.0, 75.0), (400.0, 20.0), (60.0, contact.SLIP_FLOOR_EVENTS)])
+def test_the_slip_bar_follows_the_rigs_presses_down_to_a_floor(press, bar):
+    assert contact.slip_for(press).min_events == pytest.approx(bar)
+
+
+@pytest.mark.parametrize("press", [None, float("nan"), 0.0, -3.0])
+def test_without_a_press_the_slip_bar_is_the_default(press):
+    assert contact.slip_for(press) == contact.SlipConfig()
+
+
+def test_a_bright_backgrounds_noise_is_not_a_slip_however_low_the_bar():
+    """Both polarities 30 events above a background of 200 a frame (σ 14): noise there, a slip at a background of 5."""
+    config, slip = contact.ContactConfig(warmup_frames=0), contact.SlipConfig(min_events=10.0)
+    for background, flagged in ((200.0, False), (5.0, True)):
+        state = contact.ContactState(mean_off=background, mean_on=background, phase=contact.HOLDING, held=20, held_before=20)
+        assert contact.slip_step(slip, state, background + 30, background + 30, 2.0) is flagged
+
+
+def test_training_on_contacts_sets_the_slip_bar_from_the_training_presses(sessions, trained):
+    summary = trained.training["contacts"]
+    assert summary["press_off"] > 0
+    assert session.slip_config(trained) == contact.slip_for(summary["press_off"])
+    chosen = contact.SlipConfig(min_events=123.0)
+    again = session.train(sessions, models.make_spec("deform-gru", epochs=1, hidden=4), slip=chosen, seed=0)
+    assert session.slip_config(again) == chosen
+
+
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(0.0, 5000.0))
 def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
