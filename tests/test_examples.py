@@ -330,6 +330,27 @@ def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
     assert "| deform-gru | 0.4 |" in text and "0.5" not in text
 
 
+def test_a_quick_rig_sessions_run_prints_its_tables_and_leaves_docs_alone(tmp_path, monkeypatch):
+    rigs = load("rig_sessions")
+    slip = {"slip_f1": 0.5, "slip_hits": 1, "slip_true": 2, "slip_found": 2, "slip_within_20": 1.0}
+    session = {"contact_rmse": 0.2, "rest_mean_abs": 0.01, "drift_n_per_min": 0.001, "contact_f1": 1.0, "slip_f1": 0.5}
+
+    def one_rig(seed, out, grasps, model, epochs):
+        return seed, {"about": f"physics {seed}", "range": 4.0, "session": session, "cut": dict(session, contact_rmse=0.19),
+                      "detection": {"press": 800.0, "bar": 40.0, "fixed": slip, "scaled": dict(slip, slip_f1=1.0),
+                                    "contact": {"contact_f1": 1.0}}}
+
+    monkeypatch.setattr(rigs, "one_rig", one_rig)
+    published = []
+    monkeypatch.setattr(rigs, "publish", published.append)
+    rigs.main(["--quick", "--model", "deform-gru", "--jobs", "1", "--out", str(tmp_path)])
+    text = (tmp_path / "rig_sessions.md").read_text()
+    assert "| 201 | physics 201 | 800 | 40 | 0.50 | 1.00 | 1.00 | 1.00 | 2 | 1.00 |" in text
+    assert "| 211 | 5.0 | 1.05 |" in text
+    assert "rigs that took no part in the choice (1): slip F1 pooled over their test sessions, fixed 0.500" in text
+    assert not published
+
+
 def test_a_rig_is_one_fixed_draw_of_the_physics_that_simulate_accepts(tmp_path, monkeypatch):
     """The rigs of other physics: the same seed gives the same options, and simulate takes every one of them."""
     from click.testing import CliRunner
