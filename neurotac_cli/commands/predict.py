@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import history, input_paths, output_option, threads_option
+from neurotac_cli.options import echo_lines, history, input_paths, output_option, threads_option
 
 
 @click.command()
@@ -17,7 +17,9 @@ def command(paths, output, model_path, material_path, threads):
 
     Each trial's recurrent state is carried from frame to frame (nothing is re-run), so a controller
     can read estimates through a pipe while the sensor records. The output equals `eval` on the same
-    frames.
+    frames. A frame busier than 1.5 times any training frame, or an estimate beyond 1.2 times the
+    largest training force, is named on stderr when it first occurs and counted at the end: the
+    model is reading a scene outside what it learnt.
 
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
@@ -39,5 +41,8 @@ def command(paths, output, model_path, material_path, threads):
     source = tables.open_input(paths, kind="frames")
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
-    schema, batches = models.stream(loaded(), source.schema, itertools.chain([first], frames), material=material())
+    model = loaded()
+    outside = models.Outside.of(model, say=lambda line: echo_lines("predict", [line], "warning: "))
+    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material(), outside=outside)
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+    echo_lines("predict", outside.messages(), "warning: ")

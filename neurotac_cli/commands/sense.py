@@ -30,7 +30,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     row. CAMERA is a camera file (any format `import` reads), `-` for stdin, a FIFO, a file still being
     written (--follow) or a recording replayed at its recorded pace (--realtime). The box must be fixed
     (--box, or --size with --center X,Y): a live stream has no whole input to find the contact in.
-    Ctrl-C (or SIGTERM) ends it with the output complete, exit 0.
+    Ctrl-C (or SIGTERM) ends it with the output complete, exit 0. Frames and estimates outside the
+    model's training data are named on stderr as `predict` names them.
 
     \b
         neurotac sense --follow cam.raw --model m.model --size 115x115 --center 120,90 | controller
@@ -55,7 +56,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
                                   speed=pace, stop=live.stop_on_signals())
     framing = Framing(window_us=window, trial=camera_file_stem(stream.schema) or "events")
     schema, batches, report = sense.sense(stream, loaded(), framing, CropSpec(box=box, size=size, center=center, pool=pool),
-                                          material=material(), sensor=sensor)
+                                          material=material(), sensor=sensor,
+                                          say=lambda line: echo_lines("sense", [line], "warning: "))
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)
     echo_lines("sense", [f"warning: {note}" for note in stream.notes] + report.messages())
     if not stream.rows:

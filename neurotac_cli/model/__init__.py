@@ -7,7 +7,8 @@ Public API (used by the train, eval, classify and predict commands, and by studi
 - `train(table, spec, *, val_trials=None, val_fraction=None, val_where=None, per="object", seed=0, progress=None) -> Model`
 - `save(model, path)`, `load(path) -> Model` (safetensors + JSON header, no pickle).
 - `predict_table(model, table) -> predictions`, `classify_table(model, table) -> predictions`,
-  `stream(model, batches) -> iterator of predictions batches` (state carried per trial).
+  `stream(model, batches) -> iterator of predictions batches` (state carried per trial); `Outside`: what
+  in a stream lies beyond the model's training data, counted as it passes.
 - `check_input(model, schema)`: refuse frames whose window, crop or channels differ from training.
 
 The names are loaded when first used, so a command can list the model names (`model.names`)
@@ -19,7 +20,7 @@ import importlib
 _HOMES = {
     "FORCE_MODELS": "names", "MATERIAL_MODELS": "names",
     "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core",
-    "predict_table": "predict", "stream": "predict", "train": "core",
+    "Outside": "predict", "predict_table": "predict", "stream": "predict", "train": "core",
     "load": "store", "save": "store",
 }
 

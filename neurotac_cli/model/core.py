@@ -191,6 +191,9 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
     if np.isnan(forces).all():
         raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
     force_scale = float(max(np.nanmax(np.abs(forces)), 1e-6))
+    # kept so that `predict` can name frames busier than any it learnt from (model.predict.Outside)
+    training["events_per_frame_max"] = float(max(c.reshape(len(c), -1).sum(axis=1, dtype=np.float64).max(initial=0.0)
+                                                 for c in train_set.counts))
     net = _module(name).Net(config, train_set.shape)
     net.calibrate(train_set.counts, _seconds(train_set))
     if not getattr(net, "trained_by_gradient", True):

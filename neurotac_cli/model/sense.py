@@ -26,21 +26,25 @@ class SenseReport:
 
     framing: framing_ops.FramingReport = field(default_factory=framing_ops.FramingReport)
     crop: cropping.CropReport = field(default_factory=cropping.CropReport)
+    outside: predict.Outside | None = None
 
     def messages(self, warn_above: float = 0.9) -> list[str]:
-        """Lines for stderr, as `frame` and `crop` would write them."""
-        return self.framing.messages() + self.crop.messages(warn_above)
+        """Lines for stderr, as `frame`, `crop` and `predict` would write them."""
+        outside = [f"warning: {line}" for line in self.outside.messages()] if self.outside else []
+        return self.framing.messages() + self.crop.messages(warn_above) + outside
 
 
 def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec,
-          material: core.Model | None = None, sensor=None) -> tuple[pa.Schema, object, SenseReport]:
+          material: core.Model | None = None, sensor=None, say=None) -> tuple[pa.Schema, object, SenseReport]:
     """(predictions schema, batches, report) of an events `stream`: framed by `framing`, cropped to a
-    fixed `box`, estimated by `model`, each window as soon as it has closed."""
+    fixed `box`, estimated by `model`, each window as soon as it has closed; `say` is called with a
+    line when a frame or an estimate first lies outside the model's training data (`predict.Outside`)."""
     if box.center == "auto":
         raise UsageError("sense streams, and --center auto needs the whole input: give the centre as X,Y "
                          "(`neurotac info` or `neurotac crop --center auto` on a recording shows it)")
     report = SenseReport()
     schema, frames = framing_ops.frame_events(stream.schema, stream.batches, framing, report.framing, sensor=sensor)
     schema, cropped, report.crop = cropping.crop(schema, frames, box)
-    schema, batches = predict.stream(model, schema, cropped, material=material)
+    report.outside = predict.Outside.of(model, say=say)
+    schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside)
     return schema, batches, report

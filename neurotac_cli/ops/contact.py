@@ -215,7 +215,7 @@ def frame_sums(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class SlipConfig:
-    min_events: float = 50.0  # OFF and ON each above their background by at least this many events (`slip_for` sets it from a rig's presses)
+    min_events: float = 50.0  # OFF and ON each this many events above their background (`slip_for`: from the presses)
     noise_sigma: float = 4.0  # ... and by this many Poisson σ of their background (a bright background's noise is no slip)
     separation_px: float = 0.0  # centroids of OFF and ON events at least this far apart (frame pixels)
     hold_frames: int = 3  # a slip ends after this many frames without evidence

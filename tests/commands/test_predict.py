@@ -6,6 +6,7 @@ import pyarrow as pa
 import pytest
 
 from neurotac_cli import model as models
+from neurotac_cli import schema as sch
 from neurotac_cli import tables
 from tests.model.helpers import tiny_frames, write_stream
 
@@ -86,3 +87,41 @@ def test_classify_command_one_row_per_trial(tmp_path):
     assert {"material_pred", "prob_foam", "prob_steel"} <= set(table.schema.names)
     probs = np.stack([table.column("prob_foam").to_numpy(), table.column("prob_steel").to_numpy()], axis=1)
     np.testing.assert_allclose(probs.sum(axis=1), 1, atol=1e-5)
+
+
+def test_frames_busier_than_any_training_frame_are_named_at_once_and_counted(tmp_path):
+    frames = tiny_frames(trials=3)
+    model = models.train(frames, models.make_spec("deform-gru", epochs=2), seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    with open(write_stream(frames, tmp_path / "f.arrows"), "rb") as stdin:
+        quiet = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "q.arrows")], stdin)
+    assert quiet.returncode == 0 and b"warning" not in quiet.stderr, quiet.stderr
+    counts = schema_counts(frames) * 3
+    busy = frames.set_column(frames.schema.get_field_index("counts"), "counts", sch.counts_array(counts))
+    with open(write_stream(busy, tmp_path / "b_in.arrows"), "rb") as stdin:
+        done = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "b.arrows")], stdin)
+    lines = done.stderr.decode().splitlines()
+    assert done.returncode == 0, done.stderr
+    assert lines[0].startswith("neurotac predict: warning: trial ") and "times the events of the busiest training frame" in lines[0]
+    assert any(line.startswith("neurotac predict: warning: ") and " frames held more than 1.5 times the events" in line for line in lines[1:])
+    assert tables.read([str(tmp_path / "b.arrows")]).num_rows == busy.num_rows
+
+
+def test_estimates_beyond_the_training_forces_are_counted_and_older_model_files_still_run():
+    frames = tiny_frames(trials=2)
+    model = models.train(frames, models.make_spec("lstm", epochs=1), seed=0)
+    model.training.pop("events_per_frame_max")  # a model file written before the busiest frame was kept
+    outside = models.Outside.of(model)
+    outside.max_force = 1e-3  # every estimate is beyond it
+    said = []
+    outside.say = said.append
+    schema, batches = models.stream(model, frames.schema, iter(frames.to_batches(max_chunksize=5)), outside=outside)
+    assert sum(batch.num_rows for batch in batches) == frames.num_rows
+    assert len(said) == 1 and "beyond the training forces" in said[0]
+    assert outside.busy == 0 and outside.strong > 0
+    assert outside.messages() == [f"{outside.strong} of {frames.num_rows} estimates went beyond 1.2 times the largest training "
+                                  f"force (0.001 N; up to {outside.strongest:.3g} N)"]
+
+
+def schema_counts(table):
+    return sch.counts_numpy(table.column("counts")).astype(np.uint16)
