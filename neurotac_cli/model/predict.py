@@ -2,8 +2,9 @@
 contacts of sessions (`model.session`), chosen by the model file; and what in a stream lies
 outside what the model was trained on (`Outside`)."""
 
+import collections
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pyarrow as pa
@@ -56,6 +57,7 @@ class Outside:
     strong: int = 0
     busiest: float = 0.0
     strongest: float = 0.0
+    _events: collections.deque = field(default_factory=collections.deque, repr=False)
 
     @classmethod
     def of(cls, model: core.Model, say=None) -> "Outside":
@@ -63,23 +65,34 @@ class Outside:
         return cls(max_events=(model.training or {}).get("events_per_frame_max"), max_force=scale, say=say)
 
     def watch_frames(self, batches):
+        """The frames on their way to the model: each non-empty batch's events per frame are kept
+        until its estimates come back (both stream functions answer each non-empty batch in order)."""
         for batch in batches:
             if self.max_events and batch.num_rows:
                 counts = sch.counts_numpy(batch.column("counts"))
-                events = counts.reshape(len(counts), -1).sum(axis=1, dtype=np.float64)
-                over = events > EVENTS_MARGIN * self.max_events
+                self._events.append(counts.reshape(len(counts), -1).sum(axis=1, dtype=np.float64))
+            self.frames += batch.num_rows
+            yield batch
+
+    def watch_estimates(self, batches):
+        """The estimates on their way out. A frame counts as busy only where the model read it: a
+        model trained on contacts reads zero outside them (an LED blink before the first touch)."""
+        for batch in batches:
+            if not batch.num_rows:
+                yield batch
+                continue
+            events = self._events.popleft() if self._events else None
+            ran = (batch.column("contact_pred").to_numpy(zero_copy_only=False) if "contact_pred" in batch.schema.names
+                   else np.ones(batch.num_rows, dtype=bool))
+            if events is not None and len(events) == batch.num_rows:
+                over = ran & (events > EVENTS_MARGIN * self.max_events)
                 if over.any():
                     first = int(np.argmax(over))
                     self._first(self.busy, batch, first, f"{events[first] / self.max_events:.1f} times the events of the busiest "
                                 "training frame; estimates of such frames lie outside what the model learnt")
                     self.busy += int(over.sum())
-                    self.busiest = max(self.busiest, float(events.max()))
-            self.frames += batch.num_rows
-            yield batch
-
-    def watch_estimates(self, batches):
-        for batch in batches:
-            if self.max_force and batch.num_rows:
+                    self.busiest = max(self.busiest, float(events[over].max()))
+            if self.max_force:
                 force = np.abs(batch.column("force_pred").to_numpy(zero_copy_only=False))
                 over = force > FORCE_MARGIN * self.max_force
                 if over.any():

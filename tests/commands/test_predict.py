@@ -125,3 +125,20 @@ def test_estimates_beyond_the_training_forces_are_counted_and_older_model_files_
 
 def schema_counts(table):
     return sch.counts_numpy(table.column("counts")).astype(np.uint16)
+
+
+def test_a_busy_frame_outside_any_contact_is_not_named_for_a_model_trained_on_contacts():
+    """A session model reads zero between contacts (an LED blink before the first touch): nothing extrapolated there."""
+    from tests.model.test_session import tiny_session
+    from neurotac_cli.model import session
+
+    table, _ = tiny_session(grasps=4, seed=1)
+    model = session.train(table, models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    counts = schema_counts(table).copy()
+    counts[5] += 50  # a blink in the stream's first frames (the detector's warm-up), far busier than any training frame
+    blinked = table.set_column(table.schema.get_field_index("counts"), "counts", sch.counts_array(counts))
+    outside = models.Outside.of(model)
+    schema, batches = models.stream(model, blinked.schema, iter(blinked.to_batches(max_chunksize=7)), outside=outside)
+    out = pa.Table.from_batches(list(batches), schema=schema)
+    assert not out.column("contact_pred").to_numpy(zero_copy_only=False)[5]
+    assert outside.busy == 0 and outside.frames == blinked.num_rows
