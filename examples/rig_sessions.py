@@ -8,8 +8,8 @@ reference.
 
 1. Detection alone: the median press peak of the training sessions' contacts sets the slip bar
    (`ops.contact.slip_for`, what `train --contacts` does), against one fixed bar for every rig; the
-   detector runs with the true force standing in for a force model's estimate, so what is measured
-   is the detection, whatever a model would read. Rigs 201-210 chose the bar's share of the press and
+   detector runs with the true force standing in for a force model's estimate (`ops.contact.detect`
+   with `force`), so what is measured is the detection, whatever a model would read. Rigs 201-210 chose the bar's share of the press and
    its noise floor; rigs 211-216 took no part in that choice.
 2. With --model: the model trained on the rig's training sessions (`train --contacts`) and scored on
    the third as `predict` runs it: RMSE in contact against the same grasps cut into trials and
@@ -61,21 +61,6 @@ def streams(table):
     return out
 
 
-def run(config, slip, stream):
-    """Contact and slip flags per frame, as `model.session.Stream` makes them, the true force ending contacts."""
-    state = detector.ContactState.start(config)
-    contact, flags = np.zeros(len(stream["off"]), bool), np.zeros(len(stream["off"]), bool)
-    for k, (off, on, force) in enumerate(zip(stream["off"], stream["on"], stream["force"])):
-        phase = detector.step(config, state, off, on, by_force=True)
-        if phase != detector.NONE:
-            state.peak_force = max(state.peak_force, float(force))
-            if state.released and detector.end_by_force(config, state, float(force)):
-                phase = detector.NONE
-        contact[k] = phase != detector.NONE
-        flags[k] = detector.slip_step(slip, state, off, on, float(stream["separation"][k]))
-    return contact, flags
-
-
 def detection(training, test):
     """Slip figures with the fixed and the scaled bar, and contact figures, on the test streams."""
     press = float(np.median([p for s in training for p in detector.press_peaks(s["off"], metrics.runs(s["touching"]))]))
@@ -83,10 +68,13 @@ def detection(training, test):
     scaled = detector.slip_for(press)
     figures = {"press": press, "bar": scaled.min_events}
     for name, slip in (("fixed", FIXED), ("scaled", scaled)):
-        contact, flags = zip(*(run(config, slip, s) for s in test))
+        # the slip flags do not change where contacts end, so both bars find the same contacts
+        phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
+                                                    force=s["force"]) for s in test))
         figures[name] = metrics.detection_figures([s["slip"] for s in test], flags, "slip", unit=WINDOW_MS,
                                                   suffix="latency_ms", tolerance=20.0)
-        figures["contact"] = metrics.detection_figures([s["touching"] for s in test], contact, "contact", suffix="onset_frames")
+    figures["contact"] = metrics.detection_figures([s["touching"] for s in test], [p != detector.NONE for p in phases], "contact",
+                                                   suffix="onset_frames")
     return figures
 
 

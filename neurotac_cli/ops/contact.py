@@ -177,9 +177,11 @@ def _update_background(config, state, off, on):
 
 
 def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: ContactState | None = None,
-           separation: np.ndarray | None = None, slip: "SlipConfig | None" = None):
+           separation: np.ndarray | None = None, slip: "SlipConfig | None" = None, force: np.ndarray | None = None):
     """Phases of a run of frames (OFF and ON counts per frame), continuing from `state`; with
-    `separation` (distance of the OFF and ON centroids per frame, `frame_stats`) and `slip`, slip flags too.
+    `separation` (distance of the OFF and ON centroids per frame, `frame_stats`) and `slip`, slip flags too;
+    with `force` (N per frame: a force model's estimates, or the true force to measure the detection
+    alone) contacts end by `end_by_force`, as `model.session.Stream` ends them, instead of `release_share`.
 
     Returns (phase array of str, onset flags (a contact begins at this frame), slip flags, the state after)."""
     state = state or ContactState.start(config)
@@ -189,7 +191,12 @@ def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: Contac
     off, on = np.asarray(off, dtype=np.float64).tolist(), np.asarray(on, dtype=np.float64).tolist()
     for k, (a, b) in enumerate(zip(off, on)):
         before = state.onsets
-        phases[k] = step(config, state, a, b)
+        phase = step(config, state, a, b, by_force=force is not None)
+        if force is not None and phase != NONE:
+            state.peak_force = max(state.peak_force, float(force[k]))
+            if end_by_force(config, state, float(force[k])):
+                phase = NONE
+        phases[k] = phase
         onsets[k] = state.onsets != before
         if slip is not None and separation is not None:
             slips[k] = slip_step(slip, state, a, b, float(separation[k]))

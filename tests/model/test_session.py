@@ -96,6 +96,23 @@ def test_detector_phases_through_a_grasp():
                                     "releasing", "releasing", "none", "none", "none", "none"]
 
 
+def test_given_the_force_a_contact_ends_when_it_stays_low_after_a_release_not_at_the_release_share():
+    """`detect(force=...)` ends contacts as the streaming model does: after the release burst, once
+    the force has stayed under release_force_n for low_frames frames; a force that stays up keeps the
+    contact (a partial release), though its ON events alone would have ended it."""
+    config = contact.ContactConfig()
+    off = np.array([3.0] * 50 + [1000, 2000, 300] + [3.0] * 20 + [3.0] * 60)
+    on = np.array([8.0] * 50 + [10, 10, 30] + [8.0] * 20 + [300.0] + [8.0] * 59)  # a release dimmer than a full one
+    released = 73
+    alone, _, _, _ = contact.detect(config, off, on)
+    assert metrics.runs(alone != contact.NONE) == [(50, released)]  # the ON events of the release end it at once
+    falling = np.where(np.arange(len(off)) < released, 2.0, 0.0)
+    phases, _, _, _ = contact.detect(config, off, on, force=falling)
+    assert metrics.runs(phases != contact.NONE) == [(50, released + config.low_frames - 1)]
+    held, _, _, _ = contact.detect(config, off, on, force=np.full(len(off), 2.0))
+    assert metrics.runs(held != contact.NONE) == [(50, len(off))]
+
+
 def test_detector_learns_a_background_far_from_its_start_and_passes_over_a_blink():
     """A camera with ten times the starting background, and an LED blink in its first frames: no
     contact until the grasp, which is found and ends at its release (a background learnt only at
