@@ -34,7 +34,7 @@ import pyarrow.compute as pc
 
 from chapters import replace_section  # beside this script
 from results import rig
-from sessions import cut_into_trials, score, simulate, span
+from sessions import cut_into_trials, detection_cells, rest_cells, score, simulate, span
 from neurotac_cli import metrics
 from neurotac_cli import model as models
 from neurotac_cli.model import data as shaping
@@ -147,9 +147,7 @@ def model_lines(rows, model_name) -> list:
         s, c, spread = f["session"], f["cut"], f["range"]
         share = 100 * s["contact_rmse"] / spread
         lines.append(f"| {'default' if seed == DEFAULT_RIG else seed} | {share:.1f} | {fmt(s['contact_rmse'] / c['contact_rmse'])} "
-                     f"| {fmt(share / base)} | {fmt(100 * s['rest_mean_abs'] / spread)} | {fmt(100 * abs(s['drift_n_per_min']) / spread, 3)} "
-                     f"| {fmt(s['contact_f1'], 3)} | {fmt(s.get('contact_within_2'))} | {fmt(s.get('slip_f1'), 3)} "
-                     f"| {fmt(s.get('slip_within_20'))} |")
+                     f"| {fmt(share / base)} {rest_cells(s, spread)}{detection_cells(s)}|")
     return lines
 
 
