@@ -82,10 +82,10 @@ class Outside:
                 yield batch
                 continue
             events = self._events.popleft() if self._events else None
-            ran = (batch.column("contact_pred").to_numpy(zero_copy_only=False) if "contact_pred" in batch.schema.names
-                   else np.ones(batch.num_rows, dtype=bool))
             if events is not None and len(events) == batch.num_rows:
-                over = ran & (events > EVENTS_MARGIN * self.max_events)
+                over = events > EVENTS_MARGIN * self.max_events
+                if "contact_pred" in batch.schema.names:
+                    over &= batch.column("contact_pred").to_numpy(zero_copy_only=False)
                 if over.any():
                     first = int(np.argmax(over))
                     self._first(self.busy, batch, first, f"{events[first] / self.max_events:.1f} times the events of the busiest "

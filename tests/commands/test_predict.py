@@ -8,6 +8,7 @@ import pytest
 from neurotac_cli import model as models
 from neurotac_cli import schema as sch
 from neurotac_cli import tables
+from neurotac_cli.model.predict import EVENTS_MARGIN
 from tests.model.helpers import tiny_frames, write_stream
 
 
@@ -138,6 +139,7 @@ def test_a_busy_frame_outside_any_contact_is_not_named_for_a_model_trained_on_co
     counts[5] += 50  # a blink in the stream's first frames (the detector's warm-up), far busier than any training frame
     blinked = table.set_column(table.schema.get_field_index("counts"), "counts", sch.counts_array(counts))
     outside = models.Outside.of(model)
+    assert counts[5].sum() > EVENTS_MARGIN * outside.max_events  # a trial model would have it named
     schema, batches = models.stream(model, blinked.schema, iter(blinked.to_batches(max_chunksize=7)), outside=outside)
     out = pa.Table.from_batches(list(batches), schema=schema)
     assert not out.column("contact_pred").to_numpy(zero_copy_only=False)[5]
