@@ -234,7 +234,7 @@ class SlipConfig:
 
 # How many events a slip makes follows the sensor's gain (its thresholds, the membrane's stiffness and
 # shading, the crop and pooling) as a press does: on simulated rigs of widely varied physics the
-# best fixed bar ran from 30 to 70 events while their median press peak ran from 360 to 1560. A bar at
+# best fixed bar ran from 30 to 70 events while their median press peak ran from 370 to 1560. A bar at
 # SLIP_SHARE of the rig's median press peak (`slip_for`) carries over from rig to rig; the floor keeps
 # a background's noise from passing for a slip where presses are faint. Figures: docs/journal.md.
 SLIP_SHARE = 0.05
