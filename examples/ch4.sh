@@ -38,6 +38,11 @@ else
   SEEDS=2
   PROTOCOL="Protocol: 6 grasps, 23x23 frames, at most 4 epochs (patience 2), leave-one-out, $SEEDS seeds on the held-out size."
 fi
+# SWEEP_LAYERS replaces the mode's depths ("" runs no sweep): the full sweep is 30 of its 43 CPU hours.
+if [[ -v SWEEP_LAYERS ]]; then
+  read -ra SWEEP <<< "$SWEEP_LAYERS"
+  PROTOCOL="$PROTOCOL Depth sweep: ${SWEEP_LAYERS:-not run} (\`SWEEP_LAYERS\`)."
+fi
 # The thesis's chosen number of layers (Fig. 4.4(a)), the models' defaults; given explicitly so the
 # leave-one-out studies below share their trainings with the sweep's point of the same depth.
 declare -A LAYERS=([tdnn]=4 [lstm]=6 [cnnlstm]=4 [convlstm]=4 [deform-gru]=1)
@@ -56,6 +61,7 @@ FRAMES=$DIR/frames.parquet
 # (thesis 4.6). The sweep first: every depth of every recurrent model, the mean validation error
 # over folds choosing the depth (Fig. 4.4(a)).
 for model in convlstm lstm cnnlstm; do
+  ((${#SWEEP[@]})) || break
   grid "sweep-$model" --model-spec "$model" --grid "layers=$(join "${SWEEP[@]}")" "${FIT[@]}" \
     --cv "$CV" --val-per object --nonzero "$FRAMES"
 done

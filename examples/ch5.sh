@@ -38,6 +38,11 @@ else
   ZETAS=()
   PROTOCOL="Protocol: 12 grasps, 14x15 frames, at most 4 epochs (patience 2), $SEEDS seeds per training set and model."
 fi
+# METHODS=thesis keeps, in any mode, the shifts the thesis gives figures for (FS-1, TES-2 at 0.5).
+if [[ ${METHODS:-} == thesis && (${#SHIFTS[@]} -ne 1 || ${#ZETAS[@]} -ne 0) ]]; then
+  SHIFTS=(-1); ZETAS=()
+  PROTOCOL="$PROTOCOL Frame shifting at j=-1 and temporal event shifting at j=-2, zeta=0.5 only (\`METHODS=thesis\`; the thesis's figures are for these)."
+fi
 SMALL=bolt12 MEDIUM=bolt15 LARGE=bolt18
 
 # Grasps -> 10 ms frames (36 per grasp) -> 140x150 around the contact, pooled; the still scene

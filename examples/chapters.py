@@ -232,7 +232,8 @@ def first_frame_note(folder, shifts=False) -> str:
 def ratio(ours, theirs) -> str:
     if ours != ours or not theirs:
         return "–"
-    return f"{ours / theirs:.1f}×"
+    share = ours / theirs
+    return f"{share:.2f}×" if share < 0.1 else f"{share:.1f}×"
 
 
 def figure_link(page, figures_dir, name, caption) -> str | None:
@@ -627,7 +628,8 @@ def chapter4(folder, page, figures_dir, run) -> str:
         "(`simulate --preset ch4`) replace the Baxter recordings: the simulated Nano17 reference carries",
         "only the vibration and membrane relaxation the simulator models, and its event counts per",
         "newton follow the simulator's DVS model, not the thesis's camera settings. The networks are the",
-        "thesis's architectures in PyTorch (float32, CPU) rather than Keras on a GPU; MSE is in N² (the",
+        "thesis's architectures in PyTorch (float32, on a CPU unless the run line names a GPU) rather than",
+        "Keras; MSE is in N² (the",
         "thesis writes N)." + first_frame_note(folder),
     ]))
     return section_text(parts)

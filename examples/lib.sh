@@ -10,7 +10,10 @@
 #   RESULTS   the page the tables go into (standard, full: docs/results.md; quick: $OUT/results.md)
 #   FIGURES   where the PNGs go (standard, full: docs/results/; quick: $OUT/figures)
 #   SEED      the seed of the simulation and of every study (default 1)
-#   NEUROTAC_JOBS / NEUROTAC_SCHEDULER / NEUROTAC_CACHE: where the studies run (docs/studies.md).
+#   SWEEP_LAYERS (ch4.sh) the depths of the layer sweep instead of the mode's ("" for none)
+#   METHODS   (ch5.sh) `thesis`: only the shifts the thesis reports (FS-1, TES-2 at 0.5)
+#   NEUROTAC_JOBS / NEUROTAC_SCHEDULER / NEUROTAC_CACHE: where the studies run (docs/studies.md);
+#     NEUROTAC_DEVICE=cuda trains the force networks on a GPU.
 #     The cache defaults to $OUT/cache, so an interrupted run resumes where it stopped; full runs
 #     default to NEUROTAC_JOBS=0 (one process per core).
 set -euo pipefail

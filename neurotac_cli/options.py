@@ -219,7 +219,8 @@ def study_options(function):
 
 # Where a command's results go and how fast they are computed, not what they are: left out of the
 # history, so the same request writes the same bytes whatever the output paths or worker count.
-NOT_IN_HISTORY = frozenset({"output", "metrics_path", "plot", "plot_trials", "curve", "jobs", "scheduler", "cache", "threads"})
+NOT_IN_HISTORY = frozenset({"output", "metrics_path", "plot", "plot_trials", "curve", "jobs", "scheduler", "cache", "threads",
+                            "device"})
 
 
 def history(**extra) -> tuple[str, dict]:
@@ -320,6 +321,25 @@ def fold_options(prefix: str = ""):
         return function
 
     return decorate
+
+
+def device_option(function):
+    """`--device`: where gradient-trained force models train (parameter `device`); `use_device` applies it."""
+    return click.option(
+        "--device", default="cpu", show_default=True, envvar="NEUROTAC_DEVICE", metavar="cpu|cuda|cuda:N",
+        help="Where force networks train (lstm, cnnlstm, convlstm, tdnn, deform-gru): cpu, or a CUDA GPU with a "
+        "CUDA build of torch. Models come back to the CPU to be saved and run. GPU trainings differ from CPU ones "
+        "in the last digits and are cached apart; `--jobs` processes share the GPU [env NEUROTAC_DEVICE].",
+    )(function)
+
+
+def use_device(device: str):
+    """Check `--device` before any work and hand it to this process's trainings and the worker
+    processes it starts (model.fit.training_device reads it back)."""
+    from neurotac_cli.model.fit import DEVICE_VARIABLE, training_device
+
+    os.environ[DEVICE_VARIABLE] = device
+    training_device()
 
 
 def threads_option(default: int, text: str = "CPU threads for torch."):

@@ -294,6 +294,9 @@ def task_key(function: Callable, task: dict) -> str:
 
     name = f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"
     identity = {"function": name, "version": __version__, "format": CACHE_FORMAT, "task": _canonical(task)}
+    device = os.environ.get("NEUROTAC_DEVICE", "").strip()
+    if device and device != "cpu":  # a GPU's trainings differ in the last digits: kept apart from the CPU's
+        identity["device"] = device
     text = json.dumps(identity, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 

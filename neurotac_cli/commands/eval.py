@@ -1,8 +1,8 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
-                                  output_option, progress_printer, seed_option, study_options, threads_option)
+from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+                                  output_option, progress_printer, seed_option, study_options, threads_option, use_device)
 
 
 @click.command()
@@ -26,9 +26,10 @@ from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, fold_options, 
 @click.option("--plot-trials", default=None, metavar="ID,ID,...", help="Trials drawn in the force traces (default: the first three).")
 @threads_option(2)
 @study_options
+@device_option
 @seed_option
 def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fraction, val_per, label, metrics_path, nonzero,
-            per_trial, plot, plot_trials, threads, jobs, scheduler, cache, seed, **options):
+            per_trial, plot, plot_trials, threads, jobs, scheduler, cache, device, seed, **options):
     """Score a model on frames: predictions on stdout, metrics with --metrics, a summary on stderr.
 
     Force models: MSE (N²), RMSE, MAE, RMSE as % of the force range, σ, R², overall and per phase,
@@ -54,6 +55,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     from neurotac_cli.model import evaluate, plots
 
     torch.set_num_threads(max(1, threads))
+    use_device(device)
     folds = evaluate.Folds(cv, repeats, seed, val_fraction, val_per, label) if cv else None
     result = evaluate.evaluate(
         table, model_path=model_path, model_spec=model_spec, hyperparameters=chosen, grid=grid,

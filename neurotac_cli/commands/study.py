@@ -5,8 +5,8 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, TablePath, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
-                                  output_option, seed_option, study_options)
+from neurotac_cli.options import (GRID_HELP, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+                                  output_option, seed_option, study_options, use_device)
 
 
 @click.command()
@@ -25,9 +25,10 @@ from neurotac_cli.options import (GRID_HELP, TablePath, fold_options, history, h
               help="Write the metrics of every grid point to this file: scope, metric, value, model, and one column "
               "per grid parameter.")
 @study_options
+@device_option
 @seed_option
 def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, label, nonzero, per_trial, metrics_path,
-            jobs, scheduler, cache, seed, **options):
+            jobs, scheduler, cache, device, seed, **options):
     """Cross-validate a model at every point of a hyperparameter grid (thesis Tables 3.1-3.4).
 
     The same study as `neurotac eval --cv CV --model-spec M --grid ...` (defaults here: --cv loo,
@@ -47,8 +48,10 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     from neurotac_cli import tables
     from neurotac_cli.model import evaluate
 
+    table = tables.read(paths, kind="frames")
+    use_device(device)
     result = evaluate.study(
-        tables.read(paths, kind="frames"), model, grid, hyperparameters(options),
+        table, model, grid, hyperparameters(options),
         evaluate.Folds(cv, repeats, seed, val_fraction, val_per, label), nonzero=nonzero, per_trial=per_trial,
         runner=evaluate.Runner(jobs, scheduler, cache))
     click.echo(result.summary, err=True)

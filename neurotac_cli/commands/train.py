@@ -1,8 +1,8 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (PlotPath, TablePath, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
-                                  seed_option, threads_option, validation_options)
+from neurotac_cli.options import (PlotPath, TablePath, device_option, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
+                                  seed_option, threads_option, use_device, validation_options)
 
 
 @click.command()
@@ -21,8 +21,10 @@ from neurotac_cli.options import (PlotPath, TablePath, history, hyperparameter_o
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
 @click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG.")
 @threads_option(2)
+@device_option
 @seed_option
-def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, contacts, label, curve, plot, threads, seed, **options):
+def command(paths, model_name, output, val_trials, val_fraction, val_where, val_per, contacts, label, curve, plot, threads, device, seed,
+            **options):
     """Train a force or material model on frames; write one model file.
 
     Validation trials (for early stopping) are chosen by id, by label value, or as a fraction per
@@ -49,6 +51,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     from neurotac_cli.model.training import train_model
 
     torch.set_num_threads(max(1, threads))
+    use_device(device)
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer(), contacts=contacts)

@@ -13,6 +13,10 @@ from torch import nn
 class ForceNet(nn.Module):
     task = "force"
 
+    def zeros(self, *shape):
+        """Zeros on the device the network is on (a start state; training may run on a GPU)."""
+        return torch.zeros(*shape, device=next(self.buffers()).device)
+
     def calibrate(self, counts: list, t_s: list):
         """Fit normalisation buffers on the training trials (lists of (T, 2, H, W) and (T,) arrays)."""
 

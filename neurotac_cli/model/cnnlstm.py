@@ -38,7 +38,7 @@ class Net(CountScaledNet):
         self.head = nn.Linear(config.units, 1)
 
     def init_state(self, batch: int):
-        zeros = torch.zeros(1, batch, self.config.units)
+        zeros = self.zeros(1, batch, self.config.units)
         return {"h": zeros, "c": zeros.clone()}
 
     def forward(self, counts, t_s, state=None):

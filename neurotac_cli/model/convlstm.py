@@ -82,7 +82,7 @@ class Net(CountScaledNet):
             self.head = nn.Linear(flat, 1)
 
     def init_state(self, batch: int):
-        zeros = torch.zeros(batch, self.config.filters, *self.shape)
+        zeros = self.zeros(batch, self.config.filters, *self.shape)
         return {f"{kind}{index}": zeros.clone() for index in range(self.config.layers) for kind in "hc"}
 
     def forward(self, counts, t_s, state=None):
@@ -95,7 +95,7 @@ class Net(CountScaledNet):
         kernels = [cell.joint_kernel() for cell in self.cells]
         masks = None
         if self.training and self.dropout.p > 0 and layers > 1:
-            masks = dropout_masks((layers - 1, length, batch, *self.shape, self.config.filters), self.dropout.p)
+            masks = dropout_masks((layers - 1, length, batch, *self.shape, self.config.filters), self.dropout.p, x.device)
         head_weight, head_bias, rest = self._head_parts()
         outputs = []
         for t in range(length):
@@ -104,7 +104,7 @@ class Net(CountScaledNet):
                 h[index], c[index] = cell.step(inputs, h[index], c[index], kernels[index])
                 inputs = h[index] if masks is None or index == layers - 1 else h[index] * masks[index, t]
             outputs.append(F.linear(inputs.reshape(batch, -1), head_weight, head_bias))
-        out = rest(torch.stack(outputs, dim=1)) if outputs else torch.zeros(batch, 0, 1)
+        out = rest(torch.stack(outputs, dim=1)) if outputs else self.zeros(batch, 0, 1)
         new = {}
         for index in range(layers):
             new[f"h{index}"], new[f"c{index}"] = h[index].permute(0, 3, 1, 2), c[index].permute(0, 3, 1, 2)

@@ -1,6 +1,7 @@
 """Kernels of the ConvLSTM's fast path (model/convlstm.py): the LSTM gate function and the joint
 [x, h] input of a frame's gate convolution, on channels-last tensors flattened to (pixels, channels),
 each an autograd Function with a hand-written backward; and dropout keep-masks drawn cheaply.
+On a GPU the gates and the joint input are the torch operations (the loops are CPU code).
 
 Every activation is a logistic sigmoid: tanh(x) = 2 sigmoid(2x) - 1, with the factor 2 of the g
 gate folded into its convolution (`gate_scale`), because on the CPU build torch's sigmoid is
@@ -73,7 +74,7 @@ def _joint(x, h, out):  # pragma: no cover - compiled
 
 def gate_scale(filters: int, like: torch.Tensor) -> torch.Tensor:
     """Per output channel of the gate convolution (i, f, o, g): 1, 1, 1, 2."""
-    scale = torch.ones(4 * filters, dtype=like.dtype)
+    scale = torch.ones(4 * filters, dtype=like.dtype, device=like.device)
     scale[3 * filters :] = 2.0
     return scale
 
@@ -134,21 +135,21 @@ def lstm_gates(z, c):
     """New (h, c) from scaled gate pre-activations (..., 4F) ordered i, f, o, 2g and the cell state (..., F)."""
     shape = c.shape
     filters = shape[-1]
-    gates = _Gates.apply if KERNELS else _torch_gates
+    gates = _Gates.apply if KERNELS and z.device.type == "cpu" else _torch_gates
     h, c = gates(z.reshape(-1, 4 * filters), c.reshape(-1, filters))
     return h.view(shape), c.view(shape)
 
 
 def joint_input(x, h):
     """x (..., inputs) and h (..., F) side by side along channels, contiguous."""
-    if not KERNELS:
+    if not KERNELS or x.device.type != "cpu":
         return torch.cat([x, h], dim=-1)
     shape = x.shape[:-1]
     out = _Joint.apply(x.reshape(-1, x.shape[-1]), h.reshape(-1, h.shape[-1]))
     return out.view(*shape, out.shape[-1])
 
 
-def dropout_masks(shape, p: float):
+def dropout_masks(shape, p: float, device=None):
     """Float masks of `shape`: 0 with probability p, else 1 / (1 - p), as nn.Dropout applies.
 
     Each mask element comes from 16 random bits (two elements per 32-bit draw of the default
@@ -157,10 +158,10 @@ def dropout_masks(shape, p: float):
     """
     keep = 1.0 - p
     if keep <= 0:
-        return torch.zeros(shape)
+        return torch.zeros(shape, device=device)
     count = 1
     for size in shape:
         count *= size
-    bits = torch.randint(-(2**31), 2**31 - 1, ((count + 1) // 2,), dtype=torch.int32).view(torch.int16)[:count]
+    bits = torch.randint(-(2**31), 2**31 - 1, ((count + 1) // 2,), dtype=torch.int32, device=device).view(torch.int16)[:count]
     threshold = round(keep * 65536) - 32768
     return (bits < threshold).view(shape).to(torch.float32).mul_(1.0 / keep)

@@ -10,7 +10,7 @@ import torch
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
-from neurotac_cli.model.fit import FitConfig, fit
+from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 
 CHANNELS = ["off", "on"]
@@ -206,6 +206,13 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
             for group in (tensors, val_tensors):
                 if group is not None:
                     group["features"] = net.encode(group.pop("counts"), group["t"])
+        device = training_device()
+        if device.type != "cpu":  # a GPU: the network and every tensor it trains on move there, and back after
+            net.to(device)
+            for group in (tensors, val_tensors):
+                if group is not None:
+                    group.update({key: value.to(device) for key, value in group.items()})
+            training["device"] = str(device)
 
         def run(group, indices=slice(None)):
             if encoded:
@@ -221,6 +228,7 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
             return float(_masked_mse(run(val_tensors), val_tensors["force"], val_tensors["mask"]))
 
         curve = fit(net, batch_loss, len(train_set), val_loss, fit_config, generator, progress, label=name)
+        net.to("cpu")
     input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))
     training["curve"] = curve
     return Model(name, config, net, input_spec, None, training)

@@ -78,9 +78,9 @@ class Net(ForceNet):
 
     def init_state(self, batch: int):
         return {
-            "deformation": torch.zeros(batch, *self.shape),
-            "acc": torch.zeros(batch, 2),
-            "h": torch.zeros(self.config.layers, batch, self.config.hidden),
+            "deformation": self.zeros(batch, *self.shape),
+            "acc": self.zeros(batch, 2),
+            "h": self.zeros(self.config.layers, batch, self.config.hidden),
         }
 
     def features(self, counts, state):
@@ -104,7 +104,7 @@ class Net(ForceNet):
             torch.log1p(area).unsqueeze(-1), extent.unsqueeze(-1),
         ]
         if self.config.levels:
-            steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32) / self.config.levels * self.level_unit
+            steps = torch.arange(1, self.config.levels + 1, dtype=torch.float32, device=counts.device) / self.config.levels * self.level_unit
             depth_over = deformation.unsqueeze(2) - steps.view(1, 1, -1, 1, 1)  # one map per level, shared by both features
             parts.append(torch.log1p((depth_over >= 0).sum(dim=(-1, -2)).float()))
             if self.config.excess:

@@ -3,10 +3,15 @@ after `patience` epochs without validation improvement, restoring the best weigh
 
 import copy
 import math
+import os
 import time
 from dataclasses import dataclass
 
 import torch
+
+from neurotac_cli.errors import ModelError, UsageError
+
+DEVICE_VARIABLE = "NEUROTAC_DEVICE"
 
 
 @dataclass(frozen=True)
@@ -70,3 +75,22 @@ def best_epoch(curve: list) -> dict | None:
     if not curve:
         return None
     return min(curve, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"])
+
+
+def training_device() -> torch.device:
+    """Where gradient-trained force models train: $NEUROTAC_DEVICE (`--device` sets it for the
+    command and the worker processes it starts), the CPU when unset."""
+    name = os.environ.get(DEVICE_VARIABLE, "").strip() or "cpu"
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise UsageError(f"unknown device {name!r} (cpu, cuda or cuda:N)") from None
+    if device.type == "cpu":
+        return device
+    if device.type != "cuda":
+        raise UsageError(f"device {name!r}: neurotac trains on cpu or cuda")
+    if not torch.cuda.is_available():
+        raise ModelError(f"device {name!r}: this torch ({torch.__version__}) sees no CUDA GPU; train on cpu")
+    if device.index is not None and device.index >= torch.cuda.device_count():
+        raise ModelError(f"device {name!r}: this machine has {torch.cuda.device_count()} CUDA GPU(s)")
+    return device

@@ -45,7 +45,7 @@ class Net(ForceNet):
         return acc, acc[:, -1]
 
     def init_state(self, batch: int):
-        return {"acc": torch.zeros(batch, 2), "past": torch.zeros(batch, self.config.delays, 2)}
+        return {"acc": self.zeros(batch, 2), "past": self.zeros(batch, self.config.delays, 2)}
 
     def forward(self, counts, t_s, state=None):
         batch, length = counts.shape[:2]

@@ -56,7 +56,7 @@ def test_fast_path_equals_plain_dropout_given_the_same_masks(monkeypatch):
     net = _net(dropout=0.4).train()
     counts, t_s = _counts(batch=2, length=4), torch.zeros(2, 4)
     masks = ops.dropout_masks((3, 4, 2, *SHAPE[1:], 3), 0.4)
-    monkeypatch.setattr(convlstm, "dropout_masks", lambda shape, p: masks)
+    monkeypatch.setattr(convlstm, "dropout_masks", lambda shape, p, device=None: masks)
     out, _ = net(counts, t_s)
     # the plain formulation drops (B, T, F, H, W) sequences, layer after layer
     net.dropout = _GivenMasks(masks.permute(0, 2, 1, 5, 3, 4))
