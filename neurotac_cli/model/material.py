@@ -10,8 +10,8 @@
   separated from *how many*, which mostly carries the force), into one layer of 30 sigmoid units.
   Separating the two lets the network weigh the stiffness apart from the force (its accuracy
   against the thesis DNN's: docs/design.md).
-- `material-timing`: when the loading's ON events come (`dynamics`: a softer object loads more
-  slowly for the same force) beside the amounts of ON and OFF events, 11 numbers, classified by linear discriminant analysis: class means and one covariance pooled
+- `material-timing`: when the loading's OFF events come (`dynamics`: a softer object loads more
+  slowly for the same force) beside the amounts of OFF and ON events, 11 numbers, classified by linear discriminant analysis: class means and one covariance pooled
   within classes, fitted in closed form, which weighs the strongly correlated rise times against
   each other better than a small network trained on 40-odd grasps (docs/design.md). The training
   loop then fits only the scale of its logits (a temperature), which leaves its decisions alone.
@@ -86,26 +86,27 @@ def _crossing(curve: np.ndarray, shares) -> np.ndarray:
 
 def dynamics(rates: np.ndarray) -> np.ndarray:
     """How a grasp's loading unfolds in time, as numbers that depend on the material more than on
-    the force: the loading's ON burst rises more slowly into a softer object (the gripper travels
-    further for the same force: travel = force / stiffness of membrane and object in series), so the
-    frames at which the ON events reach 10-70% of their total, counted from 5%, carry the stiffness.
-    Beside them the amounts (log totals and peak rates of ON and, after the loading's peak, OFF
-    events) and the OFF/ON ratio, which carry the force the rise times are read against. The
-    release's OFF fall times, the OFF share while held and the contact's extent were tried and left
-    out: they separated no materials and made the discriminant noisier (docs/journal.md).
+    the force: the loading's OFF burst (the membrane darkens as it is pressed) rises more slowly into
+    a softer object (the gripper travels further for the same force: travel = force / stiffness of
+    membrane and object in series), so the frames at which the OFF events reach 10-70% of their
+    total, counted from 5%, carry the stiffness. Beside them the amounts (log totals and peak rates
+    of OFF and, after the loading's peak, ON events) and the ON/OFF ratio, which carry the force the
+    rise times are read against. The release's fall times, the share of events while held and the
+    contact's extent were tried and left out: they separated no materials and made the discriminant
+    noisier (docs/journal.md).
 
-    `rates`: (T, 2) ON and OFF events per frame.
+    `rates`: (T, 2) OFF and ON events per frame (the frames' channel order).
     """
-    on, off = rates[:, 0], rates[:, 1]
-    if not len(on) or on.sum() <= 0:
+    press, lift = rates[:, 0], rates[:, 1]
+    if not len(press) or press.sum() <= 0:
         return np.zeros(DYNAMICS)
-    late_off = np.where(np.arange(len(off)) >= int(np.argmax(on)), off, 0.0)  # the LED switch-off's OFF spike comes before
-    rise = _crossing(np.cumsum(on), (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7))
+    late_on = np.where(np.arange(len(lift)) >= int(np.argmax(press)), lift, 0.0)  # the sync LED's ON events come before
+    rise = _crossing(np.cumsum(press), (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7))
     log = np.log1p
     return np.concatenate([
         log(rise[1:] - rise[0]),
-        log([on.sum(), late_off.sum(), on.max(), late_off.max()]),
-        [log(late_off.sum()) - log(on.sum())],
+        log([press.sum(), late_on.sum(), press.max(), late_on.max()]),
+        [log(late_on.sum()) - log(press.sum())],
     ])
 
 

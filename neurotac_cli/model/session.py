@@ -125,7 +125,8 @@ class Stream:
         if pending:
             begin, end = pending[0], pending[-1] + 1
             estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
-            force[begin:end] = estimate[0]
+            # a contact's normal force is never negative: a model's undershoot as a press begins or ends reads as none
+            force[begin:end] = np.maximum(estimate[0], 0.0)
             self.contact.peak_force = max(self.contact.peak_force, float(estimate[0].max()))
             pending.clear()
 

