@@ -17,9 +17,10 @@ is kept beside it in NAME.seconds), so a run cut off, or one adding a model, tra
     python examples/sessions.py --quick            # seconds to a minute: tiny sessions, few epochs
     python examples/sessions.py --out out/sessions # the goals' size: 50-grasp sessions of >= 5 min
 
-The full mode takes about 1 h 50 min of one core, summed from its parts as they ran on 24 Nov 2026
-(simulating and framing the 14 sessions about 30 min; training deform-gru 2 min, the LSTM 8, the
-ConvLSTM 46 for 10 epochs over 200 contacts, the randomised deform-gru 4 and LSTM 6; scoring about 10).
+The full mode took about 40 minutes on the 2-core machine (25 Nov 2026, its models split over two
+processes; the ConvLSTM's 10 epochs over 200 contacts were 21 minutes of it); on a machine shared
+with other work its parts summed to 1 h 50 min of one core. With the data and models in OUT, a run
+only scores (minutes).
 The LSTM has 2 layers of 32 units (the thesis: 6).
 
 The frames are the whole 240x180 sensor sum-pooled 6x6 (40x30): slips carry the object far from

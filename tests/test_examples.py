@@ -373,3 +373,22 @@ def test_the_constant_baseline_reads_the_training_mean_of_nonzero_force(tmp_path
     pq.write_table(pa.table({"force": [0.0, 1.0, 3.0]}), train)  # mean of the non-zero forces: 2 N
     pq.write_table(pa.table({"force": [0.0, 1.0, 3.0, 2.0]}), test)  # errors -1, 1, 0 over a 2 N range
     assert results.constant_pct(train, test) == pytest.approx(100 * (2 / 3) ** 0.5 / 2)
+
+
+def test_a_quick_rig_materials_run_tables_every_classifier_and_leaves_docs_alone(tmp_path, monkeypatch):
+    rigs = load("rig_materials")
+    names = ("ours (material-timing)", "thesis DNN, k=2 n=30")
+
+    def one_rig(seed, work, repeats):
+        accuracy = 0.95 if seed == 101 else 0.85
+        timing = {("all", "accuracy"): accuracy, ("class:foam", "recall"): 1.0, ("class:steel", "recall"): 0.8}
+        return seed, f"physics {seed}", {names[0]: timing, names[1]: {("all", "accuracy"): 0.5}}
+
+    monkeypatch.setattr(rigs, "one_rig", one_rig)
+    published = []
+    monkeypatch.setattr(rigs, "publish", published.append)
+    rigs.main(["--quick", "--jobs", "1", "--work", str(tmp_path)])
+    text = (tmp_path / "rig_materials.md").read_text()
+    assert "| 101 | physics 101 | 95.0 | 50.0 | foam 100%, steel 80% |" in text
+    assert "ours (material-timing): mean 90.0% over 2 rigs, lowest 85.0%, at least 90% on 1 of 2." in text
+    assert not published

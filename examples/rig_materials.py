@@ -1,0 +1,88 @@
+"""Materials on rigs of other physics, each classifier trained on its own rig's grasps.
+
+A lab records its own grasps with its own sensor: what has to carry from our simulator to that
+sensor is the way the classifier learns, not its weights. Each rig is one draw of every physics
+family of the simulator (thresholds, membrane, optics, noise, force sensor, objects; `results.rig`),
+kept for the rig's 48 `ch3` grasps with a force-controlled gripper (each grasp's peak force drawn
+independently of its material, as a lab's gripper would hold it). Every classifier is scored by
+8-fold cross-validation over the rig's grasps, as on the default physics in the materials table.
+The rigs are those of the force tables (101-103) and of the session tables (201-216).
+
+Writes the section between `<!-- results:rig-materials:start -->` and `<!-- results:rig-materials:end -->`
+of docs/results.md, and WORK/rig_materials.md (a quick run only the latter).
+
+    make -C examples rig-materials                 # about 25 minutes on 2 cores
+    python examples/rig_materials.py --quick       # two rigs, one seed
+"""
+
+import argparse
+import concurrent.futures
+import pathlib
+import statistics
+import sys
+
+from chapters import md_table, replace_section  # beside this script
+from results import MATERIAL_PIPELINE, ROOT, fmt, frames, material_rows, neurotac, recalls, rig
+
+SECTION, TITLE = "rig-materials", "Materials on rigs of other physics"
+RIGS = (101, 102, 103, *range(201, 217))
+GOAL = 0.90
+
+
+def one_rig(seed: int, work: pathlib.Path, repeats: int) -> tuple:
+    options, about = rig(seed)
+    folder = work / f"rig{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    data = frames(folder, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 1 {options}")
+    return seed, about, material_rows(folder, data, "ch3", "kfold:8", repeats, {})
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="two rigs, one seed (about two minutes)")
+    parser.add_argument("--repeats", type=int, default=3, help="seeds of each cross-validation (default 3)")
+    parser.add_argument("--jobs", type=int, default=2, help="rigs at once, each in a process of its own (default 2; 1: in this process)")
+    parser.add_argument("--work", default=None, help="folder for frames and metrics (default examples/out-rig-materials[-quick])")
+    args = parser.parse_args(argv)
+    here = pathlib.Path(__file__).resolve().parent
+    work = pathlib.Path(args.work or here / ("out-rig-materials-quick" if args.quick else "out-rig-materials"))
+    rigs, repeats = (RIGS[:2], 1) if args.quick else (RIGS, args.repeats)
+    if args.jobs > 1:
+        with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
+            results = list(pool.map(one_rig, rigs, [work] * len(rigs), [repeats] * len(rigs)))
+    else:
+        results = [one_rig(seed, work, repeats) for seed in rigs]
+    names = list(results[0][2])
+    rows, ours = [], []
+    for seed, about, scores in results:
+        timing = scores[names[0]]
+        ours.append(timing[("all", "accuracy")])
+        rows.append([str(seed), about, *(fmt(100 * scores[name][("all", "accuracy")], 1) for name in names), recalls(timing)])
+    met = sum(value >= GOAL for value in ours)
+    body = "\n".join([
+        f"Made by `{'python examples/rig_materials.py --quick' if args.quick else 'make -C examples rig-materials'}`.",
+        "",
+        f"Each rig: 48 `ch3` grasps (foam, rubber, silicone, steel) with a force-controlled gripper and one draw of every "
+        f"physics family; every classifier trained and scored by 8-fold cross-validation over the rig's own grasps, "
+        f"{repeats} seed(s). Accuracy %:",
+        "",
+        md_table(["rig", "physics", *names, f"recall per class, {names[0]}"], rows),
+        "",
+        f"{names[0]}: mean {100 * statistics.mean(ours):.1f}% over {len(ours)} rigs, lowest {100 * min(ours):.1f}%, "
+        f"at least {100 * GOAL:.0f}% on {met} of {len(ours)}.",
+    ])
+    work.mkdir(parents=True, exist_ok=True)
+    (work / "rig_materials.md").write_text(f"## {TITLE}\n\n{body}\n")
+    if not args.quick:
+        publish(body)
+
+
+def publish(body: str):
+    """The full run's table into docs/results.md; a quick run's stays in its folder."""
+    path = ROOT / "docs" / "results.md"
+    path.write_text(replace_section(path.read_text(), SECTION, body, title=TITLE))
+    print(f"wrote {path}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
