@@ -11,7 +11,7 @@ The rigs are those of the force tables (101-103) and of the session tables (201-
 Writes the section between `<!-- results:rig-materials:start -->` and `<!-- results:rig-materials:end -->`
 of docs/results.md, and WORK/rig_materials.md (a quick run only the latter).
 
-    make -C examples rig-materials                 # about 25 minutes on 2 cores
+    make -C examples rig-materials                 # about 15 minutes on 2 cores
     python examples/rig_materials.py --quick       # two rigs, one seed
 """
 
