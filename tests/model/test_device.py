@@ -72,3 +72,18 @@ def _write(table, path):
     import pyarrow.parquet as pq
 
     pq.write_table(table, path)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU here")
+@pytest.mark.parametrize("name", ["convlstm", "deform-gru"])
+def test_a_gpu_training_matches_the_cpu_one_to_float32_rounding_and_comes_back_to_the_cpu(name, monkeypatch):
+    from neurotac_cli import model as models
+
+    curves = {}
+    for device in ("cpu", "cuda"):
+        monkeypatch.setenv(DEVICE_VARIABLE, device)
+        trained = models.train(tiny_frames(), models.make_spec(name, epochs=2, dropout=0.0), seed=0)
+        assert {p.device.type for p in trained.net.parameters()} == {"cpu"}
+        assert trained.training.get("device", "cpu").startswith(device)
+        curves[device] = [row["train_loss"] for row in trained.training["curve"]]
+    assert curves["cuda"] == pytest.approx(curves["cpu"], rel=1e-3)
