@@ -67,6 +67,10 @@ class Net(ForceNet):
         self.register_buffer("feature_mean", torch.zeros(width_features))
         self.register_buffer("feature_std", torch.ones(width_features))
         self.register_buffer("level_unit", torch.ones(1))
+        # How far a frame's features lie from the training frames' (`distances`); zeros: not fitted
+        self.register_buffer("feature_precision", torch.zeros(width_features, width_features))
+        self.register_buffer("distance_p99", torch.zeros(1))
+        self.distance_log = None  # a list to which each forward appends its frames' distances (model.predict.Outside)
         self.register_buffer("x_coord", torch.arange(width, dtype=torch.float32).view(1, 1, 1, width) / max(width, 1))
         self.register_buffer("y_coord", torch.arange(height, dtype=torch.float32).view(1, 1, height, 1) / max(height, 1))
         self.gru = nn.GRU(width_features, config.hidden, num_layers=config.layers, batch_first=True,
@@ -138,13 +142,23 @@ class Net(ForceNet):
         state = state or self.init_state(batch)
         features, new = self.features(counts, state)
         x = (features - self.feature_mean) / self.feature_std
+        if self.distance_log is not None:
+            self.distance_log.append(self.distance(x).numpy())
         out, h = self.gru(x, state["h"])
         new["h"] = h
         return self.head(out).squeeze(-1), new
 
+    def distance(self, x):
+        """Each frame's Mahalanobis distance from the training frames, from its standardised
+        features x (B, T, F): how unlike anything it learnt from a frame is, whatever the force it
+        reads there."""
+        return torch.einsum("btf,fg,btg->bt", x, self.feature_precision, x).clamp_min(0).sqrt()
+
     def prepare_for(self, tensors: dict):
         if "level_unit" not in tensors:  # a file written before the depth levels: unused there (levels 0)
             tensors["level_unit"] = self.level_unit.clone()
+        for name in ("feature_precision", "distance_p99"):  # a file written before the distance: no check
+            tensors.setdefault(name, getattr(self, name).clone())
 
     def _depths(self, counts: np.ndarray) -> np.ndarray:
         """The deformation map of one trial's counts (T, 2, H, W) over its frames."""
@@ -166,6 +180,15 @@ class Net(ForceNet):
         rows = torch.cat(rows)
         self.feature_mean.copy_(rows.mean(dim=0))
         self.feature_std.copy_(rows.std(dim=0).clamp_min(1e-3))
+        if len(rows) > rows.shape[1]:  # the features' covariance needs more frames than features
+            z = ((rows - self.feature_mean) / self.feature_std).double()
+            covariance = z.T @ z / len(z) + DISTANCE_RIDGE * torch.eye(z.shape[1], dtype=torch.float64)
+            precision = torch.linalg.inv(covariance)
+            self.feature_precision.copy_(precision)
+            self.distance_p99.fill_(float(torch.quantile(self.distance(z[None].float())[0], 0.99)))
+
+
+DISTANCE_RIDGE = 1e-3  # added to the standardised features' covariance, so it always inverts
 
 
 def accumulate(x, start, memory_frames: int):

@@ -43,6 +43,12 @@ def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model |
 # keep a grasp a little harder than the hardest in training from being named.
 EVENTS_MARGIN = 1.5  # a frame with more than this times the events of the busiest training frame
 FORCE_MARGIN = 1.2  # an estimate beyond this times the largest training force (either sign)
+# A scene of another kind can pass both at ordinary event rates (a rotating disk read as a steady
+# press): a deform-gru trained on trials also names frames whose features, averaged over about
+# DISTANCE_FRAMES frames, lie further from the training frames' than DISTANCE_MARGIN times the
+# distance 99% of those frames keep to (Mahalanobis, in the standardised features).
+DISTANCE_MARGIN = 1.2
+DISTANCE_FRAMES = 10
 
 
 @dataclass
@@ -52,17 +58,26 @@ class Outside:
     max_events: float | None  # events in the busiest training frame (None in model files that predate it)
     max_force: float | None  # the largest |force| of the training frames
     say: Callable[[str], None] | None = None  # called with a line at the first frame of each kind
+    net: object = None  # a network that logs its frames' feature distances (deform-gru on trials)
     frames: int = 0
     busy: int = 0
     strong: int = 0
+    unlike: int = 0
     busiest: float = 0.0
     strongest: float = 0.0
+    farthest: float = 0.0
     _events: collections.deque = field(default_factory=collections.deque, repr=False)
+    _trials: dict = field(default_factory=dict, repr=False)  # trial -> (mean distance, frames seen)
 
     @classmethod
     def of(cls, model: core.Model, say=None) -> "Outside":
         scale = (model.input_spec or {}).get("normalisation", {}).get("force_scale")
-        return cls(max_events=(model.training or {}).get("events_per_frame_max"), max_force=scale, say=say)
+        net = model.net if hasattr(model.net, "distance_log") and float(model.net.distance_p99) > 0 else None
+        if session.is_session_model(model):  # its network runs inside contacts only: no row-for-row log
+            net = None
+        if net is not None:
+            net.distance_log = []
+        return cls(max_events=(model.training or {}).get("events_per_frame_max"), max_force=scale, say=say, net=net)
 
     def watch_frames(self, batches):
         """The frames on their way to the model: each non-empty batch's events per frame are kept
@@ -72,7 +87,26 @@ class Outside:
                 counts = sch.counts_numpy(batch.column("counts"))
                 self._events.append(counts.reshape(len(counts), -1).sum(axis=1, dtype=np.float64))
             self.frames += batch.num_rows
+            if self.net is not None:  # what the network logs from here on is this batch's
+                self.net.distance_log.clear()
             yield batch
+
+    def _distances(self, batch) -> np.ndarray | None:
+        """The batch's feature distances as the network logged them, each averaged over about
+        DISTANCE_FRAMES frames of its trial (NaN in a trial's first frames)."""
+        logged = [d.reshape(-1) for d in self.net.distance_log]
+        self.net.distance_log.clear()
+        distances = np.concatenate(logged) if logged else np.empty(0)
+        if len(distances) != batch.num_rows:
+            return None
+        out = np.full(len(distances), np.nan)
+        for k, (trial, value) in enumerate(zip(batch.column("trial").to_pylist(), distances.tolist())):
+            mean, seen = self._trials.get(trial, (value, 0))
+            mean += (value - mean) / min(seen + 1, DISTANCE_FRAMES)
+            self._trials[trial] = (mean, seen + 1)
+            if seen + 1 >= DISTANCE_FRAMES // 2:
+                out[k] = mean
+        return out
 
     def watch_estimates(self, batches):
         """The estimates on their way out. A frame counts as busy only where the model read it: a
@@ -82,6 +116,7 @@ class Outside:
                 yield batch
                 continue
             events = self._events.popleft() if self._events else None
+            distances = self._distances(batch) if self.net is not None else None
             if events is not None and len(events) == batch.num_rows:
                 over = events > EVENTS_MARGIN * self.max_events
                 if "contact_pred" in batch.schema.names:
@@ -92,6 +127,15 @@ class Outside:
                                 "training frame; estimates of such frames lie outside what the model learnt")
                     self.busy += int(over.sum())
                     self.busiest = max(self.busiest, float(events[over].max()))
+            if distances is not None and len(distances) == batch.num_rows:
+                bar = DISTANCE_MARGIN * float(self.net.distance_p99)
+                over = np.nan_to_num(distances) > bar
+                if over.any():
+                    first = int(np.argmax(over))
+                    self._first(self.unlike, batch, first, f"its features lie {distances[first]:.1f} from the training frames' "
+                                f"(99% of those within {float(self.net.distance_p99):.1f}): a scene unlike any the model learnt from")
+                    self.unlike += int(over.sum())
+                    self.farthest = max(self.farthest, float(np.nanmax(distances[over])))
             if self.max_force:
                 force = np.abs(batch.column("force_pred").to_numpy(zero_copy_only=False))
                 over = force > FORCE_MARGIN * self.max_force
@@ -113,6 +157,10 @@ class Outside:
         if self.busy:
             lines.append(f"{self.busy} of {self.frames} frames held more than {EVENTS_MARGIN:g} times the events of the busiest "
                          f"training frame ({self.max_events:.0f}; up to {self.busiest:.0f}): their estimates are extrapolations")
+        if self.unlike:
+            lines.append(f"{self.unlike} of {self.frames} frames lay further from the training frames than {DISTANCE_MARGIN:g} times "
+                         f"the distance 99% of those keep to ({float(self.net.distance_p99):.1f}; up to {self.farthest:.1f}, "
+                         f"{DISTANCE_FRAMES}-frame mean): their estimates are readings of a scene the model never saw")
         if self.strong:
             lines.append(f"{self.strong} of {self.frames} estimates went beyond {FORCE_MARGIN:g} times the largest training force "
                          f"({self.max_force:.3g} N; up to {self.strongest:.3g} N)")

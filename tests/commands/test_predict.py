@@ -144,3 +144,50 @@ def test_a_busy_frame_outside_any_contact_is_not_named_for_a_model_trained_on_co
     out = pa.Table.from_batches(list(batches), schema=schema)
     assert not out.column("contact_pred").to_numpy(zero_copy_only=False)[5]
     assert outside.busy == 0 and outside.frames == blinked.num_rows
+
+
+def _swept_bar(frames):
+    """The frames' events per frame laid on a bar that turns round the frame's centre: a scene of
+    another kind (a rotating disk, a waved hand) at ordinary event rates."""
+    counts = schema_counts(frames)
+    n, _, height, width = counts.shape
+    per_pixel = np.maximum(counts.reshape(n, -1).sum(axis=1) // 9, 1)
+    bar = np.zeros_like(counts)
+    for i in range(n):
+        for r in range(-4, 5):
+            y, x = int(height / 2 + r * np.sin(0.4 * i)), int(width / 2 + r * np.cos(0.4 * i))
+            bar[i, i % 2, y % height, x % width] += per_pixel[i]
+    return frames.set_column(frames.schema.get_field_index("counts"), "counts", sch.counts_array(bar))
+
+
+def test_a_scene_unlike_the_training_frames_is_named_though_its_event_rates_are_ordinary():
+    model = models.train(tiny_frames(trials=24, seed=0), models.make_spec("deform-gru", epochs=3), seed=0)
+    assert float(model.net.distance_p99) > 0
+    for frames, expected in ((tiny_frames(trials=8, seed=1), False), (_swept_bar(tiny_frames(trials=8, seed=1)), True)):
+        said = []
+        outside = models.Outside.of(model, say=said.append)
+        schema, batches = models.stream(model, frames.schema, iter(frames.to_batches(max_chunksize=7)), outside=outside)
+        assert sum(batch.num_rows for batch in batches) == frames.num_rows
+        assert outside.busy == 0  # no frame is busier than the training ones: the events alone say nothing
+        assert (outside.unlike > 0) == expected, said
+        if expected:
+            assert "a scene unlike any the model learnt from" in said[0]
+            assert outside.messages()[0].startswith(f"{outside.unlike} of {frames.num_rows} frames lay further from the training frames")
+
+
+def test_a_model_file_without_the_feature_distance_runs_unwatched(tmp_path):
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    model = models.train(tiny_frames(trials=24, seed=0), models.make_spec("deform-gru", epochs=1), seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    with safe_open(str(tmp_path / "m.model"), "pt") as handle:
+        metadata = handle.metadata()
+    # a file written before the distance was kept: its tensors lack the two buffers
+    tensors = {k: v for k, v in load_file(str(tmp_path / "m.model")).items() if k not in ("feature_precision", "distance_p99")}
+    save_file(tensors, str(tmp_path / "old.model"), metadata=metadata)
+    old = models.load(str(tmp_path / "old.model"))
+    frames = _swept_bar(tiny_frames(trials=4, seed=1))
+    outside = models.Outside.of(old)
+    schema, batches = models.stream(old, frames.schema, iter(frames.to_batches()), outside=outside)
+    assert sum(batch.num_rows for batch in batches) == frames.num_rows and outside.unlike == 0
