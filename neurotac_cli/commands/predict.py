@@ -18,7 +18,7 @@ def command(paths, output, model_path, material_path, threads):
     Each trial's recurrent state is carried from frame to frame (nothing is re-run), so a controller
     can read estimates through a pipe while the sensor records. The output equals `eval` on the same
     frames. A frame busier than 1.5 times any training frame, an estimate beyond 1.2 times the
-    largest training force, or (deform-gru trained on trials) frames whose features lie far from
+    largest training force, or (deform-gru) frames whose features lie far from
     every training frame's, are named on stderr when they first occur and counted at the end: the
     model is reading a scene outside what it learnt.
 

@@ -44,11 +44,13 @@ def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model |
 EVENTS_MARGIN = 1.5  # a frame with more than this times the events of the busiest training frame
 FORCE_MARGIN = 1.2  # an estimate beyond this times the largest training force (either sign)
 # A scene of another kind can pass both at ordinary event rates (a rotating disk read as a steady
-# press): a deform-gru trained on trials also names frames whose features, averaged over about
-# DISTANCE_FRAMES frames, lie further from the training frames' than DISTANCE_MARGIN times the
-# distance 99% of those frames keep to (Mahalanobis, in the standardised features).
-DISTANCE_MARGIN = 1.2
+# press): a deform-gru also names frames whose features, averaged over about DISTANCE_FRAMES
+# frames, have lain further from the training frames' than DISTANCE_MARGIN times the distance 99%
+# of those frames keep to (Mahalanobis, in the standardised features) for DISTANCE_RUN frames in a
+# row: a scene persists, a grasp's odd moment passes.
+DISTANCE_MARGIN = 1.5
 DISTANCE_FRAMES = 10
+DISTANCE_RUN = 20
 
 
 @dataclass
@@ -58,7 +60,7 @@ class Outside:
     max_events: float | None  # events in the busiest training frame (None in model files that predate it)
     max_force: float | None  # the largest |force| of the training frames
     say: Callable[[str], None] | None = None  # called with a line at the first frame of each kind
-    net: object = None  # a network that logs its frames' feature distances (deform-gru on trials)
+    net: object = None  # a network that logs its frames' feature distances (deform-gru)
     frames: int = 0
     busy: int = 0
     strong: int = 0
@@ -67,14 +69,12 @@ class Outside:
     strongest: float = 0.0
     farthest: float = 0.0
     _events: collections.deque = field(default_factory=collections.deque, repr=False)
-    _trials: dict = field(default_factory=dict, repr=False)  # trial -> (mean distance, frames seen)
+    _trials: dict = field(default_factory=dict, repr=False)  # trial -> (mean distance, frames read, frames in a row over)
 
     @classmethod
     def of(cls, model: core.Model, say=None) -> "Outside":
         scale = (model.input_spec or {}).get("normalisation", {}).get("force_scale")
         net = model.net if hasattr(model.net, "distance_log") and float(model.net.distance_p99) > 0 else None
-        if session.is_session_model(model):  # its network runs inside contacts only: no row-for-row log
-            net = None
         if net is not None:
             net.distance_log = []
         return cls(max_events=(model.training or {}).get("events_per_frame_max"), max_force=scale, say=say, net=net)
@@ -91,22 +91,26 @@ class Outside:
                 self.net.distance_log.clear()
             yield batch
 
-    def _distances(self, batch) -> np.ndarray | None:
+    def _distances(self, batch) -> tuple | None:
         """The batch's feature distances as the network logged them, each averaged over about
-        DISTANCE_FRAMES frames of its trial (NaN in a trial's first frames)."""
+        DISTANCE_FRAMES of the frames of its trial that the network read, and whether each frame
+        ends DISTANCE_RUN of those in a row above the bar."""
         logged = [d.reshape(-1) for d in self.net.distance_log]
         self.net.distance_log.clear()
         distances = np.concatenate(logged) if logged else np.empty(0)
         if len(distances) != batch.num_rows:
             return None
-        out = np.full(len(distances), np.nan)
+        bar = DISTANCE_MARGIN * float(self.net.distance_p99)
+        means, over = np.full(len(distances), np.nan), np.zeros(len(distances), dtype=bool)
         for k, (trial, value) in enumerate(zip(batch.column("trial").to_pylist(), distances.tolist())):
-            mean, seen = self._trials.get(trial, (value, 0))
+            if value != value:  # a frame the network did not read (a session model between contacts)
+                continue
+            mean, seen, run = self._trials.get(trial, (value, 0, 0))
             mean += (value - mean) / min(seen + 1, DISTANCE_FRAMES)
-            self._trials[trial] = (mean, seen + 1)
-            if seen + 1 >= DISTANCE_FRAMES // 2:
-                out[k] = mean
-        return out
+            run = run + 1 if mean > bar and seen + 1 >= DISTANCE_FRAMES // 2 else 0
+            self._trials[trial] = (mean, seen + 1, run)
+            means[k], over[k] = mean, run >= DISTANCE_RUN
+        return means, over
 
     def watch_estimates(self, batches):
         """The estimates on their way out. A frame counts as busy only where the model read it: a
@@ -127,9 +131,8 @@ class Outside:
                                 "training frame; estimates of such frames lie outside what the model learnt")
                     self.busy += int(over.sum())
                     self.busiest = max(self.busiest, float(events[over].max()))
-            if distances is not None and len(distances) == batch.num_rows:
-                bar = DISTANCE_MARGIN * float(self.net.distance_p99)
-                over = np.nan_to_num(distances) > bar
+            if distances is not None:
+                distances, over = distances
                 if over.any():
                     first = int(np.argmax(over))
                     self._first(self.unlike, batch, first, f"its features lie {distances[first]:.1f} from the training frames' "
@@ -160,7 +163,8 @@ class Outside:
         if self.unlike:
             lines.append(f"{self.unlike} of {self.frames} frames lay further from the training frames than {DISTANCE_MARGIN:g} times "
                          f"the distance 99% of those keep to ({float(self.net.distance_p99):.1f}; up to {self.farthest:.1f}, "
-                         f"{DISTANCE_FRAMES}-frame mean): their estimates are readings of a scene the model never saw")
+                         f"{DISTANCE_FRAMES}-frame mean, {DISTANCE_RUN} frames in a row): their estimates are readings of a scene "
+                         "the model never saw")
         if self.strong:
             lines.append(f"{self.strong} of {self.frames} estimates went beyond {FORCE_MARGIN:g} times the largest training force "
                          f"({self.max_force:.3g} N; up to {self.strongest:.3g} N)")

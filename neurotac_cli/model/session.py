@@ -81,6 +81,7 @@ class Stream:
         the frames of a contact, in one call per run of them until a release burst makes the end of
         the contact possible, then frame by frame until its estimate says the contact is over."""
         off, on, separation = detector.frame_stats(counts)
+        self.distances = np.full(len(counts), np.nan)  # feature distances of the frames the network read (model.predict.Outside)
         force = np.zeros(len(counts), dtype=np.float32)
         phases = np.empty(len(counts), dtype=object)
         slips = np.zeros(len(counts), dtype=bool)
@@ -125,6 +126,9 @@ class Stream:
         if pending:
             begin, end = pending[0], pending[-1] + 1
             estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
+            log = getattr(self.model.net, "distance_log", None)
+            if log:  # a watcher asked the network for this call's feature distances
+                self.distances[begin:end] = log.pop()[0]
             # a contact's normal force is never negative: a model's undershoot as a press begins or ends reads as none
             force[begin:end] = np.maximum(estimate[0], 0.0)
             self.contact.peak_force = max(self.contact.peak_force, float(estimate[0].max()))
@@ -281,12 +285,17 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
     phase = np.empty(batch.num_rows, dtype=object)
     slip = np.zeros(batch.num_rows, dtype=bool)
     named = np.full(batch.num_rows, None, dtype=object)
+    distances = np.full(batch.num_rows, np.nan)
     edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
     for begin, end in zip(edges[:-1], edges[1:]):
         if trials[begin] not in streams:
             streams[trials[begin]] = Stream(model, material)
         one = streams[trials[begin]]
         force[begin:end], phase[begin:end], slip[begin:end], named[begin:end] = one.step(counts[begin:end], t[begin:end])
+        distances[begin:end] = one.distances
+    log = getattr(model.net, "distance_log", None)
+    if log is not None:  # row for row, NaN where no contact was read, for the watcher of this batch
+        log.append(distances)
     columns = {
         "trial": batch.column("trial"), "frame": batch.column("frame").cast(pa.int32()), "t": batch.column("t"),
         "phase": batch.column("phase"), "force": batch.column("force").cast(pa.float32()), "force_pred": pa.array(force),

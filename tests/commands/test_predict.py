@@ -161,9 +161,10 @@ def _swept_bar(frames):
 
 
 def test_a_scene_unlike_the_training_frames_is_named_though_its_event_rates_are_ordinary():
-    model = models.train(tiny_frames(trials=24, seed=0), models.make_spec("deform-gru", epochs=3), seed=0)
+    model = models.train(tiny_frames(trials=24, length=40, seed=0), models.make_spec("deform-gru", epochs=3), seed=0)
     assert float(model.net.distance_p99) > 0
-    for frames, expected in ((tiny_frames(trials=8, seed=1), False), (_swept_bar(tiny_frames(trials=8, seed=1)), True)):
+    held_out = tiny_frames(trials=8, length=40, seed=1)
+    for frames, expected in ((held_out, False), (_swept_bar(held_out), True)):
         said = []
         outside = models.Outside.of(model, say=said.append)
         schema, batches = models.stream(model, frames.schema, iter(frames.to_batches(max_chunksize=7)), outside=outside)
