@@ -629,8 +629,7 @@ def chapter4(folder, page, figures_dir, run) -> str:
         "only the vibration and membrane relaxation the simulator models, and its event counts per",
         "newton follow the simulator's DVS model, not the thesis's camera settings. The networks are the",
         "thesis's architectures in PyTorch (float32, on a CPU unless the run line names a GPU) rather than",
-        "Keras; MSE is in N² (the",
-        "thesis writes N)." + first_frame_note(folder),
+        "Keras; MSE is in N² (the thesis writes N)." + first_frame_note(folder),
     ]))
     return section_text(parts)
 
