@@ -409,3 +409,25 @@ def test_a_material_model_on_unpooled_frames_is_refused(trained):
     table, _ = tiny_session(grasps=1, seed=1)
     with pytest.raises(ModelError, match="pooled to one pixel"):
         session.predict_table(trained, table, material=unpooled)
+
+
+def test_the_feature_distance_is_logged_for_the_frames_read_inside_contacts_only(trained):
+    """`predict`'s watcher reads, row for row, the distance of each frame the network read (deform-gru's
+    `distance_log`): finite inside contacts, NaN between them, where the network does not run."""
+    table, _ = tiny_session(grasps=4, seed=5, trial="test")
+    trained.net.distance_log = []
+    try:
+        schema, batches = models.stream(trained, table.schema, iter(table.to_batches(max_chunksize=50)))
+        inside, logged = [], []
+        for batch in batches:
+            inside.append(batch.column("contact_pred").to_numpy(zero_copy_only=False))
+            logged.append(trained.net.distance_log.pop())
+            assert not trained.net.distance_log  # one row-for-row array per batch, nothing left over
+    finally:
+        trained.net.distance_log = None
+    inside, logged = np.concatenate(inside), np.concatenate(logged)
+    assert len(logged) == table.num_rows and inside.any() and not inside.all()
+    read = np.isfinite(logged)
+    assert read[inside].all()
+    ended = ~inside & np.concatenate([[False], inside[:-1]])  # a contact's last frame: read, then the contact ends
+    assert not read[~inside & ~ended].any()
