@@ -392,3 +392,21 @@ def test_a_quick_rig_materials_run_tables_every_classifier_and_leaves_docs_alone
     assert "| 101 | physics 101 | 95.0 | 50.0 | foam 100%, steel 80% |" in text
     assert "ours (material-timing): mean 90.0% over 2 rigs, lowest 85.0%, at least 90% on 1 of 2." in text
     assert not published
+
+
+def test_a_quick_physics_grasps_run_tables_its_models_beside_the_constant_and_leaves_docs_alone(tmp_path, monkeypatch):
+    physics = load("physics_grasps")
+    monkeypatch.setattr(physics, "training_data", lambda work, pipeline, sets: tmp_path / "train.arrows")
+    monkeypatch.setattr(physics, "frames", lambda work, name, pipeline, simulate: tmp_path / f"{name}.arrows")
+    monkeypatch.setattr(physics, "constant_pct", lambda train, test: 34.6)
+    errors = {"tdnn": ([30.0], [33.0]), "deform-gru": ([16.0], [20.0])}
+    monkeypatch.setattr(physics, "one_model", lambda name, work, train, tests, seeds, sets:
+                        (name, {"seen": errors[name][0], "unseen": errors[name][1]}))
+    published = []
+    monkeypatch.setattr(physics, "publish", published.append)
+    physics.main(["--quick", "--jobs", "1", "--work", str(tmp_path)])
+    text = (tmp_path / "physics_grasps.md").read_text()
+    assert "| deform-gru | 16.0 ± 0.0 | 20.0 ± 0.0 | 1.25 |" in text
+    assert "| constant (training mean) | 34.6 | 34.6 |  |" in text
+    assert "Lowest error on the unseen physics: deform-gru, 20.0 ± 0.0% against the constant's 34.6%." in text
+    assert not published
