@@ -786,6 +786,16 @@ TITLES = {
 }
 
 
+RESULTS_PAGE = pathlib.Path(__file__).resolve().parent.parent / "docs" / "results.md"
+
+
+def publish_section(section: str, body: str, title: str, page=RESULTS_PAGE):
+    """`body` into the page between its `results:SECTION` markers (appended under `title` when missing)."""
+    page = pathlib.Path(page)
+    page.write_text(replace_section(page.read_text(), section, body, title=title))
+    print(f"wrote {page}", file=sys.stderr)
+
+
 def replace_section(text: str, chapter: str, body: str, title: str | None = None) -> str:
     start, end = f"<!-- results:{chapter}:start -->", f"<!-- results:{chapter}:end -->"
     block = f"{start}\n{body.strip()}\n{end}"

@@ -19,10 +19,9 @@ resized run only the latter).
 import argparse
 import concurrent.futures
 import pathlib
-import sys
 
-from chapters import md_table, replace_section  # beside this script
-from results import FORCE_MODELS, HELD_OUT, PHYSICS, ROOT, constant_pct, frames, mean_sd, neurotac, sh, unseen_scores
+from chapters import md_table, publish_section  # beside this script
+from results import FORCE_MODELS, HELD_OUT, PHYSICS, constant_pct, frames, mean_sd, neurotac, sh, unseen_scores
 
 SECTION, TITLE = "physics-grasps", "Physics training never saw, with more grasps"
 SETS, SEEDS = 4, 3  # the published table's
@@ -91,9 +90,7 @@ def main(argv=None):
 
 def publish(body: str):
     """The full run's table into docs/results.md; a quick or resized run's stays in its folder."""
-    path = ROOT / "docs" / "results.md"
-    path.write_text(replace_section(path.read_text(), SECTION, body, title=TITLE))
-    print(f"wrote {path}", file=sys.stderr)
+    publish_section(SECTION, body, TITLE)
 
 
 if __name__ == "__main__":

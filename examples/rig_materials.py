@@ -19,10 +19,9 @@ import argparse
 import concurrent.futures
 import pathlib
 import statistics
-import sys
 
-from chapters import md_table, replace_section  # beside this script
-from results import MATERIAL_PIPELINE, ROOT, fmt, frames, material_rows, neurotac, recalls, rig
+from chapters import md_table, publish_section  # beside this script
+from results import MATERIAL_PIPELINE, fmt, frames, material_rows, neurotac, recalls, rig
 
 SECTION, TITLE = "rig-materials", "Materials on rigs of other physics"
 RIGS = (101, 102, 103, *range(201, 217))
@@ -80,9 +79,7 @@ def main(argv=None):
 
 def publish(body: str):
     """The full run's table into docs/results.md; a quick run's stays in its folder."""
-    path = ROOT / "docs" / "results.md"
-    path.write_text(replace_section(path.read_text(), SECTION, body, title=TITLE))
-    print(f"wrote {path}", file=sys.stderr)
+    publish_section(SECTION, body, TITLE)
 
 
 if __name__ == "__main__":

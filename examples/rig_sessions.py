@@ -32,7 +32,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from chapters import replace_section  # beside this script
+from chapters import RESULTS_PAGE, publish_section  # beside this script
 from results import rig
 from sessions import cut_into_trials, detection_cells, rest_cells, score, simulate, span
 from neurotac_cli import metrics
@@ -189,13 +189,10 @@ def main(argv=None):
         publish(f"Made by `make -C examples rig-sessions` (`examples/rig_sessions.py --model {args.model}`).\n\n{text}")
 
 
-def publish(body: str, page: str = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "results.md")):
+def publish(body: str, page=RESULTS_PAGE):
     """The tables into `page` (docs/results.md), between its `results:rig-sessions` markers."""
-    with open(page, encoding="utf-8") as source:
-        before = source.read()
-    with open(page, "w", encoding="utf-8") as sink:
-        sink.write(replace_section(before, "rig-sessions", body, title="Sessions on rigs of other physics"))
-    print(f"wrote {os.path.abspath(page)}", file=sys.stderr)
+    publish_section("rig-sessions", body, "Sessions on rigs of other physics", page)
+
 
 if __name__ == "__main__":
     main()

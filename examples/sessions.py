@@ -38,7 +38,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import tables
-from chapters import replace_section  # beside this script
+from chapters import RESULTS_PAGE, publish_section  # beside this script
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
@@ -260,14 +260,9 @@ def publishes(args) -> bool:
     return not args.quick and not resized
 
 
-def publish(text: str, page: str = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "results.md")):
+def publish(text: str, page=RESULTS_PAGE):
     """The table into `page` (docs/results.md), between its `results:sessions` markers."""
-    with open(page, encoding="utf-8") as source:
-        before = source.read()
-    body = f"Made by `make -C examples sessions` (`examples/sessions.py`).\n\n{text}"
-    with open(page, "w", encoding="utf-8") as sink:
-        sink.write(replace_section(before, "sessions", body, title="Sessions of many grasps"))
-    print(f"wrote {os.path.abspath(page)}", file=sys.stderr)
+    publish_section("sessions", f"Made by `make -C examples sessions` (`examples/sessions.py`).\n\n{text}", "Sessions of many grasps", page)
 
 
 if __name__ == "__main__":
