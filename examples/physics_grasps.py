@@ -12,7 +12,7 @@ Writes the section between `<!-- results:physics-grasps:start -->` and
 `<!-- results:physics-grasps:end -->` of docs/results.md, and WORK/physics_grasps.md (a quick or
 resized run only the latter).
 
-    make -C examples physics-grasps                # the published table (4 sets, 3 seeds)
+    make -C examples physics-grasps                # the published table (4 sets, 3 seeds; about 13 minutes on 2 cores)
     python examples/physics_grasps.py --quick      # 2 sets, deform-gru and tdnn, 1 seed
 """
 
