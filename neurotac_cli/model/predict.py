@@ -75,28 +75,29 @@ class Outside:
     def of(cls, model: core.Model, say=None) -> "Outside":
         scale = (model.input_spec or {}).get("normalisation", {}).get("force_scale")
         net = model.net if hasattr(model.net, "distance_log") and float(model.net.distance_p99) > 0 else None
-        if net is not None:
-            net.distance_log = []
         return cls(max_events=(model.training or {}).get("events_per_frame_max"), max_force=scale, say=say, net=net)
 
     def watch_frames(self, batches):
         """The frames on their way to the model: each non-empty batch's events per frame are kept
         until its estimates come back (both stream functions answer each non-empty batch in order)."""
-        for batch in batches:
-            if self.max_events and batch.num_rows:
-                counts = sch.counts_numpy(batch.column("counts"))
-                self._events.append(counts.reshape(len(counts), -1).sum(axis=1, dtype=np.float64))
-            self.frames += batch.num_rows
-            if self.net is not None:  # what the network logs from here on is this batch's
-                self.net.distance_log.clear()
-            yield batch
+        try:
+            for batch in batches:
+                if self.max_events and batch.num_rows:
+                    counts = sch.counts_numpy(batch.column("counts"))
+                    self._events.append(counts.reshape(len(counts), -1).sum(axis=1, dtype=np.float64))
+                self.frames += batch.num_rows
+                if self.net is not None:  # what the network logs from here on is this batch's
+                    self.net.distance_log = []
+                yield batch
+        finally:  # the network logs only while a stream is watched
+            if self.net is not None:
+                self.net.distance_log = None
 
     def _distances(self, batch) -> tuple | None:
         """The batch's feature distances as the network logged them, each averaged over about
         DISTANCE_FRAMES of the frames of its trial that the network read, and whether each frame
         ends DISTANCE_RUN of those in a row above the bar."""
-        logged = [d.reshape(-1) for d in self.net.distance_log]
-        self.net.distance_log.clear()
+        logged = [d.reshape(-1) for d in self.net.distance_log or []]
         distances = np.concatenate(logged) if logged else np.empty(0)
         if len(distances) != batch.num_rows:
             return None

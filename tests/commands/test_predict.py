@@ -169,6 +169,7 @@ def test_a_scene_unlike_the_training_frames_is_named_though_its_event_rates_are_
         outside = models.Outside.of(model, say=said.append)
         schema, batches = models.stream(model, frames.schema, iter(frames.to_batches(max_chunksize=7)), outside=outside)
         assert sum(batch.num_rows for batch in batches) == frames.num_rows
+        assert model.net.distance_log is None  # the network logs only while a stream is watched
         assert outside.busy == 0  # no frame is busier than the training ones: the events alone say nothing
         assert (outside.unlike > 0) == expected, said
         if expected:
