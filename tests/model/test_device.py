@@ -12,7 +12,7 @@ from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.core import _module
 from neurotac_cli.model.fit import DEVICE_VARIABLE, training_device
 from neurotac_cli.study import task_key
-from tests.model.helpers import tiny_frames
+from tests.model.helpers import tiny_frames, write_stream
 
 
 @pytest.mark.parametrize("name", ["tdnn", "lstm", "cnnlstm", "convlstm", "deform-gru"])
@@ -43,8 +43,7 @@ def test_a_gpu_asked_of_a_cpu_build_is_one_line_and_exit_1(tmp_path, monkeypatch
     monkeypatch.setenv(DEVICE_VARIABLE, "cuda")
     with pytest.raises(ModelError, match="sees no CUDA GPU"):
         training_device()
-    frames = tmp_path / "frames.parquet"
-    _write(tiny_frames(), frames)
+    frames = write_stream(tiny_frames(), tmp_path / "frames.arrows")
     result = CliRunner().invoke(cli, ["train", "--model", "lstm", "--device", "cuda", "-o", str(tmp_path / "m.model"), str(frames)])
     assert result.exit_code == 1 and "sees no CUDA GPU" in result.output
     assert not (tmp_path / "m.model").exists()
@@ -52,8 +51,7 @@ def test_a_gpu_asked_of_a_cpu_build_is_one_line_and_exit_1(tmp_path, monkeypatch
 
 def test_an_unknown_device_is_a_usage_error_before_any_work(tmp_path, monkeypatch):
     monkeypatch.setenv(DEVICE_VARIABLE, "cpu")  # restored after the command sets it
-    frames = tmp_path / "frames.parquet"
-    _write(tiny_frames(), frames)
+    frames = write_stream(tiny_frames(), tmp_path / "frames.arrows")
     result = CliRunner().invoke(cli, ["study", "--model-spec", "lstm", "--device", "tpu:0", str(frames)])
     assert result.exit_code == 2 and "device" in result.output
 
@@ -66,12 +64,6 @@ def test_gpu_trainings_are_cached_apart_from_cpu_ones(monkeypatch):
     assert task_key(test_gpu_trainings_are_cached_apart_from_cpu_ones, task) == plain
     monkeypatch.setenv(DEVICE_VARIABLE, "cuda")
     assert task_key(test_gpu_trainings_are_cached_apart_from_cpu_ones, task) != plain
-
-
-def _write(table, path):
-    import pyarrow.parquet as pq
-
-    pq.write_table(table, path)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU here")
