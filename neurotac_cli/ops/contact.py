@@ -6,14 +6,15 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
 (a burst of ON events). So:
 
 - rest -> touching (phase grasping) when a frame's OFF count rises above the background by
-  `onset_sigma` Poisson σ and by `min_events`;
+  `onset_sigma` Poisson σ and by `min_events`, unless the frame is ON-dominated (a release darkens
+  the rim a little as it lets go, in the same frames as its ON burst: no press);
 - grasping -> holding once the OFF count falls under `settled_share` of its peak since the onset
   (a later OFF burst, a re-grasp, goes back to grasping);
 - touching -> releasing on an ON-dominated burst (`dominance` times more ON than OFF events);
 - releasing -> rest: with a force model (`end_by_force`), once its estimate has stayed under
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
   tightens it some frames later, so the first low frame is not yet the end), or once the OFF
-  activity since the burst has been at the background's level for about `quiet_frames` frames
+  activity since the first such burst has been at the background's level for about `quiet_frames` frames
   while the estimate is under `quiet_force_share` of its peak in the contact, or the release bursts
   brightened the membrane by `quiet_release_share` of the press's peak OFF count (a model may read a
   little force after a release for a while, or not fall at all; a steady hold is as quiet as rest,
@@ -47,7 +48,7 @@ class ContactConfig:
     release_share: float = 0.04  # without a force model: ON of a release run / OFF since the onset that ends a contact
     release_force_n: float = 0.1  # with a force model: after a release burst, a contact ends when its estimate falls below this
     low_frames: int = 20  # ... for this many frames in a row (a re-grasp loosens the grip and tightens it again 6-18 frames later)
-    quiet_frames: int = 20  # ... or when the OFF activity since the burst (running mean over about this many frames) ...
+    quiet_frames: int = 20  # ... or when the OFF activity since the first release burst (running mean over about this many frames) ...
     quiet_sigma: float = 3.0  # ... is within this many standard errors of the background (the membrane is at rest)
     quiet_force_share: float = 0.5  # ... while the estimate is under this share of its peak in the contact
     quiet_release_share: float = 0.3  # ... or after release bursts whose ON events reach this share of the press's peak OFF
@@ -76,8 +77,8 @@ class ContactState:
     held: int = 0  # frames since the phase was last grasping (a press: the object may still be settling)
     held_before: int = 0  # `held` before the last frame
     press_after: int = 0  # `held` when the current press began (0 at an onset): a press of a settled hold may be a slip
-    quiet: float = 0.0  # running mean of OFF events since the last release burst
-    since_release: int = 0  # frames since the last release burst
+    quiet: float = 0.0  # running mean of OFF events since the first release burst after the last press
+    since_release: int = 0  # frames since the first release burst after the last press
     released_on: float = 0.0  # ON events above the background in the release bursts since the last press
     peak_force: float = 0.0  # the force model's largest estimate in this contact (set by its caller)
     low: int = 0  # frames in a row the force estimate has been under release_force_n since the burst
@@ -102,7 +103,7 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         _warm_up(config, state, off, on)
         return state.phase
     if state.phase == NONE:
-        if _above(config, off, state.mean_off):
+        if _above(config, off, state.mean_off) and not _brightening(config, state, off, on):
             state.phase, state.onsets = GRASPING, state.onsets + 1
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
             state.peak_force, state.press_after = 0.0, 0
@@ -110,11 +111,10 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
             _update_background(config, state, off, on)
         return state.phase
     pressing = _above(config, off, state.mean_off)
-    burst = _above(config, on, state.mean_on)
     if state.released:
         state.since_release += 1
         state.quiet += (off - state.quiet) / config.quiet_frames
-    if burst and on > config.dominance * off:
+    if _brightening(config, state, off, on):
         state.on_run += on
         if not state.released:
             state.quiet, state.since_release, state.low, state.released_on = off, 0, 0, 0.0
@@ -133,6 +133,11 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
             state.phase = HOLDING
     state.held = 0 if state.phase == GRASPING else state.held + 1
     return state.phase
+
+
+def _brightening(config: ContactConfig, state: ContactState, off: float, on: float) -> bool:
+    """An ON-dominated burst: the membrane brightens (a release), whatever OFF events come with it."""
+    return _above(config, on, state.mean_on) and on > config.dominance * off
 
 
 def _above(config: ContactConfig, count: float, mean: float) -> bool:
