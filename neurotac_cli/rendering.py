@@ -142,6 +142,7 @@ def _slice_steps(trial, t, x, y, p, sensor, spec: RenderSpec) -> Steps:
 
     if len(t) == 0:
         raise NeurotacError(f"trial {trial!r} has no events to draw")
+    sch.check_events(t, x, y, p, sensor, where=f"trial {trial!r}", sorted_time=False)
     width, height = sensor
     first, last = int(t.min()), int(t.max())
     if spec.slice_us:

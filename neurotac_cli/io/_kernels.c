@@ -80,7 +80,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     int64_t *order = b[5].held ? DATA(b[5], int64_t) : NULL;
     int64_t latest = order ? order[0] : 0, slack = order ? order[1] : 0, floor = order ? order[2] : INT64_MIN;
     int64_t gap = order ? order[3] : 0, gap_at = order ? order[4] : -1, gap_from = order ? order[5] : 0;
-    long long inside = 0, saturated = 0, before = 0, late = 0, beyond = 0, k_max = -1, back = 0;
+    long long inside = 0, saturated = 0, before = 0, late = 0, beyond = 0, k_max = -1, back = 0, outside = 0;
     Py_ssize_t first_back = -1;
     Py_BEGIN_ALLOW_THREADS
     int64_t k = 0, j = -1, lo = start, hi = start, base = 0;  /* [lo, hi): the previous event's window */
@@ -109,6 +109,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
         if (k < 0) { before++; continue; }
         if (j < 0) { late++; continue; }
         if (j >= n) { beyond++; continue; }
+        if (x[i] >= width || y[i] >= height || p[i] > 1) { outside++; continue; }  /* callers check; memory safety must not rest on them */
         inside++;
         uint16_t *cell = flat + base + ((int64_t)p[i] * height + y[i]) * width + x[i];
         if (*cell == 65535) saturated++;
@@ -117,6 +118,10 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     Py_END_ALLOW_THREADS
     if (order) { order[0] = latest; order[3] = gap; order[4] = gap_at; order[5] = gap_from; }
     release(b, 6);
+    if (outside) {
+        PyErr_Format(PyExc_ValueError, "count_events: %lld events outside the %zdx%zd sensor or with a polarity other than 0/1", outside, width, height);
+        return NULL;
+    }
     return Py_BuildValue("(LLLLLLLLn)", inside, saturated, before, late, beyond, k_max, zeroed, back, first_back);
 }
 

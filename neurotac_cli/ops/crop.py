@@ -150,6 +150,9 @@ def activity_map(table: pa.Table) -> np.ndarray:
     else:
         x = table.column("x").to_numpy().astype(np.int64)
         y = table.column("y").to_numpy().astype(np.int64)
+    if len(x) and (int(x.max()) >= width or int(y.max()) >= height):
+        raise OutsideSensorError(f"events lie outside the {width}x{height} sensor (largest x={int(x.max())}, y={int(y.max())}); "
+                                 "check the sensor size (--sensor WxH)")
     flat = np.bincount(y.astype(np.int64) * width + x, minlength=width * height)
     return flat.reshape(height, width).astype(np.float64)
 
@@ -292,14 +295,16 @@ def _frames_schema_like(schema: pa.Schema, height: int, width: int, dtype) -> pa
 # ---------------------------------------------------------------- events and recordings
 
 
-def crop_event_arrays(t, x, y, p, box, pool):
-    """Keep events inside `box`, shift them to its origin, pool coordinates; returns arrays and the mask."""
-    if box is not None:
+def crop_event_arrays(t, x, y, p, box, pool, sensor):
+    """Keep events inside `box`, shift them to its origin, pool coordinates; returns arrays and the mask.
+    Without a box every event is kept, so each must lie on the `sensor` (W, H) the output is sized from."""
+    if box is None:
+        sch.check_events(t, x, y, p, sensor, sorted_time=False)
+        inside = None
+    else:
         x0, y0, w, h = box
         inside = (x >= x0) & (x < x0 + w) & (y >= y0) & (y < y0 + h)
         t, x, y, p = t[inside], (x[inside] - x0), (y[inside] - y0), p[inside]
-    else:
-        inside = None
     if pool == "all":
         x, y = np.zeros_like(x), np.zeros_like(y)
     elif pool is not None:
@@ -317,10 +322,17 @@ def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropRepor
     def generate():
         for batch in batches:
             arrays = [batch.column(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
-            (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
+            (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool, (width, height))
             report.kept += len(t)
             report.cut += batch.num_rows - len(t)
-            yield sch.events_batch(t, x, y, p, out_schema)
+            if len(out_schema) == 4:
+                yield sch.events_batch(t, x, y, p, out_schema)
+                continue
+            # columns beyond t, x, y, p (another tool's) travel with the events they belong to
+            mine = dict(zip(("t", "x", "y", "p"), sch.events_batch(t, x, y, p).columns))
+            keep = None if inside is None else pa.array(inside)
+            yield pa.RecordBatch.from_arrays([mine[name] if name in mine else batch.column(name) if keep is None
+                                              else batch.column(name).filter(keep) for name in out_schema.names], schema=out_schema)
 
     return out_schema, generate()
 
@@ -339,17 +351,17 @@ def crop_recordings_batches(schema: pa.Schema, batches, box, pool, report: CropR
 
     def generate():
         for batch in batches:
-            yield _crop_recordings_batch(batch, box, pool, report, out_schema)
+            yield _crop_recordings_batch(batch, box, pool, report, out_schema, (width, height))
 
     return out_schema, generate()
 
 
-def _crop_recordings_batch(batch: pa.RecordBatch, box, pool, report: CropReport, schema: pa.Schema) -> pa.RecordBatch:
+def _crop_recordings_batch(batch: pa.RecordBatch, box, pool, report: CropReport, schema: pa.Schema, sensor) -> pa.RecordBatch:
     events = batch.column("events")
     offsets = events.offsets.to_numpy() - events.offsets.to_numpy()[0]
     values = events.values.slice(events.offsets.to_numpy()[0], offsets[-1]) if len(offsets) else events.values
     arrays = [values.field(name).to_numpy(zero_copy_only=False) for name in ("t", "x", "y", "p")]
-    (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool)
+    (t, x, y, p), inside = crop_event_arrays(*arrays, box, pool, sensor)
     if inside is not None:
         kept_before = np.concatenate([[0], np.cumsum(inside)])
         new_offsets = kept_before[offsets].astype(np.int32)
