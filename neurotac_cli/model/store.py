@@ -16,9 +16,18 @@ def save(model, path: str):
     from safetensors.torch import save_file
 
     tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
+    if _not_finite(tensors):
+        raise ModelError(f"training diverged: the weights {', '.join(_not_finite(tensors)[:3])} hold NaN or infinite values; "
+                         "nothing written (lower --lr, or check the training data)")
     header = json.dumps(model.header(), sort_keys=True, default=_json_default)
     with atomic_file(path) as temporary:
         save_file(tensors, temporary, metadata={HEADER_KEY: header})
+
+
+def _not_finite(tensors: dict) -> list[str]:
+    import torch
+
+    return [name for name, tensor in tensors.items() if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all())]
 
 
 def _json_default(value):
@@ -70,14 +79,21 @@ def load(path: str):
     module = _module(name)
     config_type = module.Config
     known = {f.name for f in dataclasses.fields(config_type)}
-    settings = {**getattr(module, "ABSENT_MEANS", {}), **header["architecture"]}
-    config = config_type(**{k: v for k, v in settings.items() if k in known})
     spec = header["input"]
-    if header["task"] == "material":
-        net = module.Net(config, len(header["classes"]))
-    else:
-        net = module.Net(config, (2, spec["height"], spec["width"]))
+    try:  # a header edited by hand, or damaged, fails here rather than deep in torch
+        settings = {**getattr(module, "ABSENT_MEANS", {}), **header["architecture"]}
+        config = config_type(**{k: v for k, v in settings.items() if k in known})
+        if header["task"] == "material":
+            net = module.Net(config, len(header["classes"]))
+        else:
+            net = module.Net(config, (2, int(spec["height"]), int(spec["width"])))
+    except (TypeError, KeyError, ValueError, AttributeError, RuntimeError) as error:
+        raise ModelError(f"{path}: the model header does not describe a {name} network ({type(error).__name__}: "
+                         f"{str(error).splitlines()[0] if str(error) else error!r}); train the model again") from None
     tensors = load_file(path)
+    if _not_finite(tensors):
+        raise ModelError(f"{path}: the weights {', '.join(_not_finite(tensors)[:3])} hold NaN or infinite values "
+                         "(a training that diverged); train the model again")
     net.prepare_for(tensors)
     try:
         net.load_state_dict(tensors, strict=True)
@@ -87,9 +103,11 @@ def load(path: str):
 
 
 def load_in_background(path: str, threads: int = 1):
-    """Start loading a model file (torch's import included, which takes seconds) in a daemon thread;
-    the returned callable waits for the model, or raises the loader's error. A verb reading a pipe
-    loads its model while the verbs upstream start, not after its first input arrives.
+    """Start loading a model file (torch's import included, which takes seconds) in a thread; the
+    returned callable waits for the model, or raises the loader's error. A verb reading a pipe
+    loads its model while the verbs upstream start, not after its first input arrives. The thread is
+    not a daemon: a verb that fails on its input while torch is still being imported waits for the
+    import before it exits (a process ending mid-import aborts in torch's C++ teardown).
 
     Once loaded, the objects made so far (torch's modules, the model) are moved out of the cyclic
     garbage collector's reach (`gc.freeze`): a full collection scans every object and took 85-100 ms
@@ -114,7 +132,7 @@ def load_in_background(path: str, threads: int = 1):
         except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
             outcome["error"] = error
 
-    thread = threading.Thread(target=run, daemon=True)
+    thread = threading.Thread(target=run)
     thread.start()
 
     def result():
