@@ -30,8 +30,10 @@ def describe(schema: pa.Schema, batches, camera: dict | None = None, everything:
     if source:
         info["source"] = source
     triggers = sch.get_meta(schema, "neurotac:triggers")
-    if triggers is not None:
-        info["triggers"] = {"count": len(triggers), "types": sorted({t.get("type", "?") for t in triggers})}
+    if isinstance(triggers, list):
+        info["triggers"] = {"count": len(triggers), "types": sorted({str(t.get("type", "?")) if isinstance(t, dict) else "?" for t in triggers})}
+    elif triggers is not None:
+        info["triggers"] = {"unreadable": str(triggers)[:80]}  # another tool's metadata: shown, not trusted
     window = sch.get_meta(schema, sch.WINDOW)
     if window is not None:
         info["window_us"] = int(window)

@@ -21,8 +21,8 @@ class Duration(ParamType):
 
     name = "DURATION"
 
-    def __init__(self, positive: bool = False):
-        self.positive = positive
+    def __init__(self, positive: bool = False, longest_us: int = 2**62):
+        self.positive, self.longest_us = positive, longest_us  # times are int64 µs: room left to add them
 
     def convert(self, value, param, ctx):
         try:
@@ -31,7 +31,31 @@ class Duration(ParamType):
             self.fail(str(error), param, ctx)
         if self.positive and us <= 0:
             self.fail(f"expected a positive duration, got {value!r}", param, ctx)
+        if abs(us) > self.longest_us:
+            self.fail(f"{value!r} is longer than the longest duration taken here, {self.longest_us} µs", param, ctx)
         return us
+
+
+class Finite(ParamType):
+    """A finite number (NaN and inf refused: they pass every range check), above `above` when given."""
+
+    name = "FLOAT"
+
+    def __init__(self, above: float | None = None):
+        self.above = above
+
+    def convert(self, value, param, ctx):
+        import math
+
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"expected a finite number, got {value!r}", param, ctx)
+        if self.above is not None and number <= self.above:
+            self.fail(f"expected a number above {self.above:g}, got {value!r}", param, ctx)
+        return number
 
 
 class Size(ParamType):
@@ -178,7 +202,8 @@ def replay_speed(realtime: bool, speed: float | None) -> float | None:
 
 def seed_option(function):
     return click.option(
-        "--seed", type=int, default=0, show_default=True, help="Seed of every random draw: same seed, same bytes."
+        "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
+        help="Seed of every random draw: same seed, same bytes."
     )(function)
 
 

@@ -201,7 +201,17 @@ def force_array(t, value) -> pa.StructArray:
     )
 
 
+def check_label_names(labels) -> None:
+    """A label is a column of its own beside the recordings' and frames' columns: it cannot take one's name."""
+    taken = set(REQUIRED["recordings"]) | set(REQUIRED["frames"]) | (NOT_LABELS - {"model"})
+    clash = [name for name in labels if name in taken or not str(name).strip()]
+    if clash:
+        raise SchemaError(f"label name {clash[0]!r} is {'empty' if not str(clash[0]).strip() else 'a column of the tables themselves'}; "
+                          f"rename the label (names taken: {', '.join(sorted(taken))})")
+
+
 def recordings_schema(labels=(), width=None, height=None, sync=None) -> pa.Schema:
+    check_label_names(labels)
     fields = [(name, typ) for name, typ in REQUIRED["recordings"].items()]
     fields += [(name, pa.string()) for name in labels]
     entries = {"kind": "recordings"}
@@ -285,6 +295,7 @@ def frames_schema(height, width, labels=(), dtype=np.uint16, window_us=None, sen
         ("phase", pa.string()),
     ]
     fields += list(extra)
+    check_label_names(labels)
     fields += [(name, pa.string()) for name in labels]
     entries = {"kind": "frames", "sensor": sensor or sensor_meta(width, height)}
     if window_us is not None:
@@ -383,7 +394,21 @@ def conform(batch, kind: str):
             except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
                 raise SchemaError(f"{kind} column {name!r} cannot be read as {typ}: {error}") from None
             batch = batch.set_column(index, pa.field(name, typ), column)
+    if kind == "frames":
+        _check_counts(batch.column(batch.schema.get_field_index("counts")))
     return batch
+
+
+def _check_counts(column):
+    """Event counts are finite: a NaN or infinite count (a float table from another tool) would train
+    a model to NaN or score it on fewer frames without a word."""
+    if getattr(column.type, "value_type", pa.uint16()).id not in (pa.float16().id, pa.float32().id, pa.float64().id):
+        return
+    counts = counts_numpy(column)
+    finite = np.isfinite(counts)
+    if not finite.all():
+        frames = int((~finite.reshape(len(counts), -1)).any(axis=1).sum())
+        raise SchemaError(f"{frames} frames carry NaN or infinite counts; event counts must be finite numbers")
 
 
 def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):

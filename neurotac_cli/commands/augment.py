@@ -2,18 +2,18 @@
 
 import click
 
-from neurotac_cli.options import KeyValue, echo_lines, history, input_paths, output_option, seed_option
+from neurotac_cli.options import Finite, KeyValue, echo_lines, history, input_paths, output_option, seed_option
 
 
 @click.command()
 @input_paths
 @output_option
-@click.option("--rotate", "rotate", type=float, default=None, metavar="DEG",
+@click.option("--rotate", "rotate", type=Finite(), default=None, metavar="DEG",
               help="Rotate every frame of a trial by DEG degrees about its contact centre (clockwise on screen).")
-@click.option("--rotate-range", "rotate_range", type=float, nargs=2, default=None, metavar="A B",
+@click.option("--rotate-range", "rotate_range", type=Finite(), nargs=2, default=None, metavar="A B",
               help="Rotate each copy of a trial by one angle drawn uniformly from [A, B] degrees (thesis: 0 45).")
-@click.option("--resize", "resize", type=click.FloatRange(min=0, min_open=True), default=None, metavar="BETA",
-              help="Scale about the contact centre by BETA (>1 larger; thesis 1.25 small objects, 0.83 large), "
+@click.option("--resize", "resize", type=Finite(above=0), default=None, metavar="BETA",
+              help="Scale about the contact centre by BETA > 0 (>1 larger; thesis 1.25 small objects, 0.83 large), "
                    "bilinear, zero margin.")
 @click.option("--preserve-total", is_flag=True,
               help="After rotating or resizing, rescale each frame and channel to its original event count.")

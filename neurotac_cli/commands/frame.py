@@ -36,7 +36,7 @@ class Scale(ParamType):
 @click.command()
 @input_paths
 @output_option
-@click.option("--window", type=Duration(positive=True), required=True, help="Frame length, with its unit: 10ms (thesis ch. 4-5), 7ms (ch. 3).")
+@click.option("--window", type=Duration(positive=True, longest_us=2**31 - 1), required=True, help="Frame length, with its unit: 10ms (thesis ch. 4-5), 7ms (ch. 3).")
 @click.option(
     "--last-partial",
     type=click.Choice(["keep", "drop"]),

@@ -67,12 +67,18 @@ def _read_table(path: str) -> pa.Table:
         if head == b"PAR1":
             import pyarrow.parquet as pq
 
-            return pq.read_table(path)
-        import pyarrow.csv as csv
+            table = pq.read_table(path)
+        else:
+            import pyarrow.csv as csv
 
-        return csv.read_csv(path, parse_options=csv.ParseOptions(delimiter=_delimiter(path)))
+            table = csv.read_csv(path, parse_options=csv.ParseOptions(delimiter=_delimiter(path)))
     except (pa.ArrowInvalid, OSError) as error:
         raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV or Parquet with a header such as t_ms,force_N)") from None
+    names = table.column_names
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise FormatError(f"{path}: the force log names column {repeated[0]!r} more than once; give each column its own name")
+    return table
 
 
 def _delimiter(path: str) -> str:

@@ -2,13 +2,14 @@
 
 import dataclasses
 import importlib
+import math
 
 import numpy as np
 import pyarrow as pa
 import torch
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
@@ -41,8 +42,38 @@ def make_spec(name: str, **options) -> dict:
             continue
         if key not in arch_fields and key not in fit_fields:
             raise ModelError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
+        _check_setting(key, value)
         spec[key] = value
     return spec
+
+
+# The settings' ranges, (lowest, highest, whether the highest is excluded): a setting outside them
+# would fail deep inside torch or train a model that cannot work, so it is refused here, where
+# options, --grid values and a study's specs all pass.
+SETTING_RANGES = {
+    "layers": (0, None, False), "units": (1, None, False), "delays": (0, None, False), "filters": (1, None, False),
+    "kernel": (1, None, False), "dropout": (0.0, 1.0, True), "dense": (0, None, False), "hidden": (1, None, False),
+    "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, None, False),
+    "max_points": (1, None, False), "points": (2, None, False), "lr": (0.0, None, False), "beta1": (0.0, 1.0, True),
+    "beta2": (0.0, 1.0, True), "batch_size": (1, None, False), "epochs": (1, None, False), "patience": (1, None, False),
+    "weight_decay": (0.0, None, False),
+}
+
+
+def _check_setting(key: str, value):
+    if key not in SETTING_RANGES or isinstance(value, (str, bool)) or not isinstance(value, (int, float)):
+        return
+    low, high, open_high = SETTING_RANGES[key]
+    option = "--" + key.replace("_", "-")
+    if not math.isfinite(value) or value < low or (key == "lr" and value <= 0) or (
+            high is not None and (value >= high if open_high else value > high)):
+        if key == "lr":
+            bound = "above 0"
+        elif high is None:
+            bound = f"of at least {low:g}"
+        else:
+            bound = f"from {low:g} to {'below ' if open_high else ''}{high:g}"
+        raise UsageError(f"{option} must be a finite number {bound}, got {value}")
 
 
 def split_spec(spec: dict):

@@ -141,6 +141,9 @@ def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None
         check_no_leak(data, mask)
     elif where is not None:
         mask = rows_where(data, where)
+        if not mask.any():
+            values = sorted({str(v) for v in data.labels[where[0]]})
+            raise ModelError(f"no trial has {where[0]}={where[1]} to validate on ({where[0]}: {', '.join(values[:8])}); check --val-where")
         check_no_leak(data, mask)
     elif fraction:
         mask = _fraction_per_group(data, fraction, per, rng or np.random.default_rng(0))

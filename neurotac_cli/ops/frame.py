@@ -170,6 +170,11 @@ class FramingReport:
         `lead_in_expected`: events before t0 of synced trials are their LED blink and lead-in, not
         part of the trial by design: counted in history, not warned about."""
         lines = []
+        if lead_in_expected and self.events and self.before_start > LEAD_IN_SHARE * self.events:
+            lines.append(
+                f"{self.before_start} of {self.events} events ({100 * self.before_start / self.events:.1f}%) come before their "
+                "trial's sync instant t0 and are not framed: more than a lead-in; check the trials' t0 (neurotac sync)"
+            )
         unexpected = self.after_end + self.late + (0 if lead_in_expected else self.before_start)
         if self.events and unexpected > threshold * self.events:
             lines.append(
@@ -185,6 +190,8 @@ class FramingReport:
 
 
 # ---------------------------------------------------------------- recordings
+
+LEAD_IN_SHARE = 0.5  # a synced trial's LED blink and lead-in are a minority of its events; more means a wrong t0
 
 
 def frame_recordings(table: pa.Table, window_us: int, report: FramingReport | None = None, **options) -> pa.Table:

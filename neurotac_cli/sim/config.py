@@ -251,7 +251,14 @@ def _scalar(name, text, default, parse_duration_us):
 
 
 def validate(config: SimConfig):
+    import math
+
     problems = []
+    for item in dataclasses.fields(config):  # NaN passes every comparison below unnoticed
+        values = getattr(config, item.name)
+        for value in values if isinstance(values, tuple) else (values,):
+            if isinstance(value, float) and not math.isfinite(value):
+                problems.append(f"{item.name} must be a finite number, got {value}")
     if config.gripper not in ("position", "force"):
         problems.append(f"gripper={config.gripper!r} (use position or force)")
     for name in ("regrasp_share", "change_share", "partial_share", "slip_share"):

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from neurotac_cli.errors import UsageError
+from neurotac_cli.schema import check_label_names
 from neurotac_cli.sim.config import GRIPPER_FORCE_BANDS, MATERIALS, ObjectShape, SimConfig, parse_object
 
 
@@ -62,6 +63,10 @@ def parse_groups(groups) -> list[tuple]:
             if not sep:
                 raise UsageError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
             labels[name] = value
+        reserved = [name for name in labels if name in ("material", "object", "size_mm")]
+        if reserved:
+            raise UsageError(f"label {reserved[0]!r} in {text!r} is set by the simulator from the group itself")
+        check_label_names(labels)
         parsed.append((material, parse_object(obj), count, labels))
     if not parsed:
         raise UsageError("no trials to simulate (give --objects/--materials or a preset)")

@@ -1,0 +1,159 @@
+"""Hostile inputs that once crashed a verb or passed without a word: each is refused in one line
+(exit 1 for bad data, 2 for a bad option), or, where the data is fine, kept."""
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pytest
+
+from neurotac_cli import schema as sch, tables
+from neurotac_cli.io import kernels
+from tests.test_exits import files, frames_table, invoke  # noqa: F401 - `files` is a fixture
+
+
+def one_line(stderr: str, code: int, result: int) -> bool:
+    return code == result and "Traceback" not in stderr and stderr.strip().count("\n") == 0
+
+
+def events(x, y, p, width, height, extra=None):
+    table = sch.events_table(np.arange(len(x)), x, y, p, width, height)
+    if extra is not None:
+        table = table.append_column("source", pa.array(extra))
+    return table
+
+
+def test_the_counting_kernel_refuses_events_off_its_buffer():
+    out = np.zeros((1, 2, 4, 4), np.uint16)
+    for x, y, p in ((4, 0, 0), (0, 4, 0), (0, 0, 2)):
+        with pytest.raises(ValueError, match="outside the 4x4 sensor"):
+            kernels.count_events(np.array([0]), np.array([x]), np.array([y]), np.array([p]), 0, 10, 0, out)
+    assert out.sum() == 0
+
+
+def test_render_and_a_pooling_crop_refuse_events_beyond_the_stated_sensor(tmp_path):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 30], [0, 5], [0, 1], 10, 10).replace_schema_metadata(
+        sch.set_meta(sch.events_schema(), sensor=sch.sensor_meta(10, 10)).metadata))
+    code, stderr, _ = invoke(["render", "-o", str(tmp_path / "r.png"), path])
+    assert one_line(stderr, code, 1) and "outside the 10x10 sensor" in stderr
+    good = str(tmp_path / "g.arrows")
+    tables.write(good, events([0, 9], [0, 5], [0, 1], 10, 10))
+    code, stderr, _ = invoke(["crop", "--pool", "2x2", "--sensor", "4x4", "-o", str(tmp_path / "c.arrows"), good])
+    assert one_line(stderr, code, 1) and "outside the 4x4 sensor" in stderr
+
+
+def test_a_crop_keeps_another_tool_s_columns_with_their_events(tmp_path):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([1, 8, 2], [1, 8, 2], [0, 1, 1], 10, 10, extra=["a", "b", "c"]))
+    out = str(tmp_path / "c.arrows")
+    code, stderr, _ = invoke(["crop", "--box", "0,0,5,5", "-o", out, path])
+    assert code == 0, stderr
+    assert tables.read([out]).column("source").to_pylist() == ["a", "c"]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_frames_with_counts_that_are_no_numbers_are_refused(files, tmp_path, bad):  # noqa: F811
+    table = frames_table()
+    counts = sch.counts_numpy(table.column("counts")).astype(np.float32)
+    counts[3, 0, 2, 2] = bad
+    table = pa.Table.from_arrays([*table.columns[:3], sch.counts_array(counts), *table.columns[4:]],
+                                 names=table.column_names).replace_schema_metadata(table.schema.metadata)
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, table)
+    for args in (["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model")], ["predict", "--model", f"{files}/m.model"]):
+        code, stderr, _ = invoke(args + [path])
+        assert one_line(stderr, code, 1) and "1 frames carry NaN or infinite counts" in stderr
+
+
+@pytest.mark.parametrize("option", [["--lr", "nan"], ["--lr", "0"], ["--batch-size", "0"], ["--units", "-5"], ["--beta1", "1"],
+                                    ["--epochs", "0"], ["--seed", "-1"]])
+def test_settings_outside_their_range_are_usage_errors(files, tmp_path, option):  # noqa: F811
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "-o", str(tmp_path / "m.model"), *option, f"{files}/f.arrows"])
+    assert code == 2 and "Traceback" not in stderr
+
+
+def test_a_grid_value_outside_its_range_is_a_usage_error(files):  # noqa: F811
+    code, stderr, _ = invoke(["eval", "--cv", "kfold:2", "--model-spec", "tdnn", "--grid", "lr=nan", f"{files}/f.arrows"])
+    assert code == 2 and "--lr must be a finite number above 0" in stderr
+
+
+def _edit_model(source: str, target: str, header=None, tensors=None):
+    from safetensors.torch import load_file, save_file
+    from safetensors import safe_open
+
+    with safe_open(source, framework="numpy") as handle:
+        metadata = dict(handle.metadata())
+    weights = load_file(source)
+    if header:
+        metadata["neurotac"] = json.dumps(header(json.loads(metadata["neurotac"])))
+    if tensors:
+        tensors(weights)
+    save_file(weights, target, metadata=metadata)
+
+
+def test_a_damaged_model_header_or_nan_weights_are_one_line(files, tmp_path):  # noqa: F811
+    def no_height(header):
+        del header["input"]["height"]
+        return header
+
+    def as_list(header):
+        header["architecture"] = [1, 2]
+        return header
+
+    def poison(weights):
+        next(iter(weights.values())).fill_(float("nan"))
+
+    for name, edit in (("h.model", {"header": no_height}), ("a.model", {"header": as_list}), ("n.model", {"tensors": poison})):
+        _edit_model(f"{files}/m.model", str(tmp_path / name), **edit)
+        code, stderr, _ = invoke(["predict", "--model", str(tmp_path / name), f"{files}/f.arrows"])
+        assert one_line(stderr, code, 1), stderr
+    assert "NaN or infinite" in stderr
+
+
+def test_frame_warns_when_most_events_come_before_the_sync_instant(tmp_path):
+    trials = [{"trial": "a", "t0": 0, "events": ([-5_000_000, -4_000_000, 100], [1, 2, 3], [1, 2, 3], [0, 1, 0]),
+               "force": ([0, 2000], [0.0, 1.0])}]
+    path = str(tmp_path / "r.arrows")
+    tables.write(path, sch.recordings_table(trials, 8, 8))
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), path])
+    assert code == 0 and "2 of 3 events (66.7%) come before their trial's sync instant" in stderr
+
+
+@pytest.mark.parametrize("label", ["events=x", "trial=x", "t0=5", "counts=x", "phase=x"])
+def test_a_label_named_like_a_column_is_refused(label, tmp_path):
+    code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--objects", f"steel:hex:1:{label}", "--out", str(tmp_path / "s")])
+    assert one_line(stderr, code, 1) and "label name" in stderr
+
+
+@pytest.mark.parametrize("args", [["--background-rate", "nan"], ["--set", "on_threshold=nan"]])
+def test_simulator_settings_that_are_no_numbers_are_refused(args, tmp_path):
+    code, stderr, _ = invoke(["simulate", "--trials", "1", *args, "--out", str(tmp_path / "s")])
+    assert code in (1, 2) and "Traceback" not in stderr and "finite" in stderr
+
+
+@pytest.mark.parametrize("args", [["--rotate", "nan"], ["--rotate-range", "nan", "nan"], ["--resize", "inf"]])
+def test_augment_refuses_angles_and_scales_that_are_no_numbers(args, files):  # noqa: F811
+    code, stderr, _ = invoke(["augment", *args, f"{files}/f.arrows"])
+    assert code == 2 and "finite" in stderr
+
+
+def test_a_force_log_naming_a_column_twice_is_one_line(tmp_path):
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.io.force import read_force_log
+
+    path = tmp_path / "f.csv"
+    path.write_text("t_ms,force_N,force_N\n0,1,1\n1,1,1\n")
+    with pytest.raises(FormatError, match="more than once"):
+        read_force_log(str(path))
+
+
+def test_a_frame_window_past_the_table_format_is_a_usage_error(files):  # noqa: F811
+    code, stderr, _ = invoke(["frame", "--window", "9223372036854775807us", "-"])
+    assert code == 2 and "longest duration" in stderr
+
+
+def test_a_validation_choice_that_matches_no_trial_is_one_line(files, tmp_path):  # noqa: F811
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "--val-where", "material=glass",
+                              "-o", str(tmp_path / "m.model"), f"{files}/f.arrows"])
+    assert one_line(stderr, code, 1) and "no trial has material=glass" in stderr
