@@ -109,9 +109,11 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
         if (k < 0) { before++; continue; }
         if (j < 0) { late++; continue; }
         if (j >= n) { beyond++; continue; }
-        if (x[i] >= width || y[i] >= height || p[i] > 1) { outside++; continue; }  /* callers check; memory safety must not rest on them */
+        int64_t offset = ((int64_t)p[i] * height + y[i]) * width + x[i];
+        /* callers check the sensor; one compare (no cost measured) keeps the buffer safe whatever they pass */
+        if ((uint64_t)offset >= (uint64_t)cells) { outside++; continue; }
         inside++;
-        uint16_t *cell = flat + base + ((int64_t)p[i] * height + y[i]) * width + x[i];
+        uint16_t *cell = flat + base + offset;
         if (*cell == 65535) saturated++;
         else (*cell)++;
     }
@@ -119,7 +121,7 @@ static PyObject *count_events(PyObject *self, PyObject *args) {
     if (order) { order[0] = latest; order[3] = gap; order[4] = gap_at; order[5] = gap_from; }
     release(b, 6);
     if (outside) {
-        PyErr_Format(PyExc_ValueError, "count_events: %lld events outside the %zdx%zd sensor or with a polarity other than 0/1", outside, width, height);
+        PyErr_Format(PyExc_ValueError, "count_events: %lld events fall outside the %zdx%zd frames (x, y or polarity out of range)", outside, width, height);
         return NULL;
     }
     return Py_BuildValue("(LLLLLLLLn)", inside, saturated, before, late, beyond, k_max, zeroed, back, first_back);
