@@ -142,6 +142,7 @@ def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
 
     fmt = export_format(path)
     t, x, y, p, width, height = events_arrays(table, trial)
+    sch.check_events(t, x, y, p, (width, height), sorted_time=False)  # a camera file cannot hold them as they are
     if fmt == "evt3":
         data, shift = evt3_bytes(t, x, y, p, width, height)
     elif fmt == "aedat4":

@@ -158,3 +158,13 @@ def test_a_validation_choice_that_matches_no_trial_is_one_line(files, tmp_path):
     code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "--val-where", "material=glass",
                               "-o", str(tmp_path / "m.model"), f"{files}/f.arrows"])
     assert one_line(stderr, code, 1) and "no trial has material=glass" in stderr
+
+
+def test_export_refuses_events_a_camera_file_cannot_hold(tmp_path):
+    for x, p in (([0, 30], [0, 1]), ([0, 3], [0, 2])):
+        path = str(tmp_path / "e.arrows")
+        tables.write(path, events(x, [0, 5], p, 10, 10).replace_schema_metadata(
+            sch.set_meta(sch.events_schema(), sensor=sch.sensor_meta(10, 10)).metadata))
+        for suffix in (".raw", ".aedat4", ".aedat"):
+            code, stderr, _ = invoke(["export", "-o", str(tmp_path / f"e{suffix}"), path])
+            assert one_line(stderr, code, 1), stderr
