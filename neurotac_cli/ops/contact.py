@@ -8,8 +8,8 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
 - rest -> touching (phase grasping) when a frame's OFF count rises above the background by
   `onset_sigma` Poisson σ and by `min_events`, unless the frame is ON-dominated (a release darkens
   the rim a little as it lets go, in the same frames as its ON burst: no press);
-- grasping -> holding once the OFF count falls under `settled_share` of its peak since the onset
-  (a later OFF burst, a re-grasp, goes back to grasping);
+- grasping -> holding once the OFF count above the background falls under `settled_share` of the
+  peak's (a later OFF burst, a re-grasp, goes back to grasping);
 - touching -> releasing on an ON-dominated burst (`dominance` times more ON than OFF events);
 - releasing -> rest: with a force model (`end_by_force`), once its estimate has stayed under
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
@@ -129,7 +129,9 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         state.peak_off = max(state.peak_off, off)
     else:
         state.on_run = 0.0
-        if state.phase == RELEASING or off < config.settled_share * state.peak_off:
+        # settled once the OFF count above the background falls: a busy background alone (hot pixels)
+        # can exceed the share of a faint press's peak, which held every hold of such a camera in grasping
+        if state.phase == RELEASING or off - state.mean_off < config.settled_share * (state.peak_off - state.mean_off):
             state.phase = HOLDING
     state.held = 0 if state.phase == GRASPING else state.held + 1
     return state.phase

@@ -142,6 +142,17 @@ def test_a_release_that_darkens_the_rim_starts_no_contact():
     assert metrics.runs(phases != contact.NONE) == [(40, 80)]
 
 
+def test_a_faint_press_over_a_busy_background_settles_into_a_hold():
+    """Hot pixels can fire more OFF events per frame than a quarter of a faint press's peak: the
+    hold is told by the OFF count above the background, so the press still settles."""
+    rng = np.random.default_rng(2)
+    off, on = rng.poisson(180, 200).astype(float), rng.poisson(210, 200).astype(float)
+    off[40:43] += [150, 300, 250]
+    phases, onsets, _, _ = contact.detect(contact.ContactConfig(), off, on)
+    assert np.flatnonzero(onsets).tolist() == [40]
+    assert (phases[50:] == contact.HOLDING).all()
+
+
 def test_detector_in_pieces_equals_one_pass():
     table, _ = tiny_session(grasps=5, seed=4)
     off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
