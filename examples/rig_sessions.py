@@ -6,7 +6,7 @@ grasps (`simulate --session --set ...`), as a lab with its own sensor would reco
 sessions are the rig's training sessions, the third is scored; a rig of the default physics is the
 reference.
 
-1. Detection alone: the median press peak of the training sessions' contacts sets the slip bar
+1. Detection alone: the median press and release peaks of the training sessions' contacts set the slip bars
    (`ops.contact.slip_for`, what `train --contacts` does), against one fixed bar for every rig; the
    detector runs with the true force standing in for a force model's estimate (`ops.contact.detect`
    with `force`), so what is measured is the detection, whatever a model would read. Rigs 201-210 chose the bar's share of the press and
@@ -64,9 +64,10 @@ def streams(table):
 def detection(training, test):
     """Slip figures with the fixed and the scaled bar, and contact figures, on the test streams."""
     press = float(np.median([p for s in training for p in detector.press_peaks(s["off"], metrics.runs(s["touching"]))]))
+    release = float(np.median([p for s in training for p in detector.release_peaks(s["on"], metrics.runs(s["touching"]))]))
     config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * max(float(s["force"].max()) for s in training + test))
-    scaled = detector.slip_for(press)
-    figures = {"press": press, "bar": scaled.min_events}
+    scaled = detector.slip_for(press, release)
+    figures = {"press": press, "bar": scaled.min_events, "on_bar": scaled.min_events_on}
     for name, slip in (("fixed", FIXED), ("scaled", scaled)):
         # the slip flags do not change where contacts end, so both bars find the same contacts
         phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
@@ -119,11 +120,12 @@ def fmt(value, digits=2):
 
 
 def detection_lines(rows) -> list:
-    lines = ["| rig | physics | press peak (events) | slip bar | slip F1, fixed 50 | within 20 ms | slip F1, scaled | within 20 ms "
+    lines = ["| rig | physics | press peak (events) | slip bar, OFF / ON | slip F1, fixed 50 | within 20 ms | slip F1, scaled | within 20 ms "
              "| slips | contact F1 |", "|---|---|---|---|---|---|---|---|---|---|"]
     for seed, f in rows:
         d = f["detection"]
-        lines.append(f"| {seed} | {f['about']} | {d['press']:.0f} | {d['bar']:g} | {fmt(d['fixed']['slip_f1'])} | "
+        on_bar = d["bar"] if d.get("on_bar") is None else d["on_bar"]
+        lines.append(f"| {seed} | {f['about']} | {d['press']:.0f} | {d['bar']:g} / {on_bar:g} | {fmt(d['fixed']['slip_f1'])} | "
                      f"{fmt(d['fixed'].get('slip_within_20'))} | {fmt(d['scaled']['slip_f1'])} | {fmt(d['scaled'].get('slip_within_20'))} "
                      f"| {int(d['scaled']['slip_true'])} | {fmt(d['contact']['contact_f1'])} |")
     lines.append("")
@@ -174,7 +176,8 @@ def main(argv=None):
     lines = [f"Each rig: three sessions of {grasps} grasps with one draw of every physics family. Detection alone: the slip bar "
              "from the first two sessions' presses, the third scored, the true force ending contacts. Fixed: 50 events of each "
              f"polarity above the background; scaled: {detector.SLIP_SHARE:g} of the rig's median press peak, at least "
-             f"{detector.SLIP_FLOOR_EVENTS:g} events and {detector.SlipConfig.noise_sigma:g} Poisson σ of the background.", ""]
+             f"{detector.SLIP_FLOOR_EVENTS:g} events and {detector.SlipConfig.noise_sigma:g} Poisson σ of the background, "
+             "for the ON events times the ratio of the median release's ON peak to the median press's OFF peak (at most 1).", ""]
     lines += detection_lines([row for row in rows if row[0] != DEFAULT_RIG])
     if args.model:
         lines += ["", f"{args.model} trained on each rig's first two sessions (`train --contacts`, at most {epochs} epochs, "

@@ -153,7 +153,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     data = shaping.sequences(table)
     labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
     row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(table.column("trial").to_pylist(), table.column("frame").to_numpy().tolist()))}
-    rows, names, peaks = [], [], []
+    rows, names, peaks, releases = [], [], [], []
     for trial, counts, frames, phases in zip(data.trials, data.counts, data.frame, data.phase):
         off, on = detector.frame_sums(counts)
         if labelled:
@@ -161,6 +161,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
         else:
             touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
         peaks += detector.press_peaks(off, touching, config.warmup_frames)
+        releases += detector.release_peaks(on, touching, config.warmup_frames)
         runs = _widened(touching, len(frames)) if labelled else touching
         for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
@@ -172,7 +173,8 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
     summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
-               "press_off": float(np.median(peaks)) if peaks else None}
+               "press_off": float(np.median(peaks)) if peaks else None,
+               "release_on": float(np.median(releases)) if releases else None}
     return found, summary
 
 
@@ -198,12 +200,13 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     if spec["model"] == "deform-gru":
         spec = {"memory_frames": DEFAULT_MEMORY_FRAMES, **spec}
     found, summary = contacts_table(table, config)
-    slip = slip or detector.slip_for(summary["press_off"])
+    slip = slip or detector.slip_for(summary["press_off"], summary["release_on"])
     progress = options.get("progress")
     if progress:
+        on_bar = slip.min_events if slip.min_events_on is None else slip.min_events_on
         progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames; slips flagged at "
-                 f"{slip.min_events:g} events of each polarity above the background")
+                 f"{slip.min_events:g} OFF and {on_bar:g} ON events above the background")
     model = core.train(found, spec, **options)
     model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
     model.training = dict(model.training, contacts=summary)

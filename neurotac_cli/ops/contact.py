@@ -229,7 +229,8 @@ def frame_sums(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class SlipConfig:
-    min_events: float = 50.0  # OFF and ON each this many events above their background (`slip_for`: from the presses)
+    min_events: float = 50.0  # OFF (and ON, unless min_events_on) events above their background (`slip_for`: from the presses)
+    min_events_on: float | None = None  # ON events above their background (`slip_for`: the presses' bar times the releases' ON gain)
     noise_sigma: float = 4.0  # ... and by this many Poisson σ of their background (a bright background's noise is no slip)
     separation_px: float = 0.0  # centroids of OFF and ON events at least this far apart (frame pixels)
     hold_frames: int = 3  # a slip ends after this many frames without evidence
@@ -244,9 +245,13 @@ class SlipConfig:
 # best fixed bar ran from 30 to 70 events while their median press peak ran from 370 to 1560. A bar at
 # SLIP_SHARE of the rig's median press peak (`slip_for`) carries over from rig to rig; the floor keeps
 # a background's noise from passing for a slip where presses are faint. Figures: docs/journal.md.
+# A camera whose ON threshold is higher than its OFF one (or a membrane that brightens less than it
+# darkens) makes fewer ON than OFF events for the same motion: the trailing edge of a slip too. The
+# ON bar follows the ratio of the releases' ON peaks to the presses' OFF peaks (at most 1).
 SLIP_SHARE = 0.05
 SLIP_FLOOR_EVENTS = 10.0
 PRESS_FRAMES = 30  # a contact's press: the peak OFF frame among its first frames
+RELEASE_FRAMES = (5, 10)  # a contact's release: the peak ON frame from 5 frames before its end to 10 after
 
 
 def press_peaks(off: np.ndarray, contacts, warmup_frames: int = ContactConfig.warmup_frames) -> list[float]:
@@ -258,12 +263,25 @@ def press_peaks(off: np.ndarray, contacts, warmup_frames: int = ContactConfig.wa
     return [float(off[max(0, begin - 2):begin + PRESS_FRAMES].max()) - background for begin, _ in contacts]
 
 
-def slip_for(press_off: float | None) -> SlipConfig:
-    """The slip flag's bar for a rig whose contacts' median press peak (`press_peaks`) is `press_off`;
-    the default bar where it is unknown."""
+def release_peaks(on: np.ndarray, contacts, warmup_frames: int = ContactConfig.warmup_frames) -> list[float]:
+    """Each contact's release: its peak ON count in the RELEASE_FRAMES about its end, above the
+    stream's background (as in `press_peaks`)."""
+    on = np.asarray(on, dtype=np.float64)
+    background = float(np.median(on[:max(warmup_frames, 1)])) if len(on) else 0.0
+    before, after = RELEASE_FRAMES
+    return [float(on[max(0, end - before):end + after].max()) - background for _, end in contacts if end > 0]
+
+
+def slip_for(press_off: float | None, release_on: float | None = None) -> SlipConfig:
+    """The slip flag's bars for a rig whose contacts' median press peak (`press_peaks`) is `press_off`
+    and median release peak (`release_peaks`) `release_on`; the default bar where they are unknown."""
     if press_off is None or not np.isfinite(press_off) or press_off <= 0:
         return SlipConfig()
-    return SlipConfig(min_events=round(max(SLIP_SHARE * float(press_off), SLIP_FLOOR_EVENTS), 1))
+    bar = max(SLIP_SHARE * float(press_off), SLIP_FLOOR_EVENTS)
+    on_bar = None
+    if release_on is not None and np.isfinite(release_on) and release_on > 0:
+        on_bar = round(max(bar * min(float(release_on) / float(press_off), 1.0), SLIP_FLOOR_EVENTS), 1)
+    return SlipConfig(min_events=round(bar, 1), min_events_on=on_bar)
 
 
 def frame_stats(counts: np.ndarray):
@@ -284,7 +302,8 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    evidence = (touching and _excess(config, off, state.mean_off) and _excess(config, on, state.mean_on)
+    on_bar = config.min_events if config.min_events_on is None else config.min_events_on
+    evidence = (touching and _excess(config, off, state.mean_off, config.min_events) and _excess(config, on, state.mean_on, on_bar)
                 and separation >= config.separation_px)
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
     starts = evidence and settled
@@ -293,5 +312,5 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     return state.slipping
 
 
-def _excess(config: SlipConfig, count: float, mean: float) -> bool:
-    return count - mean >= max(config.min_events, config.noise_sigma * np.sqrt(mean + 1.0))
+def _excess(config: SlipConfig, count: float, mean: float, bar: float) -> bool:
+    return count - mean >= max(bar, config.noise_sigma * np.sqrt(mean + 1.0))

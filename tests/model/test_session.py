@@ -213,6 +213,22 @@ def test_the_slip_bar_follows_the_rigs_presses_down_to_a_floor(press, bar):
     assert contact.slip_for(press).min_events == pytest.approx(bar)
 
 
+@pytest.mark.parametrize("release, on_bar", [(None, None), (3000.0, 50.0), (500.0, 25.0), (50.0, contact.SLIP_FLOOR_EVENTS)])
+def test_the_on_bar_follows_the_releases_brightness(release, on_bar):
+    """A camera whose releases make a third of the presses' events flags a slip's trailing edge at a
+    third of the OFF bar; one whose releases are brighter keeps the OFF bar for both."""
+    slip = contact.slip_for(1000.0, release)
+    assert slip.min_events == pytest.approx(50.0)
+    assert slip.min_events_on == (None if on_bar is None else pytest.approx(on_bar))
+    state = contact.ContactState(mean_off=5.0, mean_on=5.0, phase=contact.HOLDING, held=20, held_before=20)
+    assert contact.slip_step(slip, state, 5 + 60, 5 + 30, 2.0) is (on_bar is not None and on_bar <= 30)
+
+
+def test_a_release_peak_is_taken_about_the_contacts_end():
+    on = np.array([40.0] * 10 + [40] * 10 + [400, 900, 100] + [40] * 20)
+    assert contact.release_peaks(on, [(10, 21)]) == [860.0]
+
+
 @pytest.mark.parametrize("press", [None, float("nan"), 0.0, -3.0])
 def test_without_a_press_the_slip_bar_is_the_default(press):
     assert contact.slip_for(press) == contact.SlipConfig()
@@ -229,7 +245,8 @@ def test_a_bright_backgrounds_noise_is_not_a_slip_however_low_the_bar():
 def test_training_on_contacts_sets_the_slip_bar_from_the_training_presses(sessions, trained):
     summary = trained.training["contacts"]
     assert summary["press_off"] > 0
-    assert session.slip_config(trained) == contact.slip_for(summary["press_off"])
+    assert summary["release_on"] > 0
+    assert session.slip_config(trained) == contact.slip_for(summary["press_off"], summary["release_on"])
     chosen = contact.SlipConfig(min_events=123.0)
     again = session.train(sessions, models.make_spec("deform-gru", epochs=1, hidden=4), slip=chosen, seed=0)
     assert session.slip_config(again) == chosen
