@@ -40,6 +40,7 @@ BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever 
 SCAN_EVENTS = 1 << 18  # events counted at a time, so the frames of a huge input batch leave as it is counted
 MAX_FRAMES = 1_000_000  # frames written unless the user raises the limit: 2.8 hours of 10 ms windows
 SORT_EVENTS = 20_000_000  # events `sort` holds in memory (about 0.5 GB with the sort's index)
+LEAD_IN_SHARE = 0.5  # a synced trial's LED blink and lead-in are a minority of its events; more means a wrong t0
 GAP_WINDOWS = 1_000  # a stream's step in time of this many windows or more is reported, with where it is
 
 
@@ -190,8 +191,6 @@ class FramingReport:
 
 
 # ---------------------------------------------------------------- recordings
-
-LEAD_IN_SHARE = 0.5  # a synced trial's LED blink and lead-in are a minority of its events; more means a wrong t0
 
 
 def frame_recordings(table: pa.Table, window_us: int, report: FramingReport | None = None, **options) -> pa.Table:
