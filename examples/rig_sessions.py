@@ -173,8 +173,8 @@ def main(argv=None):
             rows = list(pool.map(one_rig, *arguments))
     else:
         rows = list(map(one_rig, *arguments))
-    lines = [f"Each rig: three sessions of {grasps} grasps with one draw of every physics family. Detection alone: the slip bar "
-             "from the first two sessions' presses, the third scored, the true force ending contacts. Fixed: 50 events of each "
+    lines = [f"Each rig: three sessions of {grasps} grasps with one draw of every physics family. Detection alone: the slip bars "
+             "from the first two sessions' presses and releases, the third scored, the true force ending contacts. Fixed: 50 events of each "
              f"polarity above the background; scaled: {detector.SLIP_SHARE:g} of the rig's median press peak, at least "
              f"{detector.SLIP_FLOOR_EVENTS:g} events and {detector.SlipConfig.noise_sigma:g} Poisson σ of the background, "
              "for the ON events times the ratio of the median release's ON peak to the median press's OFF peak (at most 1).", ""]
