@@ -337,7 +337,7 @@ def test_a_quick_rig_sessions_run_prints_its_tables_and_leaves_docs_alone(tmp_pa
 
     def one_rig(seed, out, grasps, model, epochs):
         return seed, {"about": f"physics {seed}", "range": 4.0, "session": session, "cut": dict(session, contact_rmse=0.19),
-                      "detection": {"press": 800.0, "bar": 40.0, "fixed": slip, "scaled": dict(slip, slip_f1=1.0),
+                      "detection": {"press": 800.0, "bar": 40.0, "on_bar": 12.5, "fixed": slip, "scaled": dict(slip, slip_f1=1.0),
                                     "contact": {"contact_f1": 1.0}}}
 
     monkeypatch.setattr(rigs, "one_rig", one_rig)
@@ -345,7 +345,7 @@ def test_a_quick_rig_sessions_run_prints_its_tables_and_leaves_docs_alone(tmp_pa
     monkeypatch.setattr(rigs, "publish", published.append)
     rigs.main(["--quick", "--model", "deform-gru", "--jobs", "1", "--out", str(tmp_path)])
     text = (tmp_path / "rig_sessions.md").read_text()
-    assert "| 201 | physics 201 | 800 | 40 | 0.50 | 1.00 | 1.00 | 1.00 | 2 | 1.00 |" in text
+    assert "| 201 | physics 201 | 800 | 40 / 12.5 | 0.50 | 1.00 | 1.00 | 1.00 | 2 | 1.00 |" in text
     assert "| 211 | 5.0 | 1.05 |" in text
     assert "rigs that took no part in the choice (1): slip F1 pooled over their test sessions, fixed 0.500" in text
     assert not published
