@@ -168,3 +168,9 @@ def test_export_refuses_events_a_camera_file_cannot_hold(tmp_path):
         for suffix in (".raw", ".aedat4", ".aedat"):
             code, stderr, _ = invoke(["export", "-o", str(tmp_path / f"e{suffix}"), path])
             assert one_line(stderr, code, 1), stderr
+
+
+@pytest.mark.parametrize("model", ["lstm", "convlstm", "deform-gru"])
+def test_a_recurrent_model_needs_a_layer(files, tmp_path, model):  # noqa: F811
+    code, stderr, _ = invoke(["train", "--model", model, "--layers", "0", "-o", str(tmp_path / "m.model"), f"{files}/f.arrows"])
+    assert code == 2 and "--layers must be a finite number of at least 1" in stderr

@@ -42,7 +42,7 @@ def make_spec(name: str, **options) -> dict:
             continue
         if key not in arch_fields and key not in fit_fields:
             raise ModelError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
-        _check_setting(key, value)
+        _check_setting(key, value, name)
         spec[key] = value
     return spec
 
@@ -60,10 +60,15 @@ SETTING_RANGES = {
 }
 
 
-def _check_setting(key: str, value):
+RECURRENT_LAYERS = ("lstm", "convlstm", "deform-gru")  # their layers are recurrent ones: at least one
+
+
+def _check_setting(key: str, value, model: str = ""):
     if key not in SETTING_RANGES or isinstance(value, (str, bool)) or not isinstance(value, (int, float)):
         return
     low, high, open_high = SETTING_RANGES[key]
+    if key == "layers" and model in RECURRENT_LAYERS:
+        low = 1
     option = "--" + key.replace("_", "-")
     if not math.isfinite(value) or value < low or (key == "lr" and value <= 0) or (
             high is not None and (value >= high if open_high else value > high)):
