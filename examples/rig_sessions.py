@@ -63,11 +63,10 @@ def streams(table):
 
 def detection(training, test):
     """Slip figures with the fixed and the scaled bar, and contact figures, on the test streams."""
-    press = float(np.median([p for s in training for p in detector.press_peaks(s["off"], metrics.runs(s["touching"]))]))
-    release = float(np.median([p for s in training for p in detector.release_peaks(s["on"], metrics.runs(s["touching"]))]))
+    press, release = detector.rig_peaks([(s["off"], s["on"], metrics.runs(s["touching"])) for s in training])
     config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * max(float(s["force"].max()) for s in training + test))
     scaled = detector.slip_for(press, release)
-    figures = {"press": press, "bar": scaled.min_events, "on_bar": scaled.min_events_on}
+    figures = {"press": press, "bar": scaled.min_events, "on_bar": scaled.on_events}
     for name, slip in (("fixed", FIXED), ("scaled", scaled)):
         # the slip flags do not change where contacts end, so both bars find the same contacts
         phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
@@ -124,8 +123,7 @@ def detection_lines(rows) -> list:
              "| slips | contact F1 |", "|---|---|---|---|---|---|---|---|---|---|"]
     for seed, f in rows:
         d = f["detection"]
-        on_bar = d["bar"] if d.get("on_bar") is None else d["on_bar"]
-        lines.append(f"| {seed} | {f['about']} | {d['press']:.0f} | {d['bar']:g} / {on_bar:g} | {fmt(d['fixed']['slip_f1'])} | "
+        lines.append(f"| {seed} | {f['about']} | {d['press']:.0f} | {d['bar']:g} / {d['on_bar']:g} | {fmt(d['fixed']['slip_f1'])} | "
                      f"{fmt(d['fixed'].get('slip_within_20'))} | {fmt(d['scaled']['slip_f1'])} | {fmt(d['scaled'].get('slip_within_20'))} "
                      f"| {int(d['scaled']['slip_true'])} | {fmt(d['contact']['contact_f1'])} |")
     lines.append("")

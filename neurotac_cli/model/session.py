@@ -153,15 +153,14 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     data = shaping.sequences(table)
     labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
     row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(table.column("trial").to_pylist(), table.column("frame").to_numpy().tolist()))}
-    rows, names, peaks, releases = [], [], [], []
+    rows, names, streams = [], [], []
     for trial, counts, frames, phases in zip(data.trials, data.counts, data.frame, data.phase):
         off, on = detector.frame_sums(counts)
         if labelled:
             touching = metrics.runs(np.asarray([p not in (None, "none") for p in phases]))
         else:
             touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
-        peaks += detector.press_peaks(off, touching, config.warmup_frames)
-        releases += detector.release_peaks(on, touching, config.warmup_frames)
+        streams.append((off, on, touching))
         runs = _widened(touching, len(frames)) if labelled else touching
         for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
@@ -171,10 +170,10 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
                          "events above the background); check the crop covers the contact, or train without --contacts")
     found = table.take(pa.array(rows, pa.int64()))
     found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
+    press_off, release_on = detector.rig_peaks(streams, config.warmup_frames)
     summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
-               "press_off": float(np.median(peaks)) if peaks else None,
-               "release_on": float(np.median(releases)) if releases else None}
+               "press_off": press_off, "release_on": release_on}
     return found, summary
 
 
@@ -203,10 +202,9 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     slip = slip or detector.slip_for(summary["press_off"], summary["release_on"])
     progress = options.get("progress")
     if progress:
-        on_bar = slip.min_events if slip.min_events_on is None else slip.min_events_on
         progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames; slips flagged at "
-                 f"{slip.min_events:g} OFF and {on_bar:g} ON events above the background")
+                 f"{slip.min_events:g} OFF and {slip.on_events:g} ON events above the background")
     model = core.train(found, spec, **options)
     model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
     model.training = dict(model.training, contacts=summary)

@@ -236,6 +236,11 @@ class SlipConfig:
     hold_frames: int = 3  # a slip ends after this many frames without evidence
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
 
+    @property
+    def on_events(self) -> float:
+        """The ON bar in force: `min_events_on`, or `min_events` in a file written before there was one."""
+        return self.min_events if self.min_events_on is None else self.min_events_on
+
     def to_dict(self) -> dict:
         return asdict(self)
 
@@ -254,22 +259,33 @@ PRESS_FRAMES = 30  # a contact's press: the peak OFF frame among its first frame
 RELEASE_FRAMES = (5, 10)  # a contact's release: the peak ON frame from 5 frames before its end to 10 after
 
 
+def _peaks(counts: np.ndarray, spans, warmup_frames: int) -> list[float]:
+    """The largest count in each (begin, end) span of frames, above the stream's background: the
+    median of its first `warmup_frames` frames, as the detector takes it."""
+    counts = np.asarray(counts, dtype=np.float64)
+    background = float(np.median(counts[:max(warmup_frames, 1)])) if len(counts) else 0.0
+    return [float(counts[max(0, begin):end].max()) - background for begin, end in spans if end > max(0, begin)]
+
+
 def press_peaks(off: np.ndarray, contacts, warmup_frames: int = ContactConfig.warmup_frames) -> list[float]:
     """Each contact's press: its peak OFF count in the first PRESS_FRAMES frames (from two before its
-    start) above the stream's background, the median of its first `warmup_frames` frames as the
-    detector takes it. `contacts`: (start, end) frame runs of one stream's `off` counts."""
-    off = np.asarray(off, dtype=np.float64)
-    background = float(np.median(off[:max(warmup_frames, 1)])) if len(off) else 0.0
-    return [float(off[max(0, begin - 2):begin + PRESS_FRAMES].max()) - background for begin, _ in contacts]
+    start) above the stream's background. `contacts`: (start, end) frame runs of one stream's counts."""
+    return _peaks(off, [(begin - 2, begin + PRESS_FRAMES) for begin, _ in contacts], warmup_frames)
 
 
 def release_peaks(on: np.ndarray, contacts, warmup_frames: int = ContactConfig.warmup_frames) -> list[float]:
     """Each contact's release: its peak ON count in the RELEASE_FRAMES about its end, above the
-    stream's background (as in `press_peaks`)."""
-    on = np.asarray(on, dtype=np.float64)
-    background = float(np.median(on[:max(warmup_frames, 1)])) if len(on) else 0.0
+    stream's background."""
     before, after = RELEASE_FRAMES
-    return [float(on[max(0, end - before):end + after].max()) - background for _, end in contacts if end > 0]
+    return _peaks(on, [(end - before, end + after) for _, end in contacts], warmup_frames)
+
+
+def rig_peaks(streams, warmup_frames: int = ContactConfig.warmup_frames) -> tuple:
+    """(median press OFF peak, median release ON peak) over the contacts of `streams`, triples of
+    (OFF per frame, ON per frame, contacts); None where there is no contact: what `slip_for` takes."""
+    presses = [peak for off, _, contacts in streams for peak in press_peaks(off, contacts, warmup_frames)]
+    releases = [peak for _, on, contacts in streams for peak in release_peaks(on, contacts, warmup_frames)]
+    return (float(np.median(presses)) if presses else None, float(np.median(releases)) if releases else None)
 
 
 def slip_for(press_off: float | None, release_on: float | None = None) -> SlipConfig:
@@ -302,9 +318,8 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    on_bar = config.min_events if config.min_events_on is None else config.min_events_on
-    evidence = (touching and _excess(config, off, state.mean_off, config.min_events) and _excess(config, on, state.mean_on, on_bar)
-                and separation >= config.separation_px)
+    evidence = (touching and _excess(config, off, state.mean_off, config.min_events)
+                and _excess(config, on, state.mean_on, config.on_events) and separation >= config.separation_px)
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
     starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
