@@ -16,8 +16,9 @@ def save(model, path: str):
     from safetensors.torch import save_file
 
     tensors = {name: tensor.detach().contiguous().clone() for name, tensor in model.net.state_dict().items()}
-    if _not_finite(tensors):
-        raise ModelError(f"training diverged: the weights {', '.join(_not_finite(tensors)[:3])} hold NaN or infinite values; "
+    bad = _not_finite(tensors)
+    if bad:
+        raise ModelError(f"training diverged: the weights {', '.join(bad[:3])} hold NaN or infinite values; "
                          "nothing written (lower --lr, or check the training data)")
     header = json.dumps(model.header(), sort_keys=True, default=_json_default)
     with atomic_file(path) as temporary:
@@ -91,8 +92,9 @@ def load(path: str):
         raise ModelError(f"{path}: the model header does not describe a {name} network ({type(error).__name__}: "
                          f"{str(error).splitlines()[0] if str(error) else error!r}); train the model again") from None
     tensors = load_file(path)
-    if _not_finite(tensors):
-        raise ModelError(f"{path}: the weights {', '.join(_not_finite(tensors)[:3])} hold NaN or infinite values "
+    bad = _not_finite(tensors)
+    if bad:
+        raise ModelError(f"{path}: the weights {', '.join(bad[:3])} hold NaN or infinite values "
                          "(a training that diverged); train the model again")
     net.prepare_for(tensors)
     try:
