@@ -150,9 +150,7 @@ def activity_map(table: pa.Table) -> np.ndarray:
     else:
         x = table.column("x").to_numpy().astype(np.int64)
         y = table.column("y").to_numpy().astype(np.int64)
-    if len(x) and (int(x.max()) >= width or int(y.max()) >= height):
-        raise OutsideSensorError(f"events lie outside the {width}x{height} sensor (largest x={int(x.max())}, y={int(y.max())}); "
-                                 "check the sensor size (--sensor WxH)")
+    sch.check_events(x[:0], x, y, np.zeros(0, np.uint8), (width, height), sorted_time=False)
     flat = np.bincount(y.astype(np.int64) * width + x, minlength=width * height)
     return flat.reshape(height, width).astype(np.float64)
 
@@ -329,10 +327,11 @@ def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropRepor
                 yield sch.events_batch(t, x, y, p, out_schema)
                 continue
             # columns beyond t, x, y, p (another tool's) travel with the events they belong to
-            mine = dict(zip(("t", "x", "y", "p"), sch.events_batch(t, x, y, p).columns))
-            keep = None if inside is None else pa.array(inside)
-            yield pa.RecordBatch.from_arrays([mine[name] if name in mine else batch.column(name) if keep is None
-                                              else batch.column(name).filter(keep) for name in out_schema.names], schema=out_schema)
+            columns = dict(zip(("t", "x", "y", "p"), sch.events_batch(t, x, y, p).columns))
+            for name in out_schema.names:
+                if name not in columns:
+                    columns[name] = batch.column(name) if inside is None else batch.column(name).filter(pa.array(inside))
+            yield pa.RecordBatch.from_arrays([columns[name] for name in out_schema.names], schema=out_schema)
 
     return out_schema, generate()
 
