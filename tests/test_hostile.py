@@ -174,3 +174,22 @@ def test_export_refuses_events_a_camera_file_cannot_hold(tmp_path):
 def test_a_recurrent_model_needs_a_layer(files, tmp_path, model):  # noqa: F811
     code, stderr, _ = invoke(["train", "--model", model, "--layers", "0", "-o", str(tmp_path / "m.model"), f"{files}/f.arrows"])
     assert code == 2 and "--layers must be a finite number of at least 1" in stderr
+
+
+def test_an_automatic_crop_centre_refuses_events_beyond_the_stated_sensor(tmp_path):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 30], [0, 5], [0, 1], 10, 10).replace_schema_metadata(
+        sch.set_meta(sch.events_schema(), sensor=sch.sensor_meta(10, 10)).metadata))
+    code, stderr, _ = invoke(["crop", "--size", "4x4", "--center", "auto", "-o", str(tmp_path / "c.arrows"), path])
+    assert one_line(stderr, code, 1) and "1 events lie outside the 10x10 sensor" in stderr
+
+
+def test_a_model_whose_weights_diverged_is_not_written(files, tmp_path):  # noqa: F811
+    from neurotac_cli import model as models
+    from neurotac_cli.errors import ModelError
+
+    trained = models.load(f"{files}/m.model")
+    next(iter(trained.net.parameters())).data.fill_(float("nan"))
+    with pytest.raises(ModelError, match="training diverged"):
+        models.save(trained, str(tmp_path / "n.model"))
+    assert not (tmp_path / "n.model").exists()
