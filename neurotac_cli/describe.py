@@ -286,6 +286,8 @@ def _identity_pairs(info: dict) -> list:
         text = f"{source.get('format', '?')} {source.get('file', '')}".strip()
         if source.get("camera"):
             text += f" ({source['camera']})"
+        if source.get("cut_bytes"):
+            text += f"; its last {source['cut_bytes']} bytes, a record cut short, were left out"
         pairs.append(("source", text))
     if info["kind"] == "recordings":
         pairs.append(("events", f"{info['events']:,}"))

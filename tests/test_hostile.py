@@ -193,3 +193,21 @@ def test_a_model_whose_weights_diverged_is_not_written(files, tmp_path):  # noqa
     with pytest.raises(ModelError, match="training diverged"):
         models.save(trained, str(tmp_path / "n.model"))
     assert not (tmp_path / "n.model").exists()
+
+
+def test_a_camera_file_cut_mid_record_is_read_with_a_warning_and_the_loss_kept_in_its_metadata(tmp_path):
+    """The same bytes piped warn of the cut record; read from a path they must too."""
+    from neurotac_cli.io.writers import aedat2_bytes
+
+    data = aedat2_bytes(np.arange(5) * 10, np.arange(5), np.arange(5), np.ones(5, np.uint8))
+    one, two = tmp_path / "a.aedat", tmp_path / "b.aedat"
+    one.write_bytes(data[:-3])
+    two.write_bytes(data)
+    out = str(tmp_path / "e.arrows")
+    code, stderr, _ = invoke(["import", str(one), "-o", out])
+    assert code == 0 and "a.aedat: the last 5 bytes are a record cut short" in stderr
+    assert tables.read([out]).num_rows == 4
+    code, stderr, _ = invoke(["info", out])
+    assert "its last 5 bytes, a record cut short, were left out" in stderr + _
+    code, stderr, _ = invoke(["import", str(one), str(two), "-o", str(tmp_path / "r.arrows")])
+    assert code == 0 and stderr.count("record cut short") == 1 and "a.aedat" in stderr

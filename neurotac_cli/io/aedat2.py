@@ -13,7 +13,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import Decoded, read_chunks
+from neurotac_cli.io.reader import Decoded, cut_bytes, read_chunks
 
 # AEChip class name (lowercase, a fragment of it) -> (width, height)
 CHIPS = [
@@ -93,7 +93,8 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
             for block in read_chunks(path, offset, RECORD):
                 yield decode_dvs128(block)
 
-        return Decoded(sensor=(128, 128), chunks=dvs128_chunks, meta={"source": {"camera": chip}})
+        return Decoded(sensor=(128, 128), chunks=dvs128_chunks, meta={"source": {"camera": chip}},
+                       cut_bytes=cut_bytes(path, offset, RECORD))
     height = (declared or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
     if height is None:
         raise FormatError(
@@ -112,7 +113,8 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
                 )
             yield t, x, y, p
 
-    return Decoded(sensor=declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {})
+    return Decoded(sensor=declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {},
+                   cut_bytes=cut_bytes(path, offset, RECORD))
 
 
 def is_dvs128(chip: str | None) -> bool:

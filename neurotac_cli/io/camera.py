@@ -193,6 +193,8 @@ def read_local(local: str, name: str, sensor=None, fmt: str | None = None, clean
     schema = sch.events_schema(*declared)
     entries = {"source": {"format": fmt, "file": name, "sensor_from": source, "sha256": file_sha256(local),
                           **decoded.meta.pop("source", {})}}
+    if decoded.cut_bytes:
+        entries["source"]["cut_bytes"] = decoded.cut_bytes
     entries.update(decoded.meta)
     schema = sch.set_meta(schema, **entries)
     return schema, _batches(name, fmt, decoded, declared, schema, cleanup)

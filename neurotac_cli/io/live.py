@@ -287,13 +287,19 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
                 break
             pending += data
         if pending and not decoder.finished:
-            notes.append(f"{name}: the last {len(pending)} bytes are a record cut short (the input ended, or was stopped, mid-record); they were left out")
+            notes.append(cut_note(name, len(pending)))
         if decoder.triggers:
             notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
                          "before they arrive); import the finished file for `sync --method trigger`")
     finally:
         decoder.close()
         cleanup()
+
+
+def cut_note(name: str, cut_bytes: int) -> str:
+    """What the user is told of a camera input whose last record was cut short and left out."""
+    return (f"{name}: the last {cut_bytes} bytes are a record cut short (the input ended, or was stopped, "
+            "mid-record); they were left out")
 
 
 def _decoder(fmt: str, header: bytes, sensor):

@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import Decoded, read_chunks
+from neurotac_cli.io.reader import Decoded, cut_bytes, read_chunks
 
 # plugin / sensor names in Prophesee headers -> (width, height)
 SENSORS = [
@@ -117,7 +117,7 @@ def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
     meta = _meta(fields)
     if triggers is not None:
         meta["triggers"] = triggers
-    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta)
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta, cut_bytes=cut_bytes(path, offset, word_bytes))
 
 
 def _triggers(blocks, word_bytes: int) -> list | None:
@@ -153,7 +153,7 @@ def open_dat(path: str, head: bytes, sensor) -> Decoded:
         for block in read_chunks(path, offset + 2, 8):
             yield decode_dat(block, state)
 
-    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields))
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields), cut_bytes=cut_bytes(path, offset + 2, 8))
 
 
 def check_dat_kind(kind_size: bytes):

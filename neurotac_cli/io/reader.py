@@ -20,6 +20,12 @@ class Decoded:
     sensor: tuple[int, int] | None
     chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
     meta: dict = field(default_factory=dict)
+    cut_bytes: int = 0  # bytes after the last whole record (a file cut mid-record): not decoded
+
+
+def cut_bytes(path: str, offset: int, record: int) -> int:
+    """The bytes of `path` after its last whole `record`-byte record from `offset`, which `read_chunks` drops."""
+    return max(0, os.path.getsize(path) - offset) % record
 
 
 def read_chunks(path: str, offset: int, record: int) -> Iterator[bytes]:
