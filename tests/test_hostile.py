@@ -211,3 +211,12 @@ def test_a_camera_file_cut_mid_record_is_read_with_a_warning_and_the_loss_kept_i
     assert "its last 5 bytes, a record cut short, were left out" in stderr + _
     code, stderr, _ = invoke(["import", str(one), str(two), "-o", str(tmp_path / "r.arrows")])
     assert code == 0 and stderr.count("record cut short") == 1 and "a.aedat" in stderr
+
+
+@pytest.mark.parametrize("args, said", [
+    (["sync", "-", "--force", "f.csv", "--offset", "5ms"], "--offset sets the instant for --method offset"),
+    (["simulate", "--trials", "1", "--out", "sim", "--keep-led"], "--keep-led keeps the blink in the --synced table"),
+])
+def test_an_option_the_chosen_mode_would_ignore_is_refused(args, said):
+    code, stderr, _ = invoke(args, stdin=b"")
+    assert one_line(stderr, code, 2) and said in stderr

@@ -177,6 +177,9 @@ def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, dura
         raise UsageError("nothing to write (give --out DIR for the rig's files, --synced for a recordings table, or both)")
     if output and not synced:
         raise UsageError("-o writes the --synced table; add --synced, or use --out DIR for the rig's files")
+    if keep_led and not synced:
+        raise UsageError("--keep-led keeps the blink in the --synced table's trials; add --synced (the rig's files under "
+                         "--out always hold the blink: `sync --keep-led` keeps it there)")
     ctx = click.get_current_context()
     given = [f"--{name.replace('_', '-')}" for name in ("grasps", "sessions")
              if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT]

@@ -20,7 +20,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import provenance, schema as sch
-from neurotac_cli.errors import NeurotacError, SyncError
+from neurotac_cli.errors import NeurotacError, SyncError, UsageError
 from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
@@ -54,6 +54,9 @@ class SyncMethod:
             raise NeurotacError(f"unknown sync method {self.method!r} (use one of {', '.join(METHODS)})")
         if self.method == "offset" and self.offset_us is None:
             raise NeurotacError("--method offset needs --offset DURATION (the camera time of the force log's zero)")
+        if self.method != "offset" and self.offset_us is not None:
+            raise UsageError(f"--offset sets the instant for --method offset; with --method {self.method} it would be ignored "
+                             "(add --method offset, or leave --offset out)")
         if self.region is not None and (len(self.region) != 4 or self.region[2] <= 0 or self.region[3] <= 0):
             raise NeurotacError(f"region must be X,Y,W,H with positive W and H, got {self.region!r}")
         if self.median_us < 0:
