@@ -220,3 +220,22 @@ def test_a_camera_file_cut_mid_record_is_read_with_a_warning_and_the_loss_kept_i
 def test_an_option_the_chosen_mode_would_ignore_is_refused(args, said):
     code, stderr, _ = invoke(args, stdin=b"")
     assert one_line(stderr, code, 2) and said in stderr
+
+
+def test_a_training_set_that_cannot_train_is_refused_before_any_progress_line(tmp_path):
+    one_class = frames_table(trials=("a",))  # foam only
+    no_force = frames_table()
+    no_force = no_force.set_column(no_force.schema.get_field_index("force"), "force", pa.nulls(no_force.num_rows, pa.float32()))
+    for table, args, said in [(one_class, ["--model", "material-dnn"], "1 material class(es)"),
+                              (no_force, ["--model", "tdnn"], "carry no force")]:
+        path = str(tmp_path / "f.arrows")
+        tables.write(path, table)
+        code, stderr, _ = invoke(["train", *args, "--epochs", "1", "-o", str(tmp_path / "m.model"), path])
+        assert one_line(stderr, code, 1) and said in stderr
+
+
+def test_a_classifier_cannot_be_cross_validated_by_holding_out_its_own_classes(tmp_path):
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, frames_table(trials=("a", "b", "c")))
+    code, stderr, _ = invoke(["eval", "--cv", "group:material", "--model-spec", "material-dnn", "--epochs", "1", path])
+    assert one_line(stderr, code, 2) and "holds out every trial of a material class" in stderr

@@ -202,6 +202,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
+    _check_training_set(name, config, train_set, label)
     if progress:
         progress(f"{name}: {len(train_set)} training trials, {len(val_set)} validation trials")
     training = {
@@ -218,14 +219,28 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress)
 
 
+def _check_training_set(name, config, train_set, label):
+    """What the training trials must hold, checked before the first progress line so that a refusal
+    is the only line on stderr."""
+    if name not in MATERIAL_MODELS:
+        if np.isnan(np.concatenate(train_set.force)).all():
+            raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
+        return
+    if label not in train_set.labels:
+        raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")
+    classes = {v for v in train_set.labels[label] if v is not None}
+    if len(classes) < 2:
+        raise ModelError(f"the training trials hold {len(classes)} {label} class(es); a classifier needs at least two")
+    if config.inputs == "force" and np.isnan(np.concatenate(train_set.force)).all():
+        raise ModelError("material-force needs the measured force in the frames (column force is empty)")
+
+
 def _seconds(data):
     return [t / 1e6 for t in data.t]
 
 
 def _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress):
     forces = np.concatenate(train_set.force)
-    if np.isnan(forces).all():
-        raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
     force_scale = float(max(np.nanmax(np.abs(forces)), 1e-6))
     # kept so that `predict` can name frames busier than any it learnt from (model.predict.Outside)
     training["events_per_frame_max"] = float(max(c.reshape(len(c), -1).sum(axis=1, dtype=np.float64).max(initial=0.0)
@@ -295,13 +310,7 @@ def _small_buffers(net) -> dict:
 def _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label):
     from neurotac_cli.model import material
 
-    if label not in train_set.labels:
-        raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")
     classes = sorted({v for v in train_set.labels[label] if v is not None})
-    if len(classes) < 2:
-        raise ModelError(f"the training trials hold {len(classes)} {label} class(es); a classifier needs at least two")
-    if config.inputs == "force" and np.isnan(np.concatenate(train_set.force)).all():
-        raise ModelError("material-force needs the measured force in the frames (column force is empty)")
     index = {c: i for i, c in enumerate(classes)}
 
     def encode(data):

@@ -114,8 +114,11 @@ def validation_figures(model, train_table: pa.Table) -> dict:
 def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, val_fraction: float,
                per: str | None, label: str = "material"):
     """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
-    from neurotac_cli.model.core import resolved_spec
+    from neurotac_cli.model.core import MATERIAL_MODELS, resolved_spec
 
+    if spec["model"] in MATERIAL_MODELS and cv.startswith("group:") and cv[len("group:"):].partition("=")[0] == label:
+        raise UsageError(f"--cv {cv} holds out every trial of a {label} class from its training, so no test trial's class "
+                         f"could be named; group by another label (e.g. group:object), or use kfold:K")
     rng = np.random.default_rng(seed)
     groups = folds(data, cv, rng)
     spec = resolved_spec(spec)
