@@ -85,6 +85,7 @@ class ContactState:
     onsets: int = 0  # contacts begun so far (a new one resets the force model's state)
     slipping: bool = False
     slip_quiet: int = 0  # frames since the last evidence of a slip
+    last_excess: tuple = (0.0, 0.0)  # the previous frame's OFF and ON events above their background
     warmup: list | None = field(default_factory=list)  # (OFF, ON) of the stream's first frames; None once they set the background
 
     @classmethod
@@ -234,6 +235,7 @@ class SlipConfig:
     noise_sigma: float = 4.0  # ... and by this many Poisson σ of their background (a bright background's noise is no slip)
     separation_px: float = 0.0  # centroids of OFF and ON events at least this far apart (frame pixels)
     hold_frames: int = 3  # a slip ends after this many frames without evidence
+    keep_share: float = 0.5  # a slip under way goes on while a frame, or two together on average, pass this share of the bars
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
 
     @property
@@ -318,8 +320,19 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    evidence = (touching and _excess(config, off, state.mean_off, config.min_events)
-                and _excess(config, on, state.mean_on, config.on_events) and separation >= config.separation_px)
+    excess = (off - state.mean_off, on - state.mean_on)
+    pair = (excess[0] + state.last_excess[0], excess[1] + state.last_excess[1])
+    state.last_excess = excess
+    if not touching or separation < config.separation_px:
+        evidence = False
+    elif state.slipping:  # hysteresis: a slip's events come unevenly, and one weak frame does not end it
+        bars = (config.keep_share * config.min_events, config.keep_share * config.on_events)
+        evidence = ((_excess(config, excess[0], state.mean_off, bars[0]) and _excess(config, excess[1], state.mean_on, bars[1]))
+                    or (_excess(config, pair[0], 2 * state.mean_off, 2 * bars[0])
+                        and _excess(config, pair[1], 2 * state.mean_on, 2 * bars[1])))
+    else:
+        evidence = (_excess(config, excess[0], state.mean_off, config.min_events)
+                    and _excess(config, excess[1], state.mean_on, config.on_events))
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
     starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
@@ -327,5 +340,6 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     return state.slipping
 
 
-def _excess(config: SlipConfig, count: float, mean: float, bar: float) -> bool:
-    return count - mean >= max(bar, config.noise_sigma * np.sqrt(mean + 1.0))
+def _excess(config: SlipConfig, excess: float, mean: float, bar: float) -> bool:
+    """`excess` events above a background of `mean` pass `bar` and the background's Poisson noise."""
+    return excess >= max(bar, config.noise_sigma * np.sqrt(mean + 1.0))

@@ -203,6 +203,21 @@ def test_a_slip_that_begins_as_a_press_of_a_settled_hold_is_flagged():
     assert not slips[:73].any()
 
 
+def test_a_slip_goes_on_through_frames_that_pass_half_its_bar_and_no_weaker_one_starts():
+    """Hysteresis: a slip whose events come unevenly is one slip, not several; the same weak frames
+    in a quiet hold start none."""
+    slip = contact.SlipConfig(min_events=50.0, hold_frames=1)
+
+    def flags(off_on):
+        state = contact.ContactState(mean_off=5.0, mean_on=5.0, phase=contact.HOLDING, held=20, held_before=20)
+        return [contact.slip_step(slip, state, 5 + a, 5 + b, 2.0) for a, b in off_on]
+
+    uneven = [(60, 60), (30, 30), (25, 40), (40, 10), (60, 60), (0, 0), (0, 0)]  # (40, 10) and (0, 0) pass as pairs
+    assert flags(uneven) == [True, True, True, True, True, True, False]
+    assert not any(flags(uneven[1:4]))
+    assert flags([(60, 60), (10, 10), (10, 10)]) == [True, True, False]  # neither the frame nor the pair: it ends
+
+
 def test_a_press_peak_is_taken_above_the_streams_own_background():
     off = np.array([40.0] * 10 + [40, 300, 900, 500, 60] + [40] * 20 + [40, 200, 100] + [40] * 10)
     assert contact.press_peaks(off, [(10, 15), (35, 38)]) == [860.0, 160.0]
