@@ -49,8 +49,11 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
         for n, name in enumerate(chosen):
             mask = (trial == name) & first_run
             trial_rmse = force_errors(true[mask], pred[mask])[0]
-            left.plot(t[mask], true[mask], color=f"C{n}", lw=1.5, label=f"{name} measured")
-            left.plot(t[mask], pred[mask], color=f"C{n}", lw=1.2, ls="--", label=f"{name} estimated (RMSE {trial_rmse:.3f} N)")
+            # one trace (a session): measured and estimated in two colours, which overlap for minutes;
+            # several: one colour per trial, so each estimate is read against its own measurement
+            measured, estimated = ("0.3", "C3") if len(chosen) == 1 else (f"C{n}", f"C{n}")
+            left.plot(t[mask], true[mask], color=measured, lw=1.5, label=f"{name} measured")
+            left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", label=f"{name} estimated (RMSE {trial_rmse:.3f} N)")
         left.set_xlabel("time since sync t0 (ms)")
         left.set_ylabel("force (N)")
         left.legend()
@@ -58,8 +61,9 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
         _scatter(right, true, pred, phase)
         what = f"{title}: " if title else ""
         seeds = ", every seed" if not first_run.all() else ""
+        count = len(set(trial.tolist()))
         fig.suptitle(f"{what}estimated vs measured force, RMSE {rmse:.3f} N, MAE {mae:.3f} N "
-                     f"({frames:,} frames of {len(set(trial.tolist()))} trials{seeds})")
+                     f"({frames:,} frames of {count} trial{'s' if count != 1 else ''}{seeds})")
         fig.tight_layout()
         _save(fig, path)
         plt.close(fig)
