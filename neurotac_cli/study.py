@@ -31,6 +31,8 @@ from typing import Callable
 
 from neurotac_cli.errors import NeurotacError, UsageError
 
+DEVICE_VARIABLE = "NEUROTAC_DEVICE"  # where force networks train (`--device`); part of a task's cache key off the CPU
+
 # Bumped when the cache file layout or a task's result changes, so old entries are never misread
 # (2: a cross-validation fold returns its validation figures beside its predictions).
 CACHE_FORMAT = 2
@@ -294,7 +296,7 @@ def task_key(function: Callable, task: dict) -> str:
 
     name = f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', repr(function))}"
     identity = {"function": name, "version": __version__, "format": CACHE_FORMAT, "task": _canonical(task)}
-    device = os.environ.get("NEUROTAC_DEVICE", "").strip()
+    device = os.environ.get(DEVICE_VARIABLE, "").strip()
     if device and device != "cpu":  # a GPU's trainings differ in the last digits: kept apart from the CPU's
         identity["device"] = device
     text = json.dumps(identity, sort_keys=True, separators=(",", ":"))

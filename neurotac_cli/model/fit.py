@@ -10,8 +10,7 @@ from dataclasses import dataclass
 import torch
 
 from neurotac_cli.errors import ModelError, UsageError
-
-DEVICE_VARIABLE = "NEUROTAC_DEVICE"
+from neurotac_cli.study import DEVICE_VARIABLE  # the cache keys read it too
 
 
 @dataclass(frozen=True)
