@@ -4,6 +4,7 @@ to end at a tiny size."""
 
 import importlib.util
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -410,3 +411,15 @@ def test_a_quick_physics_grasps_run_tables_its_models_beside_the_constant_and_le
     assert "| constant (training mean) | 34.6 | 34.6 |  |" in text
     assert "Lowest error on the unseen physics: deform-gru, 20.0 ± 0.0% against the constant's 34.6%." in text
     assert not published
+
+
+def test_the_slip_hysteresis_script_scores_every_session_at_every_share(tmp_path, capsys):
+    """Starts are the same at every share, so going on at half the bars finds the same slips in no more runs."""
+    sessions = load("sessions")
+    sessions.simulate(str(tmp_path / "test"), 3501, 1, 6, None)
+    load("slip_hysteresis").main(["--sessions", str(tmp_path), "--keep-share", "1,0.5"])
+    pooled = [line for line in capsys.readouterr().out.splitlines() if line.startswith("pooled")]
+    assert [line.split(":")[0] for line in pooled] == ["pooled, keep 1", "pooled, keep 0.5"]
+    counts = [re.search(r"(\d+) of (\d+) found, (\d+) flagged", line).groups() for line in pooled]
+    (hits_1, true_1, flagged_1), (hits_half, true_half, flagged_half) = [[int(n) for n in c] for c in counts]
+    assert true_1 > 0 and true_1 == true_half and hits_1 == hits_half and flagged_half <= flagged_1

@@ -1,0 +1,66 @@
+"""The slip flag's hysteresis measured on the sessions script's sessions, detection alone.
+
+Every session of `examples/sessions.py`'s output folder (default physics for training and test,
+randomised training, unseen physics) is scored with the slip bars of its own presses and releases
+(`ops.contact.rig_peaks`, `slip_for`), the true force ending contacts, once per share of the bars a
+slip under way must keep passing (`SlipConfig.keep_share`; 1: the starting bars to the end). Prints
+one line per session and share, then the figures pooled over all sessions. The figures of
+docs/design.md ("Slip") come from this script.
+
+    python examples/slip_hysteresis.py --sessions examples/out-sessions --keep-share 1,0.5
+"""
+
+import argparse
+import dataclasses
+import os
+
+import numpy as np
+
+from neurotac_cli import metrics, tables
+from neurotac_cli.model import session
+from neurotac_cli.ops import contact as detector
+from rig_sessions import WINDOW_MS, streams  # beside this script
+
+FOLDERS = ("train", "test", "train-randomised", "unseen")
+
+
+def score_folder(folder: str, shares) -> list:
+    """(session, share, slip figures) for every session of one folder's frames."""
+    out = []
+    for index, stream in enumerate(streams(tables.read([os.path.join(folder, "frames.arrows")]))):
+        press, release = detector.rig_peaks([(stream["off"], stream["on"], metrics.runs(stream["touching"]))])
+        config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * float(stream["force"].max()))
+        bars = detector.slip_for(press, release)
+        for share in shares:
+            _, _, flags, _ = detector.detect(config, stream["off"], stream["on"], separation=stream["separation"],
+                                             slip=dataclasses.replace(bars, keep_share=share), force=stream["force"])
+            out.append((f"{os.path.basename(folder)}/{index}", share,
+                        metrics.detection_figures([stream["slip"]], [flags], "slip", unit=WINDOW_MS, suffix="latency_ms",
+                                                  tolerance=20.0)))
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sessions", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "out-sessions"),
+                        help="the sessions script's output folder (default examples/out-sessions)")
+    parser.add_argument("--keep-share", default="1,0.5", help="comma-separated shares of the bars to compare")
+    args = parser.parse_args(argv)
+    shares = [float(value) for value in args.keep_share.split(",")]
+    folders = [os.path.join(args.sessions, name) for name in FOLDERS if os.path.exists(os.path.join(args.sessions, name, "frames.arrows"))]
+    if not folders:
+        raise SystemExit(f"no sessions under {args.sessions}: run examples/sessions.py first")
+    pooled = {share: np.zeros(4) for share in shares}
+    for folder in folders:
+        for name, share, f in score_folder(folder, shares):
+            within = f.get("slip_within_20", 0.0) * f["slip_hits"]
+            pooled[share] += (f["slip_true"], f["slip_found"], f["slip_hits"], within)
+            print(f"{name:20s} keep {share:g}: slip F1 {f['slip_f1']:.3f}, {f['slip_hits']} of {f['slip_true']} found, "
+                  f"{f['slip_found']} flagged, {within:.0f} within 20 ms")
+    for share, (true, found, hits, within) in pooled.items():
+        f1 = 2 * hits / (true + found) if true + found else float("nan")
+        print(f"pooled, keep {share:g}: slip F1 {f1:.3f}, {hits:.0f} of {true:.0f} found, {found:.0f} flagged, {within:.0f} within 20 ms")
+
+
+if __name__ == "__main__":
+    main()
