@@ -414,14 +414,8 @@ def _check_counts(column):
 def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):
     """Coordinates inside the sensor, polarity 0/1, time non-decreasing (when asked)."""
     place = f" in {where}" if where else ""
-    if sensor is not None and len(x):
-        width, height = sensor
-        if x.max(initial=0) >= width or y.max(initial=0) >= height:
-            bad = int(np.count_nonzero((x >= width) | (y >= height)))
-            raise SchemaError(
-                f"{bad} events{place} lie outside the {width}x{height} sensor "
-                f"(largest x={int(x.max())}, y={int(y.max())}); check the sensor size (--sensor WxH)"
-            )
+    if sensor is not None:
+        check_inside(x, y, sensor, where)
     if len(p) and p.max(initial=0) > 1:
         raise SchemaError(f"polarity{place} must be 0 (OFF) or 1 (ON), found {int(p.max())}")
     if sorted_time and len(t) > 1:
@@ -432,6 +426,17 @@ def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sen
                 f"event time goes backwards{place} at row {first} ({int(t[first - 1])} -> {int(t[first])} µs); "
                 "sort the events by time"
             )
+
+
+def check_inside(x: np.ndarray, y: np.ndarray, sensor, where: str = ""):
+    """Every event's coordinates inside the (width, height) sensor."""
+    width, height = sensor
+    if len(x) and (x.max(initial=0) >= width or y.max(initial=0) >= height):
+        bad = int(np.count_nonzero((x >= width) | (y >= height)))
+        raise SchemaError(
+            f"{bad} events{f' in {where}' if where else ''} lie outside the {width}x{height} sensor "
+            f"(largest x={int(x.max())}, y={int(y.max())}); check the sensor size (--sensor WxH)"
+        )
 
 
 def check_force(values: np.ndarray, where: str = ""):

@@ -150,7 +150,7 @@ def activity_map(table: pa.Table) -> np.ndarray:
     else:
         x = table.column("x").to_numpy().astype(np.int64)
         y = table.column("y").to_numpy().astype(np.int64)
-    sch.check_events(x[:0], x, y, np.zeros(0, np.uint8), (width, height), sorted_time=False)
+    sch.check_inside(x, y, (width, height))
     flat = np.bincount(y.astype(np.int64) * width + x, minlength=width * height)
     return flat.reshape(height, width).astype(np.float64)
 
