@@ -320,19 +320,18 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    excess = (off - state.mean_off, on - state.mean_on)
+    excess, means = (off - state.mean_off, on - state.mean_on), (state.mean_off, state.mean_on)
     pair = (excess[0] + state.last_excess[0], excess[1] + state.last_excess[1])
     state.last_excess = excess
+    bars = (config.min_events, config.on_events)
     if not touching or separation < config.separation_px:
         evidence = False
     elif state.slipping:  # hysteresis: a slip's events come unevenly, and one weak frame does not end it
-        bars = (config.keep_share * config.min_events, config.keep_share * config.on_events)
-        evidence = ((_excess(config, excess[0], state.mean_off, bars[0]) and _excess(config, excess[1], state.mean_on, bars[1]))
-                    or (_excess(config, pair[0], 2 * state.mean_off, 2 * bars[0])
-                        and _excess(config, pair[1], 2 * state.mean_on, 2 * bars[1])))
+        kept = (config.keep_share * bars[0], config.keep_share * bars[1])
+        evidence = (_passes(config, excess, means, kept)
+                    or _passes(config, pair, (2 * means[0], 2 * means[1]), (2 * kept[0], 2 * kept[1])))
     else:
-        evidence = (_excess(config, excess[0], state.mean_off, config.min_events)
-                    and _excess(config, excess[1], state.mean_on, config.on_events))
+        evidence = _passes(config, excess, means, bars)
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
     starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
@@ -340,6 +339,7 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     return state.slipping
 
 
-def _excess(config: SlipConfig, excess: float, mean: float, bar: float) -> bool:
-    """`excess` events above a background of `mean` pass `bar` and the background's Poisson noise."""
-    return excess >= max(bar, config.noise_sigma * np.sqrt(mean + 1.0))
+def _passes(config: SlipConfig, excess, means, bars) -> bool:
+    """Both polarities' events above their backgrounds (`means`) pass their `bars` and the
+    backgrounds' Poisson noise."""
+    return all(above >= max(bar, config.noise_sigma * np.sqrt(mean + 1.0)) for above, mean, bar in zip(excess, means, bars))
