@@ -428,14 +428,14 @@ def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sen
             )
 
 
-def check_inside(x: np.ndarray, y: np.ndarray, sensor, where: str = ""):
-    """Every event's coordinates inside the (width, height) sensor."""
+def check_inside(x: np.ndarray, y: np.ndarray, sensor, where: str = "", advice: str = "check the sensor size (--sensor WxH)"):
+    """Every event's coordinates inside the (width, height) sensor; `advice` ends the message."""
     width, height = sensor
     if len(x) and (x.max(initial=0) >= width or y.max(initial=0) >= height):
         bad = int(np.count_nonzero((x >= width) | (y >= height)))
         raise SchemaError(
             f"{bad} events{f' in {where}' if where else ''} lie outside the {width}x{height} sensor "
-            f"(largest x={int(x.max())}, y={int(y.max())}); check the sensor size (--sensor WxH)"
+            f"(largest x={int(x.max())}, y={int(y.max())}); {advice}"
         )
 
 

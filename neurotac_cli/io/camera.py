@@ -14,11 +14,10 @@ import sys
 import tempfile
 from typing import Callable, Iterator
 
-import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import FormatError, InputError, NeurotacError
+from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError
 from neurotac_cli.io import reader
 from neurotac_cli.io.reader import Decoded
 from neurotac_cli.io.readers import OPENERS
@@ -224,12 +223,10 @@ def _batches(name, fmt, decoded: Decoded, sensor, schema, cleanup) -> Iterator[p
 
 def check_inside(name, x, y, width: int, height: int, what: str) -> None:
     """Refuse a chunk with events outside the sensor: the `what` (file, stream) is damaged, or its size wrong."""
-    if int(x.max()) >= width or int(y.max()) >= height:
-        bad = int(np.count_nonzero((x >= width) | (y >= height)))
-        raise FormatError(
-            f"{name}: {bad} events lie outside the {width}x{height} sensor (largest x={int(x.max())}, "
-            f"y={int(y.max())}); the {what} is damaged, or give the right size with --sensor WxH"
-        )
+    try:
+        sch.check_inside(x, y, (width, height), advice=f"the {what} is damaged, or give the right size with --sensor WxH")
+    except SchemaError as error:
+        raise FormatError(f"{name}: {error}") from None
 
 
 def _named(name: str, error: NeurotacError) -> NeurotacError:
