@@ -14,6 +14,12 @@ from neurotac_cli.model.data import Sequences
 from neurotac_cli.model.fit import best_epoch
 
 
+def _group(cv: str) -> tuple[str, str]:
+    """The label and the value (empty: every value) of `group:LABEL[=VALUE]`."""
+    label, _, value = cv.partition(":")[2].partition("=")
+    return label, value
+
+
 def folds(data: Sequences, cv: str, rng: np.random.Generator) -> list:
     """Test trials (originals only) of each fold for `loo`, `kfold:K`, `group:LABEL` or `group:LABEL=VALUE`."""
     originals = [i for i in range(len(data)) if not data.augmented[i]]
@@ -35,7 +41,7 @@ def folds(data: Sequences, cv: str, rng: np.random.Generator) -> list:
         fold_of = {unique[j]: n % k for n, j in enumerate(order)}
         groups = [[data.trials[i] for i, s in zip(originals, sources) if fold_of[s] == f] for f in range(k)]
     elif kind == "group":
-        label, _, value = argument.partition("=")
+        label, value = _group(cv)
         if label not in data.labels:
             raise ModelError(f"--cv group:{label}: no label column {label!r} (labels: {', '.join(data.labels) or 'none'})")
         values = [data.labels[label][i] for i in originals]
@@ -116,7 +122,7 @@ def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, va
     """The (fold, repeat) tasks: fold assignment drawn once from `seed`; each repeat trains with its own seed."""
     from neurotac_cli.model.core import MATERIAL_MODELS, resolved_spec
 
-    if spec["model"] in MATERIAL_MODELS and cv.startswith("group:") and cv[len("group:"):].partition("=")[0] == label:
+    if spec["model"] in MATERIAL_MODELS and cv.startswith("group:") and _group(cv)[0] == label:
         raise UsageError(f"--cv {cv} holds out every trial of a {label} class from its training, so no test trial's class "
                          f"could be named; group by another label (e.g. group:object), or use kfold:K")
     rng = np.random.default_rng(seed)
