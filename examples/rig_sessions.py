@@ -49,14 +49,14 @@ EPOCHS, PATIENCE = 200, 15
 
 
 def streams(table):
-    """Per session: OFF, ON, centroid separation, true force (0 where unknown), touching and slip truth."""
+    """Per session: its frames, OFF, ON, centroid separation, true force (0 where unknown), touching and slip truth."""
     data = shaping.sequences(table)
     trial = np.asarray(table.column("trial").to_pylist(), dtype=object)
     slip = table.column("slip").to_numpy(zero_copy_only=False)
     out = []
     for name, counts, force, phase in zip(data.trials, data.counts, data.force, data.phase):
         off, on, separation = detector.frame_stats(counts)
-        out.append(dict(off=off, on=on, separation=separation, force=np.nan_to_num(force),
+        out.append(dict(counts=counts, off=off, on=on, separation=separation, force=np.nan_to_num(force),
                         touching=np.asarray([p not in (None, "none") for p in phase]), slip=slip[trial == name]))
     return out
 
@@ -70,7 +70,7 @@ def detection(training, test):
     for name, slip in (("fixed", FIXED), ("scaled", scaled)):
         # the slip flags do not change where contacts end, so both bars find the same contacts
         phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
-                                                    force=s["force"]) for s in test))
+                                                    force=s["force"], counts=s["counts"]) for s in test))
         figures[name] = metrics.detection_figures([s["slip"] for s in test], flags, "slip", unit=WINDOW_MS,
                                                   suffix="latency_ms", tolerance=20.0)
     figures["contact"] = metrics.detection_figures([s["touching"] for s in test], [p != detector.NONE for p in phases], "contact",

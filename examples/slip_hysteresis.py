@@ -33,7 +33,8 @@ def score_folder(folder: str, shares) -> list:
         bars = detector.slip_for(press, release)
         for share in shares:
             _, _, flags, _ = detector.detect(config, stream["off"], stream["on"], separation=stream["separation"],
-                                             slip=dataclasses.replace(bars, keep_share=share), force=stream["force"])
+                                             slip=dataclasses.replace(bars, keep_share=share), force=stream["force"],
+                                             counts=stream["counts"])
             out.append((f"{os.path.basename(folder)}/{index}", share,
                         metrics.detection_figures([stream["slip"]], [flags], "slip", unit=WINDOW_MS, suffix="latency_ms",
                                                   tolerance=20.0)))

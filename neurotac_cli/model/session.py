@@ -90,7 +90,7 @@ class Stream:
         for k in range(len(counts)):
             touching = self.contact.phase != detector.NONE
             before = self.contact.onsets
-            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True)
+            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True, frame=counts[k])
             if self.contact.onsets != before or phase == detector.NONE:
                 self._run(pending, counts, t_us, force)
                 self.inner = None

@@ -24,6 +24,14 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   re-grasp (their ranges overlap on simulated sessions), the force estimate can. The figures that
   chose these rules are in docs/journal.md.
 
+A slip is judged on the events of the contact's footprint (the cells the press darkened, and their
+neighbours) above that footprint's own background, when the caller passes each frame's counts: a
+slip happens where the object touches, while the background noise is spread over the whole frame, so
+on a camera with a busy background (hundreds of events a frame) or a high ON threshold a slip's few
+ON events stand out of the footprint's few cells where they drown in the frame's sum. The phases use
+the whole frame's totals: releases judged on the footprint end holds at their flickers (the release
+rules were chosen on the totals; docs/journal.md).
+
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
 and one learnt only from rest frames never recovers from a first contact begun against a wrong one
@@ -63,9 +71,69 @@ class ContactConfig:
         return asdict(self)
 
 
+FOOTPRINT_SHARE = 0.2  # a footprint cell: its OFF events above the background over the presses reach this share of the largest
+
+
+@dataclass
+class Footprint:
+    """Where the current contact pressed, over the frame's cells (bounded by the frame's size): the
+    background per cell (running mean of rest frames, as the detector's totals), the OFF events above
+    it over the contact's presses, and the cells of the footprint."""
+
+    background: np.ndarray | None = None  # (2, H, W) events per frame at rest
+    rest_frames: int = 0  # rest frames averaged so far (a plain mean until there are background_frames)
+    pressed: np.ndarray | None = None  # (H, W) OFF events above the background in the contact's pressing frames
+    cells: np.ndarray | None = None  # (H, W) bool: the footprint (None before the contact's first press frame)
+    weights: np.ndarray | None = None  # the cells as 0/1 over the flattened frame (one product sums them)
+    expected: tuple = (0.0, 0.0)  # OFF and ON background over the cells (the background is still in a contact)
+
+    def sums(self, frame: np.ndarray) -> tuple | None:
+        """(OFF, ON, OFF background, ON background) over the footprint's cells of one (2, H, W) frame."""
+        if self.weights is None or frame.shape != self.background.shape:
+            return None
+        inside = np.asarray(frame, dtype=np.float32).reshape(2, -1) @ self.weights
+        return float(inside[0]), float(inside[1]), *self.expected
+
+    def rest(self, config: "ContactConfig", frame: np.ndarray):
+        """A frame of rest: the background per cell follows it (float32: a frame of unpooled cells costs
+        tens of microseconds; a one-frame flicker moves a cell by a hundredth of it and fades)."""
+        if self.background is None or self.background.shape != frame.shape:
+            self.background, self.rest_frames = np.array(frame, dtype=np.float32), 1
+            return
+        self.rest_frames += 1
+        rate = max(1.0 / self.rest_frames, 1.0 / config.background_frames)
+        self.background *= np.float32(1.0 - rate)
+        self.background += np.float32(rate) * frame
+
+    def press(self, config: "ContactConfig", frame: np.ndarray, onset: bool):
+        """A pressing frame: its OFF events above the background mark the footprint (a new contact starts
+        a new one; the sum leaks as the detector's do, so a contact that never ends keeps it bounded)."""
+        if self.background is None or frame.shape != self.background.shape:
+            return
+        darker = np.maximum(frame[0] - self.background[0], 0.0, dtype=np.float32)
+        keep = np.float32(np.exp(-1.0 / config.memory_frames))
+        self.pressed = darker if onset or self.pressed is None else self.pressed * keep + darker
+        top = float(self.pressed.max())
+        self.cells = _grown(self.pressed >= FOOTPRINT_SHARE * top) if top > 0 else None
+        self.weights = None if self.cells is None else self.cells.ravel().astype(np.float32)
+        if self.weights is not None:
+            self.expected = tuple(float(v) for v in self.background.reshape(2, -1) @ self.weights)
+
+
+def _grown(cells: np.ndarray) -> np.ndarray:
+    """The cells and their eight neighbours (a slip carries the patch's edge past the pressed cells)."""
+    rows = cells.copy()
+    rows[1:] |= cells[:-1]
+    rows[:-1] |= cells[1:]
+    out = rows.copy()
+    out[:, 1:] |= rows[:, :-1]
+    out[:, :-1] |= rows[:, 1:]
+    return out
+
+
 @dataclass
 class ContactState:
-    """Everything the detector keeps between frames: a handful of numbers."""
+    """Everything the detector keeps between frames: a handful of numbers, and the footprint's cells."""
 
     mean_off: float
     mean_on: float
@@ -87,19 +155,36 @@ class ContactState:
     slip_quiet: int = 0  # frames since the last evidence of a slip
     last_excess: tuple = (0.0, 0.0)  # the previous frame's OFF and ON events above their background
     warmup: list | None = field(default_factory=list)  # (OFF, ON) of the stream's first frames; None once they set the background
+    footprint: Footprint = field(default_factory=Footprint)
+    local: tuple | None = None  # this frame's `Footprint.sums` inside a contact, for `slip_step` (None: the totals)
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
         return cls(mean_off=config.background_off, mean_on=config.background_on, warmup=[] if config.warmup_frames > 0 else None)
 
 
-def step(config: ContactConfig, state: ContactState, off: float, on: float, by_force: bool = False) -> str:
+def step(config: ContactConfig, state: ContactState, off: float, on: float, by_force: bool = False,
+         frame: np.ndarray | None = None) -> str:
     """Advance one frame of `off` and `on` event counts; returns the frame's phase (none = not touching).
 
-    `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`."""
+    `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
+    `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
+    frame; without it, slips are judged on the totals."""
+    before = state.onsets
+    phase = _step(config, state, off, on, by_force, frame)
+    if frame is not None:
+        if phase == NONE:
+            state.footprint.rest(config, frame)
+        elif phase == GRASPING:
+            state.footprint.press(config, frame, onset=state.onsets != before)
+    return phase
+
+
+def _step(config, state, off, on, by_force, frame) -> str:
     keep = np.exp(-1.0 / config.memory_frames)
     state.off_since = state.off_since * keep + off
     state.held_before = state.held
+    state.local = None
     if state.warmup is not None:
         _warm_up(config, state, off, on)
         return state.phase
@@ -111,6 +196,8 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         else:
             _update_background(config, state, off, on)
         return state.phase
+    if frame is not None:
+        state.local = state.footprint.sums(frame)
     pressing = _above(config, off, state.mean_off)
     if state.released:
         state.since_release += 1
@@ -185,11 +272,13 @@ def _update_background(config, state, off, on):
 
 
 def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: ContactState | None = None,
-           separation: np.ndarray | None = None, slip: "SlipConfig | None" = None, force: np.ndarray | None = None):
+           separation: np.ndarray | None = None, slip: "SlipConfig | None" = None, force: np.ndarray | None = None,
+           counts: np.ndarray | None = None):
     """Phases of a run of frames (OFF and ON counts per frame), continuing from `state`; with
     `separation` (distance of the OFF and ON centroids per frame, `frame_stats`) and `slip`, slip flags too;
     with `force` (N per frame: a force model's estimates, or the true force to measure the detection
-    alone) contacts end by `end_by_force`, as `model.session.Stream` ends them, instead of `release_share`.
+    alone) contacts end by `end_by_force`, as `model.session.Stream` ends them, instead of `release_share`;
+    with `counts` (the frames, (T, 2, H, W)) slips are judged on the footprint, as `Stream` does.
 
     Returns (phase array of str, onset flags (a contact begins at this frame), slip flags, the state after)."""
     state = state or ContactState.start(config)
@@ -199,7 +288,7 @@ def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: Contac
     off, on = np.asarray(off, dtype=np.float64).tolist(), np.asarray(on, dtype=np.float64).tolist()
     for k, (a, b) in enumerate(zip(off, on)):
         before = state.onsets
-        phase = step(config, state, a, b, by_force=force is not None)
+        phase = step(config, state, a, b, by_force=force is not None, frame=None if counts is None else counts[k])
         if force is not None and phase != NONE:
             state.peak_force = max(state.peak_force, float(force[k]))
             if end_by_force(config, state, float(force[k])):
@@ -320,7 +409,11 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press)."""
     touching = state.phase != NONE
-    excess, means = (off - state.mean_off, on - state.mean_on), (state.mean_off, state.mean_on)
+    if state.local is not None:  # the footprint's events above its own background (`step` with the frame)
+        off, on, *means = state.local
+    else:
+        means = (state.mean_off, state.mean_on)
+    excess = (off - means[0], on - means[1])
     pair = (excess[0] + state.last_excess[0], excess[1] + state.last_excess[1])
     state.last_excess = excess
     bars = (config.min_events, config.on_events)

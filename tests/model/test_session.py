@@ -257,6 +257,25 @@ def test_a_bright_backgrounds_noise_is_not_a_slip_however_low_the_bar():
         assert contact.slip_step(slip, state, background + 30, background + 30, 2.0) is flagged
 
 
+def test_a_slip_drowned_in_the_frames_background_stands_out_of_the_contacts_footprint():
+    """ON background 1 event per cell and frame over 20x20 cells (400 a frame, σ 20); a slip makes 40
+    ON and 60 OFF events at the edge of a 4x4 press: under the frame's noise floor (4σ: 80), over the
+    footprint's (6x6 cells, 36 a frame, 4σ: 24)."""
+    rng = np.random.default_rng(0)
+    frames = np.stack([rng.poisson(0.1, (80, 20, 20)), rng.poisson(1.0, (80, 20, 20))], axis=1).astype(np.float64)
+    frames[20:23, 0, 8:12, 8:12] += 40.0  # the press
+    frames[60:64, 0, 8:12, 11] += 15.0  # the slip's leading edge darkens ...
+    frames[60:64, 1, 8:12, 8] += 10.0  # ... and its trailing edge brightens
+    off, on, separation = contact.frame_stats(frames)
+    config, slip = contact.ContactConfig(), contact.SlipConfig(min_events=20.0, min_events_on=20.0)
+    phases, _, totals, _ = contact.detect(config, off, on, separation=separation, slip=slip)
+    _, _, local, state = contact.detect(config, off, on, separation=separation, slip=slip, counts=frames)
+    assert (phases[25:70] != contact.NONE).all()
+    assert not totals.any()
+    assert local[60:64].all() and not local[:60].any() and not local[70:].any()
+    assert state.footprint.cells.sum() == 36
+
+
 def test_training_on_contacts_sets_the_slip_bar_from_the_training_presses(sessions, trained):
     summary = trained.training["contacts"]
     assert summary["press_off"] > 0
@@ -277,6 +296,11 @@ def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
     on = rng.poisson(scale * rng.random(n) ** 4)
     config = contact.ContactConfig()
     _, _, _, state = contact.detect(config, off, on)
+    frames = np.zeros((n, 2, 3, 3))
+    frames[:, 0, 1, 1], frames[:, 1, 1, 1] = off, on
+    _, _, _, with_cells = contact.detect(config, off, on, counts=frames)
+    if with_cells.footprint.pressed is not None:
+        assert with_cells.footprint.pressed.max() <= off.max() * (config.memory_frames + 1)
     largest = float(max(off.max(), on.max(), config.background_off, config.background_on)) + 1
     assert 0 <= state.mean_off <= largest and 0 <= state.mean_on <= largest
     assert 0 <= state.off_since <= largest * (config.memory_frames + 1)
