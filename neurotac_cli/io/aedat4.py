@@ -6,6 +6,7 @@ schema metadata `neurotac:triggers` as [{"t": µs, "type": ...}], which `sync --
 frame and exposure triggers of the APS are left out, as are frames and IMU samples.
 """
 
+import itertools
 import os
 import struct
 
@@ -57,9 +58,9 @@ def check_header(path: str):
         raise FormatError(f"the AEDAT 4.0 header is damaged ({error})") from None
 
 
-def _packets(path: str, skip_streams: bool = False):
-    """The `aedat` decoder's packets (after its streams, unless `skip_streams`), with its failures
-    (a Rust panic included) as FormatError."""
+def _packets(path: str, skip_streams: bool = False, limit: int | None = None):
+    """The `aedat` decoder's packets (after its streams, unless `skip_streams`; the first `limit` only,
+    where given), with its failures (a Rust panic included) as FormatError."""
     import aedat
 
     check_header(path)
@@ -68,13 +69,31 @@ def _packets(path: str, skip_streams: bool = False):
         streams = decoder.id_to_stream()
         if not skip_streams:
             yield streams
-        for packet in decoder:
-            yield packet
+        # a packet cut short follows the first `limit`, which the decoder would refuse: never asked for
+        yield from (decoder if limit is None else itertools.islice(decoder, limit))
     except (KeyboardInterrupt, SystemExit, GeneratorExit, FormatError):
         raise
     except BaseException as error:  # pyo3's PanicException derives from BaseException
         text = str(error).strip().splitlines()
         raise FormatError(f"not a valid AEDAT 4.0 file ({text[0][:160] if text else type(error).__name__})") from None
+
+
+def whole_packets(path: str, streams) -> tuple[int, int]:
+    """(packets, cut bytes): how many packets lie whole in `path`, and the bytes after them of a packet
+    cut short (0 where none: a finished file ends with its index table, a packet of no declared stream)."""
+    with open(path, "rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        offset = 18 + struct.unpack("<I", handle.read(18)[14:18])[0]
+        count = 0
+        while offset + 8 <= size:
+            handle.seek(offset)
+            stream, length = struct.unpack("<iI", handle.read(8))
+            if stream not in streams:
+                return count, 0
+            if offset + 8 + length > size:
+                break
+            offset, count = offset + 8 + length, count + 1
+    return count, size - offset
 
 
 def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
@@ -86,15 +105,19 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     events_id = event_ids[0]
     declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
     has_triggers = any(s.get("type") == "triggers" for s in streams.values())
+    whole, cut = whole_packets(path, streams)
+    limit = whole if cut else None  # a recording stopped mid-write: its whole packets are read, the rest noted
     if not has_triggers:
         packets.close()
-        return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path), events_id), meta={})
+        return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path, limit=limit), events_id), meta={},
+                       cut_bytes=cut)
     # The triggers go into the schema, which is written before the first batch: find them first.
     # A small file is decoded once and its events kept; a large one is decoded twice, so memory
     # stays flat.
     small = os.path.getsize(path) <= SINGLE_PASS_BYTES
     triggers, kept = [], []
-    for packet in packets:
+    packets.close()
+    for packet in _packets(path, skip_streams=True, limit=limit):
         if "triggers" in packet:
             found = packet["triggers"]
             keep = np.isin(found["source"], list(TRIGGER_TYPES))
@@ -104,8 +127,8 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     if small:
         chunks = lambda: _event_chunks(iter(kept), events_id)  # noqa: E731
     else:
-        chunks = lambda: _event_chunks(_packets(path, skip_streams=True), events_id)  # noqa: E731
-    return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers})
+        chunks = lambda: _event_chunks(_packets(path, skip_streams=True, limit=limit), events_id)  # noqa: E731
+    return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers}, cut_bytes=cut)
 
 
 def _event_chunks(packets, events_id):

@@ -202,6 +202,20 @@ def test_a_stream_cut_anywhere_gives_a_prefix_of_the_events_or_one_error(tmp_pat
         assert table.equals(whole.slice(0, table.num_rows)), cut
 
 
+@pytest.mark.parametrize("name", ["davis346_aestream.aedat4", "dvxplorer_tonic.aedat4"])
+def test_an_aedat4_file_cut_mid_packet_reads_as_the_same_bytes_piped(tmp_path, name):
+    """A recording stopped mid-write: its whole packets are read from the path as from a pipe, and the
+    cut bytes are kept in the table's source."""
+    data = real_file(name).read_bytes()
+    for i, cut in enumerate([len(data) - 20_000, len(data) // 2]):
+        path = tmp_path / f"{i}.aedat4"
+        path.write_bytes(data[:cut])
+        (tmp_path / f"{i}").mkdir()
+        table = read_events_table(str(path))
+        assert events(table).equals(events(read_events_table(fifo_of(tmp_path / f"{i}", data[:cut]))))
+        assert 0 < table.num_rows and 0 < sch.camera_sources(table.schema)[0]["cut_bytes"] < 200_000  # one packet at most
+
+
 def test_an_empty_pipe_is_one_error(tmp_path):
     from neurotac_cli.errors import InputError
 
