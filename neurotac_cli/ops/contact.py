@@ -83,9 +83,13 @@ class Footprint:
     background: np.ndarray | None = None  # (2, H, W) events per frame at rest
     rest_frames: int = 0  # rest frames averaged so far (a plain mean until there are background_frames)
     pressed: np.ndarray | None = None  # (H, W) OFF events above the background in the contact's pressing frames
-    cells: np.ndarray | None = None  # (H, W) bool: the footprint (None before the contact's first press frame)
-    weights: np.ndarray | None = None  # the cells as 0/1 over the flattened frame (one product sums them)
+    weights: np.ndarray | None = None  # the footprint's cells as 0/1 over the flattened frame (None before a press)
     expected: tuple = (0.0, 0.0)  # OFF and ON background over the cells (the background is still in a contact)
+
+    @property
+    def cells(self) -> np.ndarray | None:
+        """(H, W) bool: the footprint's cells."""
+        return None if self.weights is None else self.weights.reshape(self.background.shape[1:]) > 0
 
     def sums(self, frame: np.ndarray) -> tuple | None:
         """(OFF, ON, OFF background, ON background) over the footprint's cells of one (2, H, W) frame."""
@@ -114,8 +118,7 @@ class Footprint:
         keep = np.float32(np.exp(-1.0 / config.memory_frames))
         self.pressed = darker if onset or self.pressed is None else self.pressed * keep + darker
         top = float(self.pressed.max())
-        self.cells = _grown(self.pressed >= FOOTPRINT_SHARE * top) if top > 0 else None
-        self.weights = None if self.cells is None else self.cells.ravel().astype(np.float32)
+        self.weights = _grown(self.pressed >= FOOTPRINT_SHARE * top).ravel().astype(np.float32) if top > 0 else None
         if self.weights is not None:
             self.expected = tuple(float(v) for v in self.background.reshape(2, -1) @ self.weights)
 
@@ -170,8 +173,10 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
-    before = state.onsets
-    phase = _step(config, state, off, on, by_force, frame)
+    touching, before = state.phase != NONE, state.onsets
+    phase = _step(config, state, off, on, by_force)
+    # the footprint as it stood before this frame: a contact's onset frame has none yet
+    state.local = state.footprint.sums(frame) if frame is not None and touching else None
     if frame is not None:
         if phase == NONE:
             state.footprint.rest(config, frame)
@@ -180,11 +185,10 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     return phase
 
 
-def _step(config, state, off, on, by_force, frame) -> str:
+def _step(config, state, off, on, by_force) -> str:
     keep = np.exp(-1.0 / config.memory_frames)
     state.off_since = state.off_since * keep + off
     state.held_before = state.held
-    state.local = None
     if state.warmup is not None:
         _warm_up(config, state, off, on)
         return state.phase
@@ -196,8 +200,6 @@ def _step(config, state, off, on, by_force, frame) -> str:
         else:
             _update_background(config, state, off, on)
         return state.phase
-    if frame is not None:
-        state.local = state.footprint.sums(frame)
     pressing = _above(config, off, state.mean_off)
     if state.released:
         state.since_release += 1
