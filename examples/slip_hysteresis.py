@@ -14,8 +14,6 @@ import argparse
 import dataclasses
 import os
 
-import numpy as np
-
 from neurotac_cli import metrics, tables
 from neurotac_cli.model import session
 from neurotac_cli.ops import contact as detector
@@ -25,7 +23,7 @@ FOLDERS = ("train", "test", "train-randomised", "unseen")
 
 
 def score_folder(folder: str, shares) -> list:
-    """(session, share, slip figures) for every session of one folder's frames."""
+    """(session, share, true slips, flags) for every session of one folder's frames."""
     out = []
     for index, stream in enumerate(streams(tables.read([os.path.join(folder, "frames.arrows")]))):
         press, release = detector.rig_peaks([(stream["off"], stream["on"], metrics.runs(stream["touching"]))])
@@ -35,10 +33,19 @@ def score_folder(folder: str, shares) -> list:
             _, _, flags, _ = detector.detect(config, stream["off"], stream["on"], separation=stream["separation"],
                                              slip=dataclasses.replace(bars, keep_share=share), force=stream["force"],
                                              counts=stream["counts"])
-            out.append((f"{os.path.basename(folder)}/{index}", share,
-                        metrics.detection_figures([stream["slip"]], [flags], "slip", unit=WINDOW_MS, suffix="latency_ms",
-                                                  tolerance=20.0)))
+            out.append((f"{os.path.basename(folder)}/{index}", share, stream["slip"], flags))
     return out
+
+
+def figures(truths, flags) -> dict:
+    """Slip figures over the streams together (`metrics.detection_figures` pools them)."""
+    return metrics.detection_figures(truths, flags, "slip", unit=WINDOW_MS, suffix="latency_ms", tolerance=20.0)
+
+
+def line(label: str, f: dict) -> str:
+    within = f.get("slip_within_20", 0.0) * f["slip_hits"]
+    return (f"{label}: slip F1 {f['slip_f1']:.3f}, {f['slip_hits']:.0f} of {f['slip_true']:.0f} found, "
+            f"{f['slip_found']:.0f} flagged, {within:.0f} within 20 ms")
 
 
 def main(argv=None):
@@ -51,16 +58,14 @@ def main(argv=None):
     folders = [os.path.join(args.sessions, name) for name in FOLDERS if os.path.exists(os.path.join(args.sessions, name, "frames.arrows"))]
     if not folders:
         raise SystemExit(f"no sessions under {args.sessions}: run examples/sessions.py first")
-    pooled = {share: np.zeros(4) for share in shares}
+    pooled = {share: ([], []) for share in shares}
     for folder in folders:
-        for name, share, f in score_folder(folder, shares):
-            within = f.get("slip_within_20", 0.0) * f["slip_hits"]
-            pooled[share] += (f["slip_true"], f["slip_found"], f["slip_hits"], within)
-            print(f"{name:20s} keep {share:g}: slip F1 {f['slip_f1']:.3f}, {f['slip_hits']} of {f['slip_true']} found, "
-                  f"{f['slip_found']} flagged, {within:.0f} within 20 ms")
-    for share, (true, found, hits, within) in pooled.items():
-        f1 = 2 * hits / (true + found) if true + found else float("nan")
-        print(f"pooled, keep {share:g}: slip F1 {f1:.3f}, {hits:.0f} of {true:.0f} found, {found:.0f} flagged, {within:.0f} within 20 ms")
+        for name, share, truth, flags in score_folder(folder, shares):
+            pooled[share][0].append(truth)
+            pooled[share][1].append(flags)
+            print(line(f"{name:20s} keep {share:g}", figures([truth], [flags])))
+    for share, (truths, flags) in pooled.items():
+        print(line(f"pooled, keep {share:g}", figures(truths, flags)))
 
 
 if __name__ == "__main__":
