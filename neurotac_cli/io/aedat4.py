@@ -78,22 +78,33 @@ def _packets(path: str, skip_streams: bool = False, limit: int | None = None):
         raise FormatError(f"not a valid AEDAT 4.0 file ({text[0][:160] if text else type(error).__name__})") from None
 
 
+def walk_packets(read, size: int, streams, offset: int = 0) -> tuple[int, int, bool]:
+    """(packets, end, finished): the packets lying whole from `offset` in `size` bytes that `read(offset,
+    n)` returns, where the last of them ends, and whether the data is over there (a packet of no
+    declared stream is the index table a finished file ends with). One rule for a file and a stream."""
+    count = 0
+    while offset + 8 <= size:
+        stream, length = struct.unpack("<iI", read(offset, 8))
+        if stream not in streams:
+            return count, offset, True
+        if offset + 8 + length > size:
+            break
+        offset, count = offset + 8 + length, count + 1
+    return count, offset, False
+
+
 def whole_packets(path: str, streams) -> tuple[int, int]:
     """(packets, cut bytes): how many packets lie whole in `path`, and the bytes after them of a packet
-    cut short (0 where none: a finished file ends with its index table, a packet of no declared stream)."""
+    cut short (0 where none)."""
     with open(path, "rb") as handle:
         size = os.fstat(handle.fileno()).st_size
-        offset = 18 + struct.unpack("<I", handle.read(18)[14:18])[0]
-        count = 0
-        while offset + 8 <= size:
+
+        def read(offset, n):
             handle.seek(offset)
-            stream, length = struct.unpack("<iI", handle.read(8))
-            if stream not in streams:
-                return count, 0
-            if offset + 8 + length > size:
-                break
-            offset, count = offset + 8 + length, count + 1
-    return count, size - offset
+            return handle.read(n)
+
+        count, end, finished = walk_packets(read, size, streams, 18 + struct.unpack("<I", read(14, 4))[0])
+    return count, 0 if finished else size - end
 
 
 def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
@@ -116,8 +127,7 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     # stays flat.
     small = os.path.getsize(path) <= SINGLE_PASS_BYTES
     triggers, kept = [], []
-    packets.close()
-    for packet in _packets(path, skip_streams=True, limit=limit):
+    for packet in itertools.islice(packets, limit):
         if "triggers" in packet:
             found = packet["triggers"]
             keep = np.isin(found["source"], list(TRIGGER_TYPES))

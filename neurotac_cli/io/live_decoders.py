@@ -154,16 +154,10 @@ class Aedat4:
         self.meta = {}
 
     def complete(self, pending) -> int:
-        offset = 0
-        while offset + 8 <= len(pending):
-            stream, size = struct.unpack_from("<iI", pending, offset)
-            if stream not in self.known:
-                self.finished = True
-                break
-            if offset + 8 + size > len(pending):
-                break
-            offset += 8 + size
-        return offset
+        from neurotac_cli.io import aedat4
+
+        _, end, self.finished = aedat4.walk_packets(lambda offset, n: pending[offset:offset + n], len(pending), self.known)
+        return end
 
     def decode(self, block: bytes):
         from neurotac_cli.io import aedat4
