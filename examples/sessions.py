@@ -2,15 +2,15 @@
 at rest, drift, contact and slip detection, in one table.
 
 Simulates training and test sessions (`neurotac simulate --session`, test seeds that training never
-saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session`),
-adds each frame's slip truth from grasps.csv, trains deform-gru, the thesis's LSTM and ConvLSTM on
-the contacts the event detector finds (`train --contacts`), and scores each on the test sessions and
-on the same grasps cut into trials; then on sessions whose physics training never saw (`simulate
---vary all --unseen membrane`: pixels, optics, noise, force sensor and objects drawn from wide ranges,
-the membrane from the upper third of its ranges), beside deform-gru and the LSTM trained on randomised
-sessions (`--vary all --hold-out membrane`). Prints markdown tables and writes them to
-OUT/sessions.md; the full run also writes them into docs/results.md (section "Sessions of many
-grasps"), the quick run never.
+saw), frames them through the CLI (`sync | crop --pool 6x6 | frame --window 10ms --phases session
+--slips grasps.csv`: each frame's slip truth from the grasps' manifest), trains deform-gru, the
+thesis's LSTM and ConvLSTM on the contacts the event detector finds (`train --contacts`), and scores
+each on the test sessions and on the same grasps cut into trials; then on sessions whose physics
+training never saw (`simulate --vary all --unseen membrane`: pixels, optics, noise, force sensor and
+objects drawn from wide ranges, the membrane from the upper third of its ranges), beside deform-gru
+and the LSTM trained on randomised sessions (`--vary all --hold-out membrane`). Prints markdown
+tables and writes them to OUT/sessions.md; the full run also writes them into docs/results.md
+(section "Sessions of many grasps"), the quick run never.
 The run resumes: framed sessions and trained models found in OUT are reused (a model's training time
 is kept beside it in NAME.seconds), so a run cut off, or one adding a model, trains only what is missing.
 
@@ -28,7 +28,6 @@ the centre, and on a CPU the ConvLSTM trains on sessions only at that size.
 """
 
 import argparse
-import csv
 import os
 import subprocess
 import sys
@@ -67,12 +66,11 @@ def simulate(folder, seed, sessions, grasps, duration, physics=()):
     args = ["simulate", "--session", "--grasps", str(grasps), "--sessions", str(sessions), "--seed", str(seed), "--out", folder]
     run_cli(args + (["--duration", duration] if duration else []) + list(physics))
     pipe = (f"neurotac sync --manifest {folder}/manifest.csv | neurotac crop --pool 6x6 "
-            f"| neurotac frame --window {WINDOW_MS}ms --phases session")
+            f"| neurotac frame --window {WINDOW_MS}ms --phases session --slips {folder}/grasps.csv")
     done = subprocess.run(pipe, shell=True, capture_output=True, check=False)
     if done.returncode:
         sys.exit(f"sessions.py: framing failed: {done.stderr.decode(errors='replace').strip()}")
     table = _read_stream(done.stdout)
-    table = with_slip_truth(table, os.path.join(folder, "grasps.csv"))
     tables.write(frames, table)
     return table
 
@@ -87,23 +85,6 @@ def run_cli(args):
     done = subprocess.run(["neurotac", *args], capture_output=True, check=False)
     if done.returncode:
         sys.exit(f"sessions.py: neurotac {' '.join(args)} failed: {done.stderr.decode(errors='replace').strip()}")
-
-
-def with_slip_truth(table: pa.Table, grasps_csv: str) -> pa.Table:
-    """A bool `slip` column: the frame's end lies inside a true slip [start, end) of grasps.csv."""
-    slips = {}
-    with open(grasps_csv, encoding="utf-8") as source:
-        for row in csv.DictReader(source):
-            if row.get("slip_start_ms"):
-                slips.setdefault(row["session"], []).append((float(row["slip_start_ms"]) * 1000, float(row["slip_end_ms"]) * 1000))
-    trial = np.asarray(table.column("trial").to_pylist(), dtype=object)
-    ends = table.column("t").to_numpy() + WINDOW_MS * 1000
-    slip = np.zeros(table.num_rows, dtype=bool)
-    for name, spans in slips.items():
-        mine = trial == name
-        for start, end in spans:
-            slip |= mine & (ends > start) & (ends <= end)
-    return table.append_column("slip", pa.array(slip))
 
 
 def cut_into_trials(table: pa.Table) -> pa.Table:

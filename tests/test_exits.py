@@ -263,3 +263,30 @@ def test_row_by_row_and_batched_checks_find_the_same_repeat(rows_per_batch):
 def test_an_output_named_without_a_table_suffix_is_a_usage_error(name, files):
     code, stderr, _ = invoke(["crop", "--pool", "2x2", "-o", name, str(files / "f.arrows")])
     assert code == 2 and "cannot tell the table format" in stderr
+
+
+@pytest.mark.parametrize("text, says", [
+    (None, "cannot read the true slips"),
+    ("trial,start,end\na,1,2\n", "no slip_start_ms, slip_end_ms column"),
+    ("slip_start_ms,slip_end_ms\n1,2\n", "no trial (or session) column"),
+    ("trial,slip_start_ms,slip_end_ms\na,ten,20\n", "line 2: slip_start_ms is 'ten'"),
+    ("trial,slip_start_ms,slip_end_ms\na,5,nan\n", "line 2: slip_end_ms is 'nan'"),
+    ("trial,slip_start_ms,slip_end_ms\na,,\nb,20,10\n", "line 3: the slip ends at 10 ms, not after its start at 20 ms"),
+    (b"\xff\xfe\x00bad", "not a CSV of true slips"),
+])
+def test_a_bad_csv_of_true_slips_is_one_line(files, tmp_path, text, says):
+    path = tmp_path / "slips.csv"
+    if isinstance(text, bytes):
+        path.write_bytes(text)
+    elif text is not None:
+        path.write_text(text)
+    code, stderr, _ = invoke(["frame", "--window", "1ms", "--slips", str(path), str(files / "r.arrows")])
+    assert code == 1 and stderr.count("\n") == 1 and says in stderr, stderr
+
+
+def test_true_slips_for_a_plain_events_stream_are_refused(files, tmp_path):
+    (tmp_path / "slips.csv").write_text("trial,slip_start_ms,slip_end_ms\na,1,2\n")
+    events = tmp_path / "e.arrows"
+    tables.write(str(events), sch.events_table(np.array([0, 5]), np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), 8, 8))
+    code, stderr, _ = invoke(["frame", "--window", "1ms", "--slips", str(tmp_path / "slips.csv"), str(events)])
+    assert code == 1 and "synced recordings" in stderr and stderr.count("\n") == 1, stderr

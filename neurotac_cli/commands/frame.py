@@ -92,7 +92,17 @@ class Scale(ParamType):
     help="Plain events tables: sort the events by time first (held in memory, at most 20 million), instead of "
     "refusing events more than one window out of time order.",
 )
-def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor, max_frames, sort):
+@click.option(
+    "--slips",
+    "slips_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="CSV of true slips (columns trial or session, slip_start_ms, slip_end_ms on the synced clock, as "
+    "`simulate --session` writes grasps.csv): adds a bool `slip` column, true where a frame's window ends inside "
+    "a slip, that `eval` scores the slip flag against. Synced recordings only.",
+)
+def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor, max_frames, sort,
+            slips_path):
     """Bin each trial's events into two-channel count frames, with force and phase per frame.
 
     Windows are half-open, [t0 + k*T, t0 + (k+1)*T) from each trial's sync instant t0; empty windows
@@ -104,9 +114,11 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     \b
         neurotac sync --manifest d/manifest.csv | neurotac frame --window 10ms --pad-to longest > f.arrows
         neurotac import rec.aedat | neurotac frame --window 10ms -o frames.parquet
+        neurotac sync --manifest s/manifest.csv | neurotac frame --window 10ms --phases session --slips s/grasps.csv
     """
     from neurotac_cli import tables
     from neurotac_cli.io.camera import camera_file_stem
+    from neurotac_cli.io.slips import read_slips
     from neurotac_cli.ops import frame as fr
     from neurotac_cli.ops.phases import parse_ranges
 
@@ -116,7 +128,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     framing = fr.Framing(
         window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
         dtype=dtype, scale=scale, start_us=start, trial=trial or camera_file_stem(source.schema) or "events",
-        max_frames=max_frames, sort=sort,
+        max_frames=max_frames, sort=sort, slips=None if slips_path is None else read_slips(slips_path),
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)
     tables.write(output, batches, step=("frame", args), schema=schema, flush_each=True)

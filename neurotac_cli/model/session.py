@@ -335,4 +335,6 @@ def summary_lines(figures: dict) -> list[str]:
     if "slip_f1" in figures:
         lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
                      f"{int(get('slip_found'))} flagged), {100 * get('slip_within_20'):.0f}% within 20 ms")
+    elif "contact_f1" in figures:
+        lines.append("slips: not scored (the frames have no `slip` truth column: `neurotac frame --slips CSV` adds one)")
     return lines

@@ -81,6 +81,7 @@ class Framing:
     trial: str = "events"
     max_frames: int = MAX_FRAMES
     sort: bool = False
+    slips: dict | None = None  # {trial: [(start µs, end µs), ...]} on the synced clock: a bool `slip` column
 
     def __post_init__(self):
         if not isinstance(self.window_us, (int, np.integer)) or self.window_us <= 0:
@@ -102,6 +103,9 @@ class Framing:
                 raise NeurotacError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
         if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
             raise NeurotacError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
+        for trial, spans in (self.slips or {}).items():
+            if any(not end > start for start, end in spans):
+                raise NeurotacError(f"trial {trial}: a true slip must end after it starts")
 
     def args(self) -> dict:
         """The settings as history records them."""
@@ -117,6 +121,7 @@ class Framing:
             "start_us": self.start_us,
             "max_frames": int(self.max_frames),
             "sort": self.sort,
+            "slips": None if self.slips is None else sum(len(spans) for spans in self.slips.values()),
         }
 
 
@@ -253,6 +258,12 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         report.scale = scale
     dtype = np.float32 if framing.dtype == "float32" else np.uint16
     extra = (("grasp", pa.int32()),) if framing.phases == "session" else ()
+    if framing.slips is not None:
+        extra += (("slip", pa.bool_()),)
+        unknown = sorted(set(framing.slips) - {trial for trial, *_ in plan})
+        if unknown:
+            report.notes.append(f"the true slips name {len(unknown)} trial(s) not among the recordings "
+                                f"({', '.join(unknown[:3])}{', ...' if len(unknown) > 3 else ''}): their slips label no frame")
     out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us,
                                    sensor=sch.sensor_meta(width, height), extra=extra)
     if scale is not None:
@@ -266,11 +277,12 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
                 phase, grasp = ph.session_columns(force, n_real, n_total)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
+            slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
                                     label_values, labels, framing.window_us, scale, first_frame=first,
-                                    grasp=None if grasp is None else grasp[first:end])
+                                    grasp=None if grasp is None else grasp[first:end], slip=None if slip is None else slip[first:end])
 
     return out_schema, batches()
 
@@ -407,7 +419,18 @@ def _keep_meta(source: pa.Schema, target: pa.Schema) -> pa.Schema:
     return target.with_metadata(metadata)
 
 
-def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0, grasp=None) -> pa.RecordBatch:
+def slip_column(spans, window_us: int, n_frames: int) -> np.ndarray:
+    """True where a frame's window ends inside a true slip (start, end]: the frame that first
+    holds the slip's events is its first slipping frame."""
+    ends = (np.arange(n_frames, dtype=np.int64) + 1) * window_us
+    slip = np.zeros(n_frames, dtype=bool)
+    for start, end in spans:
+        slip |= (ends > start) & (ends <= end)
+    return slip
+
+
+def _frames_batch(schema, trial, counts, force, phase, label_values, labels, window_us, scale, first_frame=0, grasp=None,
+                  slip=None) -> pa.RecordBatch:
     n = len(counts)
     if scale is not None:
         counts = counts.astype(np.float32) / np.asarray(scale, dtype=np.float32)[None, :, None, None]
@@ -421,6 +444,8 @@ def _frames_batch(schema, trial, counts, force, phase, label_values, labels, win
     ]
     if grasp is not None:
         columns.append(pa.array(grasp, pa.int32()))
+    if slip is not None:
+        columns.append(pa.array(slip, pa.bool_()))
     columns += [pa.array([label_values.get(name)] * n, pa.string()) for name in labels]
     names = schema.names
     for extra in names[len(columns):]:
@@ -749,6 +774,8 @@ def frame(source, framing: Framing, sensor=None):
         schema, batches = frame_recordings_batches(table, framing, report)
         args["report"] = report.as_dict()
     else:
+        if framing.slips is not None:
+            raise NeurotacError("true slips label synced recordings (from `neurotac sync`): a plain events stream has no synced clock")
         schema, batches = frame_events(source.schema, source.batches, framing, report, sensor=sensor)
         args["trial"] = framing.trial
         args["report"] = report.as_dict() if report.scale else "streamed: counts of dropped events are written to stderr"

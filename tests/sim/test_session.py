@@ -160,3 +160,30 @@ def test_session_options_are_refused_outside_their_mode(tmp_path):
                        (["--session", "--hold", "1s", "--out", str(tmp_path)], "session_hold_us")):
         done = subprocess.run(["neurotac", "simulate", *args], capture_output=True)
         assert done.returncode == 2 and done.stderr.decode().count("\n") == 1 and word in done.stderr.decode()
+
+
+def test_frame_labels_the_true_slips_from_the_grasps_csv(session):
+    slips = [(float(g["slip_start_ms"]), float(g["slip_end_ms"])) for g in read_csv(session / "grasps.csv") if g["slip_start_ms"]]
+    assert slips, "the fixture's session has slips"
+    cmd = (f"neurotac sync --manifest {session}/manifest.csv "
+           f"| neurotac frame --window 10ms --phases session --slips {session}/grasps.csv")
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], capture_output=True)
+    assert done.returncode == 0 and done.stderr == b"", done.stderr.decode()
+    frames = pa.ipc.open_stream(done.stdout).read_all()
+    slip = frames["slip"].to_numpy(zero_copy_only=False)
+    end_ms = frames["t"].to_numpy() / 1000 + 10
+    expected = np.zeros(len(slip), dtype=bool)
+    for start, end in slips:
+        expected |= (end_ms > start) & (end_ms <= end)
+        first = int(np.argmax(slip & (end_ms > start)))
+        assert start < end_ms[first] <= start + 10  # the first frame holding the slip's events
+    assert (slip == expected).all()
+
+
+def test_true_slips_naming_no_recorded_trial_are_warned_about_and_label_nothing(session, tmp_path):
+    (tmp_path / "slips.csv").write_text("session,slip_start_ms,slip_end_ms\nsession99,100,200\n")
+    cmd = f"neurotac sync --manifest {session}/manifest.csv | neurotac frame --window 10ms --slips {tmp_path}/slips.csv"
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()
+    assert "session99" in done.stderr.decode() and done.stderr.decode().startswith("neurotac frame: warning:")
+    assert not pa.ipc.open_stream(done.stdout).read_all()["slip"].to_numpy(zero_copy_only=False).any()
