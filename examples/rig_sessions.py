@@ -7,7 +7,8 @@ sessions are the rig's training sessions, the third is scored; a rig of the defa
 reference.
 
 1. Detection alone: the median press and release peaks of the training sessions' contacts set the slip bars
-   (`ops.contact.slip_for`, what `train --contacts` does), against one fixed bar for every rig; the
+   (`ops.contact.slip_for`, what `train --contacts` does) until the scored session's own presses take
+   over (`ops.contact.follow_gain`), against one fixed bar for every rig; the
    detector runs with the true force standing in for a force model's estimate (`ops.contact.detect`
    with `force`), so what is measured is the detection, whatever a model would read. Rigs 201-210 chose the bar's share of the press and
    its noise floor; rigs 211-216 took no part in that choice.
@@ -43,7 +44,7 @@ from neurotac_cli.ops import contact as detector
 
 DEFAULT_RIG = 200  # the simulator's default physics, for reference
 CHOICE_RIGS, CHECK_RIGS = tuple(range(201, 211)), tuple(range(211, 217))
-FIXED = detector.SlipConfig(min_events=50.0, noise_sigma=0.0)  # one bar for every rig, no noise floor
+FIXED = detector.SlipConfig(min_events=50.0, noise_sigma=0.0, follow_presses=0)  # one bar for every rig, no noise floor
 WINDOW_MS = 10
 EPOCHS, PATIENCE = 200, 15
 

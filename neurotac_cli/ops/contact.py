@@ -28,7 +28,10 @@ A slip is judged on the events of the contact's footprint (the cells the press d
 neighbours) above that footprint's own background, when the caller passes each frame's counts: a
 slip happens where the object touches, while the background noise is spread over the whole frame, so
 on a camera with a busy background (hundreds of events a frame) or a high ON threshold a slip's few
-ON events stand out of the footprint's few cells where they drown in the frame's sum. The phases use
+ON events stand out of the footprint's few cells where they drown in the frame's sum. The slip bars
+follow the stream's own presses (`follow_gain`): a model carries the bars of the sensor it was trained
+on, and another camera or membrane makes slips of a few times more or fewer events, as it makes
+presses. The phases use
 the whole frame's totals: releases judged on the footprint end holds at their flickers (the release
 rules were chosen on the totals; docs/journal.md).
 
@@ -41,7 +44,8 @@ slow illumination changes and hot pixels move it. The OFF sum since the onset le
 `memory_frames`, so a contact that never ends keeps it bounded.
 """
 
-from dataclasses import asdict, dataclass, field
+import collections
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -160,6 +164,7 @@ class ContactState:
     warmup: list | None = field(default_factory=list)  # (OFF, ON) of the stream's first frames; None once they set the background
     footprint: Footprint = field(default_factory=Footprint)
     local: tuple | None = None  # this frame's `Footprint.sums` inside a contact, for `slip_step` (None: the totals)
+    gain: "Gain" = field(default_factory=lambda: Gain())  # the stream's own presses, for the slip bars
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
@@ -328,6 +333,9 @@ class SlipConfig:
     hold_frames: int = 3  # a slip ends after this many frames without evidence
     keep_share: float = 0.5  # a slip under way goes on while a frame, or two together on average, pass this share of the bars
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
+    follow_presses: int = 15  # the bars follow the median of the stream's last presses, up to this many (0: fixed)
+    press_off: float | None = None  # the training contacts' median press peak and release peak that set the bars
+    release_on: float | None = None  # (`slip_for`; None in files written before: read back from the bars)
 
     @property
     def on_events(self) -> float:
@@ -390,7 +398,8 @@ def slip_for(press_off: float | None, release_on: float | None = None) -> SlipCo
     on_bar = None
     if release_on is not None and np.isfinite(release_on) and release_on > 0:
         on_bar = round(max(bar * min(float(release_on) / float(press_off), 1.0), SLIP_FLOOR_EVENTS), 1)
-    return SlipConfig(min_events=round(bar, 1), min_events_on=on_bar)
+    return SlipConfig(min_events=round(bar, 1), min_events_on=on_bar, press_off=round(float(press_off), 1),
+                      release_on=None if on_bar is None else round(float(release_on), 1))
 
 
 def frame_stats(counts: np.ndarray):
@@ -406,10 +415,52 @@ def frame_stats(counts: np.ndarray):
     return sums[:, 0], sums[:, 1], separation
 
 
+@dataclass
+class Gain:
+    """How many events this stream's presses make above the background (each as `press_peaks`
+    measures it on training sessions: the peak OFF count of a contact's first PRESS_FRAMES frames),
+    over its last `SlipConfig.follow_presses` contacts, and the slip bars they set (None: the model's)."""
+
+    presses: collections.deque = field(default_factory=collections.deque)
+    onsets: int = 0  # the detector's onsets already seen
+    press_frames: int | None = None  # frames of the current press measured so far (None: not measuring)
+    press_peak: float = 0.0
+    bars: SlipConfig | None = None
+
+
+def follow_gain(config: SlipConfig, state: ContactState, off: float) -> SlipConfig:
+    """The slip bars for this frame: `slip_for` of the median of the stream's own presses once it has
+    pressed once (its releases taken in the training's proportion to its presses), the model's bars
+    before that and with `follow_presses` 0. The model's bars are the training sensor's; a camera with
+    other thresholds, or another membrane, makes slips of a few times more or fewer events, as it
+    makes presses."""
+    gain = state.gain
+    if config.follow_presses <= 0:
+        return config
+    if state.onsets != gain.onsets:  # a contact began
+        gain.onsets, gain.press_frames, gain.press_peak = state.onsets, 0, 0.0
+    if gain.press_frames is not None:
+        gain.press_peak, gain.press_frames = max(gain.press_peak, off - state.mean_off), gain.press_frames + 1
+        if gain.press_frames == PRESS_FRAMES or state.phase == NONE:
+            gain.presses.append(gain.press_peak)
+            while len(gain.presses) > config.follow_presses:
+                gain.presses.popleft()
+            gain.press_frames, gain.bars = None, None
+    if gain.bars is None and gain.presses:
+        press = float(np.median(gain.presses))
+        trained_press = config.press_off or config.min_events / SLIP_SHARE
+        release_share = config.release_on / trained_press if config.release_on else config.on_events / config.min_events
+        followed = slip_for(press, press * release_share)
+        gain.bars = replace(config, min_events=followed.min_events, min_events_on=followed.min_events_on)
+    return gain.bars or config
+
+
 def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, separation: float) -> bool:
     """Advance the slip flag by one frame whose phase `step` has just set. A slip starts in a hold
     that has settled; once started it goes on while the evidence does, whatever phase the counts
-    suggest (a fast slip darkens enough to look like a press)."""
+    suggest (a fast slip darkens enough to look like a press). The bars follow the stream's own
+    presses (`follow_gain`)."""
+    config = follow_gain(config, state, off)
     touching = state.phase != NONE
     if state.local is not None:  # the footprint's events above its own background (`step` with the frame)
         off, on, *means = state.local

@@ -298,13 +298,35 @@ def test_detector_state_stays_bounded_on_long_random_streams(seed, scale):
     _, _, _, state = contact.detect(config, off, on)
     frames = np.zeros((n, 2, 3, 3))
     frames[:, 0, 1, 1], frames[:, 1, 1, 1] = off, on
-    _, _, _, with_cells = contact.detect(config, off, on, counts=frames)
+    _, _, _, with_cells = contact.detect(config, off, on, counts=frames, separation=np.full(n, 2.0), slip=contact.SlipConfig())
+    gain = with_cells.gain
+    assert len(gain.presses) <= contact.SlipConfig.follow_presses
+    assert all(abs(value) <= largest_count(off, on) for value in (*gain.presses, gain.press_peak))
     if with_cells.footprint.pressed is not None:
         assert with_cells.footprint.pressed.max() <= off.max() * (config.memory_frames + 1)
     largest = float(max(off.max(), on.max(), config.background_off, config.background_on)) + 1
     assert 0 <= state.mean_off <= largest and 0 <= state.mean_on <= largest
     assert 0 <= state.off_since <= largest * (config.memory_frames + 1)
     assert state.phase in (contact.NONE, contact.GRASPING, contact.HOLDING, contact.RELEASING)
+
+
+def largest_count(off, on) -> float:
+    return float(max(off.max(), on.max(), contact.ContactConfig.background_off, contact.ContactConfig.background_on)) + 1
+
+
+@pytest.mark.parametrize("follow, flagged", [(15, True), (0, False)])
+def test_the_slip_bars_follow_the_streams_own_presses(follow, flagged):
+    """A model trained on a sensor whose presses make about 1400 events (bars 71 / 62) runs on a camera
+    whose presses make 200: its slips make a few tens of events, under the training bars but well
+    over the stream's own (a twentieth of its presses, floored at 10)."""
+    slip = contact.SlipConfig(min_events=71.3, min_events_on=61.6, follow_presses=follow)
+    rest, press, hold = [(5, 5)] * 40, [(120, 5), (205, 5), (60, 5)], [(5, 5)] * 40
+    off_on = rest + press + hold + [(35, 35)] * 3 + hold
+    off, on = (np.array(v, dtype=float) for v in zip(*off_on))
+    _, _, slips, state = contact.detect(contact.ContactConfig(), off, on, separation=np.full(len(off), 2.0), slip=slip)
+    start = len(rest) + len(press) + len(hold)
+    assert bool(slips[start:start + 3].all()) is flagged and not slips[:start].any()
+    assert list(state.gain.presses) == ([200.0] if follow else [])
 
 
 # ---------------------------------------------------------------- models on streams
