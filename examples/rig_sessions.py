@@ -176,7 +176,8 @@ def main(argv=None):
              "from the first two sessions' presses and releases, the third scored, the true force ending contacts. Fixed: 50 events of each "
              f"polarity above the background; scaled: {detector.SLIP_SHARE:g} of the rig's median press peak, at least "
              f"{detector.SLIP_FLOOR_EVENTS:g} events and {detector.SlipConfig.noise_sigma:g} Poisson σ of the background, "
-             "for the ON events times the ratio of the median release's ON peak to the median press's OFF peak (at most 1).", ""]
+             "for the ON events times the ratio of the median release's ON peak to the median press's OFF peak (at most 1); "
+             "from the scored session's first contact on, the same of the median of its own last presses.", ""]
     lines += detection_lines([row for row in rows if row[0] != DEFAULT_RIG])
     if args.model:
         lines += ["", f"{args.model} trained on each rig's first two sessions (`train --contacts`, at most {epochs} epochs, "

@@ -423,3 +423,15 @@ def test_the_slip_hysteresis_script_scores_every_session_at_every_share(tmp_path
     counts = [re.search(r"(\d+) of (\d+) found, (\d+) flagged", line).groups() for line in pooled]
     (hits_1, true_1, flagged_1), (hits_half, true_half, flagged_half) = [[int(n) for n in c] for c in counts]
     assert true_1 > 0 and true_1 == true_half and hits_1 == hits_half and flagged_half <= flagged_1
+
+
+def test_the_slip_gain_script_scores_fixed_and_followed_bars_on_the_same_slips(tmp_path, capsys):
+    sessions = load("sessions")
+    sessions.simulate(str(tmp_path / "test"), 3501, 1, 6, None)
+    load("slip_gain").main(["--sessions", str(tmp_path), "--bars-from", "test", "--rigs", str(tmp_path / "no-rigs")])
+    out = capsys.readouterr().out
+    assert out.startswith("bars from test: ")
+    pooled = [line for line in out.splitlines() if line.startswith("pooled")]
+    assert [line.split(":")[0] for line in pooled] == ["pooled test, fixed", "pooled test, follow"]
+    found = [[int(n) for n in re.search(r"(\d+) of (\d+) found, (\d+) flagged", line).groups()] for line in pooled]
+    assert found[0][1] > 0 and found[0][1] == found[1][1]
