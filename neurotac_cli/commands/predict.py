@@ -20,7 +20,8 @@ def command(paths, output, model_path, material_path, threads):
     frames. A frame busier than 1.5 times any training frame, an estimate beyond 1.2 times the
     largest training force, or (deform-gru) frames whose features lie far from
     every training frame's, are named on stderr when they first occur and counted at the end: the
-    model is reading a scene outside what it learnt.
+    model is reading a scene outside what it learnt. A model trained with --contacts flags slips at
+    bars that follow each trial's own presses; stderr gives them once the input ends.
 
     \b
         neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
@@ -44,6 +45,9 @@ def command(paths, output, model_path, material_path, threads):
     first = next(frames)  # an empty input fails here
     model = loaded()
     outside = models.Outside.of(model, say=lambda line: echo_lines("predict", [line], "warning: "))
-    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material(), outside=outside)
+    notes = []
+    schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material(), outside=outside,
+                                    notes=notes)
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)
     echo_lines("predict", outside.messages(), "warning: ")
+    echo_lines("predict", notes)

@@ -31,7 +31,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     written (--follow) or a recording replayed at its recorded pace (--realtime). The box must be fixed
     (--box, or --size with --center X,Y): a live stream has no whole input to find the contact in.
     Ctrl-C (or SIGTERM) ends it with the output complete, exit 0. Frames and estimates outside the
-    model's training data are named on stderr as `predict` names them.
+    model's training data, and the slip bars the stream followed, are told on stderr as `predict`
+    tells them.
 
     \b
         neurotac sense --follow cam.raw --model m.model --size 115x115 --center 120,90 | controller

@@ -21,14 +21,16 @@ def predict_table(model: core.Model, table: pa.Table) -> pa.Table:
     return core.predict_trials(model, table)
 
 
-def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model | None = None, outside: "Outside | None" = None):
+def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model | None = None, outside: "Outside | None" = None,
+           notes: list | None = None):
     """(predictions schema, batches) as frames arrive (as `predict` writes them); `material`: a
     classifier naming each contact's material, for models trained on contacts; `outside` counts the
-    frames and estimates beyond the model's training data as they pass."""
+    frames and estimates beyond the model's training data as they pass; `notes` gets the slip bars
+    each stream of a model trained on contacts followed (`session.stream`), once the batches end."""
     if outside is not None:
         batches = outside.watch_frames(batches)
     if session.is_session_model(model):
-        schema, out = session.stream(model, schema, batches, material=material)
+        schema, out = session.stream(model, schema, batches, material=material, notes=notes)
     elif material is not None:
         raise ModelError(f"--material-model names each contact's material: it needs a force model trained with --contacts, "
                          f"and {model.name!r} was trained on whole trials")

@@ -27,11 +27,12 @@ class SenseReport:
     framing: framing_ops.FramingReport = field(default_factory=framing_ops.FramingReport)
     crop: cropping.CropReport = field(default_factory=cropping.CropReport)
     outside: predict.Outside | None = None
+    notes: list = field(default_factory=list)  # the slip bars a model trained on contacts followed (`predict.stream`)
 
     def messages(self, warn_above: float = 0.9) -> list[str]:
         """Lines for stderr, as `frame`, `crop` and `predict` would write them."""
         outside = [f"warning: {line}" for line in self.outside.messages()] if self.outside else []
-        return self.framing.messages() + self.crop.messages(warn_above) + outside
+        return self.framing.messages() + self.crop.messages(warn_above) + outside + self.notes
 
 
 def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec,
@@ -46,5 +47,5 @@ def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, 
     schema, frames = framing_ops.frame_events(stream.schema, stream.batches, framing, report.framing, sensor=sensor)
     schema, cropped, report.crop = cropping.crop(schema, frames, box)
     report.outside = predict.Outside.of(model, say=say)
-    schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside)
+    schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside, notes=report.notes)
     return schema, batches, report

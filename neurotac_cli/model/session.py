@@ -110,6 +110,15 @@ class Stream:
         self._run(pending, counts, t_us, force)
         return force, phases, slips, materials
 
+    def bars_note(self, trial: str) -> str | None:
+        """A line for stderr when the slip bars followed this stream's presses (None where they did not)."""
+        gain, model = self.contact.gain, self.slip
+        if gain.bars is None:
+            return None
+        return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} OFF / {gain.bars.on_events:g} ON events, from the median "
+                f"of its last {len(gain.presses)} presses ({np.median(gain.presses):.0f} events); the model's bars "
+                f"{model.min_events:g} / {model.on_events:g}")
+
     def _material(self):
         """The material model's class for the contact that just ended (its OFF and ON per frame)."""
         if self.material is None or not self.sums:
@@ -236,10 +245,11 @@ def predict_table(model, table: pa.Table, material=None) -> pa.Table:
     return pa.Table.from_batches(list(batches), schema=schema)
 
 
-def stream(model, schema: pa.Schema, batches, material=None):
+def stream(model, schema: pa.Schema, batches, material=None, notes: list | None = None):
     """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
     With `material` (a material model on frames pooled to one pixel, at the same window), each
-    contact's material in `material_pred` on the frame where it ends.
+    contact's material in `material_pred` on the frame where it ends. With `notes`, a line per trial
+    whose slip bars followed its presses is appended once the batches are exhausted.
 
     Frames of a trial must arrive in order (as `frame` writes them)."""
     from neurotac_cli.model.core import check_input
@@ -257,6 +267,8 @@ def stream(model, schema: pa.Schema, batches, material=None):
             if batch.num_rows == 0:
                 continue
             yield _predict_batch(model, material, batch, out_schema, streams)
+        if notes is not None:
+            notes.extend(line for line in (one.bars_note(trial) for trial, one in streams.items()) if line)
 
     return out_schema, run()
 

@@ -365,6 +365,21 @@ def test_a_session_streamed_in_pieces_gives_the_forces_eval_gives(trained):
     assert streamed.column("grasp").to_pylist() == table.column("grasp").to_pylist()
 
 
+def test_the_slip_bars_each_stream_followed_are_told_once_it_ends(trained):
+    table, _ = tiny_session(grasps=3, seed=9, trial="test")
+    notes = []
+    schema, batches = models.stream(trained, table.schema, iter(table.to_batches(max_chunksize=5)), notes=notes)
+    for _ in batches:
+        assert notes == []  # nothing before the stream has ended
+    bars = session.slip_config(trained)
+    assert len(notes) == 1 and notes[0].startswith("trial test: slips flagged at ")
+    assert notes[0].endswith(f"the model's bars {bars.min_events:g} / {bars.on_events:g}")
+    empty, _ = tiny_session(grasps=0, seed=5, rest=(3000, 3001))
+    schema, batches = models.stream(trained, empty.schema, iter(empty.to_batches()), notes=notes)
+    list(batches)
+    assert len(notes) == 1  # no press, nothing followed
+
+
 def test_a_session_with_no_grasp_reads_zero_throughout(trained):
     table, _ = tiny_session(grasps=0, seed=5, rest=(3000, 3001))
     predictions = models.predict_table(trained, table)
