@@ -54,8 +54,11 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
     simulated data) are neither used nor copied. Files are read one row at a time."""
     if not os.path.isfile(path):
         raise NeurotacError(f"{path}: no such manifest")
-    with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
+    try:  # utf-8-sig: a spreadsheet's "CSV UTF-8" export starts with a byte-order mark, which is no part of a column name
+        with open(path, encoding="utf-8-sig", newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise NeurotacError(f"{path}: not a CSV manifest ({error})") from None
     if not rows:
         raise NeurotacError(f"{path}: the manifest has no rows")
     missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]

@@ -15,7 +15,7 @@ def read_slips(path: str) -> dict[str, list[tuple[int, int]]]:
     did not slip, as in `simulate --session`'s grasps.csv) are skipped; every other row must hold a
     slip that ends after it starts."""
     try:
-        with open(path, encoding="utf-8", newline="") as source:
+        with open(path, encoding="utf-8-sig", newline="") as source:  # a spreadsheet's export may start with a byte-order mark
             reader = csv.DictReader(source)
             columns = reader.fieldnames or []
             trial_column = next((name for name in TRIAL_COLUMNS if name in columns), None)

@@ -258,6 +258,20 @@ def test_sync_manifest_pipeline_frames_every_trial(simulated, tmp_path):
     assert history == ["sync", "frame", "crop"]
 
 
+def test_a_manifest_and_force_logs_saved_by_a_spreadsheet_sync_as_plain_ones(simulated, tmp_path):
+    """A spreadsheet's "CSV UTF-8" export starts each file with a byte-order mark."""
+    folder = tmp_path / "bom"
+    shutil.copytree(simulated["plain"], folder)
+    for path in [folder / "manifest.csv", *folder.glob("*_force.csv")]:
+        path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    plain = run(["sync", "--manifest", str(simulated["plain"] / "manifest.csv"), "-o", str(tmp_path / "plain.arrows")])
+    marked = run(["sync", "--manifest", str(folder / "manifest.csv"), "-o", str(tmp_path / "marked.arrows")])
+    assert plain.returncode == 0 and marked.returncode == 0, marked.stderr.decode()
+    read = lambda name: tables.read([str(tmp_path / name)], kind="recordings")  # noqa: E731
+    assert read("plain.arrows").select(["trial", "t0", "material"]).equals(
+        read("marked.arrows").select(["trial", "t0", "material"]))
+
+
 def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
     path = tmp_path / "still.arrows"
     tables.write(str(path), synthetic_recording(8, led_off=None))

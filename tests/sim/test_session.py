@@ -181,7 +181,7 @@ def test_frame_labels_the_true_slips_from_the_grasps_csv(session):
 
 
 def test_true_slips_naming_no_recorded_trial_are_warned_about_and_label_nothing(session, tmp_path):
-    (tmp_path / "slips.csv").write_text("session,slip_start_ms,slip_end_ms\nsession99,100,200\n")
+    (tmp_path / "slips.csv").write_bytes(b"\xef\xbb\xbfsession,slip_start_ms,slip_end_ms\nsession99,100,200\n")  # a spreadsheet's BOM
     cmd = f"neurotac sync --manifest {session}/manifest.csv | neurotac frame --window 10ms --slips {tmp_path}/slips.csv"
     done = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], capture_output=True)
     assert done.returncode == 0, done.stderr.decode()
