@@ -285,6 +285,10 @@ HYPERPARAMETERS = [
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),
     ("--max-points", "max_points", int, "gp: training frames kept, a random subset (default 1500; cost grows as n^3)."),
     ("--points", "points", int, "material models: samples each accumulation curve is resampled to (thesis 30)."),
+    ("--adapt-by", "adapt_by", str, "material models: standardise the features per value of this label (e.g. object: each "
+     "object size a domain) when training, and when classifying per value of it, or over all the input's grasps where "
+     "the input has no such label, each domain of at least 8 grasps about balanced across the classes: for an object "
+     "size or a sensor training never saw (default: none)."),
     ("--lr", "lr", float, "Adam learning rate (thesis 0.001)."),
     ("--beta1", "beta1", float, "Adam beta1 (thesis 0.9)."),
     ("--beta2", "beta2", float, "Adam beta2 (thesis 0.999)."),

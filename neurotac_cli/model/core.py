@@ -134,8 +134,15 @@ class Model:
     def proba(self, data: Sequences) -> np.ndarray:
         from neurotac_cli.model import material
 
+        x = material.features(data, self.config)
+        adapt = self.input_spec.get("adapt")
+        if adapt:  # each domain of the input over its own grasps where it has enough, else as training saw it
+            domains = material.domains_of(data, adapt["by"])
+            stats = {domain: (np.asarray(mean), np.asarray(std)) for domain, (mean, std) in adapt["stats"].items()}
+            stats.update(material.domain_stats(x, domains, least=material.MIN_DOMAIN_TRIALS))
+            x = material.standardised(x, domains, stats, (np.asarray(adapt["mean"]), np.asarray(adapt["std"])))
         with torch.no_grad():
-            logits = self.net(torch.as_tensor(material.features(data, self.config)))
+            logits = self.net(torch.as_tensor(x))
         return torch.softmax(logits, dim=-1).numpy()
 
 
@@ -319,11 +326,25 @@ def _train_material(name, config, fit_config, train_set, val_set, input_spec, tr
             raise ModelError(f"validation {label} {unknown[0]!r} does not occur in training; choose validation trials per class")
         return torch.as_tensor([index[v] for v in data.labels[label]])
 
-    x = torch.as_tensor(material.features(train_set, config))
+    x = material.features(train_set, config)
+    val_x = material.features(val_set, config) if len(val_set) else None
+    if config.adapt_by:
+        if config.adapt_by not in train_set.labels:
+            raise ModelError(f"--adapt-by {config.adapt_by}: the training frames have no {config.adapt_by!r} label column "
+                             f"(labels: {', '.join(sorted(train_set.labels)) or 'none'})")
+        # validation grasps are few per domain: they take the statistics of their domain's training grasps
+        pooled = (x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6))
+        domains = material.domains_of(train_set, config.adapt_by)
+        stats = material.domain_stats(x, domains)
+        x = material.standardised(x, domains, stats, pooled)
+        if val_x is not None:
+            val_x = material.standardised(val_x, material.domains_of(val_set, config.adapt_by), stats, pooled)
+        input_spec = dict(input_spec, adapt={"by": config.adapt_by, "mean": pooled[0].tolist(), "std": pooled[1].tolist(),
+                                             "stats": {domain: [mean.tolist(), std.tolist()] for domain, (mean, std) in stats.items()}})
+    x, val_x = torch.as_tensor(x), None if val_x is None else torch.as_tensor(val_x)
     y = encode(train_set)
     net = material.Net(config, len(classes))
     net.calibrate(x.numpy(), y.numpy())
-    val_x = torch.as_tensor(material.features(val_set, config)) if len(val_set) else None
     val_y = encode(val_set) if len(val_set) else None
     loss = torch.nn.CrossEntropyLoss()
     curve = fit(net, lambda idx: loss(net(x[idx]), y[idx]), len(x),

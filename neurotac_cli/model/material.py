@@ -37,6 +37,7 @@ class Config:
     dropout: float = 0.0
     accumulate: bool = True  # False when the input counts are already accumulated (frame --accumulate)
     head: str = "mlp"  # mlp | lda (closed-form linear discriminant, then a fitted temperature)
+    adapt_by: str | None = None  # a label whose values are domains (object sizes, sensors): features standardised per domain
 
 
 PRESETS = {
@@ -74,6 +75,39 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
 
 
 DYNAMICS = 11  # features of `dynamics`
+
+# Per-domain standardisation (`Config.adapt_by`). The features that name a material on one object
+# size or sensor move with the size or sensor as a whole (a larger face is stiffer at the same
+# material, a stiffer membrane makes every rise faster): standardised within each domain, what is
+# left is how the grasps of that domain differ from one another, which the material carries. It is
+# transductive: a domain's statistics come from its own grasps, so the input must hold enough of
+# them, about balanced across the classes (docs/design.md, "Materials on a domain training never saw").
+MIN_DOMAIN_TRIALS = 8  # fewer grasps of a domain in the input are standardised by the training's pooled statistics
+
+
+def domains_of(data: Sequences, label: str) -> np.ndarray:
+    """Each trial's domain: its value of `label`, or one domain for all where the input has no such label."""
+    values = data.labels.get(label)
+    return np.asarray([str(v) for v in values] if values is not None else ["all"] * len(data), dtype=object)
+
+
+def domain_stats(x: np.ndarray, domains: np.ndarray, least: int = 1) -> dict:
+    """{domain: (mean, std)} of the features of each domain with at least `least` trials."""
+    stats = {}
+    for domain in dict.fromkeys(domains.tolist()):
+        rows = x[domains == domain]
+        if len(rows) >= least:
+            stats[domain] = (rows.mean(axis=0), np.maximum(rows.std(axis=0), 1e-6))
+    return stats
+
+
+def standardised(x: np.ndarray, domains: np.ndarray, stats: dict, pooled: tuple) -> np.ndarray:
+    """Each trial's features standardised by its domain's (mean, std), or by `pooled` where its domain has none."""
+    out = np.empty_like(x)
+    for i, domain in enumerate(domains.tolist()):
+        mean, std = stats.get(domain, pooled)
+        out[i] = (x[i] - mean) / std
+    return out.astype(np.float32)
 
 
 def _crossing(curve: np.ndarray, shares) -> np.ndarray:

@@ -53,3 +53,59 @@ def test_the_discriminant_separates_classes_that_differ_along_a_correlated_direc
     predicted = np.argmax(z @ weight.T + bias, axis=1)
     assert (predicted == y).mean() > 0.95
     assert bias[2] < -1e8  # a class absent from training never wins
+
+
+def test_features_are_standardised_per_domain_and_an_unknown_domain_takes_the_pooled_figures():
+    x = np.array([[1.0, 10.0], [3.0, 30.0], [101.0, 0.0], [103.0, 2.0], [7.0, 7.0]])
+    domains = np.array(["a", "a", "b", "b", "c"], dtype=object)
+    stats = material.domain_stats(x[:4], domains[:4])
+    z = material.standardised(x, domains, stats, pooled=(np.zeros(2), np.ones(2)))
+    np.testing.assert_allclose(z[:4], [[-1, -1], [1, 1], [-1, -1], [1, 1]])
+    np.testing.assert_allclose(z[4], [7.0, 7.0])
+    assert set(material.domain_stats(x, domains, least=2)) == {"a", "b"}
+
+
+def domain_frames(sizes, per_class=6, seed=0):
+    """Grasps of two materials on object sizes that slow every loading alike: a stiffer material
+    loads in `rise` frames, a softer one in twice as many, and each size multiplies both."""
+    import pyarrow as pa
+
+    from neurotac_cli import schema as sch
+
+    rng = np.random.default_rng(seed)
+    rows, counts = {name: [] for name in ("trial", "frame", "t", "force", "phase", "object", "material")}, []
+    for size, scale in sizes.items():
+        for name, rise in (("steel", 3), ("foam", 6)):
+            for copy in range(per_class):
+                _, pixels = grasp(int(round(rise * scale + rng.integers(0, 2))), float(rng.uniform(1, 4)), frames=80)
+                pixels = rng.poisson(pixels + 0.05)
+                trial = f"{size}-{name}-{copy}"
+                for k, frame in enumerate(pixels.reshape(80, 2, 4, 4)):
+                    counts.append(frame)
+                    for key, value in (("trial", trial), ("frame", k), ("t", k * 7000), ("force", None), ("phase", None),
+                                       ("object", size), ("material", name)):
+                        rows[key].append(value)
+    schema = sch.frames_schema(4, 4, labels=["object", "material"], window_us=7000)
+    columns = {"trial": pa.array(rows["trial"]), "frame": pa.array(rows["frame"], pa.int32()), "t": pa.array(rows["t"], pa.int64()),
+               "counts": sch.counts_array(np.asarray(counts, dtype=np.uint16)), "force": pa.array(rows["force"], pa.float32(), from_pandas=True),
+               "phase": pa.array(rows["phase"], pa.string()), "object": pa.array(rows["object"]), "material": pa.array(rows["material"])}
+    return pa.Table.from_arrays([columns[field.name] for field in schema], schema=schema)
+
+
+def test_a_size_training_never_saw_is_read_against_its_own_grasps_with_adapt_by():
+    """Trained on sizes whose loadings take 1x and 1.5x the frames, tested on one that takes 3x: every
+    grasp of the new size loads more slowly than any training grasp of either material, so the plain
+    discriminant calls them all the softer one; standardised within the size, the two materials part."""
+    from neurotac_cli import model as models
+    from neurotac_cli.model import core
+
+    training = domain_frames({"small": 1.0, "medium": 1.5})
+    test = domain_frames({"large": 3.0}, seed=1)
+    accuracy = {}
+    for adapt in (None, "object"):
+        model = models.train(training, models.make_spec("material-timing", adapt_by=adapt), seed=0)
+        predicted = core.classify_table(model, test)
+        accuracy[adapt] = np.mean(np.asarray(predicted["material_pred"].to_pylist()) == np.asarray(predicted["material"].to_pylist()))
+    assert accuracy[None] <= 0.6 and accuracy["object"] >= 0.9
+    few = core.classify_table(model, test.slice(0, 80 * 3))  # 3 grasps: too few to stand for their size
+    assert "large" not in model.input_spec["adapt"]["stats"] and few.num_rows == 3
