@@ -10,6 +10,10 @@ from neurotac_cli.options import history, input_paths, output_option
 def command(paths, output, model_path):
     """Predict each trial's material: one row per trial with the predicted class and every class's probability.
 
+    A model trained with --adapt-by LABEL standardises its features within each value of LABEL in the
+    input that has at least 8 trials (over all trials where the input has no LABEL column): give the
+    grasps of a new object size or sensor together, about balanced across the classes.
+
     \b
         neurotac classify --model material.model < frames.arrows | neurotac info -
     """
