@@ -437,15 +437,17 @@ def test_the_slip_gain_script_scores_fixed_and_followed_bars_on_the_same_slips(t
     assert found[0][1] > 0 and found[0][1] == found[1][1]
 
 
-def test_the_material_sizes_script_scores_each_held_out_size_both_ways_and_a_quick_run_publishes_nothing(tmp_path, capsys, monkeypatch):
-    script = load("material_sizes")
+def test_the_material_domains_script_scores_sizes_and_sensors_both_ways_and_a_quick_run_publishes_nothing(tmp_path, capsys, monkeypatch):
+    script = load("material_domains")
     published = []
     monkeypatch.setattr(script, "publish_section", lambda *args, **kwargs: published.append(args))
-    script.main(["--quick", "--work", str(tmp_path)])
+    script.main(["--quick", "--work", str(tmp_path), "--jobs", "1"])
     out = capsys.readouterr().out
-    rows = [line for line in out.splitlines() if line.startswith("| 5 |")]
-    assert [row.split(" | ")[1] for row in rows] == ["5 mm", "7.5 mm", "10 mm"]
-    for row in rows:
-        cells = [float(cell) for cell in row.strip(" |").split(" | ")[2:]]
-        assert len(cells) == 2 and all(0 <= cell <= 100 for cell in cells)
-    assert (tmp_path / "material_sizes.md").exists() and not published
+    sizes = [line for line in out.splitlines() if line.startswith("| 5 |")]
+    assert [row.split(" | ")[1] for row in sizes] == ["5 mm", "7.5 mm", "10 mm"]
+    sensors = [line for line in out.splitlines() if line.startswith(f"| {script.RIGS[0]} |")]
+    assert len(sensors) == 1
+    for row in sizes + sensors:
+        cells = [float(cell) for cell in row.strip(" |").split(" | ")[-2:]]
+        assert all(0 <= cell <= 100 for cell in cells)
+    assert (tmp_path / "material_domains.md").exists() and not published

@@ -1,0 +1,149 @@
+"""Materials on an object size or a sensor training never saw: `material-timing` with and without `--adapt-by`.
+
+1. Sizes. Each data set is simulated `ch3` grasps with a force-controlled gripper (each grasp's peak
+   force drawn independently of its material): foam, rubber, silicone and steel on hexagons of 5,
+   7.5 and 10 mm, --per grasps of each, 7 ms frames cropped 116x116 about the contact and pooled
+   4x4, as the models section frames materials. `neurotac eval --cv group:object=hexN` trains on
+   two sizes and scores the third, without and with the features standardised within each size
+   (`--adapt-by object`: the held-out size's grasps standardised together, docs/design.md).
+2. Sensors. Trained on the models section's default-physics grasps with a force-controlled gripper
+   (`ch3 --gripper force --seed 2`, 48 grasps), scored on each rig's 48 grasps (the rigs of
+   `examples/rig_materials.py`: one draw of every physics family each) with `neurotac classify`,
+   as trained and with `--adapt-by object` (each rig's grasps standardised together: one object,
+   one sensor).
+
+Writes the section between `<!-- results:material-domains:start -->` and
+`<!-- results:material-domains:end -->` of docs/results.md and WORK/material_domains.md (a quick or
+resized run only the latter).
+
+    make -C examples material-domains                # the published tables (about 10 minutes on 2 cores)
+    python examples/material_domains.py --quick      # one small data set and one small rig, 1 seed
+"""
+
+import argparse
+import concurrent.futures
+import pathlib
+
+from chapters import md_table, publish_section  # beside this script
+from results import MATERIAL_PIPELINE, frames, neurotac, rig, sh
+from rig_materials import RIGS
+
+from neurotac_cli import tables
+
+SECTION, TITLE = "material-domains", "Materials on an object size or a sensor training never saw"
+SIZES = ("5", "7.5", "10")
+MATERIALS = ("foam", "rubber", "silicone", "steel")
+DATA_SEEDS, PER, REPEATS = (5, 6, 7), 4, 2  # the published table's
+WAYS = (("as trained", ""), ("--adapt-by object", "--adapt-by object"))
+PIPELINE = "{n} frame --window 7ms | {n} crop --size 116x116 --center auto --pool 4x4"
+
+
+def data_set(work: pathlib.Path, seed: int, per: int) -> pathlib.Path:
+    """The frames of one simulated data set (reused when present)."""
+    path = work / f"hex-seed{seed}-per{per}.arrows"
+    if not path.exists():
+        objects = ",".join(f"{material}:hex{size}:{per}" for material in MATERIALS for size in SIZES)
+        n = neurotac()
+        sh(f"{n} simulate --preset ch3 --objects {objects} --gripper force --seed {seed} --synced | {PIPELINE.format(n=n)} > {path}.part")
+        pathlib.Path(f"{path}.part").rename(path)
+    return path
+
+
+def accuracy(work: pathlib.Path, frames: pathlib.Path, size: str, options: str, repeats: int) -> float:
+    """Out-of-fold accuracy (%) on the held-out size, from the metrics table `eval` writes."""
+    metrics = work / f"{frames.stem}-hex{size}{'-adapt' if options else ''}-r{repeats}.parquet"
+    if not metrics.exists():
+        sh(f"{neurotac()} eval --cv group:object=hex{size} --model-spec material-timing {options} --repeats {repeats} "
+           f"--seed 1 --metrics {metrics} < {frames} > /dev/null")
+    table = tables.read([str(metrics)])
+    rows = {(s, m): v for s, m, v in zip(*(table.column(c).to_pylist() for c in ("scope", "metric", "value")))}
+    return 100 * rows[("all", "accuracy")]
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--work", default=str(pathlib.Path(__file__).resolve().parent / "out-material-domains"))
+    parser.add_argument("--seeds", default=",".join(map(str, DATA_SEEDS)), help="data set seeds, comma-separated")
+    parser.add_argument("--per", type=int, default=PER, help="grasps of each material and size")
+    parser.add_argument("--repeats", type=int, default=REPEATS, help="training seeds per held-out size")
+    parser.add_argument("--jobs", type=int, default=2, help="rigs simulated at once (default 2)")
+    parser.add_argument("--quick", action="store_true", help="one data set of 2 grasps per material and size, 1 training seed; "
+                        "one rig of 12 grasps against 12 default ones")
+    args = parser.parse_args(argv)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    if args.quick:
+        seeds, args.per, args.repeats = seeds[:1], 2, 1
+    work = pathlib.Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    rows, means = [], {name: [] for name, _ in WAYS}
+    for seed in seeds:
+        frames = data_set(work, seed, args.per)
+        for size in SIZES:
+            cells = [accuracy(work, frames, size, options, args.repeats) for _, options in WAYS]
+            for (name, _), value in zip(WAYS, cells):
+                means[name].append(value)
+            rows.append([str(seed), f"{size} mm", *(f"{value:.1f}" for value in cells)])
+    rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means.values())])
+    grasps = 12 if args.quick else 48  # ch3's 48, or a quick run's few
+    sensors = sensor_rows(work, RIGS[:1] if args.quick else RIGS, f"--trials {grasps}" if args.quick else "", args.jobs)
+    body = "\n".join([
+        f"Made by `make -C examples material-domains` (`examples/material_domains.py`). Simulated `ch3` grasps with a "
+        f"force-controlled gripper (peak force independent of material), {len(MATERIALS)} materials x hexagons of "
+        f"{', '.join(SIZES)} mm x {args.per} grasps per data set; 7 ms frames, 116x116 about the contact pooled 4x4. "
+        f"`neurotac eval --cv group:object=hexN --model-spec material-timing --repeats {args.repeats}`: trained on two "
+        "sizes, scored on the third (accuracy in %, chance 25%), as trained and with the features standardised within "
+        "each size (`--adapt-by object`).",
+        "",
+        md_table(["data set seed", "held-out size", *(name for name, _ in WAYS)], rows),
+        "",
+        f"Trained on the default physics (`ch3 --gripper force --seed 2`, {grasps} grasps), scored on each rig's {grasps} grasps "
+        "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %:",
+        "",
+        md_table(["rig", "physics", *(name for name, _ in WAYS)], sensors),
+    ])
+    print(body)
+    (work / "material_domains.md").write_text(body + "\n")
+    if not args.quick and seeds == list(DATA_SEEDS) and args.per == PER and args.repeats == REPEATS:
+        publish_section(SECTION, body, TITLE)
+
+
+def rig_frames(work: pathlib.Path, seed: int, extra: str) -> tuple:
+    options, about = rig(seed)
+    folder = work / f"rig{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    return frames(folder, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 1 {extra} {options}"), about
+
+
+def classified(model: pathlib.Path, data: pathlib.Path) -> float:
+    """Accuracy (%) of a classifier on a frames table, from the rows `classify` writes."""
+    out = model.with_name(f"{model.stem}-{data.parent.name}.arrows")
+    if not out.exists():
+        sh(f"{neurotac()} classify --model {model} < {data} > {out}")
+    table = tables.read([str(out)])
+    true, predicted = table.column("material").to_pylist(), table.column("material_pred").to_pylist()
+    return 100 * sum(a == b for a, b in zip(true, predicted)) / len(true)
+
+
+def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int) -> list:
+    """One row per rig: material-timing trained on the default physics, as trained and adapted."""
+    training = frames(work, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 2 {extra}")
+    models = []
+    for name, options in WAYS:
+        model = work / f"default{'-adapt' if options else ''}.model"
+        if not model.exists():
+            sh(f"{neurotac()} train --model material-timing {options} --seed 1 -o {model} {training}")
+        models.append(model)
+    with concurrent.futures.ThreadPoolExecutor(max(1, jobs)) as pool:  # each simulation is a process of its own
+        made = list(pool.map(lambda seed: rig_frames(work, seed, extra), rigs))
+    rows, means = [], [[] for _ in models]
+    for seed, (data, about) in zip(rigs, made):
+        cells = [classified(model, data) for model in models]
+        for values, value in zip(means, cells):
+            values.append(value)
+        rows.append([str(seed), about, *(f"{value:.1f}" for value in cells)])
+    rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means)])
+    return rows
+
+
+if __name__ == "__main__":
+    main()
