@@ -82,7 +82,7 @@ DYNAMICS = 11  # features of `dynamics`
 # left is how the grasps of that domain differ from one another, which the material carries. It is
 # transductive: a domain's statistics come from its own grasps, so the input must hold enough of
 # them, about balanced across the classes (docs/design.md, "Materials on a domain training never saw").
-MIN_DOMAIN_TRIALS = 8  # fewer grasps of a domain in the input are standardised by the training's pooled statistics
+MIN_DOMAIN_TRIALS = 8  # a domain with fewer grasps in the input takes its training figures (the pooled ones if training lacked it)
 
 
 def domains_of(data: Sequences, label: str) -> np.ndarray:
