@@ -6,7 +6,8 @@
    4x4, as the models section frames materials. `neurotac eval --cv group:object=hexN` trains on
    two sizes and scores the third, without and with the features standardised within each size
    (`--adapt-by object`: the held-out size's grasps standardised together, docs/design.md).
-2. Sensors. Trained on the models section's default-physics grasps with a force-controlled gripper
+2. Sensors. `material-timing`, `material-curves` and the thesis's DNN (`material-dnn`), trained on
+   the models section's default-physics grasps with a force-controlled gripper
    (`ch3 --gripper force --seed 2`, 48 grasps), scored on each rig's 48 grasps (the rigs of
    `examples/rig_materials.py`: one draw of every physics family each) with `neurotac classify`,
    as trained and with `--adapt-by object` (each rig's grasps standardised together: one object,
@@ -17,7 +18,7 @@ Writes the section between `<!-- results:material-domains:start -->` and
 resized run only the latter).
 
     make -C examples material-domains                # the published tables (about 10 minutes on 2 cores)
-    python examples/material_domains.py --quick      # one small data set and one small rig, 1 seed
+    python examples/material_domains.py --quick      # one small data set and one small rig, 1 seed, material-timing only
 """
 
 import argparse
@@ -35,6 +36,7 @@ SIZES = ("5", "7.5", "10")
 MATERIALS = ("foam", "rubber", "silicone", "steel")
 DATA_SEEDS, PER, REPEATS = (5, 6, 7), 4, 2  # the published table's
 WAYS = (("as trained", ""), ("--adapt-by object", "--adapt-by object"))
+SENSOR_MODELS = ("material-timing", "material-curves", "material-dnn")  # ours, and the thesis's DNN
 PIPELINE = "{n} frame --window 7ms | {n} crop --size 116x116 --center auto --pool 4x4"
 
 
@@ -85,7 +87,8 @@ def main(argv=None):
             rows.append([str(seed), f"{size} mm", *(f"{value:.1f}" for value in cells)])
     rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means.values())])
     grasps = 12 if args.quick else 48  # ch3's 48, or a quick run's few
-    sensors = sensor_rows(work, RIGS[:1] if args.quick else RIGS, f"--trials {grasps}" if args.quick else "", args.jobs)
+    specs = SENSOR_MODELS[:1] if args.quick else SENSOR_MODELS
+    sensors = sensor_rows(work, RIGS[:1] if args.quick else RIGS, f"--trials {grasps}" if args.quick else "", args.jobs, specs)
     body = "\n".join([
         f"Made by `make -C examples material-domains` (`examples/material_domains.py`). Simulated `ch3` grasps with a "
         f"force-controlled gripper (peak force independent of material), {len(MATERIALS)} materials x hexagons of "
@@ -99,7 +102,7 @@ def main(argv=None):
         f"Trained on the default physics (`ch3 --gripper force --seed 2`, {grasps} grasps), scored on each rig's {grasps} grasps "
         "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %:",
         "",
-        md_table(["rig", "physics", *(name for name, _ in WAYS)], sensors),
+        md_table(["rig", "physics", *(f"{spec}, {name}" for spec in specs for name, _ in WAYS)], sensors),
     ])
     print(body)
     (work / "material_domains.md").write_text(body + "\n")
@@ -124,15 +127,16 @@ def classified(model: pathlib.Path, data: pathlib.Path) -> float:
     return 100 * sum(a == b for a, b in zip(true, predicted)) / len(true)
 
 
-def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int) -> list:
-    """One row per rig: material-timing trained on the default physics, as trained and adapted."""
+def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MODELS) -> list:
+    """One row per rig: each model of `specs` trained on the default physics, as trained and adapted."""
     training = frames(work, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 2 {extra}")
     models = []
-    for name, options in WAYS:
-        model = work / f"default{'-adapt' if options else ''}.model"
-        if not model.exists():
-            sh(f"{neurotac()} train --model material-timing {options} --seed 1 -o {model} {training}")
-        models.append(model)
+    for spec in specs:
+        for name, options in WAYS:
+            model = work / f"default-{spec}{'-adapt' if options else ''}.model"
+            if not model.exists():
+                sh(f"{neurotac()} train --model {spec} {options} --seed 1 -o {model} {training}")
+            models.append(model)
     with concurrent.futures.ThreadPoolExecutor(max(1, jobs)) as pool:  # each simulation is a process of its own
         made = list(pool.map(lambda seed: rig_frames(work, seed, extra), rigs))
     rows, means = [], [[] for _ in models]
