@@ -37,18 +37,13 @@ MATERIALS = ("foam", "rubber", "silicone", "steel")
 DATA_SEEDS, PER, REPEATS = (5, 6, 7), 4, 2  # the published table's
 WAYS = (("as trained", ""), ("--adapt-by object", "--adapt-by object"))
 SENSOR_MODELS = ("material-timing", "material-curves", "material-dnn")  # ours, and the thesis's DNN
-PIPELINE = "{n} frame --window 7ms | {n} crop --size 116x116 --center auto --pool 4x4"
 
 
 def data_set(work: pathlib.Path, seed: int, per: int) -> pathlib.Path:
     """The frames of one simulated data set (reused when present)."""
-    path = work / f"hex-seed{seed}-per{per}.arrows"
-    if not path.exists():
-        objects = ",".join(f"{material}:hex{size}:{per}" for material in MATERIALS for size in SIZES)
-        n = neurotac()
-        sh(f"{n} simulate --preset ch3 --objects {objects} --gripper force --seed {seed} --synced | {PIPELINE.format(n=n)} > {path}.part")
-        pathlib.Path(f"{path}.part").rename(path)
-    return path
+    objects = ",".join(f"{material}:hex{size}:{per}" for material in MATERIALS for size in SIZES)
+    return frames(work, f"ch3-hex-seed{seed}-per{per}", MATERIAL_PIPELINE.format(n=neurotac()),
+                  f"--objects {objects} --gripper force --seed {seed}")
 
 
 def accuracy(work: pathlib.Path, frames: pathlib.Path, size: str, options: str, repeats: int) -> float:
