@@ -27,7 +27,6 @@ sessions framed and models trained in OUT are reused.
 import argparse
 import concurrent.futures
 import os
-import sys
 
 import numpy as np
 import pyarrow as pa
@@ -62,10 +61,20 @@ def streams(table):
     return out
 
 
+def peaks_of(training) -> tuple:
+    """(median press OFF peak, median release ON peak) of the streams' true contacts: what `train --contacts` sets the slip bars from."""
+    return detector.rig_peaks([(s["off"], s["on"], metrics.runs(s["touching"])) for s in training])
+
+
+def detection_config(streams) -> detector.ContactConfig:
+    """The detector's settings as a model trained on these streams' force range ends contacts with them."""
+    return detector.ContactConfig(release_force_n=session.RELEASE_SHARE * max(float(s["force"].max()) for s in streams))
+
+
 def detection(training, test):
     """Slip figures with the fixed and the scaled bar, and contact figures, on the test streams."""
-    press, release = detector.rig_peaks([(s["off"], s["on"], metrics.runs(s["touching"])) for s in training])
-    config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * max(float(s["force"].max()) for s in training + test))
+    press, release = peaks_of(training)
+    config = detection_config(training + test)
     scaled = detector.slip_for(press, release)
     figures = {"press": press, "bar": scaled.min_events, "on_bar": scaled.on_events}
     for name, slip in (("fixed", FIXED), ("scaled", scaled)):

@@ -21,10 +21,9 @@ import argparse
 import dataclasses
 import os
 
-from neurotac_cli import metrics, tables
-from neurotac_cli.model import session
+from neurotac_cli import tables
 from neurotac_cli.ops import contact as detector
-from rig_sessions import streams  # beside this script
+from rig_sessions import detection_config, peaks_of, streams  # beside this script
 from slip_hysteresis import figures, line  # beside this script
 
 GROUPS = ("test", "train-randomised", "unseen")
@@ -33,12 +32,11 @@ WAYS = ("fixed", "follow")
 
 def bars_of(training) -> detector.SlipConfig:
     """The bars `train --contacts` sets from these streams' true contacts."""
-    return detector.slip_for(*detector.rig_peaks([(s["off"], s["on"], metrics.runs(s["touching"])) for s in training]))
+    return detector.slip_for(*peaks_of(training))
 
 
-def score(stream, bars, force_scale) -> dict:
+def score(stream, bars, config) -> dict:
     """The slip flags of one stream, the bars held fixed and followed: {way: flags}."""
-    config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * force_scale)
     out = {}
     for way in WAYS:
         slip = bars if way == "follow" else dataclasses.replace(bars, follow_presses=0)
@@ -78,11 +76,10 @@ def main(argv=None):
         print(f"bars from {args.bars_from}: {bars.min_events:g} OFF, {bars.on_events:g} ON events (median press {bars.press_off:g})")
         for group in GROUPS:
             for index, stream in enumerate(read(os.path.join(args.sessions, group, "frames.arrows")) or []):
-                add(group, f"{group}/{index}", stream, score(stream, bars, float(stream["force"].max())))
+                add(group, f"{group}/{index}", stream, score(stream, bars, detection_config([stream])))
     for rig in rigs:
         sessions = read(os.path.join(args.rigs, rig, "frames.arrows"))
-        scale = max(float(s["force"].max()) for s in sessions)
-        add("rigs", rig, sessions[-1], score(sessions[-1], bars_of(sessions[:-1]), scale))
+        add("rigs", rig, sessions[-1], score(sessions[-1], bars_of(sessions[:-1]), detection_config(sessions)))
     for (group, way), (truths, flagged) in pooled.items():
         print(line(f"pooled {group}, {way}", figures(truths, flagged)))
 

@@ -15,9 +15,8 @@ import dataclasses
 import os
 
 from neurotac_cli import metrics, tables
-from neurotac_cli.model import session
 from neurotac_cli.ops import contact as detector
-from rig_sessions import WINDOW_MS, streams  # beside this script
+from rig_sessions import WINDOW_MS, detection_config, peaks_of, streams  # beside this script
 
 FOLDERS = ("train", "test", "train-randomised", "unseen")
 
@@ -26,9 +25,7 @@ def score_folder(folder: str, shares) -> list:
     """(session, share, true slips, flags) for every session of one folder's frames."""
     out = []
     for index, stream in enumerate(streams(tables.read([os.path.join(folder, "frames.arrows")]))):
-        press, release = detector.rig_peaks([(stream["off"], stream["on"], metrics.runs(stream["touching"]))])
-        config = detector.ContactConfig(release_force_n=session.RELEASE_SHARE * float(stream["force"].max()))
-        bars = detector.slip_for(press, release)
+        config, bars = detection_config([stream]), detector.slip_for(*peaks_of([stream]))
         for share in shares:
             _, _, flags, _ = detector.detect(config, stream["off"], stream["on"], separation=stream["separation"],
                                              slip=dataclasses.replace(bars, keep_share=share), force=stream["force"],
