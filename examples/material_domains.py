@@ -26,10 +26,8 @@ import concurrent.futures
 import pathlib
 
 from chapters import md_table, publish_section  # beside this script
-from results import MATERIAL_PIPELINE, frames, neurotac, rig, sh
-from rig_materials import RIGS
-
-from neurotac_cli import tables
+from results import MATERIAL_PIPELINE, frames, metrics, neurotac, sh
+from rig_materials import RIGS, rig_data
 
 SECTION, TITLE = "material-domains", "Materials on an object size or a sensor training never saw"
 SIZES = ("5", "7.5", "10")
@@ -48,13 +46,11 @@ def data_set(work: pathlib.Path, seed: int, per: int) -> pathlib.Path:
 
 def accuracy(work: pathlib.Path, frames: pathlib.Path, size: str, options: str, repeats: int) -> float:
     """Out-of-fold accuracy (%) on the held-out size, from the metrics table `eval` writes."""
-    metrics = work / f"{frames.stem}-hex{size}{'-adapt' if options else ''}-r{repeats}.parquet"
-    if not metrics.exists():
+    path = work / f"{frames.stem}-hex{size}{'-adapt' if options else ''}-r{repeats}.parquet"
+    if not path.exists():
         sh(f"{neurotac()} eval --cv group:object=hex{size} --model-spec material-timing {options} --repeats {repeats} "
-           f"--seed 1 --metrics {metrics} < {frames} > /dev/null")
-    table = tables.read([str(metrics)])
-    rows = {(s, m): v for s, m, v in zip(*(table.column(c).to_pylist() for c in ("scope", "metric", "value")))}
-    return 100 * rows[("all", "accuracy")]
+           f"--seed 1 --metrics {path} < {frames} > /dev/null")
+    return 100 * metrics(path)[("all", "accuracy")]
 
 
 def main(argv=None):
@@ -105,21 +101,12 @@ def main(argv=None):
         publish_section(SECTION, body, TITLE)
 
 
-def rig_frames(work: pathlib.Path, seed: int, extra: str) -> tuple:
-    options, about = rig(seed)
-    folder = work / f"rig{seed}"
-    folder.mkdir(parents=True, exist_ok=True)
-    return frames(folder, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 1 {extra} {options}"), about
-
-
 def classified(model: pathlib.Path, data: pathlib.Path) -> float:
-    """Accuracy (%) of a classifier on a frames table, from the rows `classify` writes."""
-    out = model.with_name(f"{model.stem}-{data.parent.name}.arrows")
-    if not out.exists():
-        sh(f"{neurotac()} classify --model {model} < {data} > {out}")
-    table = tables.read([str(out)])
-    true, predicted = table.column("material").to_pylist(), table.column("material_pred").to_pylist()
-    return 100 * sum(a == b for a, b in zip(true, predicted)) / len(true)
+    """Accuracy (%) of a classifier on a frames table, from the metrics table `eval --model` writes."""
+    path = model.with_name(f"{model.stem}-{data.parent.name}.parquet")
+    if not path.exists():
+        sh(f"{neurotac()} eval --model {model} --metrics {path} < {data} > /dev/null")
+    return 100 * metrics(path)[("all", "accuracy")]
 
 
 def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MODELS) -> list:
@@ -133,7 +120,7 @@ def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MO
                 sh(f"{neurotac()} train --model {spec} {options} --seed 1 -o {model} {training}")
             models.append(model)
     with concurrent.futures.ThreadPoolExecutor(max(1, jobs)) as pool:  # each simulation is a process of its own
-        made = list(pool.map(lambda seed: rig_frames(work, seed, extra), rigs))
+        made = list(pool.map(lambda seed: rig_data(work, seed, extra), rigs))
     rows, means = [], [[] for _ in models]
     for seed, (data, about) in zip(rigs, made):
         cells = [classified(model, data) for model in models]

@@ -29,12 +29,17 @@ GOAL = 0.90
 REPEATS = 3  # seeds of each rig's cross-validation in the published table
 
 
-def one_rig(seed: int, work: pathlib.Path, repeats: int) -> tuple:
+def rig_data(work: pathlib.Path, seed: int, simulate: str = "") -> tuple:
+    """(the frames of the rig's 48 grasps, a line on its physics); `simulate`: more simulate options."""
     options, about = rig(seed)
     folder = work / f"rig{seed}"
     folder.mkdir(parents=True, exist_ok=True)
-    data = frames(folder, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 1 {options}")
-    return seed, about, material_rows(folder, data, "ch3", "kfold:8", repeats, {})
+    return frames(folder, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 1 {simulate} {options}"), about
+
+
+def one_rig(seed: int, work: pathlib.Path, repeats: int) -> tuple:
+    data, about = rig_data(work, seed)
+    return seed, about, material_rows(data.parent, data, "ch3", "kfold:8", repeats, {})
 
 
 def main(argv=None):
