@@ -103,10 +103,10 @@ def domain_stats(x: np.ndarray, domains: np.ndarray, least: int = 1) -> dict:
 
 def standardised(x: np.ndarray, domains: np.ndarray, stats: dict, pooled: tuple) -> np.ndarray:
     """Each trial's features standardised by its domain's (mean, std), or by `pooled` where its domain has none."""
-    out = np.empty_like(x)
-    for i, domain in enumerate(domains.tolist()):
-        mean, std = stats.get(domain, pooled)
-        out[i] = (x[i] - mean) / std
+    out = (x - pooled[0]) / pooled[1]
+    for domain, (mean, std) in stats.items():
+        mine = domains == domain
+        out[mine] = (x[mine] - mean) / std
     return out.astype(np.float32)
 
 

@@ -109,3 +109,9 @@ def test_a_size_training_never_saw_is_read_against_its_own_grasps_with_adapt_by(
     assert accuracy[None] <= 0.6 and accuracy["object"] >= 0.9
     few = core.classify_table(model, test.slice(0, 80 * 3))  # 3 grasps: too few to stand for their size
     assert "large" not in model.input_spec["adapt"]["stats"] and few.num_rows == 3
+    # 3 grasps of a size training saw take that size's training figures: as the size's 12 training
+    # grasps given together, which are standardised over themselves, the same figures
+    probability = [name for name in few.column_names if name.startswith("prob_")]
+    alone = core.classify_table(model, training.slice(0, 80 * 3)).select(probability).to_pandas().to_numpy()
+    together = core.classify_table(model, training).select(probability).to_pandas().to_numpy()[:3]
+    np.testing.assert_allclose(alone, together, rtol=1e-5, atol=1e-6)
