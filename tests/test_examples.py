@@ -435,6 +435,18 @@ def test_the_slip_gain_script_scores_fixed_and_followed_bars_on_the_same_slips(t
     assert [line.split(":")[0] for line in pooled] == ["pooled test, fixed", "pooled test, follow"]
     found = [[int(n) for n in re.search(r"(\d+) of (\d+) found, (\d+) flagged", line).groups()] for line in pooled]
     assert found[0][1] > 0 and found[0][1] == found[1][1]
+    # a model that carries the bars of a sensor ten times as sensitive: held fixed they flag nothing,
+    # followed they flag this session's slips again
+    import dataclasses
+
+    gain = load("slip_gain")
+    stream = gain.read(str(tmp_path / "test" / "frames.arrows"))[0]
+    right = gain.bars_of([stream])
+    wrong = dataclasses.replace(right, min_events=10 * right.min_events, min_events_on=10 * right.on_events,
+                                press_off=10 * right.press_off, release_on=10 * right.release_on)
+    flags = gain.score(stream, wrong, gain.detection_config([stream]))
+    hits = {way: gain.figures([stream["slip"]], [flags[way]])["slip_hits"] for way in flags}
+    assert hits["fixed"] == 0 and hits["follow"] > 0
 
 
 def test_the_material_domains_script_scores_sizes_and_sensors_both_ways_and_a_quick_run_publishes_nothing(tmp_path, capsys, monkeypatch):
