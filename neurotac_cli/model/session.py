@@ -115,9 +115,9 @@ class Stream:
         gain, model = self.contact.gain, self.slip
         if gain.bars is None:
             return None
-        return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} OFF / {gain.bars.on_events:g} ON events, from the median "
-                f"of its last {len(gain.presses)} presses ({np.median(gain.presses):.0f} events); the model's bars "
-                f"{model.min_events:g} / {model.on_events:g}")
+        presses = "its one press" if len(gain.presses) == 1 else f"the median of its last {len(gain.presses)} presses"
+        return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} OFF / {gain.bars.on_events:g} ON events, from "
+                f"{presses} ({np.median(gain.presses):.0f} events); the model's bars {model.min_events:g} / {model.on_events:g}")
 
     def _material(self):
         """The material model's class for the contact that just ended (its OFF and ON per frame)."""

@@ -374,6 +374,12 @@ def test_the_slip_bars_each_stream_followed_are_told_once_it_ends(trained):
     bars = session.slip_config(trained)
     assert len(notes) == 1 and notes[0].startswith("trial test: slips flagged at ")
     assert notes[0].endswith(f"the model's bars {bars.min_events:g} / {bars.on_events:g}")
+    assert "from the median of its last 3 presses" in notes[0]
+    one, _ = tiny_session(grasps=1, seed=9, trial="one")
+    schema, batches = models.stream(trained, one.schema, iter(one.to_batches()), notes=notes)
+    list(batches)
+    assert "from its one press (" in notes[1]
+    del notes[1:]
     empty, _ = tiny_session(grasps=0, seed=5, rest=(3000, 3001))
     schema, batches = models.stream(trained, empty.schema, iter(empty.to_batches()), notes=notes)
     list(batches)
