@@ -21,6 +21,7 @@ from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaEr
 from neurotac_cli.io import reader
 from neurotac_cli.io.reader import Decoded
 from neurotac_cli.io.readers import OPENERS
+from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
@@ -106,8 +107,8 @@ def detect_format(path, head: bytes) -> str:
         raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2 or --format evt3)")
     if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
         raise FormatError(f"{name} is already a table, not a camera file (use it directly, or `neurotac info {name}`)")
-    if _looks_like_text(head):
-        first = _first_data_line(head)
+    if _looks_like_text(head.removeprefix(BOM)):
+        first = _first_data_line(head.removeprefix(BOM))
         return "csv" if "," in first else "text"
     raise FormatError(
         f"{name}: unknown camera format (known: AEDAT 2.0/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "

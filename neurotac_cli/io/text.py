@@ -21,8 +21,11 @@ TIME_NAMES = {"t": None, "t_us": 1, "timestamp": 1, "ts": 1, "time": None, "t_ms
 POLARITY_NAMES = ("p", "polarity", "pol", "on")  # faery's CSV: `t,x@W,y@H,on`, the sensor size after the @
 
 
+BOM = b"\xef\xbb\xbf"  # a spreadsheet's "CSV UTF-8" export starts with this byte-order mark: no part of the first column
+
+
 def open_text(path: str, head: bytes, sensor) -> Decoded:
-    lines = head.decode("ascii", "replace").splitlines()
+    lines = head.removeprefix(BOM).decode("ascii", "replace").splitlines()
     skip = 0
     while skip < len(lines) and (not lines[skip].strip() or lines[skip].lstrip()[:1] in ("#", "%")):
         skip += 1
@@ -81,6 +84,8 @@ def _line_blocks(path: str, first_line: int):
     """The file from line `first_line` on, in blocks of whole lines of about CHUNK_BYTES (memoryviews:
     no copies; a block's last line continues into the next read when it is cut)."""
     with open(path, "rb") as handle:
+        if handle.read(len(BOM)) != BOM:
+            handle.seek(0)
         for _ in range(first_line - 1):
             handle.readline()
         remaining = os.fstat(handle.fileno()).st_size - handle.tell()

@@ -45,6 +45,15 @@ def test_whitespace_text_is_seconds_with_optional_comments(tmp_path):
     assert sch.get_meta(table.schema, "neurotac:source")["sensor_from"] == "option"
 
 
+@pytest.mark.parametrize("name, text", [("a.csv", "t,x,y,p\n10,1,2,1\n20,3,4,0\n"), ("a.txt", "0.00001 1 2 1\n0.00002 3 4 0\n")])
+def test_a_byte_order_mark_before_the_first_line_reads_as_a_plain_file(tmp_path, name, text):
+    """A spreadsheet's "CSV UTF-8" export starts with one; the headerless text file's first row is data."""
+    plain = read_events_table(write(tmp_path, name, text))
+    marked = tmp_path / f"marked-{name}"
+    marked.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert events_of(read_events_table(marked)) == events_of(plain) == [(10, 1, 2, 1), (20, 3, 4, 0)]
+
+
 def test_tab_separated_text(tmp_path):
     table = read_events_table(write(tmp_path, "events.txt", "0.1\t1\t2\t1\n0.2\t3\t4\t0\n"))
     assert table["t"].to_pylist() == [100_000, 200_000]
