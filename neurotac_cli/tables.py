@@ -29,6 +29,9 @@ PARQUET_MAGIC = b"PAR1"
 SUFFIXES = {".parquet": "parquet", ".pq": "parquet", ".arrow": "file", ".feather": "file", ".arrows": "stream",
             ".csv": "csv", ".json": "json", ".ndjson": "ndjson"}  # text: neurotac_cli/textout.py
 TRUNCATED = "input ended mid-table; did the command before it fail?"
+# An Arrow stream's writer ends it with this marker; a stream that stops between two batches without
+# it is one whose writer failed or was stopped, and reading it as whole would lose its rest silently.
+END_OF_STREAM = b"\xff\xff\xff\xff\x00\x00\x00\x00"
 
 
 class _Prepend(io.RawIOBase):
@@ -39,6 +42,7 @@ class _Prepend(io.RawIOBase):
         self._head = memoryview(head)
         self._source = source
         self._read = getattr(source, "readinto1", None) or source.readinto
+        self.tail = b""  # the last bytes read through it: does the stream end with its end-of-stream marker?
 
     def readable(self):
         return True
@@ -62,8 +66,15 @@ class _Prepend(io.RawIOBase):
             n = min(len(buffer), len(self._head))
             buffer[:n] = self._head[:n]
             self._head = self._head[n:]
-            return n
-        return self._read(buffer)
+        else:
+            n = self._read(buffer)
+        if n:
+            self.tail = (self.tail + bytes(memoryview(buffer)[max(n - len(END_OF_STREAM), 0):n]))[-len(END_OF_STREAM):]
+        return n
+
+    def ended(self) -> bool:
+        """The stream read so far ends with an end-of-stream marker: its writer closed it."""
+        return self.tail == END_OF_STREAM
 
 
 def _read_exactly(source, n: int) -> bytes:
@@ -143,7 +154,7 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
                     stream = _Prepend(more, stream)
                 first = False
                 reader = ipc.open_stream(stream)
-                yield reader.schema, _guard(iter(reader), name)
+                yield reader.schema, _guard(_whole(reader, stream, name), name)
         else:
             data = pa.BufferReader(head + source.read()) if path in (None, "-") else None
             if fmt == "file":
@@ -162,6 +173,13 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
     finally:
         if path not in (None, "-"):
             source.close()
+
+
+def _whole(reader, stream: _Prepend, name: str) -> Iterator[pa.RecordBatch]:
+    """The stream's batches, then an error if it ended without its end-of-stream marker."""
+    yield from reader
+    if not stream.ended():
+        raise InputError(f"{name}: {TRUNCATED}")
 
 
 def _describe(error: Exception) -> str:

@@ -388,3 +388,14 @@ def pa_equal(column, value):
     import pyarrow.compute as pc
 
     return pc.equal(column, value)
+
+
+@pytest.mark.parametrize("setting, value, words", [("layers", "abc", "whole number"), ("delays", 1.5, "whole number"),
+                                                    ("lr", "abc", "takes a number")])
+def test_a_setting_of_the_wrong_type_is_refused_before_training(setting, value, words):
+    from neurotac_cli.errors import ModelError
+    from neurotac_cli.model.core import make_spec
+
+    with pytest.raises(ModelError, match=words):
+        make_spec("tdnn", **{setting: value})
+    assert make_spec("tdnn", layers=2.0)["layers"] == 2 and isinstance(make_spec("tdnn", layers=2.0)["layers"], int)

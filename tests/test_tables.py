@@ -92,6 +92,20 @@ def test_a_stream_cut_short_is_one_clear_error(tmp_path, cut):
         tables.read([str(tmp_path / "cut.arrows")], kind="events")
 
 
+def test_a_stream_that_stops_between_batches_without_its_end_marker_is_refused(tmp_path):
+    # what a command that fails after writing some batches leaves in the pipe: whole batches, no end marker
+    table = events(2000)
+    with pa.OSFile(str(tmp_path / "a.arrows"), "wb") as sink:
+        writer = pa.ipc.new_stream(sink, table.schema)
+        for batch in table.to_batches(max_chunksize=500)[:2]:
+            writer.write_batch(batch)
+    with pytest.raises(InputError, match="ended mid-table"):
+        tables.read([str(tmp_path / "a.arrows")], kind="events")
+    whole = write_to(tmp_path / "b.arrows", table)
+    assert whole.read_bytes().endswith(tables.END_OF_STREAM)
+    assert tables.read([str(whole)], kind="events").num_rows == 2000
+
+
 def test_a_parquet_file_cut_short_is_one_clear_error(tmp_path):
     path = write_to(tmp_path / "a.parquet", events(2000))
     (tmp_path / "cut.parquet").write_bytes(path.read_bytes()[:-100])

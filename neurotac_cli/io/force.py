@@ -122,7 +122,10 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
     if funit not in FORCE_UNITS_N:
         raise InputError(f"unknown force unit {funit!r} (use one of N, mN, kN, g, kg, lbf)")
     if force_unit is None and force_unit_of(force_name) is None:
-        notes.append(f"force column {force_name!r} has no unit suffix: read as newtons")
+        suffix = _suffix(force_name)
+        notes.append(f"force column {force_name!r} has no unit suffix: read as newtons" if suffix is None else
+                     f"force column {force_name!r}: {suffix!r} is no force unit (N, mN, kN, g, kg, lbf): read as newtons "
+                     "(give --force-unit if they are not)")
     try:
         times = table.column(time_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
         values = table.column(force_name).cast(pa.float64()).to_numpy(zero_copy_only=False)

@@ -42,9 +42,27 @@ def make_spec(name: str, **options) -> dict:
             continue
         if key not in arch_fields and key not in fit_fields:
             raise ModelError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
+        value = _typed(key, value, getattr(config if key in arch_fields else FitConfig(), key))
         _check_setting(key, value, name)
         spec[key] = value
     return spec
+
+
+def _typed(key: str, value, default):
+    """`value` as the setting's type (that of its default): a whole number where one is needed (1e3 is
+    1000), a number where one is; a value of another type is refused here, not deep inside torch."""
+    option = "--" + key.replace("_", "-")
+    if isinstance(default, bool) or default is None or isinstance(value, bool):
+        return value
+    if isinstance(default, int):
+        if isinstance(value, int) or (isinstance(value, float) and value.is_integer()):
+            return int(value)
+        raise ModelError(f"{option} takes a whole number, got {value!r}")
+    if isinstance(default, float):
+        if isinstance(value, (int, float)):
+            return float(value)
+        raise ModelError(f"{option} takes a number, got {value!r}")
+    return value
 
 
 # The settings' ranges, (lowest, highest, whether the highest is excluded): a setting outside them

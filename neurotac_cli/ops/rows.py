@@ -18,6 +18,10 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError
 
 
+ROW_INDEX = "neurotac_row_index"  # a column the condition is evaluated beside, to keep the rows in order
+PER_ROW = "an aggregate such as max() needs OVER (), e.g. frame = max(frame) OVER (PARTITION BY trial)"
+
+
 def plain_columns(schema: pa.Schema) -> list[str]:
     return [f.name for f in schema if not (pa.types.is_nested(f.type) or isinstance(f.type, pa.BaseExtensionType))]
 
@@ -26,19 +30,29 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     """Which rows of `table` the SQL `expression` keeps (NULL: not kept)."""
     import duckdb
 
+    if not expression.strip():
+        raise NeurotacError("the condition is empty (give one, e.g. frame < 30)")
     plain = table.select(plain_columns(table.schema)).replace_schema_metadata(None)
+    # DuckDB may return rows in another order (a window function sorts them): each row carries its
+    # index, and the answer is ordered by it
+    plain = plain.append_column(ROW_INDEX, pa.array(np.arange(table.num_rows, dtype=np.int64)))
     connection = duckdb.connect()
     try:
         connection.execute("SET enable_external_access = false")
         connection.register("input_rows", plain)
-        keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows").fetchnumpy()["keep"]
+        keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows "
+                                  f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
     except duckdb.Error as error:
         first = str(error).splitlines()[0]
+        if ROW_INDEX in first:
+            raise NeurotacError(f"{expression!r} is not a condition on each row ({PER_ROW})") from None
         raise NeurotacError(f"cannot evaluate {expression!r}: {first} (columns: {', '.join(plain.column_names)}; "
                             "write SQL, strings in single quotes, times in µs)") from None
     finally:
         connection.close()
     keep = np.asarray(keep)
+    if len(keep) != table.num_rows:
+        raise NeurotacError(f"{expression!r} is not a condition on each row ({len(keep):,} values for {table.num_rows:,} rows; {PER_ROW})")
     if keep.dtype != bool:
         raise NeurotacError(f"{expression!r} is not a condition (it gives {keep.dtype} values; compare, e.g. frame < 30)")
     return keep

@@ -24,8 +24,19 @@ def test_select_keeps_tensors_and_metadata_and_drops_null_conditions():
     assert select(nulls, "object <> 'small'")[1]["kept"] == 0
 
 
+def test_select_with_a_window_function_keeps_the_rows_it_names():
+    # DuckDB returns a window function's rows in its own order: the answer must still land on the right rows
+    frames = tiny_frames(trials=3)
+    force = frames.column("force").to_numpy()
+    kept, _ = select(frames, "row_number() OVER (ORDER BY force DESC) <= 4")
+    assert sorted(kept.column("force").to_pylist(), reverse=True) == pytest.approx(np.sort(force)[::-1][:4])
+    last, _ = select(frames, "frame = max(frame) OVER (PARTITION BY trial)")
+    assert last.column("frame").to_pylist() == [11, 11, 11]
+
+
 @pytest.mark.parametrize("expression, words", [("frame <", "syntax error"), ("size > 1", 'column "size" not found'),
-                                               ("frame + 1", "is not a condition"), ("read_csv('/etc/passwd') IS NULL", "cannot evaluate")])
+                                               ("frame + 1", "is not a condition"), ("read_csv('/etc/passwd') IS NULL", "cannot evaluate"),
+                                               ("sum(frame) > 0", "not a condition on each row"), ("  ", "empty")])
 def test_select_refuses_what_it_cannot_evaluate(expression, words):
     with pytest.raises(NeurotacError, match=words):
         select(tiny_frames(trials=2), expression)
