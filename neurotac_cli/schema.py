@@ -256,7 +256,13 @@ def _list_of(arrays: list[pa.StructArray], list_type) -> pa.ListArray:
 
 
 def counts_type(height: int, width: int, dtype=np.uint16) -> pa.DataType:
+    if 2 * height * width > MAX_CELL_VALUES:
+        raise SchemaError(f"frames of {width}x{height} pixels are too large for one table cell (at most "
+                          f"{MAX_CELL_VALUES // 2:,} pixels): crop or pool the events first (`neurotac crop`)")
     return pa.fixed_shape_tensor(pa.from_numpy_dtype(np.dtype(dtype)), (2, height, width))
+
+
+MAX_CELL_VALUES = 2**31 - 1  # Arrow's largest fixed-size list: one frame's two channels
 
 
 def counts_array(counts: np.ndarray) -> pa.ExtensionArray:
@@ -400,8 +406,9 @@ def conform(batch, kind: str):
 
 
 def _check_counts(column):
-    """Event counts are finite: a NaN or infinite count (a float table from another tool) would train
-    a model to NaN or score it on fewer frames without a word."""
+    """Event counts are finite and not negative: a NaN or infinite count (a float table from another
+    tool) would train a model to NaN or score it on fewer frames without a word, a negative one would
+    be read as events of the other polarity."""
     if not pa.types.is_floating(column.type.value_type):  # integer counts are finite by their type
         return
     counts = counts_numpy(column)
@@ -409,6 +416,9 @@ def _check_counts(column):
     if not finite.all():
         frames = int((~finite.reshape(len(counts), -1)).any(axis=1).sum())
         raise SchemaError(f"{frames} frames carry NaN or infinite counts; event counts must be finite numbers")
+    if (counts < 0).any():
+        frames = int((counts.reshape(len(counts), -1) < 0).any(axis=1).sum())
+        raise SchemaError(f"{frames} frames carry negative counts; event counts are never below zero")
 
 
 def check_events(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, sensor, where: str = "", sorted_time=True):

@@ -53,8 +53,8 @@ def test_a_crop_keeps_another_tool_s_columns_with_their_events(tmp_path):
     assert tables.read([out]).column("source").to_pylist() == ["a", "c"]
 
 
-@pytest.mark.parametrize("bad", [np.nan, np.inf])
-def test_frames_with_counts_that_are_no_numbers_are_refused(files, tmp_path, bad):  # noqa: F811
+@pytest.mark.parametrize("bad", [-5.0, np.nan, np.inf])
+def test_frames_with_counts_that_are_no_numbers_or_negative_are_refused(files, tmp_path, bad):  # noqa: F811
     table = frames_table()
     counts = sch.counts_numpy(table.column("counts")).astype(np.float32)
     counts[3, 0, 2, 2] = bad
@@ -64,7 +64,7 @@ def test_frames_with_counts_that_are_no_numbers_are_refused(files, tmp_path, bad
     tables.write(path, table)
     for args in (["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model")], ["predict", "--model", f"{files}/m.model"]):
         code, stderr, _ = invoke(args + [path])
-        assert one_line(stderr, code, 1) and "1 frames carry NaN or infinite counts" in stderr
+        assert one_line(stderr, code, 1) and f"1 frames carry {'negative' if bad < 0 else 'NaN or infinite'} counts" in stderr
 
 
 @pytest.mark.parametrize("option", [["--lr", "nan"], ["--lr", "0"], ["--batch-size", "0"], ["--units", "-5"], ["--beta1", "1"],
@@ -239,3 +239,32 @@ def test_a_classifier_cannot_be_cross_validated_by_holding_out_its_own_classes(t
     tables.write(path, frames_table(trials=("a", "b", "c")))
     code, stderr, _ = invoke(["eval", "--cv", "group:material", "--model-spec", "material-dnn", "--epochs", "1", path])
     assert one_line(stderr, code, 2) and "holds out every trial of a material class" in stderr
+
+
+def test_eval_of_frames_without_a_true_force_is_refused(files, tmp_path):  # noqa: F811
+    table = frames_table()
+    table = table.set_column(table.schema.get_field_index("force"), "force", pa.nulls(table.num_rows, pa.float32()))
+    tables.write(str(tmp_path / "n.arrows"), table)
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/m.model", str(tmp_path / "n.arrows")])
+    assert one_line(stderr, code, 1) and "no frame has a true force" in stderr
+
+
+@pytest.mark.parametrize("args", [["import", "--sensor", "99999x99999", "-"], ["crop", "--pool", "70000x2", "-"]])
+def test_sizes_beyond_16_bit_coordinates_are_usage_errors(args):
+    code, stderr, _ = invoke(args)
+    assert code == 2 and "beyond 65535 pixels a side" in stderr and "Traceback" not in stderr
+
+
+def test_frames_too_large_for_one_table_cell_are_refused(tmp_path):
+    tables.write(str(tmp_path / "e.arrows"), events([1, 2], [1, 2], [0, 1], 60000, 60000))
+    code, stderr, _ = invoke(["frame", "--window", "10ms", str(tmp_path / "e.arrows")])
+    assert one_line(stderr, code, 1) and "too large for one table cell" in stderr
+
+
+@pytest.mark.parametrize("name, cut", [("davis240c_rotdisk.aedat", 100), ("atis_ncars_loris.dat", 10)])
+def test_a_camera_file_cut_inside_its_header_is_refused(tmp_path, name, cut):
+    from tests.conftest import real_file
+
+    (tmp_path / name).write_bytes(real_file(name).read_bytes()[:cut])
+    code, stderr, _ = invoke(["import", str(tmp_path / name)])
+    assert one_line(stderr, code, 1) and "header is cut short" in stderr

@@ -8,6 +8,7 @@ trailing record (a recording cut mid-write) is dropped. DVS128 files have their 
 decode_dvs128).
 """
 
+import os
 import re
 
 import numpy as np
@@ -84,6 +85,9 @@ def _read_header(path: str, head: bytes) -> bytes:
 
 def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     header = _read_header(path, head)
+    if not header.endswith(b"\n") and len(header) == os.path.getsize(path):
+        raise FormatError(f"the AEDAT 2.0 header is cut short: the file ends mid-line after {len(header)} bytes "
+                          "(is it the whole file?)")
     chip = chip_of(header)
     declared = sensor_line(header) or sensor_of_chip(chip)
     offset = len(header)

@@ -51,6 +51,11 @@ def es_state() -> np.ndarray:
     return np.zeros(5, dtype=np.int64)
 
 
+def es_pending(state: np.ndarray) -> int:
+    """Bytes of an Event Stream event begun but not finished in `state` (the decoder's step within it)."""
+    return int(state[1])
+
+
 def _events(count: int):
     return np.empty(count, np.int64), np.empty(count, np.uint16), np.empty(count, np.uint16), np.empty(count, np.uint8)
 

@@ -286,8 +286,9 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
             if data is None:
                 break
             pending += data
-        if pending and not decoder.finished:
-            notes.append(cut_note(name, len(pending)))
+        cut = len(pending) + getattr(decoder, "held", lambda: 0)()
+        if cut and not decoder.finished:
+            notes.append(cut_note(name, cut))
         if decoder.triggers:
             notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
                          "before they arrive); import the finished file for `sync --method trigger`")

@@ -27,6 +27,10 @@ class _Records:
     def complete(self, pending) -> int:
         return len(pending) - len(pending) % self.record
 
+    def held(self) -> int:
+        """Bytes of a record begun and kept in the decoder's own state, not in the pending bytes."""
+        return 0
+
     def close(self):
         pass
 
@@ -99,6 +103,11 @@ class EventStream(_Records):
         if outside:
             raise FormatError(f"an event lies outside the declared {width}x{height} sensor (damaged stream)")
         return t, x, (height - 1 - y.astype(np.int64)).astype(np.uint16), p
+
+    def held(self) -> int:
+        from neurotac_cli.io import kernels
+
+        return kernels.es_pending(self.state)
 
 
 class Dat(_Records):

@@ -144,8 +144,9 @@ def open_dat(path: str, head: bytes, sensor) -> Decoded:
     with open(path, "rb") as handle:
         handle.seek(offset)
         kind_size = handle.read(2)
-    if len(kind_size) < 2:
-        return Decoded(sensor=sensor_of_header(fields), chunks=lambda: iter(()), meta=_meta(fields))
+    if len(kind_size) < 2:  # every DAT file has them, events or none
+        raise FormatError(f"the DAT header is cut short: the file ends after {offset + len(kind_size)} bytes, before "
+                          "the event type and size that follow the header (is it the whole file?)")
     check_dat_kind(kind_size)
 
     def chunks():

@@ -96,10 +96,10 @@ def load(path: str):
     if bad:
         raise ModelError(f"{path}: the weights {', '.join(bad[:3])} hold NaN or infinite values "
                          "(a training that diverged); train the model again")
-    net.prepare_for(tensors)
     try:
+        net.prepare_for(tensors)
         net.load_state_dict(tensors, strict=True)
-    except RuntimeError as error:
+    except (RuntimeError, KeyError) as error:
         raise ModelError(f"{path}: weights do not match the header's architecture ({str(error).splitlines()[0]})") from None
     return Model(name, config, net, spec, header.get("classes"), header.get("training"))
 

@@ -406,6 +406,15 @@ def test_event_stream_atis_keeps_change_detections_as_faery_does(tmp_path):
     assert [tuple(r.values()) for r in table.to_pylist()] == [(5, 10, 219, 1), (8, 300, 232, 0), (200, 12, 217, 0)]
     pytest.importorskip("faery")
     assert_same(table, *faery_events(path))
+    # cut inside the last event: the events before it, and the cut told, from a file and from a pipe
+    cut = tmp_path / "cut.es"
+    cut.write_bytes(bytes(data[:-2]))
+    table = read_events_table(cut)
+    assert table.num_rows == 2 and sch.camera_sources(table.schema)[0]["cut_bytes"] == 3
+    from neurotac_cli.io import live
+
+    stream = live.open_stream(str(cut), fmt="es", follow=True, idle_timeout=0.1)
+    assert sum(batch.num_rows for batch in stream.batches) == 2 and "the last 3 bytes" in stream.notes[0]
 
 
 def test_dvs128_aedat2_is_read_as_jaer_reads_it(tmp_path):
