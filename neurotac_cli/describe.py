@@ -259,6 +259,8 @@ def _label_values(rows) -> dict:
 def format_text(info: dict, everything: bool = False) -> str:
     """The description as aligned `name  value` lines for a terminal; `everything`: every trial and
     metric row, not the first TRIALS_SHOWN and METRICS_SHOWN."""
+    if info["kind"] == "model":
+        return _model_text(info)
     sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
     lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
     lines += _trial_lines(info, sync, everything) + _metric_lines(info, everything) + _history_lines(info)
@@ -423,6 +425,8 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     from neurotac_cli.io import camera, events
 
     paths = list(paths) or ["-"]
+    if len(paths) == 1 and _exists(paths[0]) and _is_model(paths[0]):
+        return describe_model(paths[0])
     # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes)
     is_tables = [not _exists(path) or camera.is_table(path) for path in paths]
     if all(is_tables):
@@ -433,6 +437,75 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     schema, batches = events.read_events(paths[0], sensor)
     fmt = sch.camera_source(schema).get("format")
     return describe(schema, batches, camera={"format": fmt, "format_name": camera.FORMAT_NAMES.get(fmt, fmt)})
+
+
+def _is_model(path: str) -> bool:
+    """A safetensors file (8 bytes of header length, then its JSON header): what `neurotac train` writes."""
+    with open(path, "rb") as handle:
+        head = handle.read(10)
+    return len(head) == 10 and head[8:10] == b'{"'
+
+
+def describe_model(path: str) -> dict:
+    """What a model file holds, from its header alone (no torch): the network, its input, its
+    classes, how it was trained and on what."""
+    from neurotac_cli.model.store import read_header
+
+    header = read_header(path)
+    spec, training = header["input"], header.get("training") or {}
+    curve = training.get("curve") or []
+    losses = [(row.get("val_loss"), row.get("epoch")) for row in curve if isinstance(row.get("val_loss"), (int, float))]
+    trials = training.get("trials") or {}
+    info = {
+        "kind": "model", "file": path, "model": header["model"], "task": header["task"],
+        "format_version": header.get("format_version"), "architecture": header["architecture"],
+        "input": {key: spec.get(key) for key in ("width", "height", "window_us", "accumulated", "sensor")},
+        "classes": header.get("classes"), "label": training.get("label"),
+        "adapt_by": (spec.get("adapt") or {}).get("by"),
+        "training": {"trials": len(trials.get("train") or []), "validation_trials": len(trials.get("validation") or []),
+                     "seed": training.get("seed"), "fit": training.get("fit"), "epochs_run": len(curve),
+                     "best_epoch": min(losses)[1] if losses else None, "best_val_loss": min(losses)[0] if losses else None},
+        "contacts": training.get("contacts"), "slip": spec.get("slip"),
+        "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
+        "history": training.get("data_history") or [],
+    }
+    return info
+
+
+def _model_text(info: dict) -> str:
+    spec, fit, trained = info["input"], info["training"].get("fit") or {}, info["training"]
+    window = f"{spec['window_us'] / 1000:g} ms" if spec.get("window_us") else "an unknown window"
+    pairs = [("file", f"{info['file']} (a neurotac model, format {info['format_version']})"), ("model", f"{info['model']} ({info['task']})"),
+             ("input", f"{spec['width']}x{spec['height']} {'accumulated ' if spec.get('accumulated') else ''}frames of {window}")]
+    if isinstance(spec.get("sensor"), dict) and (spec["sensor"].get("width"), spec["sensor"].get("height")) != (spec["width"], spec["height"]):
+        pairs.append(("sensor", f"{spec['sensor']['width']}x{spec['sensor']['height']}"))
+    if info["classes"]:
+        pairs.append(("classes", f"{', '.join(info['classes'])} (label {info['label'] or 'material'})"))
+    if info["adapt_by"]:
+        pairs.append(("adapt by", f"{info['adapt_by']} (features standardised within each of its values)"))
+    if info["force_scale_n"]:
+        pairs.append(("force scale", f"{info['force_scale_n']:.4g} N (the training's largest force)"))
+    pairs.append(("architecture", " ".join(f"{k}={_compact(v)}" for k, v in info["architecture"].items())))
+    text = f"{trained['trials']} trials, {trained['validation_trials']} for validation, seed {trained['seed']}"
+    if trained["epochs_run"]:
+        text += f"; {trained['epochs_run']} epochs"
+        if trained["best_epoch"] is not None:
+            text += f", best {trained['best_epoch']} (validation loss {trained['best_val_loss']:.4g})"
+    pairs.append(("training", text))
+    if fit:
+        pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))
+    contacts = info.get("contacts")
+    if isinstance(contacts, dict):
+        pairs.append(("contacts", f"{contacts.get('contacts')} in {contacts.get('sessions')} session(s); median press "
+                                  f"{_compact(contacts.get('press_off'))} OFF, release {_compact(contacts.get('release_on'))} ON events"))
+    if isinstance(info.get("slip"), dict):
+        pairs.append(("slip bars", f"{info['slip'].get('min_events')} OFF / {info['slip'].get('min_events_on')} ON events"))
+    lines = pairs + ["", "trained on frames made by:" if info["history"] else ("trained on frames made by:", "(no history)")]
+    for step in info["history"]:
+        args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
+        lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
+    width = max(len(line[0]) for line in lines if isinstance(line, tuple))
+    return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
 
 
 def _exists(path) -> bool:

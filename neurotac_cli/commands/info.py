@@ -16,11 +16,14 @@ def command(paths, as_json, everything, sensor):
     labels per trial, frames per trial and window, and the history of commands that made it.
 
     Works on every table kind and, directly, on camera files (decoded, not written). Several tables
-    are described as one, as every command reads them.
+    are described as one, as every command reads them. A model file from `neurotac train` is
+    described from its header: the network, the frames it takes, its classes, how it was trained,
+    and the commands that made its training frames.
 
     \b
         neurotac import recording.aedat | neurotac info -
         neurotac info frames.parquet --json | jq .frames_per_trial
+        neurotac info force.model
     """
     import json
 

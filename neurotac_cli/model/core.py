@@ -200,8 +200,9 @@ def check_input(model: Model, schema: pa.Schema):
     if problems:
         raise ModelError(
             f"model {model.name!r} was trained on {describe(spec)}, this input has {describe(here)} "
-            f"(different {' and '.join(problems)}); prepare the frames the same way as the training data "
-            f"(e.g. `neurotac frame --window {int((spec.get('window_us') or 10000) / 1000)}ms | neurotac crop --size {spec['width']}x{spec['height']}`)"
+            f"(different {' and '.join(problems)}); prepare the frames as the training frames were: `neurotac frame "
+            f"--window {(spec.get('window_us') or 10000) / 1000:g}ms | neurotac crop` with the training's --size, --center and --pool "
+            f"(`neurotac info` of the training frames shows them)"
         )
 
 

@@ -95,9 +95,23 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
     try:
         combined = pa.concat_tables([t.replace_schema_metadata(first.metadata) for t in tables], promote_options="none")
     except pa.ArrowInvalid as error:
-        raise SchemaError(f"the tables have different columns or types ({str(error).splitlines()[0]}); "
+        differences = [_difference(first, table.schema, name) for (name, _), table in zip(parts[1:], tables[1:])]
+        detail = "; ".join(d for d in differences if d) or str(error).splitlines()[0]
+        raise SchemaError(f"the tables have different columns or types ({detail}); "
                           "select the same columns in each first") from None
     return combined, notes
+
+
+def _difference(first: pa.Schema, other: pa.Schema, name: str) -> str:
+    """What `other` (the table `name`) has that differs from the first table: columns missing, added, or of another type or order."""
+    missing = [n for n in first.names if n not in other.names]
+    extra = [n for n in other.names if n not in first.names]
+    typed = [f"{n} is {other.field(n).type}, not {first.field(n).type}" for n in first.names
+             if n in other.names and not other.field(n).type.equals(first.field(n).type)]
+    words = ([f"no {', '.join(missing)}"] if missing else []) + ([f"also {', '.join(extra)}"] if extra else []) + typed
+    if not words and first.names != other.names:
+        words = ["its columns in another order"]
+    return f"{name} has {'; '.join(words)}" if words else ""
 
 
 def check_alike(parts: list[tuple[str, pa.Table]]) -> None:

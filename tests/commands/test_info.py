@@ -134,3 +134,17 @@ def test_history_is_listed(tmp_path):
     history = [{"command": "import", "args": {"files": ["a.aedat"]}, "version": "0.1.0"}]
     table = table.replace_schema_metadata(sch.set_meta(table.schema, history=history).metadata)
     assert 'import files=["a.aedat"]  (neurotac 0.1.0)' in format_text(described(table))
+
+
+def test_a_model_file_is_described_from_its_header(tmp_path):
+    from neurotac_cli import tables
+    from tests.model.helpers import tiny_frames
+
+    tables.write(str(tmp_path / "f.arrows"), tiny_frames(trials=4))
+    runner = CliRunner()
+    trained = runner.invoke(cli, ["train", "--model", "material-timing", "-o", str(tmp_path / "m.model"), str(tmp_path / "f.arrows")])
+    assert trained.exit_code == 0, trained.output
+    text = runner.invoke(cli, ["info", str(tmp_path / "m.model")], catch_exceptions=False).output
+    assert "material-timing (material)" in text and "classes" in text and "trained on frames made by:" in text
+    info = json.loads(runner.invoke(cli, ["info", "--json", str(tmp_path / "m.model")]).output)
+    assert info["kind"] == "model" and info["task"] == "material" and info["training"]["trials"] >= 1

@@ -109,3 +109,11 @@ def test_a_new_users_workflow_by_shell_pipes(tmp_path):
     assert oct((tmp_path / "force.model").stat().st_mode & 0o077) == oct((tmp_path / "frames.arrows").stat().st_mode & 0o077)
     counts = np.loadtxt(tmp_path / "predictions.csv", delimiter=",", skiprows=1, usecols=(1,))
     assert len(counts) > 0
+
+
+def test_concat_names_the_column_that_differs():
+    frames = tiny_frames(trials=2)
+    other = tiny_frames(trials=2).drop_columns(["object"])
+    other = other.set_column(0, "trial", pa.array([f"x{t}" for t in other.column("trial").to_pylist()]))
+    with pytest.raises(SchemaError, match="b has no object"):
+        concat([("a", frames), ("b", other)])
