@@ -105,10 +105,17 @@ def test_a_damaged_model_header_or_nan_weights_are_one_line(files, tmp_path):  #
     def poison(weights):
         next(iter(weights.values())).fill_(float("nan"))
 
-    for name, edit in (("h.model", {"header": no_height}), ("a.model", {"header": as_list}), ("n.model", {"tensors": poison})):
+    def newer(header):
+        header["format_version"] = 99
+        return header
+
+    for name, edit in (("v.model", {"header": newer}), ("h.model", {"header": no_height}), ("a.model", {"header": as_list}),
+                       ("n.model", {"tensors": poison})):
         _edit_model(f"{files}/m.model", str(tmp_path / name), **edit)
         code, stderr, _ = invoke(["predict", "--model", str(tmp_path / name), f"{files}/f.arrows"])
         assert one_line(stderr, code, 1), stderr
+        if name == "v.model":
+            assert "newer than this neurotac reads" in stderr
     assert "NaN or infinite" in stderr
 
 

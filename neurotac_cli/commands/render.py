@@ -45,5 +45,5 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))
     done = rd.render(table, output, spec)
-    click.echo(f"neurotac render: wrote {output}: {done['view']} of trial {done['trial']}, {done['pictures']} "
+    click.echo(f"neurotac render: wrote {output}: {done['view']} of trial {done['trial']!r}, {done['pictures']} "
                f"picture{'s' if done['pictures'] > 1 else ''} of {done['width']}x{done['height']} pixels", err=True)

@@ -12,7 +12,7 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
-from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
+from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
 
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
@@ -131,7 +131,7 @@ class Model:
     def header(self) -> dict:
         return {
             "format": "neurotac-model",
-            "format_version": 1,
+            "format_version": FORMAT_VERSION,
             "model": self.name,
             "task": self.task,
             "architecture": dataclasses.asdict(self.config),

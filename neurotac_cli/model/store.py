@@ -6,6 +6,7 @@ import json
 import os
 
 from neurotac_cli.errors import ModelError
+from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
 
 HEADER_KEY = "neurotac"
@@ -66,6 +67,10 @@ def read_header(path: str) -> dict:
     missing = [key for key in ("model", "task", "architecture", "input") if key not in header]
     if missing:
         raise ModelError(f"{path}: the model header lacks {', '.join(missing)} (file damaged?); train the model again")
+    version = header.get("format_version", 1)
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise ModelError(f"{path}: model format {version!r} is newer than this neurotac reads ({FORMAT_VERSION}); "
+                         "upgrade neurotac to run it")
     return header
 
 
