@@ -420,13 +420,19 @@ def predict_trials(model: Model, table: pa.Table) -> pa.Table:
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
+def check_streams(model: Model):
+    """`predict` and `sense` stream force models; a classifier names a contact's material beside one."""
+    if model.task != "force":
+        raise ModelError(f"model {model.name!r} classifies materials; `predict` and `sense` stream force models "
+                         "(a classifier goes to --material-model)")
+
+
 def stream_trials(model: Model, schema: pa.Schema, batches):
     """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame.
 
     Returns (predictions schema, iterator of record batches).
     """
-    if model.task != "force":
-        raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    check_streams(model)
     check_input(model, schema)
     out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
     states = {}

@@ -252,10 +252,9 @@ def stream(model, schema: pa.Schema, batches, material=None, notes: list | None 
     whose slip bars followed its presses is appended once the batches are exhausted.
 
     Frames of a trial must arrive in order (as `frame` writes them)."""
-    from neurotac_cli.model.core import check_input
+    from neurotac_cli.model.core import check_input, check_streams
 
-    if model.task != "force":
-        raise ModelError(f"model {model.name!r} classifies materials; `predict` streams force models only")
+    check_streams(model)
     if material is not None:
         check_material(model, material)
     check_input(model, schema)
