@@ -145,6 +145,9 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
             groups.append((name, rows))
     else:
         cuts = np.flatnonzero(np.diff(t_us) < 0) + 1
+        if len(cuts) and len(cuts) >= len(t_us) // 2:  # not trials whose clocks restart: a log out of order
+            raise FormatError(f"{path}: force time runs backwards at {len(cuts):,} of {len(t_us):,} samples; sort the log by "
+                              "time (a log of several trials restarts its clock once per trial)")
         bounds = np.concatenate([[0], cuts, [len(t_us)]])
         groups = [(None, np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
     logs = []

@@ -89,6 +89,11 @@ def test_force_log_errors_say_what_to_do(tmp_path):
         read_force_log(str(path))
     with pytest.raises(NeurotacError, match="no such force log"):
         read_force_log(str(tmp_path / "missing.csv"))
+    path.write_text("t_ms,force_N\n" + "".join(f"{t},0\n" for t in range(40, 0, -2)))  # a log in reverse order
+    with pytest.raises(NeurotacError, match="runs backwards at 19 of 20 samples; sort the log"):
+        read_force_log(str(path))
+    path.write_text("t_ms,force_furlongs\n0,1\n2,1\n")
+    assert "'furlongs' is no force unit" in read_force_log(str(path))[0].notes[0]
 
 
 def test_median_filter_removes_a_single_sample_spike():
