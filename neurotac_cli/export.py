@@ -36,6 +36,9 @@ def export_format(path: str) -> str:
     return FORMATS[suffix]
 
 
+MAX_TIME_WORDS = 50_000_000  # EVT 3.0 time words of an export (100 MB: over 57 hours of camera time)
+
+
 def evt3_bytes(t, x, y, p, width: int, height: int) -> tuple[bytes, int]:
     """(the bytes of an EVT 3.0 file, the whole loops taken off the times in µs)."""
     t = np.asarray(t, dtype=np.int64)
@@ -57,6 +60,11 @@ def evt3_bytes(t, x, y, p, width: int, height: int) -> tuple[bytes, int]:
     # a TIME_LOW when its time changes, an ADDR_Y when its row changes (or a TIME_HIGH came between)
     previous = np.r_[-1, high[:-1]]  # the clock is walked from 0 (a reader counts loops from there)
     highs_before = high - previous
+    if highs_before.sum() > MAX_TIME_WORDS:  # a gap of hours between two events, or times in the wrong unit
+        gap = int(np.argmax(np.diff(t))) if len(t) > 1 else 0
+        raise NeurotacError(f"EVT 3.0 writes a time word every 4.096 ms, and these events span {int(t[-1] - t[0]) / 1e6:,.0f} s "
+                            f"(the largest gap, {int(t[gap + 1] - t[gap]) / 1e6 if len(t) > 1 else 0:,.0f} s, after event {gap:,}): "
+                            f"{int(highs_before.sum()) * 2 / 1e6:,.0f} MB of time words; select the part with events, or export .aedat4")
     new_time = np.r_[True, np.diff(t) != 0]
     new_row = np.r_[True, np.diff(y) != 0] | (highs_before > 0)
     per_event = highs_before + new_time + new_row + 1

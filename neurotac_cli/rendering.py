@@ -137,6 +137,9 @@ def _frame_steps(table: pa.Table, trial: str) -> Steps:
                  force_n=force if np.isfinite(force).any() else None)
 
 
+MAX_SLICE_BYTES = 4e9  # the counts of every slice are made at once
+
+
 def _slice_steps(trial, t, x, y, p, sensor, spec: RenderSpec) -> Steps:
     from neurotac_cli.ops.frame import count_frames
 
@@ -150,6 +153,9 @@ def _slice_steps(trial, t, x, y, p, sensor, spec: RenderSpec) -> Steps:
     else:
         n = spec.slices
         window = max((last - first) // n + 1, 1)
+    if n * 2 * height * width * 2 > MAX_SLICE_BYTES:  # a huge gap in the times, or a slice far too short for the span
+        raise NeurotacError(f"trial {trial!r} spans {(last - first) / 1e6:,.3f} s: {n:,} slices of {window / 1000:g} ms would take "
+                            f"{n * 4 * height * width / 1e9:,.0f} GB; give a longer --slice or select a shorter span")
     counts = count_frames(t.astype(np.int64), x, y, p, window, int(n), height, width, start=first)
     starts = (first + window * np.arange(n)) / 1000.0
     return Steps(trial=trial, counts=counts, starts_ms=starts, step_ms=window / 1000.0, what="slice", numbers=np.arange(n))

@@ -275,3 +275,12 @@ def test_a_camera_file_cut_inside_its_header_is_refused(tmp_path, name, cut):
     (tmp_path / name).write_bytes(real_file(name).read_bytes()[:cut])
     code, stderr, _ = invoke(["import", str(tmp_path / name)])
     assert one_line(stderr, code, 1) and "header is cut short" in stderr
+
+
+@pytest.mark.parametrize("args, words", [(["export", "-o", "{d}/w.raw"], "MB of time words"),
+                                         (["render", "--slice", "1ms", "-o", "{d}/r.png"], "give a longer --slice")])
+def test_a_gap_of_years_between_two_events_is_refused_not_out_of_memory(tmp_path, args, words):
+    table = sch.events_table(np.array([0, 10**15]), np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), 8, 8)
+    tables.write(str(tmp_path / "e.arrows"), table)
+    code, stderr, _ = invoke([a.format(d=tmp_path) for a in args] + [str(tmp_path / "e.arrows")])
+    assert one_line(stderr, code, 1) and words in stderr
