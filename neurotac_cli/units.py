@@ -32,3 +32,8 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 MAX_SIDE = 65535  # x and y of an event are uint16
+
+
+def counted(n: int, noun: str) -> str:
+    """`1 trial`, `3 trials`: a count and its noun, plural where it is not one."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"

@@ -13,6 +13,7 @@ from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
+from neurotac_cli.units import counted
 
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
@@ -230,7 +231,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     generator = torch.Generator().manual_seed(seed)
     _check_training_set(name, config, train_set, label)
     if progress:
-        progress(f"{name}: {len(train_set)} training trials, {len(val_set)} validation trials")
+        progress(f"{name}: {counted(len(train_set), 'training trial')}, {counted(len(val_set), 'validation trial')}")
     training = {
         "spec": spec,
         "fit": dataclasses.asdict(fit_config),

@@ -53,6 +53,9 @@ class Config:
     excess: bool = True  # the map's mass above each depth level
 
 
+# Values of the per-level depth maps made at once (64 MB of float32; `Net.features`).
+FEATURE_VALUES = 1 << 24
+
 # What a setting missing from an older model file's header meant when that file was written.
 ABSENT_MEANS = {"excess": False}
 
@@ -88,6 +91,21 @@ class Net(ForceNet):
         }
 
     def features(self, counts, state):
+        """(features (B, T, F), the state after the last frame). A long run of large frames is taken
+        in pieces of time, the state carried from one to the next: the per-level depth maps of a whole
+        contact at full sensor size would take gigabytes at once."""
+        batch, length = counts.shape[:2]
+        step = max(1, FEATURE_VALUES // max(1, batch * self.shape[0] * self.shape[1] * max(self.config.levels, 1)))
+        if length <= step:
+            return self._features(counts, state)
+        parts = []
+        for start in range(0, length, step):
+            part, new = self._features(counts[:, start : start + step], state)
+            state = {**state, **new}
+            parts.append(part)
+        return torch.cat(parts, dim=1), new
+
+    def _features(self, counts, state):
         batch, length = counts.shape[:2]
         counts = counts.float()
         sums = counts.sum(dim=(-1, -2))  # (B, T, 2)

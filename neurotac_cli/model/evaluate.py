@@ -16,6 +16,7 @@ from neurotac_cli.model.grid import cross_validate_grid, grid_lines, grid_metric
 from neurotac_cli.model.scoring import score, score_folds, summary
 from neurotac_cli.model.store import load
 from neurotac_cli.study import grid_points, run_tasks
+from neurotac_cli.units import counted
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,7 @@ def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparamet
         predictions, rows = evaluate_model(model, frames, nonzero=nonzero, per_trial=per_trial)
         name, spec = model.name, None
     trials = len(set(predictions.column("trial").to_pylist()))
-    title = f"{name} on {trials} trials" + (" (non-zero force only)" if nonzero else "")
+    title = f"{name} on {counted(trials, 'trial')}" + (" (non-zero force only)" if nonzero else "")
     return Evaluation(name, predictions, metrics_table(rows, name), summary(rows, title=title), spec)
 
 

@@ -6,6 +6,7 @@ import pyarrow as pa
 
 from neurotac_cli import metrics
 from neurotac_cli.errors import SchemaError
+from neurotac_cli.units import counted
 
 
 def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material") -> list:
@@ -68,7 +69,7 @@ def summary(rows: list, title: str = "") -> str:
     lines = [title] if title else []
     if "accuracy" in by_scope.get("all", {}):
         figures = by_scope["all"]
-        lines.append(f"accuracy {100 * figures['accuracy']:.1f}% over {int(figures.get('n', 0))} trials")
+        lines.append(f"accuracy {100 * figures['accuracy']:.1f}% over {counted(int(figures.get('n', 0)), 'trial')}")
         if "accuracy_fold_mean" in figures:
             lines.append(f"accuracy per fold {100 * figures['accuracy_fold_mean']:.1f}% ± {100 * figures['accuracy_fold_sd']:.1f}%")
         classes = [s[len("class:"):] for s in by_scope if s.startswith("class:")]

@@ -27,6 +27,7 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model import data as shaping
 from neurotac_cli.ops import contact as detector
+from neurotac_cli.units import counted
 
 CONTACT_KEY = "contact"
 SLIP_KEY = "slip"
@@ -211,7 +212,7 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     slip = slip or detector.slip_for(summary["press_off"], summary["release_on"])
     progress = options.get("progress")
     if progress:
-        progress(f"contacts: {summary['contacts']} in {summary['sessions']} streams, "
+        progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames; slips flagged at "
                  f"{slip.min_events:g} OFF and {slip.on_events:g} ON events above the background")
     model = core.train(found, spec, **options)

@@ -70,3 +70,16 @@ def test_a_cross_validation_task_carries_every_default_it_trains_with():
     data = sequences(tiny_frames(trials=4))
     _, tasks = fold_tasks(data, {"model": "deform-gru"}, "kfold:2", 1, 0, 0.1, None)
     assert tasks[0]["spec"]["patience"] == 40 and tasks[0]["spec"]["excess"] is True
+
+
+@pytest.mark.parametrize("memory_frames", [0, 50])
+def test_long_runs_of_large_frames_are_featured_in_pieces_of_time_with_the_same_result(monkeypatch, memory_frames):
+    # a whole contact at full sensor size took all of a 24 GB machine's memory at once
+    from neurotac_cli.model import deform_gru
+
+    net = deform_gru.Net(deform_gru.Config(memory_frames=memory_frames), (2, 30, 40))
+    counts = torch.randint(0, 5, (3, 60, 2, 30, 40)).float()
+    whole, after = net.features(counts, net.init_state(3))
+    monkeypatch.setattr(deform_gru, "FEATURE_VALUES", 30 * 40 * 8 * 3 * 7)  # 7 frames a piece
+    pieces, after_pieces = net.features(counts, net.init_state(3))
+    assert torch.allclose(whole, pieces, atol=1e-5) and torch.allclose(after["deformation"], after_pieces["deformation"])
