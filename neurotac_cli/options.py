@@ -248,12 +248,14 @@ NOT_IN_HISTORY = frozenset({"output", "metrics_path", "plot", "plot_trials", "cu
                             "device"})
 
 
-def history(**extra) -> tuple[str, dict]:
+def history(unused=(), **extra) -> tuple[str, dict]:
     """The history step `(command, args)` of the running command: every parsed parameter the output
-    depends on (none left out, None and unused repeatable options dropped), then `extra` (reports)."""
+    depends on (none left out, None and unused repeatable options dropped, and the parameters named in
+    `unused`: those that do not apply to this run, such as a session's settings when it made trials),
+    then `extra` (reports)."""
     ctx = click.get_current_context()
     args = {name: _plain(value) for name, value in ctx.params.items()
-            if name not in NOT_IN_HISTORY and value is not None and value != ()}
+            if name not in NOT_IN_HISTORY and name not in unused and value is not None and value != ()}
     args.update({name: value for name, value in extra.items() if value is not None})
     return ctx.info_name, args
 

@@ -86,7 +86,12 @@ def output_format(path: str) -> str:
 
 
 def _trials(table: pa.Table) -> list[str]:
-    return list(dict.fromkeys(table.column("trial").to_pylist())) if "trial" in table.column_names else ["events"]
+    """The trials, in order; an events table is one, named as `frame` names it (its camera file's stem)."""
+    if "trial" in table.column_names:
+        return list(dict.fromkeys(table.column("trial").to_pylist()))
+    from neurotac_cli.io.camera import camera_file_stem
+
+    return [camera_file_stem(table.schema) or "events"]
 
 
 def pick_trial(table: pa.Table, trial: str | None) -> str:
@@ -112,8 +117,7 @@ def steps_of(table: pa.Table, trial: str, spec: RenderSpec) -> Steps:
         return steps
     if kind == "events":
         t, x, y, p = (table.column(name).to_numpy() for name in ("t", "x", "y", "p"))
-        name = sch.camera_source(table.schema).get("file") or trial  # times from the first event
-        return _slice_steps(name, t - (t.min() if len(t) else 0), x, y, p, _sensor(table.schema, x, y), spec)
+        return _slice_steps(trial, t - (t.min() if len(t) else 0), x, y, p, _sensor(table.schema, x, y), spec)  # from the first event
     raise SchemaError(f"render draws events, recordings or frames tables, got {kind or 'an unknown'} table"
                       " (predictions and metrics are drawn by `neurotac eval --plot`)")
 

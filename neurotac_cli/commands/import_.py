@@ -44,7 +44,7 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     files = datasets.expand(paths)
     if len(files) > 1 and not one_stream and not (follow or realtime):
         recordings = datasets.recordings_per_file(files, sensor, fmt)
-        tables.write(output, recordings, step=history(paths=files))
+        tables.write(output, recordings, step=history(paths=files, unused=("idle_timeout",)))
         echo_lines("import", events.cut_notes(recordings.schema), prefix="warning: ")
         return
     paths = files
@@ -52,7 +52,8 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     stop = live.stop_on_signals() if is_live else (lambda: False)
     stream = events.import_events(paths, sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
                                 speed=pace, stop=stop)
-    tables.write(output, stream.batches, schema=stream.schema, step=history(paths=paths), flush_each=is_live)
+    tables.write(output, stream.batches, schema=stream.schema, step=history(paths=paths, unused=() if follow else ("idle_timeout",)),
+                 flush_each=is_live)
     echo_lines("import", stream.notes, prefix="warning: ")
     if not stream.rows:
         click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)

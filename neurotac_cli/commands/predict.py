@@ -24,7 +24,8 @@ def command(paths, output, model_path, material_path, threads):
     bars that follow each trial's own presses; stderr gives them once the input ends.
 
     \b
-        neurotac frame --window 10ms < live.arrows | neurotac predict --model force.model | controller
+        neurotac frame --window 10ms < live.arrows | neurotac crop --size 115x115 --center 120,90 \
+            | neurotac predict --model force.model | controller
     """
     import itertools
 

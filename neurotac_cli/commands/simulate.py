@@ -28,6 +28,9 @@ SESSION_OBJECTS = ("foam:hex:1", "silicone:hex:1", "rubber:hex:1", "steel:hex:1"
                    "steel:bolt16:1", "rubber:sphere10:1", "silicone:sphere16:1")
 
 
+SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # options that apply with --session alone
+
+
 @click.command()
 @click.option("--preset", type=click.Choice(["ch3", "ch4", "ch5"]), default=None,
               help="Experiment design of the thesis: ch3 (48 hex prisms of 4 materials, FlexiForce), "
@@ -128,7 +131,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     if out_dir:
         write_dataset(simulation, out_dir)
     if synced:
-        tables.write(output, recordings(simulation, keep_led=keep_led), step=history(preset=preset or "ch4"))
+        tables.write(output, recordings(simulation, keep_led=keep_led), step=history(preset=preset or "ch4", unused=SESSION_ONLY))
 
 
 def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_range, hold, force_sensor,
