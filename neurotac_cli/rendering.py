@@ -165,9 +165,10 @@ def _slice_steps(trial, t, x, y, p, sensor, spec: RenderSpec) -> Steps:
     return Steps(trial=trial, counts=counts, starts_ms=starts, step_ms=window / 1000.0, what="slice", numbers=np.arange(n))
 
 
-def shown_steps(steps: Steps, spec: RenderSpec, limit: int | None) -> list[int]:
+def shown_steps(steps: Steps, spec: RenderSpec, limit: int | None) -> tuple[list[int], int]:
+    """(the steps drawn: every `spec.every`-th, at most `limit`; how many more --every picked that did not fit)."""
     shown = list(range(0, len(steps.counts), spec.every))
-    return shown[:limit] if limit else shown
+    return (shown[:limit], len(shown) - limit) if limit and len(shown) > limit else (shown, 0)
 
 
 # ---------------------------------------------------------------- colour
@@ -260,7 +261,7 @@ def _figure(rows: int, columns: int, tile: tuple[float, float], strip: bool):
 def montage(steps: Steps, spec: RenderSpec, animated: bool):
     """Tiles over time (or one tile per picture when animated), the force strip under them."""
     top = colour_top(steps.counts)
-    shown = shown_steps(steps, spec, None if animated else MAX_TILES)
+    shown, left_out = shown_steps(steps, spec, None if animated else MAX_TILES)
     columns = 1 if animated else min(spec.columns, len(shown))
     rows = 1 if animated else -(-len(shown) // columns)
     strip = steps.force_n is not None
@@ -290,7 +291,7 @@ def montage(steps: Steps, spec: RenderSpec, animated: bool):
         if cursor is not None:
             cursor.set_xdata([steps.starts_ms[k] + steps.step_ms / 2] * 2)
 
-    return figure, update, len(shown) if animated else 1
+    return figure, update, len(shown) if animated else 1, left_out
 
 
 def crop_box(table: pa.Table, steps: Steps, crop_spec) -> tuple[tuple, str]:
@@ -312,7 +313,7 @@ def crop_view(table: pa.Table, steps: Steps, spec: RenderSpec, animated: bool):
     plt = _pyplot()
     box, how = crop_box(table, steps, spec.crop)
     total = steps.counts.sum(axis=0, dtype=np.float64)
-    shown = shown_steps(steps, spec, None) if animated else [None]
+    shown = shown_steps(steps, spec, None)[0] if animated else [None]
     images = [total] if not animated else None
     top = colour_top(total if not animated else steps.counts)
     figure, grid = _figure(1, 1, _tile_inches(steps.counts, True), False)
@@ -332,7 +333,7 @@ def crop_view(table: pa.Table, steps: Steps, spec: RenderSpec, animated: bool):
         axis.images[0].set_data(rgb(steps.counts[shown[i]], top))
         axis.set_title(steps.caption(shown[i]), fontsize=7, pad=2)
 
-    return figure, update, len(shown) if animated else 1
+    return figure, update, len(shown) if animated else 1, 0
 
 
 def augmented_pair(table: pa.Table, trial: str | None) -> tuple[str, str, str]:
@@ -365,7 +366,7 @@ def augmented_view(table: pa.Table, spec: RenderSpec, animated: bool):
     source, copy, what = augmented_pair(table, spec.trial)
     pair = [_frame_steps(table, source), _frame_steps(table, copy)]
     top = colour_top(np.concatenate([pair[0].counts, pair[1].counts]))
-    shown = shown_steps(pair[0], spec, None if animated else min(spec.columns, MAX_TILES // 2))
+    shown, left_out = shown_steps(pair[0], spec, None if animated else min(spec.columns, MAX_TILES // 2))
     columns = 2 if animated else len(shown)
     figure, grid = _figure(1 if animated else 2, columns, _tile_inches(pair[0].counts, animated), False)
     axes = []
@@ -383,7 +384,7 @@ def augmented_view(table: pa.Table, spec: RenderSpec, animated: bool):
             axis.images[0].set_data(rgb(steps.counts[shown[i]], top))
             axis.set_title(f"{'source' if steps is pair[0] else what}, {steps.caption(shown[i])}", fontsize=7, pad=2)
 
-    return figure, update, len(shown) if animated else 1
+    return figure, update, len(shown) if animated else 1, left_out
 
 
 # ---------------------------------------------------------------- writing
@@ -394,19 +395,20 @@ def render(table: pa.Table, path: str, spec: RenderSpec) -> dict:
     fmt = output_format(path)
     animated = fmt != "png"
     if spec.view == "augmented":
-        figure, update, n = augmented_view(table, spec, animated)
+        figure, update, n, left_out = augmented_view(table, spec, animated)
         trial = augmented_pair(table, spec.trial)[1]
     else:
         trial = pick_trial(table, spec.trial)
         steps = steps_of(table, trial, spec)
         view = crop_view if spec.view == "crop" else montage
-        figure, update, n = view(table, steps, spec, animated) if view is crop_view else view(steps, spec, animated)
+        figure, update, n, left_out = view(table, steps, spec, animated) if view is crop_view else view(steps, spec, animated)
     try:
         pictures = [_grab(figure, update, i) for i in range(n)] if animated else None
         size = _write(figure, pictures, fmt, path, spec.fps)
     finally:
         _pyplot().close(figure)
-    return {"path": path, "format": fmt, "view": spec.view, "trial": trial, "pictures": n, "width": size[0], "height": size[1]}
+    return {"path": path, "format": fmt, "view": spec.view, "trial": trial, "pictures": n, "width": size[0], "height": size[1],
+            "left_out": left_out}
 
 
 def _grab(figure, update, i: int) -> np.ndarray:

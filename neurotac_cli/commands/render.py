@@ -47,3 +47,7 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     done = rd.render(table, output, spec)
     click.echo(f"neurotac render: wrote {output}: {done['view']} of trial {done['trial']!r}, {done['pictures']} "
                f"picture{'s' if done['pictures'] > 1 else ''} of {done['width']}x{done['height']} pixels", err=True)
+    if done["left_out"]:
+        click.echo(f"neurotac render: warning: {done['left_out']} more tiles that --every picks were not drawn (a PNG holds "
+                   "--columns tiles of an augmented pair, 60 of a montage); raise --every or --columns, or write .gif or .mp4 "
+                   "for all of them", err=True)
