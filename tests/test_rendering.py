@@ -147,7 +147,9 @@ def test_every_command_on_the_seeing_page_runs_and_draws_its_picture(tmp_path):
     assert len(pictures) >= 5 and all((tmp_path / "img" / name).stat().st_size > 0 for name in pictures)
 
 
-def test_tiles_a_png_cannot_hold_are_counted_not_dropped_silently(tmp_path):
-    done = render(frames_table(n=70), str(tmp_path / "m.png"), RenderSpec(trial="a"))
-    assert done["left_out"] == 10  # a montage holds 60 tiles
-    assert render(frames_table(n=70), str(tmp_path / "m.gif"), RenderSpec(trial="a", fps=50))["left_out"] == 0
+def test_tiles_a_png_cannot_hold_are_counted_not_dropped_silently(tmp_path, monkeypatch):
+    from neurotac_cli import rendering
+
+    monkeypatch.setattr(rendering, "MAX_TILES", 4)
+    assert render(frames_table(), str(tmp_path / "m.png"), RenderSpec(trial="a"))["left_out"] == 2
+    assert render(frames_table(), str(tmp_path / "m.gif"), RenderSpec(trial="a", fps=50))["left_out"] == 0
