@@ -56,8 +56,9 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
             left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", label=f"{name} estimated (RMSE {trial_rmse:.3f} N)")
         left.set_xlabel("time since sync t0 (ms)")
         left.set_ylabel("force (N)")
-        left.legend()
-        left.set_title("force over time" + (" (first seed)" if not first_run.all() else ""))
+        left.legend(loc="best", framealpha=0.85)
+        shown = f" ({len(chosen)} of {len(set(trial.tolist()))} trials)" if len(chosen) < len(set(trial.tolist())) else ""
+        left.set_title("force over time" + shown + (" (first seed)" if not first_run.all() else ""))
         _scatter(right, true, pred, phase)
         what = f"{title}: " if title else ""
         seeds = ", every seed" if not first_run.all() else ""
@@ -82,6 +83,8 @@ def _scatter(axis, true, pred, phase):
     if known.any():
         low = min(true[known].min(), pred[known].min())
         high = max(true[known].max(), pred[known].max())
+        margin = 0.03 * max(high - low, 1e-6)  # points at the extremes drawn whole, not cut by the frame
+        low, high = low - margin, high + margin
         axis.plot([low, high], [low, high], color="black", lw=1, label="1:1 (estimate = measured)")
         axis.set_xlim(low, high)
         axis.set_ylim(low, high)
@@ -169,6 +172,7 @@ def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
             axis.axvline(kept["epoch"], color="black", lw=0.8, ls="--", label=f"restored: epoch {kept['epoch']}")
             axis.plot([kept["epoch"]], [watched], "ko", ms=4)
         axis.set_xlabel("epoch")
+        axis.xaxis.set_major_locator(plt.MaxNLocator(integer=True))  # no epoch 2.5
         axis.set_ylabel(loss)
         axis.legend()
         how = ""
