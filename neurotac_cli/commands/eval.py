@@ -62,7 +62,10 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         folds=folds, nonzero=nonzero, per_trial=per_trial, runner=evaluate.Runner(jobs, scheduler, cache),
         progress=progress_printer())
     click.echo(result.summary, err=True)
-    step = history(spec=result.spec)
+    # what did not apply: the folds' settings when a model file is scored, the label when it estimates force
+    unused = (() if cv else ("repeats", "val_fraction", "val_per", "seed")) + (
+        ("label",) if "force_pred" in result.predictions.column_names else ())
+    step = history(spec=result.spec, unused=unused)
     if metrics_path:
         tables.write(metrics_path, result.metrics, step=step)
     if plot:
