@@ -114,7 +114,8 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     \b
         neurotac sync --manifest d/manifest.csv | neurotac frame --window 10ms --pad-to longest > f.arrows
         neurotac import rec.aedat | neurotac frame --window 10ms -o frames.parquet
-        neurotac sync --manifest s/manifest.csv | neurotac frame --window 10ms --phases session --slips s/grasps.csv
+        neurotac sync --manifest s/manifest.csv | neurotac crop --pool 6x6 \
+            | neurotac frame --window 10ms --phases session --slips s/grasps.csv
     """
     from neurotac_cli import tables
     from neurotac_cli.io.camera import camera_file_stem

@@ -101,7 +101,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
         neurotac simulate --preset ch4 --seed 1 --out sim/
         neurotac simulate --preset ch3 --trials 8 --synced | neurotac frame --window 7ms
         neurotac simulate --session --grasps 50 --duration 5min --seed 3 --out s/
-        neurotac sync --manifest s/manifest.csv | neurotac frame --window 10ms --phases session
+        neurotac sync --manifest s/manifest.csv | neurotac crop --pool 6x6 | neurotac frame --window 10ms --phases session
         neurotac simulate --trials 24 --vary all --hold-out membrane --gripper force --out train/
     """
     from neurotac_cli import tables
