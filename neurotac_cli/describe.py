@@ -260,10 +260,15 @@ def format_text(info: dict, everything: bool = False) -> str:
     """The description as aligned `name  value` lines for a terminal; `everything`: every trial and
     metric row, not the first TRIALS_SHOWN and METRICS_SHOWN."""
     if info["kind"] == "model":
-        return _model_text(info)
+        return _aligned(_model_lines(info))
     sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
     lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
     lines += _trial_lines(info, sync, everything) + _metric_lines(info, everything) + _history_lines(info)
+    return _aligned(lines)
+
+
+def _aligned(lines: list) -> str:
+    """(name, value) pairs with their values in one column; plain strings as they are."""
     width = max([13] + [len(line[0]) for line in lines if isinstance(line, tuple)])
     return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
 
@@ -371,8 +376,12 @@ def _metric_lines(info: dict, everything: bool = False) -> list:
 def _history_lines(info: dict) -> list:
     """The columns, then the history of commands that made the table."""
     lines = ["", ("columns:", ", ".join(f"{name}: {typ}" for name, typ in info["columns"].items()))]
-    history = info.get("history") or []
-    lines.append("history:" if history else ("history:", "(none)"))
+    return lines + _steps_lines("history:", info.get("history") or [])
+
+
+def _steps_lines(title: str, history: list) -> list:
+    """A title, then one line per step of a history: the command, its settings, the version that ran it."""
+    lines = [title if history else (title, "(none)")]
     for step in history:
         args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
@@ -472,7 +481,8 @@ def describe_model(path: str) -> dict:
     return info
 
 
-def _model_text(info: dict) -> str:
+def _model_lines(info: dict) -> list:
+    """A model's description as (name, value) pairs, then the commands that made its training frames."""
     spec, fit, trained = info["input"], info["training"].get("fit") or {}, info["training"]
     window = f"{spec['window_us'] / 1000:g} ms" if spec.get("window_us") else "an unknown window"
     pairs = [("file", f"{info['file']} (a neurotac model, format {info['format_version']})"), ("model", f"{info['model']} ({info['task']})"),
@@ -500,12 +510,7 @@ def _model_text(info: dict) -> str:
                                   f"{_compact(contacts.get('press_off'))} OFF, release {_compact(contacts.get('release_on'))} ON events"))
     if isinstance(info.get("slip"), dict):
         pairs.append(("slip bars", f"{info['slip'].get('min_events')} OFF / {info['slip'].get('min_events_on')} ON events"))
-    lines = pairs + ["", "trained on frames made by:" if info["history"] else ("trained on frames made by:", "(no history)")]
-    for step in info["history"]:
-        args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
-        lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
-    width = max(len(line[0]) for line in lines if isinstance(line, tuple))
-    return "\n".join(f"{line[0]:<{width}} {line[1]}" if isinstance(line, tuple) else line for line in lines) + "\n"
+    return pairs + [""] + _steps_lines("trained on frames made by:", info["history"])
 
 
 def _exists(path) -> bool:
