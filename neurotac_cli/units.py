@@ -24,11 +24,12 @@ def parse_duration_us(text: str) -> int:
 def parse_size(text: str) -> tuple[int, int]:
     """`115x115` -> (width, height)."""
     match = re.match(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$", str(text))
-    if not match or int(match.group(1)) == 0 or int(match.group(2)) == 0:
+    width, height = (int(match.group(1)), int(match.group(2))) if match else (0, 0)
+    if not width or not height:
         raise NeurotacError(f"cannot read size {text!r} (write WIDTHxHEIGHT, e.g. 240x180)")
-    if max(int(match.group(1)), int(match.group(2))) > MAX_SIDE:
+    if max(width, height) > MAX_SIDE:
         raise NeurotacError(f"size {text!r} is beyond {MAX_SIDE} pixels a side (event coordinates are 16-bit)")
-    return int(match.group(1)), int(match.group(2))
+    return width, height
 
 
 MAX_SIDE = 65535  # x and y of an event are uint16

@@ -92,8 +92,7 @@ def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
     if model.task == "material":
         predictions = classify_table(model, table)
         return predictions, score(predictions, classes=model.classes, label=model.training.get("label", "material"))
-    if "force" not in table.column_names or table.column("force").null_count == table.num_rows or \
-            not np.isfinite(table.column("force").to_numpy(zero_copy_only=False).astype(np.float64)).any():
+    if "force" not in table.column_names or not np.isfinite(table.column("force").to_numpy(zero_copy_only=False).astype(np.float64)).any():
         raise InputError("no frame has a true force to score the estimates against (the force column is empty); "
                          "`neurotac predict` gives the estimates alone")
     predictions = predict_table(model, table)

@@ -8,6 +8,8 @@ line its meaning in the legend.
 
 import numpy as np
 
+from neurotac_cli.units import counted
+
 PHASE_COLOURS = {"grasping": "tab:blue", "holding": "tab:red", "releasing": "tab:green"}
 STYLE = {"font.size": 8, "axes.titlesize": 9, "axes.labelsize": 8, "legend.fontsize": 7, "xtick.labelsize": 7,
          "ytick.labelsize": 7, "axes.grid": True, "grid.color": "#dddddd", "grid.linewidth": 0.5,
@@ -44,6 +46,7 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
     # cross-validation repeats hold every frame once per seed: traces show the first seed's run
     first_run = predictions.column("repeat").to_numpy() == 0 if "repeat" in predictions.column_names else np.ones(len(trial), bool)
     rmse, mae, frames = force_errors(true, pred)
+    count = len(set(trial.tolist()))
     with plt.rc_context(STYLE):
         fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
         for n, name in enumerate(chosen):
@@ -57,14 +60,13 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
         left.set_xlabel("time since sync t0 (ms)")
         left.set_ylabel("force (N)")
         left.legend(loc="best", framealpha=0.85)
-        shown = f" ({len(chosen)} of {len(set(trial.tolist()))} trials)" if len(chosen) < len(set(trial.tolist())) else ""
+        shown = f" ({len(chosen)} of {count} trials)" if len(chosen) < count else ""
         left.set_title("force over time" + shown + (" (first seed)" if not first_run.all() else ""))
         _scatter(right, true, pred, phase)
         what = f"{title}: " if title else ""
         seeds = ", every seed" if not first_run.all() else ""
-        count = len(set(trial.tolist()))
         fig.suptitle(f"{what}estimated vs measured force, RMSE {rmse:.3f} N, MAE {mae:.3f} N "
-                     f"({frames:,} frames of {count} trial{'s' if count != 1 else ''}{seeds})")
+                     f"({frames:,} frames of {counted(count, 'trial')}{seeds})")
         fig.tight_layout()
         _save(fig, path)
         plt.close(fig)

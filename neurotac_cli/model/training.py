@@ -45,10 +45,12 @@ def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trial
                   val_where=val_where, per=per, seed=seed, progress=progress, label=label)
     curve = model.training.get("curve", [])
     best = best_epoch(curve)
-    validated = best and best["val_loss"] == best["val_loss"]  # NaN: no validation trials, the last epoch kept
-    summary = (f"{name}: {len(curve)} epochs, best epoch {best['epoch']} (train {best['train_loss']:.4g}, validation "
-               f"{best['val_loss']:.4g})" if validated else f"{name}: {len(curve)} epochs, best epoch {best['epoch']} by "
-               f"its training loss {best['train_loss']:.4g} (no validation trials)") if best else ""
+    summary = ""
+    if best and best["val_loss"] == best["val_loss"]:
+        summary = (f"{name}: {len(curve)} epochs, best epoch {best['epoch']} (train {best['train_loss']:.4g}, "
+                   f"validation {best['val_loss']:.4g})")
+    elif best:  # no validation trials (a NaN validation loss): the epoch was chosen by its training loss
+        summary = f"{name}: {len(curve)} epochs, best epoch {best['epoch']} by its training loss {best['train_loss']:.4g} (no validation trials)"
     rows = [(f"epoch:{row['epoch']}", key, row[key]) for row in curve for key in ("train_loss", "val_loss")]
     loss = "cross-entropy" if model.task == "material" else "MSE of force / training max (dimensionless)"
     return Trained(model, summary, metrics_table(rows, name), loss)
