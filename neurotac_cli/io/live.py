@@ -286,7 +286,7 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
             if data is None:
                 break
             pending += data
-        cut = len(pending) + getattr(decoder, "held", lambda: 0)()
+        cut = len(pending) + decoder.held()
         if cut and not decoder.finished:
             notes.append(cut_note(name, cut))
         if decoder.triggers:

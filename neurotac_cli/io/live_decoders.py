@@ -168,6 +168,9 @@ class Aedat4:
         _, end, self.finished = aedat4.walk_packets(lambda offset, n: pending[offset:offset + n], len(pending), self.known)
         return end
 
+    def held(self) -> int:
+        return 0  # a packet is decoded whole or left pending
+
     def decode(self, block: bytes):
         from neurotac_cli.io import aedat4
 
