@@ -248,12 +248,16 @@ def _tile_inches(counts: np.ndarray, animated: bool) -> tuple[float, float]:
     return tile_w, max(tile_w * height / width, 0.3)
 
 
+MIN_FIGURE_INCHES = 2.6
+
+
 def _figure(rows: int, columns: int, tile: tuple[float, float], strip: bool):
     """A figure of rows x columns image tiles, with a force strip under them when asked."""
     plt = _pyplot()
     tile_w, tile_h = tile
-    figure = plt.figure(figsize=(columns * tile_w + 1.4, rows * (tile_h + 0.3) + (1.9 if strip else 0) + 0.6),
-                        dpi=DPI, layout="constrained")
+    # at least the height of the colour bars' labels: one row of wide tiles (a 1280x720 sensor) cut them off
+    height = max(rows * (tile_h + 0.3) + (1.9 if strip else 0) + 0.6, MIN_FIGURE_INCHES)
+    figure = plt.figure(figsize=(columns * tile_w + 1.4, height), dpi=DPI, layout="constrained")
     grid = figure.add_gridspec(rows + strip, columns, height_ratios=[tile_h + 0.3] * rows + [1.6] * strip)
     return figure, grid
 
@@ -422,9 +426,12 @@ def _write(figure, pictures, fmt: str, path: str, fps: float) -> tuple[int, int]
 
     with atomic_file(path) as temporary:
         if fmt == "png":
-            figure.savefig(temporary, format="png", dpi=DPI)
-            width, height = figure.canvas.get_width_height()
-            return width, height
+            # the whole drawing, the colour bars' labels included, whatever the tiles' shape left for them
+            figure.savefig(temporary, format="png", dpi=DPI, bbox_inches="tight", pad_inches=0.05)
+            from PIL import Image
+
+            with Image.open(temporary) as image:
+                return image.size
         if fmt == "gif":
             from PIL import Image
 
