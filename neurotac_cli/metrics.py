@@ -117,6 +117,10 @@ def classification_rows(true, pred, classes) -> list:
     """Accuracy, per-class recall, and the confusion matrix as rows (scope `confusion:TRUE`, metric `pred:PRED`)."""
     true, pred = np.asarray(true, dtype=object), np.asarray(pred, dtype=object)
     rows = [("all", "n", float(len(true))), ("all", "accuracy", float(np.mean(true == pred)) if len(true) else float("nan"))]
+    unknown = ~np.isin(true, np.asarray(list(classes), dtype=object))
+    if unknown.any():  # trials of a class the classifier cannot name: counted as wrong, and said so
+        rows.append(("all", "unknown_class", float(unknown.sum())))
+        rows += [(f"unknown:{name}", "n", float(np.sum(true == name))) for name in dict.fromkeys(true[unknown].tolist())]
     for name in classes:
         mine = true == name
         if mine.any():

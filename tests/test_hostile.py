@@ -146,6 +146,12 @@ def test_augment_refuses_angles_and_scales_that_are_no_numbers(args, files):  # 
     assert code == 2 and "finite" in stderr
 
 
+@pytest.mark.parametrize("args", [["--fs", "0"], ["--tes", "0", "0.5"], ["--tes", "-2", "0"], ["--rotate", "0"], ["--resize", "1"]])
+def test_augment_refuses_a_method_that_changes_nothing(args, files):  # noqa: F811
+    code, stderr, _ = invoke(["augment", *args, f"{files}/f.arrows"])
+    assert code == 2 and "changes nothing" in stderr.splitlines()[-1]
+
+
 def test_a_force_log_naming_a_column_twice_is_one_line(tmp_path):
     from neurotac_cli.errors import FormatError
     from neurotac_cli.io.force import read_force_log
@@ -284,3 +290,24 @@ def test_a_gap_of_years_between_two_events_is_refused_not_out_of_memory(tmp_path
     tables.write(str(tmp_path / "e.arrows"), table)
     code, stderr, _ = invoke([a.format(d=tmp_path) for a in args] + [str(tmp_path / "e.arrows")])
     assert one_line(stderr, code, 1) and words in stderr
+
+
+def test_scoring_a_classifier_on_classes_it_never_learnt_says_so(files, tmp_path):  # noqa: F811
+    table = frames_table(trials=("a", "b", "c"))
+    material = table.column("material").to_pylist()
+    relabel = lambda names: table.set_column(table.schema.get_field_index("material"), "material", pa.array(names))  # noqa: E731
+    tables.write(str(tmp_path / "none.arrows"), relabel(["glass" if m == "foam" else "wood" for m in material]))
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", str(tmp_path / "none.arrows")])
+    assert one_line(stderr, code, 1) and "none of the trials' material values (glass, wood) is a class" in stderr
+    tables.write(str(tmp_path / "some.arrows"), relabel(["glass" if t == "c" else m for t, m in zip(table.column("trial").to_pylist(), material)]))
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", str(tmp_path / "some.arrows")])
+    assert code == 0 and "1 trial of classes the model was not trained on (glass), counted as wrong" in stderr
+
+
+@pytest.mark.parametrize("verb", ["eval", "predict"])
+def test_frames_that_do_not_record_their_window_are_read_with_a_warning(files, tmp_path, verb):  # noqa: F811
+    table = frames_table()
+    table = table.replace_schema_metadata({k: v for k, v in table.schema.metadata.items() if k != sch.WINDOW.encode()})
+    tables.write(str(tmp_path / "w.arrows"), table)
+    code, stderr, _ = invoke([verb, "--model", f"{files}/m.model", str(tmp_path / "w.arrows")])
+    assert code == 0 and "the frames do not record their window" in stderr and "trained on 10 ms frames" in stderr

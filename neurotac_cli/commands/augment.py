@@ -50,6 +50,12 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
     from neurotac_cli import tables
     from neurotac_cli.ops import augment
 
+    unchanged = [name for name, same in (("--fs 0", fs == 0), ("--tes with J 0", tes is not None and tes[0] == 0),
+                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), ("--rotate 0", rotate == 0),
+                                         ("--rotate-range 0 0", tuple(rotate_range or ()) == (0, 0)), ("--resize 1", resize == 1))
+                 if same]
+    if unchanged:
+        raise click.UsageError(f"{unchanged[0]} changes nothing: its copies would equal the trials they come from")
     request = augment.Augmentation(rotate=rotate, rotate_range=rotate_range or None, resize=resize,
                                    preserve_total=preserve_total, fs=fs, tes=tes, combine=combine, copies=copies,
                                    where=where, keep_original=not only_augmented, seed=seed, noise=noise)

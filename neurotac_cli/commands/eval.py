@@ -1,7 +1,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, threads_option, use_device)
 
 
@@ -50,6 +50,11 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    if model_path:
+        from neurotac_cli.model.core import unstated_window
+        from neurotac_cli.model.store import read_header
+
+        echo_lines("eval", filter(None, [unstated_window(read_header(model_path)["input"], table.schema)]), "warning: ")
     import torch
 
     from neurotac_cli.model import evaluate, plots

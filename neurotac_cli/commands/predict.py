@@ -45,6 +45,7 @@ def command(paths, output, model_path, material_path, threads):
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
     model = loaded()
+    echo_lines("predict", filter(None, [models.unstated_window(model.input_spec, source.schema)]), "warning: ")
     outside = models.Outside.of(model, say=lambda line: echo_lines("predict", [line], "warning: "))
     notes = []
     schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material(), outside=outside,

@@ -207,6 +207,15 @@ def check_input(model: Model, schema: pa.Schema):
         )
 
 
+def unstated_window(input_spec: dict, schema: pa.Schema) -> str | None:
+    """A warning where the frames do not record their window, so `check_input` could not compare it."""
+    window = input_spec.get("window_us")
+    if window and not sch.get_meta(schema, sch.WINDOW):
+        return (f"the frames do not record their window (metadata {sch.WINDOW}), so it was not checked; the model "
+                f"was trained on {window / 1000:g} ms frames and reads others wrongly")
+    return None
+
+
 # ---------------------------------------------------------------- training
 
 

@@ -90,8 +90,14 @@ def study(frames: pa.Table, model_spec: str, grid, fixed: dict | None, folds: Fo
 def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
     """(predictions, metric rows) of a trained model on a frames table."""
     if model.task == "material":
+        label = model.training.get("label", "material")
         predictions = classify_table(model, table)
-        return predictions, score(predictions, classes=model.classes, label=model.training.get("label", "material"))
+        if label in predictions.column_names:
+            given = {value for value in predictions.column(label).to_pylist() if value is not None}
+            if given and not given & set(model.classes):
+                raise InputError(f"none of the trials' {label} values ({', '.join(sorted(map(str, given)))}) is a class of model "
+                                 f"{model.name!r} ({', '.join(model.classes)}): nothing to score; `neurotac classify` names them")
+        return predictions, score(predictions, classes=model.classes, label=label)
     if "force" not in table.column_names or not np.isfinite(table.column("force").to_numpy(zero_copy_only=False).astype(np.float64)).any():
         raise InputError("no frame has a true force to score the estimates against (the force column is empty); "
                          "`neurotac predict` gives the estimates alone")

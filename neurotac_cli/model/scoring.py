@@ -72,6 +72,10 @@ def summary(rows: list, title: str = "") -> str:
         lines.append(f"accuracy {100 * figures['accuracy']:.1f}% over {counted(int(figures.get('n', 0)), 'trial')}")
         if "accuracy_fold_mean" in figures:
             lines.append(f"accuracy per fold {100 * figures['accuracy_fold_mean']:.1f}% ± {100 * figures['accuracy_fold_sd']:.1f}%")
+        unknown = [s[len("unknown:"):] for s in by_scope if s.startswith("unknown:")]
+        if unknown:
+            lines.append(f"  {counted(int(figures.get('unknown_class', 0)), 'trial')} of classes the model was not trained on "
+                         f"({', '.join(unknown)}), counted as wrong")
         classes = [s[len("class:"):] for s in by_scope if s.startswith("class:")]
         for name in classes:
             recall = by_scope[f"class:{name}"].get("recall")
