@@ -25,9 +25,10 @@ from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
-FORMATS = ("aedat2", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
+FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
 FORMAT_NAMES = {
     "aedat2": "AEDAT 2.0 (jAER)",
+    "aedat3": "AEDAT 3.1 (cAER)",
     "aedat4": "AEDAT 4.0",
     "evt2": "Prophesee EVT 2.0 raw",
     "evt3": "Prophesee EVT 3.0 raw",
@@ -86,7 +87,7 @@ def detect_format(path, head: bytes) -> str:
             raise FormatError(f"{name}: AEDAT 1.0 is not supported (convert it to AEDAT 2.0 or 4.0 with jAER or dv)")
         return "aedat2"
     if head.startswith(b"#!AER-DAT3"):
-        raise FormatError(f"{name}: AEDAT 3.1 is not supported (convert it to AEDAT 4.0 with dv-runtime's converter)")
+        return "aedat3"
     if head.startswith(b"#!AER-DAT4"):
         return "aedat4"
     if head.startswith(b"Event Stream"):
@@ -111,7 +112,7 @@ def detect_format(path, head: bytes) -> str:
         first = _first_data_line(head.removeprefix(BOM))
         return "csv" if "," in first else "text"
     raise FormatError(
-        f"{name}: unknown camera format (known: AEDAT 2.0/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
+        f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
         "Event Stream .es, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
     )
 

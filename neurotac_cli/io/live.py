@@ -30,7 +30,7 @@ import pyarrow as pa
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, cannot_open
 
-STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "es", "dat")
+STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "aedat3", "es", "dat")
 POLL_S = 0.0002  # a followed file is checked for new bytes this often while it grows (a pipe wakes the reader itself):
 # a camera writes every millisecond or so, and the poll's wait is part of every window's latency
 IDLE_POLL_S = 0.002  # ... and this often once nothing has arrived for IDLE_AFTER_S (a fifth of the CPU time)
@@ -221,10 +221,16 @@ def _lines_length(data: bytes, marker: bytes) -> int:
 def header_length(fmt: str, data: bytes, at_end: bool) -> int | None:
     """Bytes of the camera header at the start of `data`, or None while it is still incomplete (a
     line header is complete once a data byte follows it, or the stream has ended)."""
-    from neurotac_cli.io import aedat2, eventstream
+    from neurotac_cli.io import aedat2, aedat3, eventstream
 
     if fmt == "aedat4":
         length = 18 + struct.unpack_from("<I", data, 14)[0] if len(data) >= 18 else len(data) + 1
+    elif fmt == "aedat3":
+        length = aedat3.header_length(bytes(data))
+        if length is None:
+            if at_end:
+                raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
+            return None
     elif fmt == "es":
         length = eventstream.HEADER
     else:
@@ -254,7 +260,7 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
             raise InputError(f"{name}: {label} does not declare the sensor size, which takes a pass over the whole "
                              "file to find; give --sensor WxH to follow it")
         raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.0, "
-                         "AEDAT 2.0, Event Stream and DAT); import it without --follow once it is written")
+                         "AEDAT 2.0/3.1, Event Stream and DAT); import it without --follow once it is written")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stream-")
     with os.fdopen(handle, "wb") as sink:
         sink.write(buffer)

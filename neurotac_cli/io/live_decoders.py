@@ -84,6 +84,28 @@ class Davis(_Records):
         return t, x, y, p
 
 
+class Aedat3(_Records):
+    """AEDAT 3.1 packets, decoded once whole (a packet's events share its header's timestamp overflow)."""
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import aedat3
+
+        self.sensor, camera = aedat3.sensor_of_header(header)
+        self.meta = {"source": {"camera": camera}} if camera else {}
+        self.packets = aedat3.Packets()
+
+    def complete(self, pending) -> int:
+        from neurotac_cli.io import aedat3
+
+        return aedat3.whole_packets(pending, len(pending))
+
+    def decode(self, block: bytes):
+        found = len(self.packets.triggers)
+        events = self.packets.decode(block)
+        self.triggers += len(self.packets.triggers) - found
+        return events
+
+
 class EventStream(_Records):
     """Event Stream 2.x bytes (the kernel carries an event cut between reads in its state)."""
 
@@ -210,6 +232,7 @@ DECODERS = {
     "evt2": lambda header, sensor: Words(header, sensor, 4),
     "evt3": lambda header, sensor: Words(header, sensor, 2),
     "aedat2": Davis,
+    "aedat3": Aedat3,
     "es": EventStream,
     "dat": Dat,
     "aedat4": Aedat4,

@@ -23,6 +23,7 @@ MAGICS = [
     b"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n",
     b"#!AER-DAT2.0\r\n",
     b"#!AER-DAT2.0\r\n# AEChip: ch.unizh.ini.jaer.chip.retina.DVS128\r\n",
+    b"#!AER-DAT3.1\r\n#Source 1: DAVIS240C\r\n#!END-HEADER\r\n",
     b"#!AER-DAT4.0\r\n",
     b"% evt 2.0\n",
     b"% evt 3.0\n",
