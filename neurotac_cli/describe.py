@@ -10,6 +10,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
+from neurotac_cli.units import counted
 
 TRIALS_SHOWN = 20
 METRICS_SHOWN = 50  # metric rows in the text; METRICS_KEPT in --json (every one with --all)
@@ -261,6 +262,14 @@ def format_text(info: dict, everything: bool = False) -> str:
     metric row, not the first TRIALS_SHOWN and METRICS_SHOWN."""
     if info["kind"] == "model":
         return _aligned(_model_lines(info))
+    if info["kind"] == "csv":
+        pairs = [("file", f"{info['file']} (CSV text)"), ("rows", f"{info['rows']:,}"), ("columns", ", ".join(info["columns"]))]
+        log = info.get("force_log")
+        if log:
+            pairs.append(("force log", f"{counted(log['samples'], 'sample')} in {counted(log['trials'], 'trial')}, every "
+                                       f"{log['period_ms']:g} ms over {log['span_s']:.3f} s; {log['force_n'][0]:.3g} .. "
+                                       f"{log['force_n'][1]:.3g} N (as `sync --force` reads it)"))
+        return _aligned(pairs)
     sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
     lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
     lines += _trial_lines(info, sync, everything) + _metric_lines(info, everything) + _history_lines(info)
@@ -443,9 +452,51 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
         return describe(opened.schema, opened.batches, everything=everything)
     if len(paths) > 1:
         raise InputError("describe one camera file at a time, or import them into one table first")
+    text = describe_csv(paths[0])
+    if text is not None:
+        return text
     schema, batches = events.read_events(paths[0], sensor)
     fmt = sch.camera_source(schema).get("format")
     return describe(schema, batches, camera={"format": fmt, "format_name": camera.FORMAT_NAMES.get(fmt, fmt)})
+
+
+def describe_csv(path: str) -> dict | None:
+    """A CSV file that holds no events (no x, y and p columns): a force log, a manifest, a table
+    written as text. None for anything else (a camera file, events as CSV)."""
+    import csv
+
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.io import camera, force
+    from neurotac_cli.io.force import _read_table
+
+    with open(path, "rb") as handle:
+        head = handle.read(1 << 16)
+    try:
+        if camera.detect_format(path, head) != "csv":
+            return None
+    except NeurotacError:
+        return None
+    first = camera._first_data_line(head.removeprefix(camera.BOM))
+    names = {name.strip().lower() for name in next(csv.reader([first]), [])}
+    if {"x", "y"} <= names and ({"p", "polarity", "pol"} & names):
+        return None
+    table = _read_table(path)
+    info = {"kind": "csv", "file": path, "rows": table.num_rows,
+            "columns": [f"{field.name}: {field.type}" for field in table.schema]}
+    try:
+        logs = force.read_force_log(path)
+    except NeurotacError:
+        return info
+    samples = [log for log in logs if len(log.t)]
+    if samples:
+        values = np.concatenate([log.value for log in samples])
+        info["force_log"] = {
+            "trials": len(samples), "samples": int(sum(len(log.t) for log in samples)),
+            "period_ms": float(np.median([log.period_us for log in samples])) / 1000,
+            "span_s": float(max(log.t[-1] - log.t[0] for log in samples)) / 1e6,
+            "force_n": [float(values.min()), float(values.max())],
+        }
+    return info
 
 
 def _is_model(path: str) -> bool:

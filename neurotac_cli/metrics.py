@@ -257,6 +257,11 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     slopes = [_slope(t_us[idx][rest[idx]] / 60e6, np.abs(pred[idx][rest[idx]])) for idx in sessions]
     slopes = [s for s in slopes if np.isfinite(s)]
     figures = {"rest_frames": int(rest.sum())}
+    steps = np.diff(true[known])
+    noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2) if len(steps) else 0.0
+    loaded = rest & known & (np.abs(np.nan_to_num(true)) > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
+    if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
+        figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(np.abs(true[loaded]).max()))
     touching = ~rest & known
     if touching.any():  # the grasps' own frames: comparable between a session and its grasps cut into trials
         figures["contact_rmse"] = regression(true[touching], pred[touching])["rmse"]
@@ -278,6 +283,11 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
                                          unit=(window_us or 0) / 1000, suffix="latency_ms", tolerance=20.0))
     rows[:0] = [("all", name, float(value)) for name, value in figures.items()]
     return rows
+
+
+# A frame at rest whose true force exceeds this share of the range, and this many times the force's
+# noise (s.d. of its frame-to-frame steps, robustly), is loaded: its phase is not a session's.
+REST_FORCE_SHARE, REST_FORCE_NOISE = 0.1, 10.0
 
 
 def _slope(x, y) -> float:

@@ -311,3 +311,59 @@ def test_frames_that_do_not_record_their_window_are_read_with_a_warning(files, t
     tables.write(str(tmp_path / "w.arrows"), table)
     code, stderr, _ = invoke([verb, "--model", f"{files}/m.model", str(tmp_path / "w.arrows")])
     assert code == 0 and "the frames do not record their window" in stderr and "trained on 10 ms frames" in stderr
+
+
+def _made_by(table, pool, dtype="uint16"):
+    return table.replace_schema_metadata(sch.set_meta(table.schema, history=[
+        {"command": "crop", "args": {"pool": pool}}, {"command": "frame", "args": {"dtype": dtype}}]).metadata)
+
+
+@pytest.mark.parametrize("pool, dtype, said", [([3, 3], "uint16", "pooled 3x3 (different pooling)"),
+                                               ([6, 6], "float32", "scaled as float32 (different counts)")])
+def test_frames_pooled_or_scaled_unlike_the_training_frames_are_refused(tmp_path, pool, dtype, said):
+    tables.write(str(tmp_path / "train.arrows"), _made_by(frames_table(), [6, 6]))
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model"), str(tmp_path / "train.arrows")])
+    assert code == 0, stderr
+    tables.write(str(tmp_path / "same.arrows"), _made_by(frames_table(), [6, 6]))
+    tables.write(str(tmp_path / "other.arrows"), _made_by(frames_table(), pool, dtype))
+    assert invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "same.arrows")])[0] == 0
+    code, stderr, _ = invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "other.arrows")])
+    assert one_line(stderr, code, 1) and said in stderr
+
+
+def test_eval_refuses_an_infinite_true_force(files, tmp_path):  # noqa: F811
+    table = frames_table()
+    force = table.column("force").to_numpy(zero_copy_only=False).copy()
+    force[2] = np.inf
+    tables.write(str(tmp_path / "inf.arrows"), table.set_column(table.schema.get_field_index("force"), "force", pa.array(force)))
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/m.model", str(tmp_path / "inf.arrows")])
+    assert one_line(stderr, code, 1) and "NaN or infinite" in stderr
+
+
+@pytest.mark.parametrize("args, code_expected, said", [
+    (["--duration", "0s"], 2, "positive"),
+    (["--set", "session_rest_us=1ms..2ms"], 2, "session_rest_us must start at 50 ms"),
+])
+def test_a_session_without_time_for_its_grasps_is_refused(tmp_path, args, code_expected, said):
+    code, stderr, _ = invoke(["simulate", "--session", "--grasps", "1", *args, "--out", str(tmp_path / "s")])
+    assert code == code_expected and said in stderr, stderr
+
+
+def test_frame_warns_where_the_force_log_is_sampled_more_slowly_than_the_window_and_slips_lie_outside(tmp_path):
+    code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", "--synced", "-o", str(tmp_path / "r.arrows")])
+    assert code == 0, stderr
+    (tmp_path / "slips.csv").write_text("trial,slip_start_ms,slip_end_ms\nsteel-bolt8-01,90000,90010\n")
+    code, stderr, _ = invoke(["frame", "--window", "500us", "--phases", "auto", "--slips", str(tmp_path / "slips.csv"),
+                              "-o", str(tmp_path / "f.arrows"), str(tmp_path / "r.arrows")])
+    assert code == 0 and "more slowly than the 0.5 ms window" in stderr and "1 true slip lie outside" in stderr, stderr
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "--phases", "auto", "-o", str(tmp_path / "g.arrows"), str(tmp_path / "r.arrows")])
+    assert code == 0 and "more slowly" not in stderr
+
+
+def test_info_describes_a_force_log_and_a_csv_table(tmp_path):
+    (tmp_path / "force.csv").write_text("t_ms,force_N\n" + "".join(f"{2 * i},{i / 10}\n" for i in range(11)))
+    code, _, out = invoke(["info", str(tmp_path / "force.csv")])
+    assert code == 0 and "11 samples in 1 trial, every 2 ms over 0.020 s; 0 .. 1 N" in out
+    (tmp_path / "table.csv").write_text("trial,frame,force_pred\na,0,0.5\n")
+    code, _, out = invoke(["info", str(tmp_path / "table.csv")])
+    assert code == 0 and "trial: string, frame: int64, force_pred: double" in out and "force log" not in out

@@ -15,7 +15,9 @@ def command(paths, as_json, everything, sensor):
     """Describe a table or camera file: kind, rows, trials, sensor, time span, event rate, ON share,
     labels per trial, frames per trial and window, and the history of commands that made it.
 
-    Works on every table kind and, directly, on camera files (decoded, not written). Several tables
+    Works on every table kind and, directly, on camera files (decoded, not written) and on CSV text
+    that holds no events (a force log, with its samples, period and range as `sync` reads it; a
+    manifest; a table written as CSV: its rows and columns). Several tables
     are described as one, as every command reads them. A model file from `neurotac train` is
     described from its header: the network, the frames it takes, its classes, how it was trained,
     and the commands that made its training frames.

@@ -44,7 +44,7 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="With --session: grasps per session, objects drawn from --objects (or the preset's groups), weighted by count.")
 @click.option("--sessions", type=click.IntRange(min=1), default=1, show_default=True,
               help="With --session: how many sessions to write (session00, session01, ...), each its own seed stream.")
-@click.option("--duration", type=Duration(), default=None,
+@click.option("--duration", type=Duration(positive=True), default=None,
               help="With --session: the shortest session, e.g. 5min (the last rest is stretched; with --grasps 0, a session at rest).")
 @click.option("--illumination-drift", type=float, default=None, metavar="SHARE",
               help="With --session: slow drift of the lighting, its relative amplitude (0.05 = +-5% over "

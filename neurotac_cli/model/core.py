@@ -186,25 +186,53 @@ def check_input(model: Model, schema: pa.Schema):
     spec = model.input_spec
     here = input_spec_of(schema, already_accumulated(schema))
 
-    def describe(s):
+    def describe(s, made):
         window = f"{s['window_us'] / 1000:g} ms" if s.get("window_us") else "an unknown window"
         kind = "accumulated " if s.get("accumulated") else ""
-        return f"{s['width']}x{s['height']} {kind}frames of {window}"
+        pool, scaled = made
+        how = "".join([f", pooled {pool[0]}x{pool[1]}" if pool and "pooling" in problems else "",
+                       f", {'scaled' if scaled else 'counted'} as {'float32' if scaled else 'uint16'}" if "counts" in problems else ""])
+        return f"{s['width']}x{s['height']} {kind}frames of {window}{how}"
 
     problems = []
+    trained, given = made_by((model.training or {}).get("data_history") or []), made_by(sch.get_meta(schema, sch.HISTORY, []))
     if (spec["height"], spec["width"]) != (here["height"], here["width"]):
         problems.append("crop")
     if spec.get("window_us") and here.get("window_us") and spec["window_us"] != here["window_us"]:
         problems.append("window")
     if bool(spec.get("accumulated")) != bool(here["accumulated"]):
         problems.append("accumulation")
+    # pooling and scaling change what a count means even where the shape agrees (known where both histories say)
+    if None not in (trained[0], given[0]) and trained[0] != given[0]:
+        problems.append("pooling")
+    if None not in (trained[1], given[1]) and trained[1] != given[1]:
+        problems.append("counts")
     if problems:
         raise ModelError(
-            f"model {model.name!r} was trained on {describe(spec)}, this input has {describe(here)} "
+            f"model {model.name!r} was trained on {describe(spec, trained)}, this input has {describe(here, given)} "
             f"(different {' and '.join(problems)}); prepare the frames as the training frames were: `neurotac frame "
-            f"--window {(spec.get('window_us') or 10000) / 1000:g}ms | neurotac crop` with the training's --size, --center and --pool "
+            f"--window {(spec.get('window_us') or 10000) / 1000:g}ms | neurotac crop` with the training's --size, --center and --pool, and frame's --dtype "
             f"(`neurotac info` of the training frames shows them)"
         )
+
+
+def made_by(history: list) -> tuple:
+    """(pooling (rows, columns) summed over the crops, whether `frame --dtype float32` scaled the counts)
+    of frames made by these history steps; None where the history does not say."""
+    pool, scaled = (1, 1), None
+    for step in history:
+        args = step.get("args") or {}
+        if step.get("command") == "crop":
+            factor = args.get("pool")
+            if factor is None:
+                continue
+            if not (isinstance(factor, list) and len(factor) == 2 and all(isinstance(v, int) for v in factor)):
+                pool = None  # `--pool all` and older spellings: unknown here
+            elif pool is not None:
+                pool = (pool[0] * factor[0], pool[1] * factor[1])
+        elif step.get("command") == "frame" and "dtype" in args:
+            scaled = args["dtype"] == "float32"
+    return pool if history else None, scaled
 
 
 def unstated_window(input_spec: dict, schema: pa.Schema) -> str | None:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
+from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import classify_table, make_spec
@@ -101,6 +102,7 @@ def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
     if "force" not in table.column_names or not np.isfinite(table.column("force").to_numpy(zero_copy_only=False).astype(np.float64)).any():
         raise InputError("no frame has a true force to score the estimates against (the force column is empty); "
                          "`neurotac predict` gives the estimates alone")
+    sch.check_force(table.column("force").drop_null().to_numpy(zero_copy_only=False), "the frames' force column")
     predictions = predict_table(model, table)
     return predictions, score(predictions, nonzero=nonzero, per_trial=per_trial)
 

@@ -24,7 +24,7 @@ import pyarrow as pa
 
 from neurotac_cli import metrics
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import InputError, ModelError
 from neurotac_cli.model import data as shaping
 from neurotac_cli.ops import contact as detector
 from neurotac_cli.units import counted
@@ -73,6 +73,19 @@ class Stream:
         self.slip = slip_config(model)
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
+        self.last_frame = None  # the frame number read last: a stream's frames come one window after another
+
+    def check_order(self, trial: str, frames: np.ndarray):
+        """Refuse frames that do not follow one another (a gap, a repeat, the wrong order): the detector
+        and the force model take each frame as the next window of the stream."""
+        given = np.concatenate([[self.last_frame], frames]) if self.last_frame is not None else frames
+        steps = np.diff(given)
+        if len(steps) and (steps != 1).any():
+            k = int(np.flatnonzero(steps != 1)[0])
+            raise InputError(f"trial {trial!r}: frame {int(given[k + 1])} follows frame {int(given[k])}; a model trained "
+                             "with --contacts reads each stream's frames one window after another, as `frame` writes them "
+                             "(give whole sessions, in order)")
+        self.last_frame = int(frames[-1]) if len(frames) else self.last_frame
 
     def step(self, counts: np.ndarray, t_us: np.ndarray):
         """(force, phase, slip flag, material) per frame of frames (T, 2, H, W) at times (T,) µs; the
@@ -294,6 +307,7 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
     trials = batch.column("trial").to_pylist()
     counts = sch.counts_numpy(batch.column("counts"))
     t = batch.column("t").to_numpy().astype(np.int64)
+    frame_numbers = batch.column("frame").to_numpy().astype(np.int64)
     force = np.empty(batch.num_rows, dtype=np.float32)
     phase = np.empty(batch.num_rows, dtype=object)
     slip = np.zeros(batch.num_rows, dtype=bool)
@@ -304,6 +318,7 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
         if trials[begin] not in streams:
             streams[trials[begin]] = Stream(model, material)
         one = streams[trials[begin]]
+        one.check_order(trials[begin], frame_numbers[begin:end])
         force[begin:end], phase[begin:end], slip[begin:end], named[begin:end] = one.step(counts[begin:end], t[begin:end])
         distances[begin:end] = one.distances
     log = getattr(model.net, "distance_log", None)
@@ -326,7 +341,7 @@ def session_rows(predictions: pa.Table) -> list:
     names = predictions.schema.names
     column = lambda name: predictions.column(name).to_numpy(zero_copy_only=False) if name in names else None  # noqa: E731
     grasp = predictions.column("grasp").cast(pa.float64()).fill_null(np.nan).to_numpy() if "grasp" in names else None
-    slip = predictions.column("slip").fill_null(False).to_numpy(zero_copy_only=False) if "slip" in names else None
+    slip = predictions.column("slip").cast(pa.bool_()).fill_null(False).to_numpy(zero_copy_only=False) if "slip" in names else None
     return metrics.session_rows(
         predictions.column("trial").to_pylist(), column("frame"), column("t"), predictions.column("phase").to_pylist(),
         column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),
@@ -337,14 +352,23 @@ def session_rows(predictions: pa.Table) -> list:
 def summary_lines(figures: dict) -> list[str]:
     """`eval`'s stderr lines for the session figures (scope `all` of `metrics.session_rows`)."""
     get = lambda name: figures.get(name, float("nan"))  # noqa: E731
+    contact = (f"RMSE in contact {get('contact_rmse'):.3g} N, per grasp {get('grasp_rmse_mean'):.3g} N (mean over "
+               f"{int(figures.get('grasps', 0))})" if "contact_rmse" in figures else "no frame in contact")
     lines = [f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max {get('rest_max_abs'):.3g} N, "
-             f"drift {get('drift_n_per_min'):.3g} N/min; RMSE in contact {get('contact_rmse'):.3g} N, "
-             f"per grasp {get('grasp_rmse_mean'):.3g} N (mean over {int(figures.get('grasps', 0))})"]
-    if "contact_f1" in figures:
+             f"drift {get('drift_n_per_min'):.3g} N/min; {contact}"]
+    if get("rest_loaded_frames") > 0:
+        lines.append(f"warning: {int(get('rest_loaded_frames'))} frames at rest by their phase carry a true force of up to "
+                     f"{get('rest_loaded_max'):.3g} N, so the figures at rest include contacts: frame sessions with "
+                     "`neurotac frame --phases session`")
+    if "contact_f1" in figures and not get("contact_true"):  # a session without a grasp: nothing to find
+        lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")
+    elif "contact_f1" in figures:
         lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
                      f"{int(get('contact_found'))} detected), onset {get('contact_onset_frames_mean'):.2g} frames late on average, "
                      f"{100 * get('contact_within_2'):.0f}% within 2 frames; per frame F1 {get('contact_frame_f1'):.3f}")
-    if "slip_f1" in figures:
+    if "slip_f1" in figures and not get("slip_true"):
+        lines.append(f"slips: none in the frames, {counted(int(get('slip_found')), 'slip')} flagged")
+    elif "slip_f1" in figures:
         lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
                      f"{int(get('slip_found'))} flagged), {100 * get('slip_within_20'):.0f}% within 20 ms")
     elif "contact_f1" in figures:

@@ -32,6 +32,7 @@ import pyarrow.ipc as ipc
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError
 from neurotac_cli.io import kernels
+from neurotac_cli.units import counted
 from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
@@ -264,6 +265,12 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         if unknown:
             report.notes.append(f"the true slips name {len(unknown)} trial(s) not among the recordings "
                                 f"({', '.join(unknown[:3])}{', ...' if len(unknown) > 3 else ''}): their slips label no frame")
+        spans = {trial: n_total * framing.window_us for trial, *_, n_total in plan}
+        beyond = sum(1 for trial, end_us in spans.items() for start, end in framing.slips.get(trial, ())
+                     if end <= 0 or start >= end_us)
+        if beyond:
+            report.notes.append(f"{counted(beyond, 'true slip')} lie outside their trial's frames and label none "
+                                "(are the slip times from the trial's sync instant, in ms?)")
     out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us,
                                    sensor=sch.sensor_meta(width, height), extra=extra)
     if scale is not None:
@@ -302,6 +309,11 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
         # the trial's end is its force log's when it has one (see trial_end), else its last event's
         times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
         check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
+    periods = [float(np.median(np.diff(force_t))) for _, _, (force_t, _), _ in rows if len(force_t) > 1]
+    if framing.phases in ("auto", "session") and periods and max(periods) > window:
+        report.notes.append(f"the force log is sampled every {max(periods) / 1000:g} ms, more slowly than the "
+                            f"{window / 1000:g} ms window: frames repeat its samples, and phases read from it split grasps "
+                            f"where it seems not to change; frame with a window of at least {max(periods) / 1000:g} ms for phases")
     plan = []
     for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
         t, x, y, p = events

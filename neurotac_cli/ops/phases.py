@@ -80,7 +80,7 @@ def parse_ranges(text: str) -> list[tuple[int, int]]:
     if len(parts) != 3:
         raise UsageError(
             f"cannot read phases {text!r} (give three inclusive frame ranges for grasping, holding and releasing, "
-            "e.g. 0-21,22-121,122-143, or `auto`)"
+            "e.g. 0-21,22-121,122-143, or `auto`, `session` or `none`)"
         )
     ranges = []
     for part in parts:

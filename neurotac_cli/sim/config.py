@@ -250,6 +250,9 @@ def _scalar(name, text, default, parse_duration_us):
     return int(value) if isinstance(default, int) and value.is_integer() else value
 
 
+SESSION_REST_FLOOR_US = 50_000  # sim.session: LEAD_US + SETTLE_US + 10 ms between two grasps
+
+
 def validate(config: SimConfig):
     import math
 
@@ -268,6 +271,9 @@ def validate(config: SimConfig):
         low, high = getattr(config, name)
         if not 0 <= low <= high or (name == "session_speed" and low <= 0):
             problems.append(f"{name} must be a range LOW..HIGH with 0 {'<' if name == 'session_speed' else '<='} LOW <= HIGH")
+    if config.session_rest_us[0] < SESSION_REST_FLOOR_US:
+        problems.append(f"session_rest_us must start at {SESSION_REST_FLOOR_US // 1000} ms or more (a grasp's approach "
+                        "and the settling of the one before take that long)")
     if not 0 <= config.illumination_drift < 1 or config.illumination_period_us <= 0:
         problems.append("illumination_drift in [0, 1) and illumination_period_us > 0")
     if config.force_sensor not in ("nano17", "flexiforce"):

@@ -102,7 +102,7 @@ def plan_session(config: SimConfig, rng: np.random.Generator, n_grasps: int, nam
     grasps = []
     for index in range(n_grasps):
         material, shape, _, labels = pool[int(rng.choice(len(pool), p=weights / weights.sum()))]
-        now += max(int(rng.uniform(*config.session_rest_us)), LEAD_US + SETTLE_US + 10_000)
+        now += int(rng.uniform(*config.session_rest_us))  # at least LEAD_US + SETTLE_US + 10 ms (config.validate)
         own, physics = (config, {}) if variation is None else variation.draw_family(config, rng, "objects")
         planned = _plan_grasp(own, rng, index, material, shape, labels, offset_us=now - LEAD_US)
         if physics:

@@ -554,3 +554,45 @@ def test_the_feature_distance_is_logged_for_the_frames_read_inside_contacts_only
     assert read[inside].all()
     ended = ~inside & np.concatenate([[False], inside[:-1]])  # a contact's last frame: read, then the contact ends
     assert not read[~inside & ~ended].any()
+
+
+def test_a_stream_whose_frames_do_not_follow_one_another_is_refused(trained):
+    from neurotac_cli.errors import InputError
+
+    table, _ = tiny_session(grasps=2, seed=14, trial="test")
+    frames = np.arange(table.num_rows)
+    for order, said in [(np.concatenate([frames[:30], frames[60:]]), "frame 60 follows frame 29"),
+                        (frames[::-1], f"frame {table.num_rows - 2} follows frame {table.num_rows - 1}")]:
+        with pytest.raises(InputError, match=said):
+            session.predict_table(trained, table.take(pa.array(order)))
+
+
+def test_scores_say_when_rest_frames_carry_force_and_when_a_session_has_no_grasp(trained):
+    table, _ = tiny_session(grasps=3, seed=15, trial="test")
+    unlabelled = table.set_column(table.schema.get_field_index("phase"), "phase", pa.array(["none"] * table.num_rows))
+    _, rows = evaluate.evaluate_model(trained, unlabelled)
+    lines = "\n".join(session.summary_lines({m: v for s, m, v in rows if s == "all"}))
+    assert "frames at rest by their phase carry a true force" in lines
+    quiet = tiny_session(grasps=0, seed=16, trial="quiet")[0]
+    _, rows = evaluate.evaluate_model(trained, quiet)
+    lines = "\n".join(session.summary_lines({m: v for s, m, v in rows if s == "all"}))
+    assert "carry a true force" not in lines and "no frame in contact" in lines and "contacts: none in the frames" in lines
+    assert "nan" not in lines.split("drift")[1]
+
+
+@pytest.mark.parametrize("column, typ, works", [("grasp", pa.string(), False), ("slip", pa.int8(), True)])
+def test_truth_columns_of_another_type_are_cast_or_refused_in_one_line(trained, tmp_path, column, typ, works):
+    table, _ = tiny_session(grasps=2, seed=17, trial="test")
+    if column == "slip":
+        table = table.append_column("slip", pa.array(np.zeros(table.num_rows, bool)))
+    index = table.schema.get_field_index(column)
+    table = table.set_column(index, column, table.column(column).cast(typ))
+    tables.write(str(tmp_path / "f.arrows"), table)
+    session_model = tmp_path / "m.model"
+    models.save(trained, str(session_model))
+    done = run(["eval", "--model", str(session_model), str(tmp_path / "f.arrows"), "-o", str(tmp_path / "p.arrows")])
+    if works:
+        assert done.returncode == 0 and b"slips: none in the frames" in done.stderr, done.stderr
+    else:
+        lines = done.stderr.decode().strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1 and "'grasp' has type string, expected an integer" in lines[0]
