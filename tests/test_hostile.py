@@ -367,3 +367,10 @@ def test_info_describes_a_force_log_and_a_csv_table(tmp_path):
     (tmp_path / "table.csv").write_text("trial,frame,force_pred\na,0,0.5\n")
     code, _, out = invoke(["info", str(tmp_path / "table.csv")])
     assert code == 0 and "trial: string, frame: int64, force_pred: double" in out and "force log" not in out
+
+
+@pytest.mark.parametrize("args, said", [(["--model", "tdnn", "--max-points", "200"], "has no option 'max_points'"),
+                                        (["--model", "gp", "--epochs", "3"], "'epochs' does not apply")])
+def test_an_option_the_model_does_not_use_is_a_usage_error(files, args, said):  # noqa: F811
+    code, stderr, _ = invoke(["train", *args, "-o", "m.model", f"{files}/f.arrows"])
+    assert one_line(stderr, code, 2) and said in stderr

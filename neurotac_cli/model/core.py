@@ -27,6 +27,11 @@ def _module(name: str):
     raise ModelError(f"unknown model {name!r} (force: {', '.join(FORCE_MODELS)}; material: {', '.join(MATERIAL_MODELS)})")
 
 
+def _by_gradient(name: str) -> bool:
+    """Whether the model trains by epochs of gradient steps (every one but the GP), so that the fit's options apply."""
+    return name in MATERIAL_MODELS or getattr(_module(name).Net, "trained_by_gradient", True)
+
+
 def _default_config(name: str):
     module = _module(name)
     return module.PRESETS[name] if name in MATERIAL_MODELS else module.Config()
@@ -42,7 +47,10 @@ def make_spec(name: str, **options) -> dict:
         if value is None:
             continue
         if key not in arch_fields and key not in fit_fields:
-            raise ModelError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
+            raise UsageError(f"model {name!r} has no option {key!r} (options: {', '.join(sorted(arch_fields | fit_fields))})")
+        if key in fit_fields and not _by_gradient(name):
+            raise UsageError(f"model {name!r} is fitted in closed form, not by epochs of gradient steps: {key!r} does not "
+                             f"apply (its options: {', '.join(sorted(arch_fields))})")
         value = _typed(key, value, getattr(config if key in arch_fields else FitConfig(), key))
         _check_setting(key, value, name)
         spec[key] = value

@@ -8,7 +8,7 @@ torch = pytest.importorskip("torch")
 from click.testing import CliRunner  # noqa: E402
 
 from neurotac_cli import model as models  # noqa: E402
-from neurotac_cli.errors import ModelError  # noqa: E402
+from neurotac_cli.errors import UsageError  # noqa: E402
 from neurotac_cli.model.core import split_spec  # noqa: E402
 from tests.model.helpers import tiny_frames, write_stream  # noqa: E402
 
@@ -27,7 +27,7 @@ def test_train_layout_grid_option_reaches_the_model_file(tmp_path):
 
 def test_the_spec_field_is_layout_grid():
     assert models.make_spec("deform-gru", layout_grid=4)["layout_grid"] == 4
-    with pytest.raises(ModelError, match="no option 'grid'"):
+    with pytest.raises(UsageError, match="no option 'grid'"):
         models.make_spec("deform-gru", grid=4)
 
 
