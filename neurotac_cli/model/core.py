@@ -225,7 +225,7 @@ def check_input(model: Model, schema: pa.Schema):
 
 
 def made_by(history: list) -> tuple:
-    """(pooling (rows, columns) summed over the crops, whether `frame --dtype float32` scaled the counts)
+    """(pooling (rows, columns) multiplied over the crops, whether `frame --dtype float32` scaled the counts)
     of frames made by these history steps; None where the history does not say."""
     pool, scaled = (1, 1), None
     for step in history:

@@ -310,7 +310,7 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
         times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
         check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
     periods = [float(np.median(np.diff(force_t))) for _, _, (force_t, _), _ in rows if len(force_t) > 1]
-    if framing.phases in ("auto", "session") and periods and max(periods) > window:
+    if framing.phases == "session" and periods and max(periods) > window:
         report.notes.append(f"the force log is sampled every {max(periods) / 1000:g} ms, more slowly than the "
                             f"{window / 1000:g} ms window: frames repeat its samples, and phases read from it split grasps "
                             f"where it seems not to change; frame with a window of at least {max(periods) / 1000:g} ms for phases")

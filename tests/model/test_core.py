@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from neurotac_cli import model as models
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model import store
 from tests.model.helpers import tiny_frames
 
@@ -98,7 +98,7 @@ def test_early_stopping_restores_best_weights(frames):
 
 
 def test_unknown_option_and_model_are_refused():
-    with pytest.raises(ModelError, match="no option 'delays'"):
+    with pytest.raises(UsageError, match="no option 'delays'"):
         models.make_spec("convlstm", delays=3)
     with pytest.raises(ModelError, match="unknown model"):
         models.make_spec("resnet")
