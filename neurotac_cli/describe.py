@@ -509,12 +509,14 @@ def _is_model(path: str) -> bool:
 def describe_model(path: str) -> dict:
     """What a model file holds, from its header alone (no torch): the network, its input, its
     classes, how it was trained and on what."""
+    from neurotac_cli.model.curve import best_epoch
     from neurotac_cli.model.store import read_header
 
     header = read_header(path)
     spec, training = header["input"], header.get("training") or {}
     curve = training.get("curve") or []
-    losses = [(row.get("val_loss"), row.get("epoch")) for row in curve if isinstance(row.get("val_loss"), (int, float))]
+    best = best_epoch(curve)
+    validated = best is not None and best.get("val_loss") == best.get("val_loss")  # NaN: trained without validation trials
     trials = training.get("trials") or {}
     info = {
         "kind": "model", "file": path, "model": header["model"], "task": header["task"],
@@ -524,7 +526,9 @@ def describe_model(path: str) -> dict:
         "adapt_by": (spec.get("adapt") or {}).get("by"),
         "training": {"trials": len(trials.get("train") or []), "validation_trials": len(trials.get("validation") or []),
                      "seed": training.get("seed"), "fit": training.get("fit"), "epochs_run": len(curve),
-                     "best_epoch": min(losses)[1] if losses else None, "best_val_loss": min(losses)[0] if losses else None},
+                     "best_epoch": best.get("epoch") if best else None,
+                     "best_val_loss": best.get("val_loss") if validated else None,
+                     "best_train_loss": None if validated or best is None else best.get("train_loss")},
         "contacts": training.get("contacts"), "slip": spec.get("slip"),
         "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
         "history": training.get("data_history") or [],
@@ -551,7 +555,8 @@ def _model_lines(info: dict) -> list:
     if trained["epochs_run"]:
         text += f"; {trained['epochs_run']} epochs"
         if trained["best_epoch"] is not None:
-            text += f", best {trained['best_epoch']} (validation loss {trained['best_val_loss']:.4g})"
+            text += (f", best {trained['best_epoch']} (validation loss {trained['best_val_loss']:.4g})" if trained["best_val_loss"] is not None
+                     else f", best {trained['best_epoch']} by its training loss {trained['best_train_loss']:.4g} (no validation trials)")
     pairs.append(("training", text))
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))

@@ -374,3 +374,66 @@ def test_info_describes_a_force_log_and_a_csv_table(tmp_path):
 def test_an_option_the_model_does_not_use_is_a_usage_error(files, args, said):  # noqa: F811
     code, stderr, _ = invoke(["train", *args, "-o", "m.model", f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and said in stderr
+
+
+def test_sync_says_on_stderr_when_it_reads_a_force_column_of_unknown_unit_as_newtons(tmp_path):
+    code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", "--seed", "1", "--out", str(tmp_path / "d")])
+    assert code == 0, stderr
+    camera = next((tmp_path / "d").glob("steel-*.aedat"))
+    log = camera.with_name(camera.stem + "_force.csv").read_text().splitlines()
+    (tmp_path / "lbs.csv").write_text("\n".join(["t_ms,force_lbs", *log[1:]]) + "\n")
+    code, stderr, _ = invoke(["sync", str(camera), "--force", str(tmp_path / "lbs.csv"), "-o", str(tmp_path / "r.arrows")])
+    assert code == 0 and "warning: force column 'force_lbs': 'lbs' is no force unit" in stderr
+
+
+def test_a_group_split_refuses_trials_without_the_label(tmp_path):
+    table = frames_table(trials=("a", "b", "c"))
+    materials = table.column("material").to_pylist()
+    table = table.set_column(table.schema.get_field_index("material"), "material",
+                             pa.array([None if t == "c" else m for t, m in zip(table.column("trial").to_pylist(), materials)]))
+    tables.write(str(tmp_path / "f.arrows"), table)
+    code, stderr, _ = invoke(["eval", "--cv", "group:material", "--model-spec", "tdnn", "--epochs", "1", str(tmp_path / "f.arrows")])
+    assert one_line(stderr, code, 1) and "1 trial with no material value (c) would be tested in no fold" in stderr
+
+
+def test_info_of_a_model_trained_without_validation_names_its_best_epoch_by_training_loss(files, tmp_path):  # noqa: F811
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "2", "--val-fraction", "0", "-o", str(tmp_path / "m.model"),
+                              f"{files}/f.arrows"])
+    assert code == 0, stderr
+    code, _, out = invoke(["info", str(tmp_path / "m.model")])
+    assert code == 0 and "by its training loss" in out and "nan" not in out.lower()
+    code, _, out = invoke(["info", "--json", str(tmp_path / "m.model")])
+    assert code == 0 and "NaN" not in out and json.loads(out)["training"]["best_val_loss"] is None
+
+
+def test_frame_warns_where_phase_ranges_reach_past_the_trials(files, tmp_path):  # noqa: F811
+    code, stderr, _ = invoke(["frame", "--window", "1ms", "--phases", "0-50,51-100,101-143", "-o", str(tmp_path / "f.arrows"),
+                              f"{files}/r.arrows"])
+    assert code == 0 and "the phase ranges reach past the last frame of 2 trials" in stderr
+
+
+def test_classify_keeps_the_history_of_its_frames(files, tmp_path):  # noqa: F811
+    table = frames_table()
+    table = table.replace_schema_metadata(sch.set_meta(table.schema, history=[{"command": "frame", "args": {}}]).metadata)
+    tables.write(str(tmp_path / "h.arrows"), table)
+    code, stderr, _ = invoke(["classify", "--model", f"{files}/c.model", "-o", str(tmp_path / "p.arrows"), str(tmp_path / "h.arrows")])
+    assert code == 0, stderr
+    assert [step["command"] for step in sch.get_meta(tables.read([str(tmp_path / "p.arrows")]).schema, sch.HISTORY)] == ["frame", "classify"]
+
+
+@pytest.mark.parametrize("args, said", [
+    (["split", "--train", "a.arrows", "--test", "b.arrows", "{d}/f.arrows"], "give either --fraction"),
+    (["split", "--fraction", "0.3", "--train", "a.arrows", "--test", "a.arrows", "{d}/f.arrows"], "must differ"),
+    (["frame", "--window", "10ms", "--scale", "5", "{d}/r.arrows"], "a scale only applies to --dtype float32"),
+    (["render", "--fps", "8", "-o", "a.png", "{d}/f.arrows"], "--fps sets the pace of a GIF"),
+])
+def test_options_that_cannot_apply_are_usage_errors(files, args, said):  # noqa: F811
+    code, stderr, _ = invoke([arg.format(d=files) for arg in args])
+    assert code == 2 and said in stderr
+
+
+def test_select_names_only_the_tables_columns_and_a_pool_larger_than_the_crop_says_so(files):  # noqa: F811
+    code, stderr, _ = invoke(["select", "--where", "framez > 3", f"{files}/f.arrows"])
+    assert one_line(stderr, code, 1) and "neurotac_row_index" not in stderr and "columns: trial, frame" in stderr
+    code, stderr, _ = invoke(["crop", "--pool", "16x16", f"{files}/f.arrows"])
+    assert one_line(stderr, code, 1) and "the pool is larger than the crop" in stderr

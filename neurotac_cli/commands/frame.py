@@ -44,7 +44,8 @@ class Scale(ParamType):
     show_default=True,
     help="Keep or drop each trial's last window when it is shorter than --window (dropped events are counted).",
 )
-@click.option("--pad-to", type=PadTo(), default=None, help="Pad every trial with zero frames to N frames, or to the `longest` trial (thesis ch. 4); longer trials are cut at N.")
+@click.option("--pad-to", type=PadTo(), default=None, help="Pad every trial with zero frames to N frames, or to the `longest` trial (thesis ch. 4); longer trials are cut at N. "
+                   "With --accumulate the padding frames hold the trial's last accumulated counts (they add no events).")
 @click.option(
     "--force-at",
     type=click.Choice(["end", "mean", "median"]),

@@ -40,7 +40,8 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     from neurotac_cli import rendering as rd, tables
     from neurotac_cli.ops.crop import CropSpec
 
-    rd.output_format(output)
+    if rd.output_format(output) == "png" and click.get_current_context().get_parameter_source("fps") != click.core.ParameterSource.DEFAULT:
+        raise click.UsageError("--fps sets the pace of a GIF or MP4; a PNG is one picture (write -o NAME.gif to animate)")
     crop = CropSpec(box=box, size=size, center=center) if box or size else None
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))

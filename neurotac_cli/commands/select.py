@@ -18,8 +18,8 @@ def command(paths, output, expression):
 
     \b
         neurotac select --where "object = 'bolt12' AND phase = 'holding'" < frames.arrows > held.arrows
-        neurotac select --where "t < 300000" rec.parquet -o first-300ms.parquet
-        neurotac select --where "scope LIKE 'trial:%' AND metric = 'rmse_n'" metrics.parquet -o per-trial.csv
+        neurotac select --where "t < 300000" events.parquet -o first-300ms.parquet
+        neurotac select --where "scope LIKE 'trial:%' AND metric = 'rmse'" metrics.parquet -o per-trial.csv
     """
     from neurotac_cli import tables
     from neurotac_cli.ops.rows import select

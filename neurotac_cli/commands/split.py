@@ -26,11 +26,11 @@ def command(paths, train_path, test_path, fraction, per, expression, seed):
         neurotac split --where "object = 'bolt16'" --train seen.parquet --test unseen.parquet frames.parquet
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.ops.rows import split
 
     if train_path == test_path:
-        raise NeurotacError("--train and --test must differ (give - to one of them for stdout)")
+        raise UsageError("--train and --test must differ (give - to one of them for stdout)")
     tables.check_folder(*(path for path in (train_path, test_path) if path != "-"))
     table = tables.read(paths)
     train, test, report = split(table, fraction=fraction, where=expression, per=per, seed=seed)

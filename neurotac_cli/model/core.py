@@ -528,5 +528,6 @@ def classify_table(model: Model, table: pa.Table) -> pa.Table:
     for i, name in enumerate(model.classes):
         fields.append((f"prob_{name}", pa.float32()))
         columns.append(pa.array(proba[:, i].astype(np.float32)))
-    schema = sch.set_meta(pa.schema(fields), kind="predictions", model={"name": model.name, "task": "material", "label": label})
+    schema = sch.set_meta(pa.schema(fields), kind="predictions", model={"name": model.name, "task": "material", "label": label},
+                          history=sch.get_meta(table.schema, sch.HISTORY, []))
     return pa.Table.from_arrays(columns, schema=schema)

@@ -68,14 +68,6 @@ def fit(net, batch_loss, n_train: int, val_loss, config: FitConfig, generator: t
     return curve
 
 
-def best_epoch(curve: list) -> dict | None:
-    """The curve's row with the lowest loss early stopping watched (validation, or training without
-    validation): the epoch whose weights `fit` restored. None for an empty curve."""
-    if not curve:
-        return None
-    return min(curve, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"] else row["train_loss"])
-
-
 def training_device() -> torch.device:
     """Where gradient-trained force models train: $NEUROTAC_DEVICE (`--device` sets it for the
     command and the worker processes it starts), the CPU when unset."""

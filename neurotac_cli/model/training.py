@@ -7,7 +7,7 @@ import pyarrow as pa
 from neurotac_cli.errors import UsageError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import Model, make_spec, train
-from neurotac_cli.model.fit import best_epoch
+from neurotac_cli.model.curve import best_epoch
 from neurotac_cli.model.names import MATERIAL_MODELS
 
 DEFAULT_VAL_FRACTION = 0.1  # validation share when the command is given no other choice

@@ -202,6 +202,8 @@ def pooled_size(width: int, height: int, pool) -> tuple[int, int]:
     if pool == "all":
         return 1, 1
     k, l = pool
+    if k > width or l > height:
+        raise NeurotacError(f"cannot pool {width}x{height} by {k}x{l}: the pool is larger than the crop (`--pool all` sums it to one pixel)")
     if width % k or height % l:
         raise NeurotacError(f"cannot pool {width}x{height} by {k}x{l}: the size must divide evenly (choose a crop size that does)")
     return width // k, height // l

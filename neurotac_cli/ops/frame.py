@@ -30,7 +30,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 from neurotac_cli.io import kernels
 from neurotac_cli.units import counted
 from neurotac_cli.ops import phases as ph
@@ -86,24 +86,24 @@ class Framing:
 
     def __post_init__(self):
         if not isinstance(self.window_us, (int, np.integer)) or self.window_us <= 0:
-            raise NeurotacError(f"window must be a positive duration, got {self.window_us} µs")
+            raise UsageError(f"window must be a positive duration, got {self.window_us} µs")
         if self.partial not in ("keep", "drop"):
-            raise NeurotacError(f"partial must be keep or drop, got {self.partial!r}")
+            raise UsageError(f"partial must be keep or drop, got {self.partial!r}")
         if self.pad_to is not None and self.pad_to != "longest" and (not isinstance(self.pad_to, int) or self.pad_to <= 0):
-            raise NeurotacError(f"cannot pad to {self.pad_to!r} (give a number of frames, e.g. 41, or `longest`)")
+            raise UsageError(f"cannot pad to {self.pad_to!r} (give a number of frames, e.g. 41, or `longest`)")
         if self.force_at not in FORCE_AT:
-            raise NeurotacError(f"force-at must be one of {', '.join(FORCE_AT)}, got {self.force_at!r}")
+            raise UsageError(f"force-at must be one of {', '.join(FORCE_AT)}, got {self.force_at!r}")
         if not isinstance(self.max_frames, (int, np.integer)) or self.max_frames <= 0:
-            raise NeurotacError(f"max-frames must be a positive number of frames, got {self.max_frames!r}")
+            raise UsageError(f"max-frames must be a positive number of frames, got {self.max_frames!r}")
         if self.dtype not in ("uint16", "float32"):
-            raise NeurotacError(f"dtype must be uint16 or float32, got {self.dtype!r}")
+            raise UsageError(f"dtype must be uint16 or float32, got {self.dtype!r}")
         if self.scale is not None:
             if self.dtype != "float32":
-                raise NeurotacError("a scale only applies to --dtype float32")
+                raise UsageError("a scale only applies to --dtype float32")
             if len(self.scale) != 2 or min(self.scale) <= 0:
-                raise NeurotacError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
+                raise UsageError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
         if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
-            raise NeurotacError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
+            raise UsageError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
         for trial, spans in (self.slips or {}).items():
             if any(not end > start for start, end in spans):
                 raise NeurotacError(f"trial {trial}: a true slip must end after it starts")
@@ -314,6 +314,12 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
         report.notes.append(f"the force log is sampled every {max(periods) / 1000:g} ms, more slowly than the "
                             f"{window / 1000:g} ms window: frames repeat its samples, and phases read from it split grasps "
                             f"where it seems not to change; frame with a window of at least {max(periods) / 1000:g} ms for phases")
+    if isinstance(framing.phases, tuple):
+        short = [(trial, n) for (trial, *_), n in zip(rows, totals) if framing.phases[-1][0] >= n]
+        if short:
+            (trial, n), last = short[0], framing.phases[-1]
+            report.notes.append(f"the phase ranges reach past the last frame of {counted(len(short), 'trial')} ({trial}: frames "
+                                f"0-{n - 1}, releasing from {last[0]}): their later phases label no frame")
     plan = []
     for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
         t, x, y, p = events
@@ -356,15 +362,15 @@ class _TrialCounter:
             real = max(0, min(len(counts), n_real - first))
             lo, hi = np.searchsorted(t, [first * window, (first + real) * window])
             _, saturated, *_ = kernels.count_events(t[lo:hi], x[lo:hi], y[lo:hi], p[lo:hi], 0, window, first, counts[:real])
-            if running is not None and real:
-                total = running[None] + np.cumsum(counts[:real], axis=0, dtype=np.int64)
+            if running is not None:  # padding frames add no events: they hold the trial's last accumulated counts
+                total = running[None] + np.cumsum(counts, axis=0, dtype=np.int64)
                 running = total[-1]
-                over += int(np.count_nonzero(total > MAX_COUNT))
-                counts[:real] = np.minimum(total, MAX_COUNT)
+                over += int(np.count_nonzero(total[:real] > MAX_COUNT))
+                counts[:] = np.minimum(total, MAX_COUNT)
             if count:
                 self.report.saturated_events += saturated
                 self.report.framed -= saturated
-                self.report.saturated_pixels += int(np.count_nonzero(counts == MAX_COUNT))
+                self.report.saturated_pixels += int(np.count_nonzero(counts[:real] == MAX_COUNT))
             yield first, counts
         if over and count:
             self.report.notes.append(f"accumulated counts passed {MAX_COUNT} in {over} pixel-frames")

@@ -15,7 +15,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 
 
 ROW_INDEX = "neurotac_row_index"  # a column the condition is evaluated beside, to keep the rows in order
@@ -44,9 +44,9 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
                                   f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
     except duckdb.Error as error:
         first = str(error).splitlines()[0]
-        if ROW_INDEX in first:
+        if ROW_INDEX in first and ROW_INDEX not in expression and "Candidate bindings" not in first:
             raise NeurotacError(f"{expression!r} is not a condition on each row ({PER_ROW})") from None
-        raise NeurotacError(f"cannot evaluate {expression!r}: {first} (columns: {', '.join(plain.column_names)}; "
+        raise NeurotacError(f"cannot evaluate {expression!r}: {first} (columns: {', '.join(plain.column_names[:-1])}; "
                             "write SQL, strings in single quotes, times in µs)") from None
     finally:
         connection.close()
@@ -108,7 +108,7 @@ def _difference(first: pa.Schema, other: pa.Schema, name: str) -> str:
     extra = [n for n in other.names if n not in first.names]
     typed = [f"{n} is {other.field(n).type}, not {first.field(n).type}" for n in first.names
              if n in other.names and not other.field(n).type.equals(first.field(n).type)]
-    words = ([f"no {', '.join(missing)}"] if missing else []) + ([f"also {', '.join(extra)}"] if extra else []) + typed
+    words = ([f"no {', '.join(missing)}"] if missing else []) + ([f"{', '.join(extra)}, which the first table has not"] if extra else []) + typed
     if not words and first.names != other.names:
         words = ["its columns in another order"]
     return f"{name} has {'; '.join(words)}" if words else ""
@@ -158,13 +158,13 @@ def split(table: pa.Table, fraction: float | None = None, where: str | None = No
     if "trial" not in table.column_names:
         raise SchemaError("split moves whole trials: the table has no trial column (select rows with `neurotac select`)")
     if (fraction is None) == (where is None):
-        raise NeurotacError("give either --fraction (a seeded share of the trials) or --where (the test trials by a condition)")
+        raise UsageError("give either --fraction (a seeded share of the trials) or --where (the test trials by a condition)")
     groups = _groups(table)
     if where is not None:
         test_groups = set(groups[where_mask(table, where)].tolist())
     else:
         if not 0 < fraction < 1:
-            raise NeurotacError(f"--fraction must lie between 0 and 1, got {fraction}")
+            raise UsageError(f"--fraction must lie between 0 and 1, got {fraction}")
         test_groups = _draw(table, groups, fraction, per, np.random.default_rng(seed))
     in_test = np.isin(groups, list(test_groups))
     if in_test.all() or not in_test.any():

@@ -96,6 +96,8 @@ def sync(sources, method: SyncMethod) -> tuple[pa.Table, list[str]]:
     recordings = sync_sources(sources, method)
     trials = sch.get_meta(recordings.schema, sch.SYNC)["trials"]
     warnings = [line for info in trials.values() for line in info.get("warnings", [])]
+    # how the force log was read (a column without a unit read as newtons), once per log however many trials it feeds
+    warnings += list(dict.fromkeys(note for info in trials.values() for note in info.get("notes", [])))
     if method.method == "xcorr":
         warnings += uncertainty_warnings(trials) + unrelated_warnings(trials)
     return recordings, warnings
