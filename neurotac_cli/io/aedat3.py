@@ -12,6 +12,7 @@ are. Frames, IMU samples and the polarity events of a second source (another cam
 file) are skipped; the last is counted in `neurotac:source`.
 """
 
+import mmap
 import re
 import struct
 
@@ -30,7 +31,7 @@ TRIGGER_TYPES = {1: "timestamp_reset", 2: "rising", 3: "falling", 4: "pulse", 6:
 CHIPS = [("dvs128", (128, 128)), ("dvxplorer_lite", (320, 240)), ("dvxplorer", (640, 480))]
 
 
-def header_length(data: bytes) -> int | None:
+def header_length(data) -> int | None:
     """Bytes of the header, its `#!END-HEADER` line included; None while that line has not arrived."""
     at = data.find(HEADER_END)
     end = data.find(b"\n", at) if at >= 0 else -1
@@ -128,7 +129,8 @@ def _polarity(events: np.ndarray, overflow: int):
 
 def open_aedat3(path: str, head: bytes, sensor) -> Decoded:
     with open(path, "rb") as handle:
-        data = handle.read()  # AEDAT 3.1 recordings are a few hundred MB at most; packets are walked in memory
+        # mapped, not read: packets are walked where they lie, and only the chunk being decoded is copied
+        data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
     length = header_length(data)
     if length is None:
         raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
