@@ -161,7 +161,7 @@ class Stream:
 # ---------------------------------------------------------------- training
 
 
-MARGIN_BEFORE, MARGIN_AFTER = 2, 30  # frames of rest kept around each true contact for training
+MARGIN_BEFORE, MARGIN_AFTER = 2, 30  # 10 ms frames of rest kept around each true contact for training
 
 
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
@@ -184,7 +184,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
         else:
             touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
         streams.append((off, on, touching))
-        runs = _widened(touching, len(frames)) if labelled else touching
+        runs = _widened(touching, len(frames), sch.get_meta(table.schema, sch.WINDOW)) if labelled else touching
         for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
@@ -200,11 +200,17 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     return found, summary
 
 
-def _widened(runs: list, length: int) -> list:
-    """Runs grown by the margins, clipped to the stream, overlapping ones merged."""
+def _frames(frames_at_10ms: int, window_us: int | None) -> int:
+    """A count of 10 ms frames as the same duration in frames of `window_us` (unchanged where unknown)."""
+    return max(1, round(frames_at_10ms * detector.REFERENCE_WINDOW_US / window_us)) if window_us else frames_at_10ms
+
+
+def _widened(runs: list, length: int, window_us: int | None = None) -> list:
+    """Runs grown by the margins (their durations at 10 ms frames), clipped to the stream, overlapping ones merged."""
     out = []
+    before, after = _frames(MARGIN_BEFORE, window_us), _frames(MARGIN_AFTER, window_us)
     for begin, end in runs:
-        begin, end = max(0, begin - MARGIN_BEFORE), min(length, end + MARGIN_AFTER)
+        begin, end = max(0, begin - before), min(length, end + after)
         if out and begin <= out[-1][1]:
             out[-1] = (out[-1][0], max(out[-1][1], end))
         else:
@@ -218,11 +224,12 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     file then carries the detector's settings and runs on unbounded streams."""
     from neurotac_cli.model import core
 
-    config = config or detector.ContactConfig(release_force_n=release_force(table))
+    window = sch.get_meta(table.schema, sch.WINDOW)
+    config = config or detector.at_window(detector.ContactConfig(release_force_n=release_force(table)), window)
     if spec["model"] == "deform-gru":
-        spec = {"memory_frames": DEFAULT_MEMORY_FRAMES, **spec}
+        spec = {"memory_frames": _frames(DEFAULT_MEMORY_FRAMES, window), **spec}
     found, summary = contacts_table(table, config)
-    slip = slip or detector.slip_for(summary["press_off"], summary["release_on"])
+    slip = slip or detector.at_window(detector.slip_for(summary["press_off"], summary["release_on"]), window)
     progress = options.get("progress")
     if progress:
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "

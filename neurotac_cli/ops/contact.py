@@ -75,6 +75,27 @@ class ContactConfig:
         return asdict(self)
 
 
+# The settings above and SlipConfig's were chosen on 10 ms frames. A stream framed at another window
+# keeps their durations and event rates (`at_window`): counts of frames scale with 1 / window, counts
+# of events in one frame with the window.
+REFERENCE_WINDOW_US = 10_000
+FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames"),
+                  "SlipConfig": ("hold_frames", "settle_frames")}
+EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
+
+
+def at_window(config, window_us: int | None):
+    """`config` (a ContactConfig or SlipConfig chosen on 10 ms frames) for frames of `window_us`: the
+    same durations and event rates (frame counts at least 1). Unchanged where the window is unknown."""
+    if not window_us or window_us == REFERENCE_WINDOW_US:
+        return config
+    ratio = window_us / REFERENCE_WINDOW_US
+    kind = type(config).__name__
+    frames = {name: max(1, round(getattr(config, name) / ratio)) for name in FRAME_SETTINGS[kind]}
+    events = {name: round(getattr(config, name) * ratio, 3) for name in EVENT_SETTINGS[kind]}
+    return replace(config, **{name: type(getattr(config, name))(value) for name, value in {**frames, **events}.items()})
+
+
 FOOTPRINT_SHARE = 0.2  # a footprint cell: its OFF events above the background over the presses reach this share of the largest
 
 

@@ -596,3 +596,20 @@ def test_truth_columns_of_another_type_are_cast_or_refused_in_one_line(trained, 
     else:
         lines = done.stderr.decode().strip().splitlines()
         assert done.returncode == 1 and len(lines) == 1 and "'grasp' has type string, expected an integer" in lines[0]
+
+
+def test_the_detectors_settings_keep_their_durations_and_event_rates_at_another_window():
+    base = contact.ContactConfig()
+    assert contact.at_window(base, 10_000) == base and contact.at_window(base, None) == base
+    fine = contact.at_window(base, 5_000)
+    assert (fine.low_frames, fine.quiet_frames, fine.warmup_frames) == (2 * base.low_frames, 2 * base.quiet_frames, 2 * base.warmup_frames)
+    assert fine.min_events == base.min_events / 2 and fine.onset_sigma == base.onset_sigma
+    slow = contact.at_window(contact.SlipConfig(), 40_000)
+    assert slow.hold_frames == 1 and slow.settle_frames == 1  # never below one frame
+
+
+def test_training_on_frames_of_another_window_stores_settings_of_the_same_durations(sessions):
+    coarse = sessions.replace_schema_metadata(sch.set_meta(sessions.schema, window_us=20_000).metadata)
+    model = session.train(coarse, models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    assert session.contact_config(model).low_frames == contact.ContactConfig.low_frames // 2
+    assert model.config.memory_frames == session.DEFAULT_MEMORY_FRAMES // 2
