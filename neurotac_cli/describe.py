@@ -466,7 +466,7 @@ def describe_csv(path: str) -> dict | None:
     import csv
 
     from neurotac_cli.errors import NeurotacError
-    from neurotac_cli.io import camera, force
+    from neurotac_cli.io import camera, force, text
     from neurotac_cli.io.force import _read_table
 
     with open(path, "rb") as handle:
@@ -476,9 +476,8 @@ def describe_csv(path: str) -> dict | None:
             return None
     except NeurotacError:
         return None
-    first = camera._first_data_line(head.removeprefix(camera.BOM))
-    names = {name.strip().lower() for name in next(csv.reader([first]), [])}
-    if {"x", "y"} <= names and ({"p", "polarity", "pol"} & names):
+    names, _ = text.column_names(next(csv.reader([camera._first_data_line(head.removeprefix(camera.BOM))]), []))
+    if text.names_events(names):
         return None
     table = _read_table(path)
     info = {"kind": "csv", "file": path, "rows": table.num_rows,

@@ -117,10 +117,13 @@ def classification_rows(true, pred, classes) -> list:
     """Accuracy, per-class recall, and the confusion matrix as rows (scope `confusion:TRUE`, metric `pred:PRED`)."""
     true, pred = np.asarray(true, dtype=object), np.asarray(pred, dtype=object)
     rows = [("all", "n", float(len(true))), ("all", "accuracy", float(np.mean(true == pred)) if len(true) else float("nan"))]
-    unknown = ~np.isin(true, np.asarray(list(classes), dtype=object))
+    unlabelled = np.array([value is None for value in true], dtype=bool)
+    unknown = ~np.isin(true, np.asarray(list(classes), dtype=object)) & ~unlabelled
     if unknown.any():  # trials of a class the classifier cannot name: counted as wrong, and said so
         rows.append(("all", "unknown_class", float(unknown.sum())))
         rows += [(f"unknown:{name}", "n", float(np.sum(true == name))) for name in dict.fromkeys(true[unknown].tolist())]
+    if unlabelled.any():
+        rows.append(("all", "unlabelled", float(unlabelled.sum())))
     for name in classes:
         mine = true == name
         if mine.any():
@@ -257,9 +260,12 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     slopes = [_slope(t_us[idx][rest[idx]] / 60e6, np.abs(pred[idx][rest[idx]])) for idx in sessions]
     slopes = [s for s in slopes if np.isfinite(s)]
     figures = {"rest_frames": int(rest.sum())}
-    steps = np.diff(true[known])
+    # the force's rest level and noise as `ops.phases.label_session` reads them: a log need not read 0 N at rest
+    steps = np.concatenate([np.diff(true[idx][known[idx]]) for idx in sessions]) if sessions else np.zeros(0)
     noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2) if len(steps) else 0.0
-    loaded = rest & known & (np.abs(np.nan_to_num(true)) > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
+    level = float(np.percentile(true[known], 5)) if known.any() else 0.0
+    above = np.abs(np.nan_to_num(true, nan=level) - level)
+    loaded = rest & known & (above > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
     if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
         figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(np.abs(true[loaded]).max()))
     touching = ~rest & known
@@ -285,8 +291,9 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     return rows
 
 
-# A frame at rest whose true force exceeds this share of the range, and this many times the force's
-# noise (s.d. of its frame-to-frame steps, robustly), is loaded: its phase is not a session's.
+# A frame at rest whose true force lies above the rest level (the 5th percentile) by this share of the
+# range, and by this many times the force's noise (s.d. of its frame-to-frame steps, robustly), is
+# loaded: its phase is not a session's.
 REST_FORCE_SHARE, REST_FORCE_NOISE = 0.1, 10.0
 
 

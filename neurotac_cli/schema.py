@@ -36,10 +36,6 @@ REQUIRED = {
 NULLABLE = {"frames": ("force", "phase")}
 # String columns that describe provenance rather than a label of the grasp.
 NOT_LABELS = {"trial", "phase", "source_trial", "augment", "scope", "metric", "model"}
-# Truth columns a session's frames may carry (`frame --phases session`, `--slips`): the grasp index
-# and the slip flag; each, where present, must have a type that says what it is (a flag may be 0/1).
-TRUTH = {"grasp": ("an integer (the grasp index, -1 at rest)", pa.types.is_integer),
-         "slip": ("a boolean or 0/1 integer (the slip flag)", lambda t: pa.types.is_boolean(t) or pa.types.is_integer(t))}
 
 
 # ---------------------------------------------------------------- metadata
@@ -342,10 +338,6 @@ def validate(schema: pa.Schema, kind) -> str:
         if typ is not None and not actual.equals(typ) and not _castable(actual, typ):
             raise SchemaError(f"{found} column {name!r} has type {actual}, expected {typ}")
     if found == "frames":
-        for name, (what, fits) in TRUTH.items():
-            if name in schema.names and not fits(schema.field(name).type):
-                raise SchemaError(f"frames column {name!r} has type {schema.field(name).type}, expected {what}; "
-                                  "cast it, or drop the column")
         counts = schema.field("counts").type
         if not isinstance(counts, pa.FixedShapeTensorType) or len(counts.shape) != 3 or counts.shape[0] != 2:
             raise SchemaError(f"frames column 'counts' must be fixed_shape_tensor[2, H, W], got {counts}")

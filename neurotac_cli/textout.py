@@ -62,7 +62,7 @@ def _jsonable(value):
         return None
     if isinstance(value, dict):
         return {key: _jsonable(item) for key, item in value.items()}
-    if isinstance(value, list):
+    if isinstance(value, (list, tuple)):
         return [_jsonable(item) for item in value]
     if isinstance(value, bytes):
         return value.decode("utf-8", "replace")

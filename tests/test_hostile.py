@@ -146,10 +146,23 @@ def test_augment_refuses_angles_and_scales_that_are_no_numbers(args, files):  # 
     assert code == 2 and "finite" in stderr
 
 
-@pytest.mark.parametrize("args", [["--fs", "0"], ["--tes", "0", "0.5"], ["--tes", "-2", "0"], ["--rotate", "0"], ["--resize", "1"]])
+@pytest.mark.parametrize("args", [["--fs", "0"], ["--tes", "0", "0.5"], ["--tes", "-2", "0"], ["--rotate", "0"], ["--resize", "1"],
+                                  ["--rotate", "0", "--fs", "1"]])
 def test_augment_refuses_a_method_that_changes_nothing(args, files):  # noqa: F811
     code, stderr, _ = invoke(["augment", *args, f"{files}/f.arrows"])
     assert code == 2 and "changes nothing" in stderr.splitlines()[-1]
+    if args == ["--rotate", "0", "--fs", "1"]:  # in a hybrid the other method changes every copy
+        code, stderr, _ = invoke(["augment", *args, "--combine", "hybrid", f"{files}/f.arrows"])
+        assert code == 0, stderr
+
+
+def test_a_label_named_grasp_is_a_label_for_models_of_single_grasps(files, tmp_path):  # noqa: F811
+    table = frames_table()
+    table = table.append_column("grasp", pa.array(["power"] * table.num_rows))
+    tables.write(str(tmp_path / "g.arrows"), table)
+    assert invoke(["info", str(tmp_path / "g.arrows")])[0] == 0
+    code, stderr, _ = invoke(["predict", "--model", f"{files}/m.model", str(tmp_path / "g.arrows")])
+    assert code == 0, stderr
 
 
 def test_a_force_log_naming_a_column_twice_is_one_line(tmp_path):
@@ -364,6 +377,9 @@ def test_info_describes_a_force_log_and_a_csv_table(tmp_path):
     (tmp_path / "force.csv").write_text("t_ms,force_N\n" + "".join(f"{2 * i},{i / 10}\n" for i in range(11)))
     code, _, out = invoke(["info", str(tmp_path / "force.csv")])
     assert code == 0 and "11 samples in 1 trial, every 2 ms over 0.020 s; 0 .. 1 N" in out
+    (tmp_path / "faery.csv").write_text("t,x@64,y@48,on\n1,2,3,1\n")  # events as faery writes them: decoded, not a table
+    code, _, out = invoke(["info", str(tmp_path / "faery.csv")])
+    assert code == 0 and "kind          events" in out
     (tmp_path / "table.csv").write_text("trial,frame,force_pred\na,0,0.5\n")
     code, _, out = invoke(["info", str(tmp_path / "table.csv")])
     assert code == 0 and "trial: string, frame: int64, force_pred: double" in out and "force log" not in out
@@ -437,3 +453,21 @@ def test_select_names_only_the_tables_columns_and_a_pool_larger_than_the_crop_sa
     assert one_line(stderr, code, 1) and "neurotac_row_index" not in stderr and "columns: trial, frame" in stderr
     code, stderr, _ = invoke(["crop", "--pool", "16x16", f"{files}/f.arrows"])
     assert one_line(stderr, code, 1) and "the pool is larger than the crop" in stderr
+
+
+def test_a_model_trained_on_several_files_reads_frames_made_as_they_were(tmp_path):
+    def made(path, pool, source):
+        table = _made_by(frames_table(trials=(f"{source}-a", f"{source}-b")), pool)
+        history = [{"command": "import", "args": {"paths": [source]}}] + sch.get_meta(table.schema, sch.HISTORY)
+        tables.write(str(tmp_path / path), table.replace_schema_metadata(sch.set_meta(table.schema, history=history).metadata))
+
+    made("a.arrows", [6, 6], "a.aedat")
+    made("b.arrows", [6, 6], "b.aedat")
+    made("c.arrows", [6, 6], "c.aedat")
+    made("d.arrows", [3, 3], "d.aedat")
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model"),
+                              str(tmp_path / "a.arrows"), str(tmp_path / "b.arrows")])
+    assert code == 0, stderr
+    assert invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "c.arrows")])[0] == 0
+    code, stderr, _ = invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "d.arrows")])
+    assert one_line(stderr, code, 1) and "different pooling" in stderr

@@ -54,7 +54,8 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
                                          ("--tes with ZETA 0", tes is not None and tes[1] == 0), ("--rotate 0", rotate == 0),
                                          ("--rotate-range 0 0", tuple(rotate_range or ()) == (0, 0)), ("--resize 1", resize == 1))
                  if same]
-    if unchanged:
+    methods = sum(value is not None for value in (rotate, rotate_range, resize, fs, tes, noise))
+    if unchanged and not (combine == "hybrid" and methods > len(unchanged)):  # in a hybrid, the other methods change the copies
         raise click.UsageError(f"{unchanged[0]} changes nothing: its copies would equal the trials they come from")
     request = augment.Augmentation(rotate=rotate, rotate_range=rotate_range or None, resize=resize,
                                    preserve_total=preserve_total, fs=fs, tes=tes, combine=combine, copies=copies,

@@ -33,19 +33,9 @@ def command(paths, as_json, everything, sensor):
 
     info = describe_paths(paths, sensor=sensor, everything=everything)
     if as_json:
-        click.echo(json.dumps(_strict(info), indent=2, sort_keys=True, ensure_ascii=False))
+        from neurotac_cli.textout import _jsonable  # NaN as null: strict JSON parsers (jq) refuse a bare NaN
+
+        click.echo(json.dumps(_jsonable(info), indent=2, sort_keys=True, ensure_ascii=False))
     else:
         click.echo(format_text(info, everything), nl=False)
 
-
-def _strict(value):
-    """NaN and infinities as null: strict JSON parsers (jq among them) refuse the bare NaN Python writes."""
-    import math
-
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {key: _strict(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_strict(item) for item in value]
-    return value

@@ -25,9 +25,10 @@ HEADER_END = b"#!END-HEADER"
 PACKET = 28
 SPECIAL, POLARITY = 0, 1
 EVENT_BYTES = 8  # polarity and special events
-# libcaer's special event types that are external triggers or resets, by the names AEDAT 4.0's use
-TRIGGER_TYPES = {1: "timestamp_reset", 2: "rising", 3: "falling", 4: "pulse", 6: "rising", 7: "falling", 8: "pulse",
-                 9: "rising", 10: "falling", 11: "pulse", 12: "generator_rising", 13: "generator_falling"}
+# libcaer's special event types that are external triggers or resets: (the name AEDAT 4.0's use, the input's id)
+TRIGGER_TYPES = {1: ("timestamp_reset", None), 2: ("rising", 0), 3: ("falling", 0), 4: ("pulse", 0), 6: ("rising", 1),
+                 7: ("falling", 1), 8: ("pulse", 1), 9: ("rising", 2), 10: ("falling", 2), 11: ("pulse", 2),
+                 12: ("generator_rising", None), 13: ("generator_falling", None)}
 CHIPS = [("dvs128", (128, 128)), ("dvxplorer_lite", (320, 240)), ("dvxplorer", (640, 480))]
 
 
@@ -38,21 +39,23 @@ def header_length(data) -> int | None:
     return None if end < 0 else end + 1
 
 
-def sensor_of_header(header: bytes) -> tuple[tuple[int, int] | None, str | None]:
-    """(sensor size, camera name) from the header: a `dvsSizeX`/`dvsSizeY` attribute of its
-    configuration, else the chip of its `#Source N: CHIP` line."""
+def sensor_of_header(header: bytes) -> tuple[tuple[int, int] | None, str | None, int | None]:
+    """(sensor size, camera name, source id) of the first source the header names (`#Source N: CHIP`):
+    a `dvsSizeX`/`dvsSizeY` attribute of its configuration, else the size of its chip. Its events are
+    the ones read."""
     from neurotac_cli.io import aedat2
 
-    source = re.search(rb"#Source \d+:\s*([^\r\n]+)", header)
-    camera = source.group(1).strip().decode("latin-1") if source else None
+    source = re.search(rb"#Source (\d+):\s*([^\r\n]+)", header)
+    camera = source.group(2).strip().decode("latin-1") if source else None
+    chosen = int(source.group(1)) if source else None
     sizes = [re.search(rb'key="dvsSize' + axis + rb'"[^>]*>\s*(\d+)', header) for axis in (b"X", b"Y")]
     if all(sizes):
-        return (int(sizes[0].group(1)), int(sizes[1].group(1))), camera
+        return (int(sizes[0].group(1)), int(sizes[1].group(1))), camera, chosen
     name = (camera or "").lower().replace(" ", "_")
     for fragment, size in CHIPS:
         if fragment in name:
-            return size, camera
-    return aedat2.sensor_of_chip(camera), camera
+            return size, camera, chosen
+    return aedat2.sensor_of_chip(camera), camera, chosen
 
 
 def packet_header(data: bytes, offset: int = 0) -> tuple[int, int, int, int, int, int]:
@@ -81,10 +84,11 @@ def whole_packets(data, length: int) -> int:
 
 
 class Packets:
-    """Decodes whole packets: the polarity events of the first source that has any, and the triggers."""
+    """Decodes whole packets: the polarity events of one source (the header's first, else the first
+    that has any), and the triggers."""
 
-    def __init__(self):
-        self.source = None  # the source whose polarity events are kept
+    def __init__(self, source: int | None = None):
+        self.source = source  # the source whose polarity events are kept
         self.triggers = []
 
     def decode(self, block: bytes):
@@ -112,7 +116,9 @@ class Packets:
         kinds = (data >> 1) & 0x7F
         keep = ((data & 1) == 1) & np.isin(kinds, list(TRIGGER_TYPES))
         stamps = _stamps(events[keep, 1], overflow)
-        self.triggers += [{"t": int(t), "type": TRIGGER_TYPES[int(k)]} for t, k in zip(stamps, kinds[keep])]
+        for t, k in zip(stamps, kinds[keep]):
+            name, input_id = TRIGGER_TYPES[int(k)]
+            self.triggers.append({"t": int(t), "type": name} if input_id is None else {"t": int(t), "type": name, "id": input_id})
 
 
 def _stamps(low: np.ndarray, overflow: int) -> np.ndarray:
@@ -134,25 +140,27 @@ def open_aedat3(path: str, head: bytes, sensor) -> Decoded:
     length = header_length(data)
     if length is None:
         raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
-    declared, camera = sensor_of_header(data[:length])
+    declared, camera, source = sensor_of_header(data[:length])
     view = memoryview(data)[length:]
     whole = whole_packets(view, len(view))
     # The triggers go into the schema, which is written before the first batch: decode them first
     # (special packets are small), the events later in chunks.
-    packets, ends, source, others = Packets(), [], None, 0
+    packets, ends, valid_of = Packets(), [], {}
     offset = 0
     while offset < whole:
         kind, from_source, _, _, size, valid = packet_header(view, offset)
         if kind == SPECIAL:
             packets.decode(bytes(view[offset : offset + PACKET + size]))
         elif kind == POLARITY:
-            source = from_source if source is None else source
-            others += valid if from_source != source else 0
+            valid_of[from_source] = valid_of.get(from_source, 0) + valid
         offset += PACKET + size
         ends.append(offset)
+    if valid_of and source not in valid_of:  # the header names no source of these events: its camera is not theirs
+        source, camera, declared = next(iter(valid_of)), None, None
+    others = sum(valid_of.values()) - valid_of.get(source, 0)
 
     def chunks():
-        reader, begin = Packets(), 0
+        reader, begin = Packets(source), 0
         for end in ends:
             if end - begin >= CHUNK_BYTES or end == whole:
                 yield reader.decode(bytes(view[begin:end]))

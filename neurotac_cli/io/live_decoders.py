@@ -90,9 +90,9 @@ class Aedat3(_Records):
     def __init__(self, header: bytes, sensor):
         from neurotac_cli.io import aedat3
 
-        self.sensor, camera = aedat3.sensor_of_header(header)
+        self.sensor, camera, source = aedat3.sensor_of_header(header)
         self.meta = {"source": {"camera": camera}} if camera else {}
-        self.packets = aedat3.Packets()
+        self.packets = aedat3.Packets(source)
 
     def complete(self, pending) -> int:
         from neurotac_cli.io import aedat3

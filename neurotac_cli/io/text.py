@@ -24,6 +24,18 @@ POLARITY_NAMES = ("p", "polarity", "pol", "on")  # faery's CSV: `t,x@W,y@H,on`, 
 BOM = b"\xef\xbb\xbf"  # a spreadsheet's "CSV UTF-8" export starts with this byte-order mark: no part of the first column
 
 
+def column_names(fields: list[str]) -> tuple[list[str], dict]:
+    """The header's column names (unquoted, lower case, without a `@SIZE`) and the sizes given that way."""
+    names = [f.strip().strip("\"'").lower() for f in fields]
+    sizes = dict(name.split("@", 1) for name in names if "@" in name)
+    return [name.split("@", 1)[0] for name in names], sizes
+
+
+def names_events(names: list[str]) -> bool:
+    """Whether header column names (`column_names`) name events: a time, x, y and a polarity."""
+    return any(n in TIME_NAMES for n in names) and "x" in names and "y" in names and any(n in POLARITY_NAMES for n in names)
+
+
 def open_text(path: str, head: bytes, sensor) -> Decoded:
     lines = head.removeprefix(BOM).decode("ascii", "replace").splitlines()
     skip = 0
@@ -37,9 +49,7 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     has_header = any(re.search(r"[a-zA-Z_]", f) and not _is_number(f) for f in fields)
     declared = None
     if has_header:
-        names = [f.strip("\"'").lower() for f in fields]
-        sizes = dict(name.split("@", 1) for name in names if "@" in name)
-        names = [name.split("@", 1)[0] for name in names]
+        names, sizes = column_names(fields)
         if sizes.get("x", "").isdigit() and sizes.get("y", "").isdigit():
             declared = (int(sizes["x"]), int(sizes["y"]))
     elif delimiter == ",":

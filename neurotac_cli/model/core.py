@@ -225,11 +225,18 @@ def check_input(model: Model, schema: pa.Schema):
 
 
 def made_by(history: list) -> tuple:
-    """(pooling (rows, columns) multiplied over the crops, whether `frame --dtype float32` scaled the counts)
-    of frames made by these history steps; None where the history does not say."""
+    """(pooling (along the width, along the height) multiplied over the crops, whether `frame --dtype
+    float32` scaled the counts) of frames made by these history steps; None where the history does
+    not say, or where tables read together (a `concat` step) disagree."""
     pool, scaled = (1, 1), None
     for step in history:
         args = step.get("args") or {}
+        if step.get("command") == "concat" and isinstance(args.get("inputs"), list):
+            parts = {made_by(inner) if isinstance(inner, list) else (None, None) for inner in args["inputs"]}
+            pool, scaled = (parts.pop() if len(parts) == 1 else (None, None))
+            if pool is None:
+                return None, scaled
+            continue
         if step.get("command") == "crop":
             factor = args.get("pool")
             if factor is None:

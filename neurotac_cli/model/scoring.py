@@ -76,6 +76,8 @@ def summary(rows: list, title: str = "") -> str:
         if unknown:
             lines.append(f"  {counted(int(figures.get('unknown_class', 0)), 'trial')} of classes the model was not trained on "
                          f"({', '.join(unknown)}), counted as wrong")
+        if figures.get("unlabelled"):
+            lines.append(f"  {counted(int(figures['unlabelled']), 'trial')} without a label, counted as wrong")
         classes = [s[len("class:"):] for s in by_scope if s.startswith("class:")]
         for name in classes:
             recall = by_scope[f"class:{name}"].get("recall")

@@ -24,7 +24,7 @@ import pyarrow as pa
 
 from neurotac_cli import metrics
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import InputError, ModelError
+from neurotac_cli.errors import InputError, ModelError, SchemaError
 from neurotac_cli.model import data as shaping
 from neurotac_cli.ops import contact as detector
 from neurotac_cli.units import counted
@@ -33,6 +33,9 @@ CONTACT_KEY = "contact"
 SLIP_KEY = "slip"
 SESSION_FIELDS = [("contact_pred", pa.bool_()), ("phase_pred", pa.string()), ("slip_pred", pa.bool_())]
 PASSED_ON = ("grasp", "slip")  # truth columns of session frames, copied to the predictions
+# ... each of a type that says what it is (a flag may be 0/1); elsewhere a column of that name may be a label
+TRUTH_TYPES = {"grasp": ("an integer (the grasp index, -1 at rest)", pa.types.is_integer),
+               "slip": ("a boolean or 0/1 integer (the slip flag)", lambda t: pa.types.is_boolean(t) or pa.types.is_integer(t))}
 # deform-gru's leak when trained on contacts: 30 s at 10 ms frames, far longer than a hold (its sums
 # lose 1.3% over a 40-frame ch4 grasp), so a contact that never ends keeps them bounded.
 DEFAULT_MEMORY_FRAMES = 3000
@@ -200,15 +203,10 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     return found, summary
 
 
-def _frames(frames_at_10ms: int, window_us: int | None) -> int:
-    """A count of 10 ms frames as the same duration in frames of `window_us` (unchanged where unknown)."""
-    return max(1, round(frames_at_10ms * detector.REFERENCE_WINDOW_US / window_us)) if window_us else frames_at_10ms
-
-
 def _widened(runs: list, length: int, window_us: int | None = None) -> list:
     """Runs grown by the margins (their durations at 10 ms frames), clipped to the stream, overlapping ones merged."""
     out = []
-    before, after = _frames(MARGIN_BEFORE, window_us), _frames(MARGIN_AFTER, window_us)
+    before, after = detector.frames_at(MARGIN_BEFORE, window_us), detector.frames_at(MARGIN_AFTER, window_us)
     for begin, end in runs:
         begin, end = max(0, begin - before), min(length, end + after)
         if out and begin <= out[-1][1]:
@@ -227,7 +225,7 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     window = sch.get_meta(table.schema, sch.WINDOW)
     config = config or detector.at_window(detector.ContactConfig(release_force_n=release_force(table)), window)
     if spec["model"] == "deform-gru":
-        spec = {"memory_frames": _frames(DEFAULT_MEMORY_FRAMES, window), **spec}
+        spec = {"memory_frames": detector.frames_at(DEFAULT_MEMORY_FRAMES, window), **spec}
     found, summary = contacts_table(table, config)
     slip = slip or detector.at_window(detector.slip_for(summary["press_off"], summary["release_on"]), window)
     progress = options.get("progress")
@@ -279,6 +277,10 @@ def stream(model, schema: pa.Schema, batches, material=None, notes: list | None 
     if material is not None:
         check_material(model, material)
     check_input(model, schema)
+    for name, (what, fits) in TRUTH_TYPES.items():
+        if name in schema.names and not fits(schema.field(name).type):
+            raise SchemaError(f"frames column {name!r} has type {schema.field(name).type}, expected {what} for a model "
+                              "trained with --contacts; cast it, or rename it if it is a label")
     out_schema = predictions_schema(schema, model, material)
     streams = {}
 

@@ -77,22 +77,32 @@ class ContactConfig:
 
 # The settings above and SlipConfig's were chosen on 10 ms frames. A stream framed at another window
 # keeps their durations and event rates (`at_window`): counts of frames scale with 1 / window, counts
-# of events in one frame with the window.
+# of events in one frame with the window. Not scaled: the frames in which a press's and a release's
+# peaks are looked for (PRESS_FRAMES, RELEASE_FRAMES), which are long beside a press at any window
+# from a few ms to 20 ms.
 REFERENCE_WINDOW_US = 10_000
 FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames"),
                   "SlipConfig": ("hold_frames", "settle_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 
 
+def frames_at(frames: float, window_us: int | None) -> int:
+    """A count of 10 ms frames as the same duration in frames of `window_us` (at least 1; unchanged where unknown)."""
+    return max(1, round(frames * REFERENCE_WINDOW_US / window_us)) if window_us else int(frames)
+
+
 def at_window(config, window_us: int | None):
     """`config` (a ContactConfig or SlipConfig chosen on 10 ms frames) for frames of `window_us`: the
-    same durations and event rates (frame counts at least 1). Unchanged where the window is unknown."""
+    same durations and event rates. Unchanged where the window is unknown. A SlipConfig's bars set
+    from a stream's presses (`slip_for`) are counts of that stream's frames already: only the default
+    bars, where there were no presses, are scaled."""
     if not window_us or window_us == REFERENCE_WINDOW_US:
         return config
     ratio = window_us / REFERENCE_WINDOW_US
     kind = type(config).__name__
-    frames = {name: max(1, round(getattr(config, name) / ratio)) for name in FRAME_SETTINGS[kind]}
-    events = {name: round(getattr(config, name) * ratio, 3) for name in EVENT_SETTINGS[kind]}
+    frames = {name: frames_at(getattr(config, name), window_us) for name in FRAME_SETTINGS[kind]}
+    scaled = EVENT_SETTINGS[kind] + (("min_events",) if kind == "SlipConfig" and config.press_off is None else ())
+    events = {name: round(getattr(config, name) * ratio, 3) for name in scaled}
     return replace(config, **{name: type(getattr(config, name))(value) for name, value in {**frames, **events}.items()})
 
 

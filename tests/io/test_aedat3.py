@@ -61,7 +61,7 @@ def test_polarity_events_triggers_and_sensor_are_read(tmp_path):
     table = read_events_table(str(write(tmp_path, data)))
     assert [table[c].to_numpy().astype(np.int64).tolist() for c in "txyp"] == [c.astype(np.int64).tolist() for c in (t, x, y, p)]
     assert sch.sensor_of(table.schema) == (128, 128)
-    assert sch.get_meta(table.schema, "neurotac:triggers") == [{"t": int(t[99]) + 5, "type": "rising"}]
+    assert sch.get_meta(table.schema, "neurotac:triggers") == [{"t": int(t[99]) + 5, "type": "rising", "id": 0}]
     source = sch.camera_sources(table.schema)[0]
     assert source["format"] == "aedat3" and source["camera"] == "DVS128" and source["sensor_from"] == "file"
 
@@ -107,9 +107,29 @@ def test_following_a_file_written_in_pieces_gives_the_finished_files_events(tmp_
 def test_a_second_cameras_events_are_left_out_and_counted(tmp_path):
     ours = packet(1, [(polarity(1, 2, 1), 10), (polarity(2, 3, 0), 20)])
     other = packet(1, [(polarity(5, 5, 1), 15)] * 3, source=2)
-    table = read_events_table(str(write(tmp_path, HEADER + ours + other)))
-    assert table["t"].to_pylist() == [10, 20]
-    assert sch.camera_sources(table.schema)[0]["events_of_other_sources"] == 3
+    for order in ([ours, other], [other, ours]):  # the header's source is read, whichever packet comes first
+        table = read_events_table(str(write(tmp_path, HEADER + b"".join(order))))
+        assert table["t"].to_pylist() == [10, 20]
+        source = sch.camera_sources(table.schema)[0]
+        assert source["events_of_other_sources"] == 3 and source["camera"] == "DVS128"
+    table = read_events_table(str(write(tmp_path, HEADER + other)))  # none of the named source's: no camera claimed
+    assert table["t"].to_pylist() == [15] * 3 and "camera" not in sch.camera_sources(table.schema)[0]
+
+
+def test_each_external_input_keeps_its_id():
+    from neurotac_cli.io.aedat3 import Packets
+
+    reader = Packets()
+    reader.decode(packet(0, [((2 << 1) | 1, 5), ((6 << 1) | 1, 6), ((10 << 1) | 1, 7), ((1 << 1) | 1, 8)]))
+    assert reader.triggers == [{"t": 5, "type": "rising", "id": 0}, {"t": 6, "type": "rising", "id": 1},
+                               {"t": 7, "type": "falling", "id": 2}, {"t": 8, "type": "timestamp_reset"}]
+
+
+def test_the_format_can_be_named():
+    from neurotac_cli.io.camera import FORMATS
+    from neurotac_cli.options import CAMERA_FORMATS
+
+    assert CAMERA_FORMATS == list(FORMATS)
 
 
 @pytest.mark.parametrize("damage, said", [

@@ -578,6 +578,10 @@ def test_scores_say_when_rest_frames_carry_force_and_when_a_session_has_no_grasp
     lines = "\n".join(session.summary_lines({m: v for s, m, v in rows if s == "all"}))
     assert "carry a true force" not in lines and "no frame in contact" in lines and "contacts: none in the frames" in lines
     assert "nan" not in lines.split("drift")[1]
+    force = table.column("force").to_numpy(zero_copy_only=False)
+    offset = table.set_column(table.schema.get_field_index("force"), "force", pa.array(force + 2.0, pa.float32()))
+    _, rows = evaluate.evaluate_model(trained, offset)  # a log that reads 2 N at rest, phased as a session
+    assert "carry a true force" not in "\n".join(session.summary_lines({m: v for s, m, v in rows if s == "all"}))
 
 
 @pytest.mark.parametrize("column, typ, works", [("grasp", pa.string(), False), ("slip", pa.int8(), True)])
