@@ -368,7 +368,7 @@ def test_frame_warns_where_the_force_log_is_sampled_more_slowly_than_the_window_
     (tmp_path / "slips.csv").write_text("trial,slip_start_ms,slip_end_ms\nsteel-bolt8-01,90000,90010\n")
     code, stderr, _ = invoke(["frame", "--window", "500us", "--phases", "session", "--slips", str(tmp_path / "slips.csv"),
                               "-o", str(tmp_path / "f.arrows"), str(tmp_path / "r.arrows")])
-    assert code == 0 and "more slowly than the 0.5 ms window" in stderr and "1 true slip lie outside" in stderr, stderr
+    assert code == 0 and "more slowly than the 0.5 ms window" in stderr and "1 true slip lies outside its trial's frames" in stderr, stderr
     code, stderr, _ = invoke(["frame", "--window", "10ms", "--phases", "session", "-o", str(tmp_path / "g.arrows"), str(tmp_path / "r.arrows")])
     assert code == 0 and "more slowly" not in stderr
 

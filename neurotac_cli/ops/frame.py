@@ -269,8 +269,8 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         beyond = sum(1 for trial, end_us in spans.items() for start, end in framing.slips.get(trial, ())
                      if end <= 0 or start >= end_us)
         if beyond:
-            report.notes.append(f"{counted(beyond, 'true slip')} lie outside their trial's frames and label none "
-                                "(are the slip times from the trial's sync instant, in ms?)")
+            report.notes.append(f"{counted(beyond, 'true slip')} {'lies' if beyond == 1 else 'lie'} outside {'its' if beyond == 1 else 'their'} "
+                                "trial's frames and label no frame (are the slip times from the trial's sync instant, in ms?)")
     out_schema = sch.frames_schema(height, width, labels, dtype=dtype, window_us=framing.window_us,
                                    sensor=sch.sensor_meta(width, height), extra=extra)
     if scale is not None:
