@@ -16,7 +16,8 @@ from neurotac_cli.options import (PlotPath, TablePath, device_option, history, h
 @click.option("--contacts", is_flag=True,
               help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
               "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
-              "reading zero between contacts (docs/design.md, \"Sessions\").")
+              "reading zero between contacts; the detector keeps its durations and event rates at the frames' window "
+              "(docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
 @click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG.")
