@@ -12,6 +12,8 @@ with the message the command line would print. Nothing here prints or exits.
     predictions, metrics = api.evaluate(model, frames)
 """
 
+import dataclasses
+
 import numpy as np
 import pyarrow as pa
 
@@ -20,6 +22,24 @@ from neurotac_cli.errors import NeurotacError
 from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
 
 TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
+
+
+def _table(table, *kinds) -> pa.Table:
+    """`table` checked as a pyarrow Table of one of `kinds` (the commands check theirs at the door)."""
+    if not isinstance(table, pa.Table):
+        raise NeurotacError(f"expected a pyarrow Table ({' or '.join(kinds)}), got {type(table).__name__}")
+    sch.validate(table.schema, kinds)
+    return table
+
+
+def _model(model):
+    """A trained model object (what `load_model` and `train` give), not its path."""
+    from neurotac_cli.model.core import Model
+
+    if not isinstance(model, Model):
+        hint = " (load it with api.load_model(path))" if isinstance(model, (str, bytes)) else ""
+        raise NeurotacError(f"expected a model from api.train or api.load_model, got {type(model).__name__}{hint}")
+    return model
 
 
 def _us(duration) -> int:
@@ -45,14 +65,17 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
 
     if path in (None, "-"):
         raise NeurotacError("give a file path: the library does not write binary tables to stdout")
+    if not isinstance(table, pa.Table):
+        raise NeurotacError(f"expected a pyarrow Table to write, got {type(table).__name__}")
     tables.write(path, table, step=step)
 
 
 def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
     """A camera file (AEDAT, EVT2/3, DAT, ES, CSV, text) as an events table, timestamps as written."""
     from neurotac_cli.io.events import read_events_table
+    from neurotac_cli.units import parse_size
 
-    return read_events_table(path, sensor=sensor)
+    return read_events_table(path, sensor=parse_size(sensor) if isinstance(sensor, str) else sensor)
 
 
 def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **overrides) -> pa.Table:
@@ -60,18 +83,22 @@ def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **ov
     from neurotac_cli.sim.config import preset_config
     from neurotac_cli.sim.run import recordings, simulate as run
 
+    if trials is not None and trials < 1:
+        raise NeurotacError(f"trials must be at least 1, got {trials}")
     return recordings(run(preset_config(preset, **overrides), seed=seed, trials=trials))
 
 
 def sync(camera, force: str, method: str = "led", trial: str | None = None, labels: dict | None = None) -> pa.Table:
     """One camera recording (a path or an events table) and its force log as a recordings table."""
     from neurotac_cli.io.camera import trial_name
+    from neurotac_cli.io.manifest import ForceOptions, Source
     from neurotac_cli.ops import sync as sy
 
     events = import_camera(camera) if isinstance(camera, str) else camera
+    sch.validate(events.schema, "events")
     name = trial or (trial_name(camera) if isinstance(camera, str) else "trial")
-    source = sy.Source(trial=name, events=events, force=sy.ForceOptions().read(force), labels=dict(labels or {}))
-    return sy.sync_sources([source], sy.SyncMethod(method=method))
+    source = Source(trial=name, events=events, force=ForceOptions().read(force), labels=dict(labels or {}))
+    return sy.sync_sources([source], sy.sync_method(method))
 
 
 # ---------------------------------------------------------------- frames
@@ -82,7 +109,10 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     event). `options` as `neurotac frame`'s: partial, pad_to, force_at, phases, accumulate, dtype."""
     from neurotac_cli.ops import frame as fr
 
-    if sch.kind_of(table.schema) == "recordings":
+    known = {field.name for field in dataclasses.fields(fr.Framing)} - {"window_us"}
+    if set(options) - known:
+        raise NeurotacError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
+    if sch.validate(_table(table, "recordings", "events").schema, ("recordings", "events")) == "recordings":
         return fr.frame_recordings(table, _us(window), **options)
     return fr.frames_from_events_table(table, _us(window), **options)
 
@@ -92,6 +122,14 @@ def crop(table: pa.Table, box=None, size=None, center=None, pool=None) -> pa.Tab
     center=(x, y) or "auto"; pool=(k, l) or "all"."""
     from neurotac_cli.ops import crop as cr
 
+    _table(table, "frames", "recordings", "events")
+    if isinstance(center, str) and center != "auto":  # "X,Y", as the command line writes it
+        try:
+            center = tuple(int(value) for value in center.split(","))
+        except ValueError:
+            center = ()
+        if len(center) != 2:
+            raise NeurotacError("center must be (x, y), \"X,Y\" or \"auto\"")
     return cr.crop_table(table, cr.CropSpec(box=box, size=size, center=center, pool=pool))
 
 
@@ -100,6 +138,10 @@ def augment(frames: pa.Table, *methods, copies: int = 1, combine: str = "indepen
     """Augmented copies of every trial, e.g. augment(frames, api.Rotate(0, 45), api.FrameShift(-1))."""
     from neurotac_cli.ops.augment import augment_frames
 
+    if not _table(frames, "frames").num_rows:
+        raise NeurotacError("the frames table is empty: nothing to augment")
+    if not methods or not all(isinstance(method, (Rotate, Resize, FrameShift, EventShift, Noise)) for method in methods):
+        raise NeurotacError("give augmentation methods as objects, e.g. api.Rotate(0, 45), api.FrameShift(-1)")
     table, _ = augment_frames(frames, list(methods), copies=copies, combine=combine, keep_original=keep_original, seed=seed)
     return table
 
@@ -108,6 +150,7 @@ def counts(frames: pa.Table, trial: str | None = None) -> np.ndarray:
     """The counts of all frames, or of one trial in frame order, as (frames, 2, H, W) numpy."""
     import pyarrow.compute as pc
 
+    _table(frames, "frames")
     if trial is not None:
         frames = frames.filter(pc.equal(frames.column("trial"), trial))
         frames = frames.take(pc.sort_indices(frames.column("frame")))
@@ -121,6 +164,9 @@ def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: fl
     """Train a model (`neurotac train --model NAME`); `options` are its hyperparameters (epochs, layers, ...)."""
     from neurotac_cli import model as models
 
+    _table(frames, "frames")
+    if val_fraction is not None and not 0 <= val_fraction < 1:
+        raise NeurotacError(f"val_fraction must lie in [0, 1), got {val_fraction}")
     return models.train(frames, models.make_spec(model, **options), val_fraction=val_fraction, seed=seed)
 
 
@@ -129,7 +175,7 @@ def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, 
     from neurotac_cli.metrics import metrics_table
     from neurotac_cli.model import evaluate as ev
 
-    predictions, rows = ev.evaluate_model(model, frames, nonzero=nonzero)
+    predictions, rows = ev.evaluate_model(_model(model), _table(frames, "frames"), nonzero=nonzero)
     return predictions, metrics_table(rows, model.name)
 
 
@@ -142,14 +188,14 @@ def load_model(path: str):
 def save_model(model, path: str) -> None:
     from neurotac_cli import model as models
 
-    models.save(model, path)
+    models.save(_model(model), path)
 
 
 class Stepper:
     """A force model fed frame by frame, as `neurotac predict` does: its state carried between calls."""
 
     def __init__(self, model):
-        if model.task != "force":
+        if _model(model).task != "force":
             raise NeurotacError(f"model {model.name!r} classifies materials; only force models are stepped")
         from neurotac_cli.model.session import is_session_model
 
@@ -161,6 +207,9 @@ class Stepper:
     def step(self, counts: np.ndarray, t_us) -> np.ndarray:
         """Force (N) for one frame (2, H, W) or several in order (n, 2, H, W), at their start times in µs."""
         counts = np.asarray(counts)
+        shape = (2, self.model.input_spec["height"], self.model.input_spec["width"])
+        if counts.shape[-3:] != shape or counts.ndim not in (3, 4):
+            raise NeurotacError(f"expected frames of shape {shape} (or (n, {', '.join(map(str, shape))})), got {counts.shape}")
         many = counts.ndim == 4
         t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
         force, self.state = self.model.step(counts[None] if many else counts[None, None], t[None], self.state)
@@ -175,6 +224,7 @@ class Stepper:
 
 def to_tonic(events: pa.Table) -> np.ndarray:
     """An events table as the structured array tonic's transforms take (fields x, y, t µs, p 0/1)."""
+    _table(events, "events")
     out = np.empty(events.num_rows, dtype=TONIC_DTYPE)
     for name in ("x", "y", "t", "p"):
         out[name] = events.column(name).to_numpy()
@@ -184,9 +234,14 @@ def to_tonic(events: pa.Table) -> np.ndarray:
 def from_tonic(array: np.ndarray, sensor_size: tuple) -> pa.Table:
     """A tonic structured array (t in µs, p 0/1 or -1/1 or bool) as an events table; sensor_size is
     tonic's (W, H, polarities)."""
-    p = np.asarray(array["p"])
-    return sch.events_table(np.asarray(array["t"], np.int64), np.asarray(array["x"], np.uint16), np.asarray(array["y"], np.uint16),
-                            (p > 0).astype(np.uint8), width=int(sensor_size[0]), height=int(sensor_size[1]))
+    if getattr(array, "dtype", None) is None or array.dtype.names is None or not {"t", "x", "y", "p"} <= set(array.dtype.names):
+        raise NeurotacError("expected a tonic structured array with fields t, x, y, p")
+    x, y, p = np.asarray(array["x"]), np.asarray(array["y"]), np.asarray(array["p"])
+    width, height = int(sensor_size[0]), int(sensor_size[1])
+    if len(x) and (x.min() < 0 or y.min() < 0 or x.max() >= width or y.max() >= height):
+        raise NeurotacError(f"events lie outside the {width}x{height} sensor (x {x.min()}..{x.max()}, y {y.min()}..{y.max()})")
+    return sch.events_table(np.asarray(array["t"], np.int64), x.astype(np.uint16), y.astype(np.uint16),
+                            (p > 0).astype(np.uint8), width=width, height=height)
 
 
 def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
@@ -199,6 +254,7 @@ def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
 
 def events_of(recordings: pa.Table, trial: str) -> pa.Table:
     """One trial of a recordings table as an events table, times relative to its t0."""
+    _table(recordings, "recordings")
     found = sch.trial_recording(recordings, trial)
     if found is None:
         raise NeurotacError(f"no trial {trial!r} in the recordings")
@@ -210,4 +266,11 @@ def render(table: pa.Table, path: str, **spec) -> dict:
     """Draw a table into a PNG, GIF or MP4, as `neurotac render` (spec: view, trial, slices, every, ...)."""
     from neurotac_cli import rendering as rd
 
-    return rd.render(table, path, rd.RenderSpec(**spec))
+    _table(table, "frames", "recordings", "events")
+    if not table.num_rows:
+        raise NeurotacError("the table is empty: nothing to draw")
+    try:
+        made = rd.RenderSpec(**spec)
+    except TypeError as error:
+        raise NeurotacError(f"render: {error}") from None
+    return rd.render(table, path, made)

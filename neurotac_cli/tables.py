@@ -11,6 +11,7 @@ complete. Every write appends one entry to `neurotac:history`.
 import errno
 import io
 import os
+import stat
 import sys
 import tempfile
 from contextlib import contextmanager
@@ -112,7 +113,18 @@ def _stdin():
     stream = getattr(sys.stdin, "buffer", sys.stdin)
     if is_terminal(stream):
         raise InputError("no input: give a path, or pipe a table into stdin (e.g. `neurotac import rec.aedat | ...`)")
+    if _is_pipe(stream):
+        from neurotac_cli.io.live import read_on_through_interrupt
+
+        read_on_through_interrupt()
     return stream
+
+
+def _is_pipe(stream) -> bool:
+    try:
+        return stat.S_ISFIFO(os.fstat(stream.fileno()).st_mode)
+    except (AttributeError, ValueError, OSError, io.UnsupportedOperation):
+        return False
 
 
 def open_binary(path: str):
@@ -400,7 +412,7 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
     schema = with_step(schema, step)
     if output in (None, "-"):
         refuse_terminal()
-        sink = getattr(sys.stdout, "buffer", sys.stdout)
+        sink = _WholeWrites(getattr(sys.stdout, "buffer", sys.stdout))
         writer = ipc.new_stream(sink, schema)
         for batch in batches:
             writer.write_batch(_with_schema(batch, schema))
@@ -428,6 +440,35 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
                 for batch in batches:
                     writer.write_batch(_with_schema(batch, schema))
                 writer.close()
+
+
+class _WholeWrites:
+    """stdout for Arrow's writer, each write carried to its last byte. A pipe's write that a signal
+    interrupts (the Ctrl-C a live pipe ends on, whose handler only asks the stream to stop) returns
+    the bytes it moved so far, and Arrow takes every write as whole: the rest of a batch was lost and
+    the stream ended mid-table."""
+
+    def __init__(self, sink):
+        self.sink, self.position = sink, 0
+
+    @property
+    def closed(self) -> bool:
+        return self.sink.closed
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        size = len(view)
+        while len(view):
+            moved = self.sink.write(view)
+            view = view[len(view) if moved is None else moved:]
+        self.position += size
+        return size
+
+    def flush(self):
+        self.sink.flush()
+
+    def tell(self) -> int:
+        return self.position
 
 
 def _with_schema(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:

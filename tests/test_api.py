@@ -47,3 +47,54 @@ def test_every_api_name_is_listed_in_the_package():
               and (inspect.isfunction(value) or inspect.isclass(value))
               and value.__module__ in ("neurotac_cli.api", "neurotac_cli.ops.augment")}
     assert public | {"TONIC_DTYPE"} == set(neurotac_cli.API)
+
+
+def test_odd_arguments_give_a_neurotac_error(tmp_path):
+    import numpy as np
+
+    from neurotac_cli import api
+    from neurotac_cli.errors import NeurotacError
+
+    recordings = api.simulate("ch4", trials=2, seed=1)
+    frames = api.crop(api.frame(recordings, "10ms"), size=(30, 30), center="auto", pool=(3, 3))
+    model = api.train(frames, "tdnn", epochs=1)
+    calls = [
+        lambda: api.simulate("ch4", trials=-1),
+        lambda: api.write([1, 2], str(tmp_path / "x.parquet")),
+        lambda: api.frame(frames, "10ms"),
+        lambda: api.frame(recordings, "10ms", bogus=1),
+        lambda: api.crop(frames, size=(6, 6), center="10;10"),
+        lambda: api.augment(frames, "rotate"),
+        lambda: api.augment(frames.slice(0, 0), api.Rotate(0, 10)),
+        lambda: api.counts(recordings),
+        lambda: api.train(frames, "tdnn", val_fraction=1.5),
+        lambda: api.evaluate("force.model", frames),
+        lambda: api.save_model("x", str(tmp_path / "y.model")),
+        lambda: api.Stepper(model).step(np.zeros((2, 5, 5)), 0),
+        lambda: api.to_tonic(frames),
+        lambda: api.from_tonic(np.zeros(3), (10, 10, 2)),
+        lambda: api.events_of(frames, "x"),
+        lambda: api.render(frames, str(tmp_path / "x.png"), bogus=1),
+        lambda: api.render(frames.slice(0, 0), str(tmp_path / "x.png")),
+    ]
+    for call in calls:  # each raises the library's error with its message, not another exception
+        with pytest.raises(NeurotacError):
+            call()
+    events = api.events_of(recordings, recordings.column("trial")[0].as_py())
+    tonic = api.to_tonic(events)
+    tonic["x"][0] = 300  # beyond the 240-pixel-wide sensor
+    with pytest.raises(NeurotacError, match="outside"):
+        api.from_tonic(tonic, api.tonic_sensor_size(events))
+
+
+def test_sync_pairs_a_camera_file_with_its_force_log(tmp_path):
+    import subprocess
+
+    from neurotac_cli import api, schema as sch
+
+    done = subprocess.run(["neurotac", "simulate", "--preset", "ch4", "--trials", "1", "--seed", "4", "--out", str(tmp_path)],
+                          capture_output=True)
+    assert done.returncode == 0, done.stderr
+    camera = next(tmp_path.glob("steel-*.aedat"))
+    recordings = api.sync(str(camera), str(camera.with_name(camera.stem + "_force.csv")))
+    assert sch.kind_of(recordings.schema) == "recordings" and recordings.num_rows == 1

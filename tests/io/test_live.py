@@ -5,6 +5,7 @@ import os
 import pathlib
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -129,6 +130,47 @@ def test_ctrl_c_ends_following_cleanly_with_the_output_complete(tmp_path, number
     whole = read_events_table(source)
     assert 0 < table.num_rows < whole.num_rows
     assert events(table).equals(events(whole).slice(0, table.num_rows))
+
+
+def test_ctrl_c_to_a_whole_pipe_whose_reader_lags_ends_every_verb_complete(tmp_path):
+    """Ctrl-C reaches every process of a pipe; the camera's end closes the stream, and the verbs after
+    it read on to that end. The signal comes while import's write waits on a full pipe."""
+    source = real_file("davis240c_rotdisk.aedat")
+    path = tmp_path / "cam.aedat"
+    path.write_bytes(b"")
+    stop = threading.Event()
+    writer = write_in_pieces(source.read_bytes(), path, pieces=40, pause=0.05, stop=stop)
+    lagging = ("import os, signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); time.sleep(1.5); "
+               "signal.signal(signal.SIGINT, signal.SIG_DFL); os.execvp('neurotac', ['neurotac', 'frame', '--window', '10ms'])")
+    pipe = f"neurotac import --follow {path} | {sys.executable} -c \"{lagging}\" > {tmp_path / 'f.arrows'}"
+    process = subprocess.Popen(["bash", "-c", pipe + "; echo ${PIPESTATUS[*]}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               start_new_session=True)
+    time.sleep(1.0)
+    os.killpg(process.pid, signal.SIGINT)
+    out, stderr = process.communicate(timeout=30)
+    stop.set()
+    writer.join()
+    assert out.split() == [b"0", b"0"], stderr
+    frames = read([str(tmp_path / "f.arrows")])
+    assert frames.num_rows > 0 and sum(sch.counts_numpy(frames.column("counts")).sum(axis=(1, 2, 3))) > 0
+
+
+def test_a_write_a_signal_cuts_short_is_carried_to_its_last_byte():
+    from neurotac_cli.tables import _WholeWrites
+
+    class Short:
+        closed, data = False, b""
+
+        def write(self, view):
+            self.data += bytes(view[:3])
+            return min(3, len(view))
+
+        def flush(self):
+            pass
+
+    sink = Short()
+    whole = _WholeWrites(sink)
+    assert whole.write(b"abcdefgh") == 8 and sink.data == b"abcdefgh" and whole.tell() == 8
 
 
 def test_ctrl_c_before_the_header_is_one_line(tmp_path):
