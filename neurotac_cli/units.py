@@ -4,8 +4,8 @@ import re
 
 from neurotac_cli.errors import NeurotacError
 
-_UNIT_US = {"us": 1, "µs": 1, "ms": 1_000, "s": 1_000_000, "min": 60_000_000}
-_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(us|µs|ms|s|min)\s*$")
+_UNIT_US = {"us": 1, "µs": 1, "ms": 1_000, "s": 1_000_000, "min": 60_000_000, "h": 3_600_000_000}
+_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(us|µs|ms|s|min|h)\s*$")
 
 
 def parse_duration_us(text: str) -> int:

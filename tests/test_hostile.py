@@ -471,3 +471,11 @@ def test_a_model_trained_on_several_files_reads_frames_made_as_they_were(tmp_pat
     assert invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "c.arrows")])[0] == 0
     code, stderr, _ = invoke(["predict", "--model", str(tmp_path / "m.model"), str(tmp_path / "d.arrows")])
     assert one_line(stderr, code, 1) and "different pooling" in stderr
+
+
+def test_sense_asks_for_a_centre_it_can_take_and_durations_take_hours(tmp_path):
+    from neurotac_cli.units import parse_duration_us
+
+    code, stderr, _ = invoke(["sense", "--model", "m.model", "--size", "60x60", "cam.raw"])
+    assert code == 2 and "--size needs --center X,Y (sense streams" in stderr
+    assert parse_duration_us("1h") == 3_600_000_000

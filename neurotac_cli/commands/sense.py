@@ -47,6 +47,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     from neurotac_cli.ops.frame import Framing
 
     pace = replay_speed(realtime, speed)
+    if size is not None and center is None:  # the crop's own advice offers `auto`, which a stream cannot take
+        raise click.UsageError("--size needs --center X,Y (sense streams, so the centre cannot be found from the whole input)")
     read_header(model_path)  # a wrong model file fails at once
     if material_path:
         read_header(material_path)

@@ -27,6 +27,7 @@ def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model |
     classifier naming each contact's material, for models trained on contacts; `outside` counts the
     frames and estimates beyond the model's training data as they pass; `notes` gets the slip bars
     each stream of a model trained on contacts followed (`session.stream`), once the batches end."""
+    core.check_streams(model)  # a classifier given as the force model is named as such, whatever else is given
     if outside is not None:
         batches = outside.watch_frames(batches)
     if session.is_session_model(model):
