@@ -114,10 +114,28 @@ def _stdin():
     if is_terminal(stream):
         raise InputError("no input: give a path, or pipe a table into stdin (e.g. `neurotac import rec.aedat | ...`)")
     if _is_pipe(stream):
-        from neurotac_cli.io.live import read_on_through_interrupt
-
-        read_on_through_interrupt()
+        _read_on_through_interrupt()
     return stream
+
+
+def _read_on_through_interrupt():
+    """For a verb reading a table from a pipe: Ctrl-C reaches every process of a pipe at once. The
+    first is let pass, so this verb reads on to the end of its input, which the camera's end
+    (`io.live.stop_on_signals`) closes complete, and the pipe's last output is whole; a second
+    interrupts as usual. Only in the main thread, where signals are handled."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    previous = {}
+
+    def handler(number, frame):
+        signal.signal(number, previous[number])
+
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, handler)
+        signal.siginterrupt(signal.SIGINT, False)
 
 
 def _is_pipe(stream) -> bool:

@@ -360,22 +360,3 @@ def stop_on_signals() -> Callable[[], bool]:
         signal.siginterrupt(number, False)  # a write blocked on a full pipe resumes (Arrow's writer would fail on EINTR)
     return requested.is_set
 
-
-def read_on_through_interrupt():
-    """For a verb reading a table from a pipe: Ctrl-C reaches every process of a pipe at once. The
-    first is let pass, so this verb reads on to the end of its input, which the camera's end
-    (`stop_on_signals`) closes complete, and the pipe's last output is whole; a second interrupts as
-    usual. Only in the main thread, where signals are handled."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return
-    previous = {}
-
-    def handler(number, frame):
-        signal.signal(number, previous[number])
-
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        previous[signal.SIGINT] = signal.signal(signal.SIGINT, handler)
-        signal.siginterrupt(signal.SIGINT, False)
