@@ -94,8 +94,7 @@ def sync(camera, force: str, method: str = "led", trial: str | None = None, labe
     from neurotac_cli.io.manifest import ForceOptions, Source
     from neurotac_cli.ops import sync as sy
 
-    events = import_camera(camera) if isinstance(camera, str) else camera
-    sch.validate(events.schema, "events")
+    events = import_camera(camera) if isinstance(camera, str) else _table(camera, "events")
     name = trial or (trial_name(camera) if isinstance(camera, str) else "trial")
     source = Source(trial=name, events=events, force=ForceOptions().read(force), labels=dict(labels or {}))
     return sy.sync_sources([source], sy.sync_method(method))
