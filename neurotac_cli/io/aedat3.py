@@ -142,19 +142,21 @@ def open_aedat3(path: str, head: bytes, sensor) -> Decoded:
         raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
     declared, camera, source = sensor_of_header(data[:length])
     view = memoryview(data)[length:]
-    whole = whole_packets(view, len(view))
-    # The triggers go into the schema, which is written before the first batch: decode them first
-    # (special packets are small), the events later in chunks.
+    # One walk over the packet headers: where each whole packet ends (a last one cut short is left),
+    # the polarity events of each source, and the triggers, which go into the schema before the first
+    # batch (special packets are small); the events are decoded later in chunks.
     packets, ends, valid_of = Packets(), [], {}
-    offset = 0
-    while offset < whole:
-        kind, from_source, _, _, size, valid = packet_header(view, offset)
+    whole = 0
+    while whole + PACKET <= len(view):
+        kind, from_source, _, _, size, valid = packet_header(view, whole)
+        if whole + PACKET + size > len(view):
+            break
         if kind == SPECIAL:
-            packets.decode(bytes(view[offset : offset + PACKET + size]))
+            packets.decode(bytes(view[whole : whole + PACKET + size]))
         elif kind == POLARITY:
             valid_of[from_source] = valid_of.get(from_source, 0) + valid
-        offset += PACKET + size
-        ends.append(offset)
+        whole += PACKET + size
+        ends.append(whole)
     if valid_of and source not in valid_of:  # the header names no source of these events: its camera is not theirs
         source, camera, declared = next(iter(valid_of)), None, None
     others = sum(valid_of.values()) - valid_of.get(source, 0)
