@@ -24,11 +24,16 @@ from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rota
 TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
 
 
-def _table(table, *kinds) -> pa.Table:
-    """`table` checked as a pyarrow Table of one of `kinds` (the commands check theirs at the door)."""
+def _kind(table, *kinds) -> str:
+    """The kind of `table`, checked as a pyarrow Table of one of `kinds` (the commands check theirs at the door)."""
     if not isinstance(table, pa.Table):
         raise NeurotacError(f"expected a pyarrow Table ({' or '.join(kinds)}), got {type(table).__name__}")
-    sch.validate(table.schema, kinds)
+    return sch.validate(table.schema, kinds)
+
+
+def _table(table, *kinds) -> pa.Table:
+    """`table`, checked as `_kind` checks it."""
+    _kind(table, *kinds)
     return table
 
 
@@ -111,7 +116,7 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     known = {field.name for field in dataclasses.fields(fr.Framing)} - {"window_us"}
     if set(options) - known:
         raise NeurotacError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
-    if sch.validate(_table(table, "recordings", "events").schema, ("recordings", "events")) == "recordings":
+    if _kind(table, "recordings", "events") == "recordings":
         return fr.frame_recordings(table, _us(window), **options)
     return fr.frames_from_events_table(table, _us(window), **options)
 
