@@ -38,6 +38,6 @@ neurotac simulate --preset ch3 --seed 2 --trials 16 --synced \
 neurotac train --model material-curves --seed 1 --epochs 300 -o "$out/material.model" < "$out/materials-train.arrows"
 neurotac eval --model "$out/material.model" --metrics "$out/material-metrics.parquet" \
   --plot "$out/confusion.png" < "$out/materials-test.arrows" > "$out/material-predictions.arrows"
-neurotac classify --model "$out/material.model" < "$out/materials-test.arrows" | neurotac info - | head -8
+neurotac classify --model "$out/material.model" < "$out/materials-test.arrows" | neurotac info - | head -4
 
 step "done: plots in $out/ (force-traces.png, force-training.png, confusion.png)"
