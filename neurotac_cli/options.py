@@ -181,9 +181,11 @@ def camera_input_options(function):
         click.option("--format", "fmt", type=click.Choice(CAMERA_FORMATS), default=None,
                      help="Read the files as this format instead of telling it from their first bytes."),
         click.option("--follow", is_flag=True, help="Read the file while the camera still writes it (like `tail -f`), passing events on "
-                     "as they arrive; ends when it stops growing for --idle-timeout, or on Ctrl-C, with the output complete."),
+                     "as they arrive; a file not there yet is waited for as long as --idle-timeout; ends when it stops growing for "
+                     "--idle-timeout, or on Ctrl-C, with the output complete."),
         click.option("--idle-timeout", type=Duration(positive=True), default="2s", show_default=True,
-                     help="With --follow: end once the file (or the pipe) has not grown for this long."),
+                     help="With --follow: end once the file (or the pipe) has not grown for this long, or when the file has not "
+                     "appeared after this long."),
         click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
                      "when that much time has passed since the first event (to test a controller against a recording)."),
         click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=None,

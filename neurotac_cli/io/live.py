@@ -125,6 +125,8 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     from neurotac_cli.io import camera
 
     name = "stdin" if path in (None, "-") else os.path.basename(str(path))
+    if follow and path not in (None, "-"):
+        _wait_for(path, idle_timeout, stop)
     fd = _open_fd(path)
     try:
         feed = Feed(fd, follow, idle_timeout, stop)
@@ -157,6 +159,19 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     stream = Stream(schema, iter(()))
     stream.batches = _batches(name, fmt, feed, buffer, decoder, declared, schema, stream.notes, lambda: _close(fd, path))
     return stream
+
+
+def _wait_for(path, idle_timeout: float, stop: Callable[[], bool]):
+    """A followed file that does not exist yet is waited for up to `idle_timeout`: the pipe may be
+    started before the camera's recorder creates its file."""
+    if os.path.lexists(path):
+        return
+    end = time.monotonic() + idle_timeout
+    while not os.path.lexists(path):
+        if stop() or time.monotonic() >= end:
+            raise InputError(f"{path}: no such file after waiting {idle_timeout:g} s (--idle-timeout); "
+                             "is the camera writing it, and is the path right?")
+        time.sleep(IDLE_POLL_S)
 
 
 def _open_fd(path) -> int:

@@ -97,6 +97,23 @@ def test_following_a_file_written_in_pieces_gives_the_finished_files_events(tmp_
     assert batches > 1  # the events went on as they arrived, not at the end
 
 
+def test_a_followed_file_that_the_camera_creates_later_is_waited_for(tmp_path, simulated):
+    path = tmp_path / "cam.aedat"
+    later = threading.Timer(0.4, lambda: write_in_pieces(simulated.read_bytes(), path))
+    later.start()
+    table, _ = collect(live.open_stream(str(path), follow=True, idle_timeout=1))
+    later.join()
+    assert events(table).equals(events(read_events_table(simulated)))
+
+
+def test_a_followed_file_that_never_appears_is_one_line_after_the_timeout(tmp_path):
+    start = time.monotonic()
+    done = subprocess.run(["neurotac", "import", "--follow", "--idle-timeout", "300ms", str(tmp_path / "cam.raw")], capture_output=True)
+    lines = done.stderr.decode().strip().splitlines()
+    assert done.returncode == 1 and len(lines) == 1 and "no such file after waiting 0.3 s" in lines[0], done.stderr
+    assert time.monotonic() - start >= 0.3
+
+
 def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     source = real_file("prophesee_vga_faery.evt2.raw")
     data = source.read_bytes()
