@@ -10,7 +10,7 @@ from neurotac_cli.options import echo_lines, history, input_paths, output_option
 @click.option("--material-model", "material_path", type=click.Path(dir_okay=False), default=None,
               help="With a force model trained with --contacts: a material classifier (trained on frames pooled to one "
               "pixel, `crop --pool all`, at the same window) that names each contact's material in `material_pred` on "
-              "the frame where the contact ends.")
+              "the frame where the contact ends (a contact still open when the input ends: on stderr).")
 @threads_option(1, "CPU threads for torch (1 gives the lowest latency per frame).")
 def command(paths, output, model_path, material_path, threads):
     """Stream force estimates: read frames as they arrive, write each one's force as soon as it is computed.

@@ -13,7 +13,8 @@ from neurotac_cli.options import (Duration, Size, camera_input_options, crop_box
               help="A force model file from `neurotac train`, trained on frames of the --window, box and pool given here.")
 @click.option("--material-model", "material_path", type=click.Path(dir_okay=False), default=None,
               help="With a force model trained with --contacts: a material classifier that names each contact's material "
-              "in `material_pred` on the frame where the contact ends (as `predict --material-model`).")
+              "in `material_pred` on the frame where the contact ends (as `predict --material-model`; a contact still open "
+              "when the input ends: on stderr).")
 @click.option("--window", type=Duration(positive=True), default="10ms", show_default=True,
               help="Frame length, with its unit, as `frame --window`.")
 @crop_box_options

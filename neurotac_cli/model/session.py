@@ -136,6 +136,15 @@ class Stream:
         return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} OFF / {gain.bars.on_events:g} ON events, from "
                 f"{presses} ({np.median(gain.presses):.0f} events); the model's bars {model.min_events:g} / {model.on_events:g}")
 
+    def open_contact_note(self, trial: str) -> str | None:
+        """With a material model, a line naming the material of a contact the stream ended inside (its
+        rows are written by then, so its material can only go to stderr); None otherwise."""
+        if self.material is None or self.contact.phase == detector.NONE or not self.sums:
+            return None
+        frames = len(self.sums)
+        return (f"trial {trial}: the input ended inside a contact ({frames} frame{'s' if frames != 1 else ''} long, "
+                f"not released): material {self._material()} from the frames seen")
+
     def _material(self):
         """The material model's class for the contact that just ended (its OFF and ON per frame)."""
         if self.material is None or not self.sums:
@@ -268,7 +277,8 @@ def stream(model, schema: pa.Schema, batches, material=None, notes: list | None 
     """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
     With `material` (a material model on frames pooled to one pixel, at the same window), each
     contact's material in `material_pred` on the frame where it ends. With `notes`, a line per trial
-    whose slip bars followed its presses is appended once the batches are exhausted.
+    whose slip bars followed its presses, and (with `material`) per trial that ended inside a contact,
+    is appended once the batches are exhausted.
 
     Frames of a trial must arrive in order (as `frame` writes them)."""
     from neurotac_cli.model.core import check_input, check_streams
@@ -290,7 +300,8 @@ def stream(model, schema: pa.Schema, batches, material=None, notes: list | None 
                 continue
             yield _predict_batch(model, material, batch, out_schema, streams)
         if notes is not None:
-            notes.extend(line for line in (one.bars_note(trial) for trial, one in streams.items()) if line)
+            lines = [(one.bars_note(trial), one.open_contact_note(trial)) for trial, one in streams.items()]
+            notes.extend(line for pair in lines for line in pair if line)
 
     return out_schema, run()
 

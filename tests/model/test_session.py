@@ -525,6 +525,20 @@ def test_predict_names_each_contacts_material_when_it_ends(trained):
     assert {named[k] for k in ends} <= set(material.classes)
 
 
+def test_a_stream_that_ends_inside_a_contact_names_its_material_in_a_note(trained):
+    material = pooled_material_model()
+    table, _ = tiny_session(grasps=2, seed=13, trial="test")
+    touching = session.predict_table(trained, table).column("contact_pred").to_numpy(zero_copy_only=False)
+    start, end = metrics.runs(touching)[-1]
+    cut = table.slice(0, (start + end) // 2)  # the input ends in the middle of the last contact
+    notes = []
+    _, batches = models.stream(trained, cut.schema, iter(cut.to_batches()), material=material, notes=notes)
+    named = pa.Table.from_batches(list(batches)).column("material_pred").to_pylist()
+    assert sum(v is not None for v in named) == len(metrics.runs(touching)) - 1  # the open contact has no row to name it on
+    ended = [line for line in notes if "ended inside a contact" in line]
+    assert len(ended) == 1 and ended[0].startswith("trial test:") and ended[0].split("material ")[1].split(" ")[0] in material.classes
+
+
 def test_a_material_model_on_unpooled_frames_is_refused(trained):
     from tests.model.helpers import tiny_frames
 
