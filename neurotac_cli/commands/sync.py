@@ -66,6 +66,8 @@ class SensorLag(ParamType):
 @click.option("--min-coverage", type=float, default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
 @click.option("--keep-led", is_flag=True, help="LED method: keep the blink's switch-off burst in each trial (by default its events are left out and counted in the sync metadata: they mark the instant, they are not touch).")
 @click.option("--trigger-type", default=None, help="Trigger method: only triggers of this type (rising, falling, pulse, ...); default any.")
+@click.option("--trigger-id", type=click.IntRange(min=0), default=None,
+              help="Trigger method: only triggers of this input (AEDAT 3.1) or channel (EVT 2.0/3.0); default any.")
 @click.option("--median", "median_window", type=Duration(), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
 @click.option("--force-time-column", default=None, help="Force log: the time column (name or 0-based index) [default: first].")
 @click.option("--force-column", default=None, help="Force log: the force column (name or index) [default: second].")
@@ -74,7 +76,7 @@ class SensorLag(ParamType):
               help="Force log: force unit, overriding the header's suffix [default: N].")
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH for files that do not declare it.")
 def command(events, output, force_path, trial, labels, manifest, method, offset, region, latency, sensor_lag, saturation, min_score, min_coverage,
-            keep_led, trigger_type, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
+            keep_led, trigger_type, trigger_id, median_window, force_time_column, force_column, force_time_unit, force_unit, sensor):
     """Align camera events with a force log; cut and label trials (a recordings table).
 
     The LED is switched off before each grasp and the force log starts then (thesis 3.6.1): the
@@ -97,7 +99,7 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
 
     spec = sync.sync_method(
         method, latency, offset_us=offset, region=region, sensor_lag_us=sensor_lag, saturation=saturation, min_z=min_score,
-        min_coverage=min_coverage, trigger_type=trigger_type, median_us=median_window, keep_led=keep_led)
+        min_coverage=min_coverage, trigger_type=trigger_type, trigger_id=trigger_id, median_us=median_window, keep_led=keep_led)
     force_options = recordings_in.ForceOptions(force_time_column, force_column, force_time_unit, force_unit)
     events, manifest, note = recordings_in.folder_as_manifest(events, manifest, force_path)
     echo_lines("sync", [note] if note else [])

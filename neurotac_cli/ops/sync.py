@@ -45,6 +45,7 @@ class SyncMethod:
     min_z: float = 10.0
     min_coverage: float = 0.05
     trigger_type: str | None = None
+    trigger_id: int | None = None  # the input (AEDAT 3.1) or channel (EVT 2.0/3.0) whose triggers count
     median_us: int = 10_000
     bin_us: int = 1_000
     keep_led: bool = False  # keep the blink's own events in the trial (they are a marker, not touch)
@@ -57,6 +58,9 @@ class SyncMethod:
         if self.method != "offset" and self.offset_us is not None:
             raise UsageError(f"--offset sets the instant for --method offset; with --method {self.method} it would be ignored "
                              "(add --method offset, or leave --offset out)")
+        if self.method != "trigger" and (self.trigger_type is not None or self.trigger_id is not None):
+            raise UsageError(f"--trigger-type and --trigger-id choose triggers for --method trigger; with --method {self.method} "
+                             "they would be ignored")
         if self.region is not None and (len(self.region) != 4 or self.region[2] <= 0 or self.region[3] <= 0):
             raise NeurotacError(f"region must be X,Y,W,H with positive W and H, got {self.region!r}")
         if self.median_us < 0:
@@ -78,6 +82,8 @@ class SyncMethod:
             out["saturation"] = self.saturation
         if self.method == "trigger":
             out["trigger_type"] = self.trigger_type
+            if self.trigger_id is not None:
+                out["trigger_id"] = self.trigger_id
         if self.region is not None:
             out["region"] = list(self.region)
         return out
@@ -131,15 +137,20 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
             "use --method led, xcorr or offset"
         )
     kinds = sorted({str(item.get("type")) for item in triggers})
-    chosen = [item for item in triggers if method.trigger_type in (None, item.get("type"))]
+    ids = sorted({int(item["id"]) for item in triggers if item.get("id") is not None})
+    has = f"the file has {', '.join(kinds)}" + (f" on inputs {', '.join(map(str, ids))}" if ids else "")
+    chosen = [item for item in triggers if method.trigger_type in (None, item.get("type"))
+              and (method.trigger_id is None or item.get("id") == method.trigger_id)]
     if not chosen:
-        raise SyncError(f"no trigger of type {method.trigger_type!r} (the file has {', '.join(kinds)}); choose one with --trigger-type")
+        wanted = " ".join(filter(None, [f"of type {method.trigger_type!r}" if method.trigger_type is not None else "",
+                                        f"on input {method.trigger_id}" if method.trigger_id is not None else ""]))
+        raise SyncError(f"no trigger {wanted} ({has}); choose with --trigger-type / --trigger-id")
     if count > 1 and len(chosen) != count:
         raise SyncError(
-            f"{len(chosen)} triggers but {count} trials in the force log; pick a trigger type with --trigger-type "
-            f"(the file has {', '.join(kinds)})"
+            f"{len(chosen)} triggers but {count} trials in the force log; pick triggers with --trigger-type or --trigger-id ({has})"
         )
-    return [Instant(t0=int(item["t"]), details={"type": item.get("type"), "triggers": len(chosen)}) for item in chosen[:count]]
+    return [Instant(t0=int(item["t"]), details={"type": item.get("type"), "triggers": len(chosen),
+                                                                   **({"id": item["id"]} if item.get("id") is not None else {})}) for item in chosen[:count]]
 
 
 # ---------------------------------------------------------------- trials

@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from neurotac_cli import schema as sch, tables
-from neurotac_cli.errors import NeurotacError, SyncError
+from neurotac_cli.errors import NeurotacError, SyncError, UsageError
 from neurotac_cli.io.force import read_force_log
 from neurotac_cli.io import manifest
 from neurotac_cli.ops import sync as sy
@@ -178,6 +178,19 @@ def test_trigger_and_offset_methods():
     assert (trials[0]["events"][0] == table.column("t").to_numpy() - 3_001_000).all()
     with pytest.raises(SyncError, match="no external trigger"):
         sy.sync_source(manifest.Source("g", synthetic_recording(6), [force_log()]), sy.SyncMethod(method="trigger"))
+
+
+def test_triggers_of_one_input_are_chosen_by_id():
+    table = synthetic_recording(6, led_off=None)
+    triggers = [{"t": 3_010_000, "type": "rising", "id": 0}, {"t": 3_015_000, "type": "rising", "id": 1},
+                {"t": 3_020_000, "type": "falling", "id": 0}]
+    table = table.replace_schema_metadata({**table.schema.metadata, b"neurotac:triggers": json.dumps(triggers).encode()})
+    trials, info = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_type="rising", trigger_id=1))
+    assert trials[0]["t0"] == 3_015_000 and info["g"]["id"] == 1
+    with pytest.raises(SyncError, match=r"no trigger on input 2 \(the file has falling, rising on inputs 0, 1\)"):
+        sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_id=2))
+    with pytest.raises(UsageError, match="--method led"):
+        sy.SyncMethod(method="led", trigger_id=1)
 
 
 # ---------------------------------------------------------------- simulated grasps
