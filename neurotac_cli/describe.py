@@ -467,7 +467,7 @@ def describe_csv(path: str) -> dict | None:
 
     from neurotac_cli.errors import NeurotacError
     from neurotac_cli.io import camera, force, text
-    from neurotac_cli.io.force import _read_table
+    from neurotac_cli.io.force import read_table
 
     with open(path, "rb") as handle:
         head = handle.read(1 << 16)
@@ -476,10 +476,10 @@ def describe_csv(path: str) -> dict | None:
             return None
     except NeurotacError:
         return None
-    names, _ = text.column_names(next(csv.reader([camera._first_data_line(head.removeprefix(camera.BOM))]), []))
+    names, _ = text.column_names(next(csv.reader([camera.first_data_line(head.removeprefix(camera.BOM))]), []))
     if text.names_events(names):
         return None
-    table = _read_table(path)
+    table = read_table(path)
     info = {"kind": "csv", "file": path, "rows": table.num_rows,
             "columns": [f"{field.name}: {field.type}" for field in table.schema]}
     try:

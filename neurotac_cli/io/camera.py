@@ -109,7 +109,7 @@ def detect_format(path, head: bytes) -> str:
     if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
         raise FormatError(f"{name} is already a table, not a camera file (use it directly, or `neurotac info {name}`)")
     if _looks_like_text(head.removeprefix(BOM)):
-        first = _first_data_line(head.removeprefix(BOM))
+        first = first_data_line(head.removeprefix(BOM))
         return "csv" if "," in first else "text"
     raise FormatError(
         f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
@@ -141,7 +141,7 @@ def _looks_like_text(head: bytes) -> bool:
     return all(c.isprintable() or c in "\r\n\t" for c in text)
 
 
-def _first_data_line(head: bytes) -> str:
+def first_data_line(head: bytes) -> str:
     for line in head.decode("ascii", "replace").splitlines():
         if line.strip() and not line.lstrip().startswith("#"):
             return line

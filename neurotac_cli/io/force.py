@@ -58,7 +58,7 @@ def force_unit_of(name: str) -> str | None:
     return suffix.lower() if suffix.lower() in FORCE_UNITS_N else None
 
 
-def _read_table(path: str) -> pa.Table:
+def read_table(path: str) -> pa.Table:
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such force log")
     with open(path, "rb") as handle:
@@ -106,7 +106,7 @@ def _column(table: pa.Table, chosen, default_index: int, what: str, path: str) -
 
 def read_force_log(path: str, time_column=None, force_column=None, time_unit=None, force_unit=None) -> list[ForceLog]:
     """Read a force log into one ForceLog per trial (see the module doc for columns and units)."""
-    table = _read_table(path)
+    table = read_table(path)
     time_name = _column(table, time_column, 0, "time", path)
     force_name = _column(table, force_column, 1, "force", path)
     notes = []
