@@ -142,6 +142,7 @@ def _looks_like_text(head: bytes) -> bool:
 
 
 def first_data_line(head: bytes) -> str:
+    """The first line of a text file's head that is neither blank nor a `#` comment ("" if none)."""
     for line in head.decode("ascii", "replace").splitlines():
         if line.strip() and not line.lstrip().startswith("#"):
             return line

@@ -59,6 +59,7 @@ def force_unit_of(name: str) -> str | None:
 
 
 def read_table(path: str) -> pa.Table:
+    """A force log's columns as written (CSV or Parquet, told from the first bytes), before any is chosen."""
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such force log")
     with open(path, "rb") as handle:
