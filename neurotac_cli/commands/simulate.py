@@ -59,6 +59,10 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Training data: draw FAMILY from the lower two thirds of each of its ranges only (varied even if not in --vary).")
 @click.option("--unseen", default=None, metavar="FAMILY",
               help="Test data: draw FAMILY from the upper third of each of its ranges only, physics --hold-out training never saw.")
+@click.option("--rigs", type=click.IntRange(min=1), default=None,
+              help="With --vary: deal the grasps in turn to this many rigs, each one draw of the physics shared by its grasps "
+                   "(a lab's sensors, each with several grasps of every group), labelled `rig` (rig1, rig2, ...): training "
+                   "data for `train --adapt-by rig`.")
 @click.option("--trials", type=click.IntRange(min=1), default=None,
               help="Simulate only this many grasps, spread over the preset's groups in turn (a small, fast data set).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
@@ -82,7 +86,7 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
                    "(the full list with units and sources: docs/simulator.md).")
 @click.option("--keep-led", is_flag=True, help="With --synced: keep the LED blink's events in each trial, as `sync --keep-led` does (by default they are left out: they mark the instant, they are not touch).")
-def command(preset, session, grasps, sessions, duration, illumination_drift, gripper, vary, hold_out, unseen, trials,
+def command(preset, session, grasps, sessions, duration, illumination_drift, gripper, vary, hold_out, unseen, rigs, trials,
             out_dir, synced, output, seed, groups, force_range, hold, force_sensor, background_rate, sensor_size, settings,
             keep_led):
     """Simulate grasps on the neuromorphic tactile sensor: camera files, force logs and a manifest.
@@ -103,8 +107,10 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
         neurotac simulate --session --grasps 50 --duration 5min --seed 3 --out s/
         neurotac sync --manifest s/manifest.csv | neurotac crop --pool 6x6 | neurotac frame --window 10ms --phases session
         neurotac simulate --trials 24 --vary all --hold-out membrane --gripper force --out train/
+        neurotac simulate --preset ch3 --gripper force --vary all --rigs 8 --synced -o rigs.parquet
     """
     from neurotac_cli import tables
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.sim.config import preset_config
     from neurotac_cli.sim.physics import parse_variation
 
@@ -113,6 +119,10 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
                            force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
     variation = parse_variation(vary, hold_out, unseen)
+    if rigs and variation is None:
+        raise UsageError("--rigs deals the grasps to rigs of drawn physics: give --vary (or --hold-out / --unseen) too")
+    if rigs and session:
+        raise UsageError("--rigs is for trials; with --session each session draws its own physics (--vary)")
     if session:
         from neurotac_cli.sim.session import write_sessions
 
@@ -127,7 +137,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
 
     if out_dir:
         prepare_folder(out_dir)
-    simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer(), variation=variation)
+    simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer(), variation=variation, rigs=rigs or 0)
     if out_dir:
         write_dataset(simulation, out_dir)
     if synced:

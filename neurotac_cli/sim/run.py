@@ -6,12 +6,14 @@
 """
 
 import csv
+import dataclasses
 import io
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from neurotac_cli.errors import UsageError
 from neurotac_cli.sim import dvs, force_sensor
 from neurotac_cli.sim.config import SimConfig
 from neurotac_cli.sim.grasp import Grasp, plan_grasps, rigid_motion_px, true_force
@@ -39,11 +41,14 @@ class Simulation:
     still: tuple  # (t, x, y, p) of the still-scene recording
 
 
-def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progress=None, variation=None) -> Simulation:
+def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progress=None, variation=None,
+             rigs: int = 0) -> Simulation:
     """Every grasp of the design (or the first `trials`, spread over its groups), same seed same result.
 
     With a `variation` (sim.physics), each trial gets its own physics and camera, drawn from the
     varied families' ranges, and is simulated on its own; its drawn values go to `grasp.extra["physics"]`.
+    With `rigs` as well, the grasps are dealt in turn to that many rigs instead, each one draw of the
+    physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN.
     """
     streams = np.random.SeedSequence(seed).spawn(4)
     camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
@@ -51,6 +56,22 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     noise_rngs = [np.random.default_rng(s) for s in streams[2].spawn(len(grasps) + 1)]  # one per trial + the still scene
     if variation is None:
         result = _simulate_trials(config, camera, grasps, noise_rngs, progress)
+    elif rigs:
+        if rigs > len(grasps):
+            raise UsageError(f"--rigs {rigs}: more rigs than the {len(grasps)} grasps to deal to them")
+        result = [None] * len(grasps)
+        for k, seq in enumerate(streams[3].spawn(rigs)):
+            rng = np.random.default_rng(seq)
+            varied, physics = variation.draw(config, rng)
+            members = range(k, len(grasps), rigs)  # dealt in turn: each rig gets a share of every group
+            planned = []
+            for i in members:
+                grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": f"rig{k + 1}"}))
+                grasp.extra["physics"] = physics
+                planned.append(grasp)
+            made = _simulate_trials(varied, dvs.make_camera(varied, rng), planned, [noise_rngs[i] for i in members], None)
+            for i, trial in zip(members, made):
+                result[i] = trial
     else:
         result = []
         for grasp, noise_rng, seq in zip(grasps, noise_rngs, streams[3].spawn(len(grasps))):

@@ -96,3 +96,21 @@ def test_a_session_draws_the_objects_family_per_grasp_and_the_sensor_once():
     assert len(set(tilts)) == 6 and all(SEEN_SHARE * 0.6 <= tilt <= 0.6 for tilt in tilts)  # the unseen third
     assert all(planned.config.tilt_deg == planned.physics["tilt_deg"] for planned in session.grasps)
     assert all(planned.config.on_threshold == 0.30 for planned in session.grasps)  # plan_session leaves the sensor to the session
+
+
+def test_rigs_share_one_draw_of_the_physics_among_their_grasps_and_label_them(tmp_path):
+    args = ["neurotac", "simulate", "--preset", "ch3", "--trials", "8", "--set", "hold_us=40ms", "--seed", "4",
+            "--vary", "pixels,membrane", "--rigs", "2"]
+    for name in ("a", "b"):
+        done = subprocess.run([*args, "--out", str(tmp_path / name)], capture_output=True)
+        assert done.returncode == 0, done.stderr.decode()
+    rows = list(csv.DictReader(open(tmp_path / "a" / "manifest.csv")))
+    assert [r["rig"] for r in rows] == ["rig1", "rig2"] * 4  # dealt in turn: each rig gets a grasp of every group
+    for rig in ("rig1", "rig2"):
+        assert sorted(r["material"] for r in rows if r["rig"] == rig) == ["foam", "rubber", "silicone", "steel"]
+        assert len({r["true_on_threshold"] for r in rows if r["rig"] == rig}) == 1  # one sensor per rig
+    assert len({r["true_membrane_youngs_pa"] for r in rows}) == 2
+    assert (tmp_path / "a" / "manifest.csv").read_bytes() == (tmp_path / "b" / "manifest.csv").read_bytes()
+    for bad in (["--rigs", "2"], ["--vary", "all", "--rigs", "9"]):
+        done = subprocess.run(["neurotac", "simulate", "--preset", "ch3", "--trials", "8", "--synced", *bad], capture_output=True)
+        assert done.returncode == 2 and len(done.stderr.decode().strip().splitlines()) == 1, done.stderr
