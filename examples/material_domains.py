@@ -11,13 +11,18 @@
    (`ch3 --gripper force --seed 2`, 48 grasps), scored on each rig's 48 grasps (the rigs of
    `examples/rig_materials.py`: one draw of every physics family each) with `neurotac classify`,
    as trained and with `--adapt-by object` (each rig's grasps standardised together: one object,
-   one sensor).
+   one sensor); beside them `material-timing` trained on many simulated sensors instead
+   (`simulate --vary all --rigs 16`, 32 grasps on each, `train --adapt-by rig`).
+3. Physics families training never saw. The same many-sensor training with one family drawn from
+   the lower two thirds of its ranges only (`--hold-out FAMILY`), scored on other sensors of those
+   ranges and on sensors whose FAMILY comes from the upper third (`--unseen FAMILY`), 16 grasps on
+   each sensor, standardised per sensor.
 
 Writes the section between `<!-- results:material-domains:start -->` and
 `<!-- results:material-domains:end -->` of docs/results.md and WORK/material_domains.md (a quick or
 resized run only the latter).
 
-    make -C examples material-domains                # the published tables (about 10 minutes on 2 cores)
+    make -C examples material-domains                # the published tables (about 30 minutes on 2 cores)
     python examples/material_domains.py --quick      # one small data set and one small rig, 1 seed, material-timing only
 """
 
@@ -34,6 +39,9 @@ SIZES = ("5", "7.5", "10")
 MATERIALS = ("foam", "rubber", "silicone", "steel")
 DATA_SEEDS, PER, REPEATS = (5, 6, 7), 4, 2  # the published table's
 WAYS = (("as trained", ""), ("--adapt-by object", "--adapt-by object"))
+MANY_RIGS, MANY_PER = 16, 8  # training sensors of the many-sensor models, and grasps of each material on each
+HELD_OUT_FAMILIES = ("membrane", "pixels")
+TEST_RIGS, TEST_PER = 8, 4  # sensors of each held-out family's test sets, and grasps of each material on each
 SENSOR_MODELS = ("material-timing", "material-curves", "material-dnn")  # ours, and the thesis's DNN
 
 
@@ -79,7 +87,12 @@ def main(argv=None):
     rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means.values())])
     grasps = 12 if args.quick else 48  # ch3's 48, or a quick run's few
     specs = SENSOR_MODELS[:1] if args.quick else SENSOR_MODELS
-    sensors = sensor_rows(work, RIGS[:1] if args.quick else RIGS, f"--trials {grasps}" if args.quick else "", args.jobs, specs)
+    many_rigs, many_per = (2, 2) if args.quick else (MANY_RIGS, MANY_PER)
+    many = many_sensor_model(work, "all", "--vary all", many_rigs, many_per, 31)
+    sensors = sensor_rows(work, RIGS[:1] if args.quick else RIGS, f"--trials {grasps}" if args.quick else "", args.jobs, specs, [many])
+    families = HELD_OUT_FAMILIES[:1] if args.quick else HELD_OUT_FAMILIES
+    test_rigs, test_per = (2, 2) if args.quick else (TEST_RIGS, TEST_PER)
+    held = [family_row(work, family, many_rigs, many_per, test_rigs, test_per) for family in families]
     body = "\n".join([
         f"Made by `make -C examples material-domains` (`examples/material_domains.py`). Simulated `ch3` grasps with a "
         f"force-controlled gripper (peak force independent of material), {len(MATERIALS)} materials x hexagons of "
@@ -91,9 +104,22 @@ def main(argv=None):
         md_table(["data set seed", "held-out size", *(name for name, _ in WAYS)], rows),
         "",
         f"Trained on the default physics (`ch3 --gripper force --seed 2`, {grasps} grasps), scored on each rig's {grasps} grasps "
-        "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %:",
+        "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %; "
+        f"in the last column `material-timing` trained instead on {many_rigs} simulated sensors of {4 * many_per} grasps each "
+        f"(`simulate --preset ch3 --gripper force --vary all --rigs {many_rigs} --seed 31`, {many_per} grasps of each material "
+        "on each sensor; `train --adapt-by rig`), none of them a rig of the table:",
         "",
-        md_table(["rig", "physics", *(f"{spec}, {name}" for spec in specs for name, _ in WAYS)], sensors),
+        md_table(["rig", "physics", *(f"{spec}, {name}" for spec in specs for name, _ in WAYS),
+                  f"material-timing, {many_rigs} simulated sensors, --adapt-by rig"], sensors),
+        "",
+        f"Physics families training never saw: `material-timing` trained as in the last column, on {many_rigs} sensors "
+        f"whose FAMILY is drawn from the lower two thirds of its ranges only (`--vary all --hold-out FAMILY --rigs "
+        f"{many_rigs}`, seed 31), scored on {test_rigs} other sensors of those ranges (`--hold-out FAMILY`, seed 41: seen) and "
+        f"on {test_rigs} sensors whose FAMILY comes from the upper third (`--unseen FAMILY`, seed 42: never seen), "
+        f"{4 * test_per} grasps on each sensor ({test_per} of each material), each sensor's grasps standardised together. "
+        "Accuracy in %:",
+        "",
+        md_table(["held-out family", "seen physics", "unseen physics", "unseen / seen", "recall per class, unseen"], held),
     ])
     print(body)
     (work / "material_domains.md").write_text(body + "\n")
@@ -101,16 +127,49 @@ def main(argv=None):
         publish_section(SECTION, body, TITLE)
 
 
-def classified(model: pathlib.Path, data: pathlib.Path) -> float:
-    """Accuracy (%) of a classifier on a frames table, from the metrics table `eval --model` writes."""
-    path = model.with_name(f"{model.stem}-{data.parent.name}.parquet")
+def classified(model: pathlib.Path, data: pathlib.Path, recall: bool = False):
+    """Accuracy (%) of a classifier on a frames table, from the metrics table `eval --model` writes
+    (with `recall`, and the recall per class in %)."""
+    name = data.parent.name if data.parent.name.startswith("rig") else data.stem
+    path = model.with_name(f"{model.stem}-{name}.parquet")
     if not path.exists():
         sh(f"{neurotac()} eval --model {model} --metrics {path} < {data} > /dev/null")
-    return 100 * metrics(path)[("all", "accuracy")]
+    scores = metrics(path)
+    accuracy = 100 * scores[("all", "accuracy")]
+    if not recall:
+        return accuracy
+    return accuracy, {scope.split(":", 1)[1]: 100 * value for (scope, metric), value in scores.items() if metric == "recall"}
 
 
-def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MODELS) -> list:
-    """One row per rig: each model of `specs` trained on the default physics, as trained and adapted."""
+def sensors_data(work: pathlib.Path, tag: str, vary: str, rigs: int, per: int, seed: int) -> pathlib.Path:
+    """Frames of `rigs` simulated sensors of drawn physics, `per` grasps of each material on each, labelled `rig`."""
+    objects = ",".join(f"{material}:hex:{rigs * per}" for material in MATERIALS)
+    return frames(work, f"ch3-sensors-{tag}-r{rigs}x{per}-s{seed}", MATERIAL_PIPELINE.format(n=neurotac()),
+                  f"--objects {objects} --gripper force --seed {seed} {vary} --rigs {rigs}")
+
+
+def many_sensor_model(work: pathlib.Path, tag: str, vary: str, rigs: int, per: int, seed: int) -> pathlib.Path:
+    """`material-timing` trained on many simulated sensors, its features standardised per sensor."""
+    data = sensors_data(work, tag, vary, rigs, per, seed)
+    model = work / f"{data.stem}-material-timing.model"
+    if not model.exists():
+        sh(f"{neurotac()} train --model material-timing --adapt-by rig --seed 1 -o {model} {data}")
+    return model
+
+
+def family_row(work: pathlib.Path, family: str, rigs: int, per: int, test_rigs: int, test_per: int) -> list:
+    """One row of the held-out families' table: seen and unseen accuracy of the many-sensor model trained without FAMILY's upper third."""
+    model = many_sensor_model(work, f"{family}-seen", f"--vary all --hold-out {family}", rigs, per, 31)
+    seen = classified(model, sensors_data(work, f"{family}-seen", f"--vary all --hold-out {family}", test_rigs, test_per, 41))
+    unseen, recall = classified(model, sensors_data(work, f"{family}-unseen", f"--vary all --unseen {family}", test_rigs, test_per, 42),
+                                recall=True)
+    return [family, f"{seen:.1f}", f"{unseen:.1f}", f"{unseen / seen:.2f}" if seen else "",
+            ", ".join(f"{name} {value:.0f}%" for name, value in sorted(recall.items()))]
+
+
+def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MODELS, more=()) -> list:
+    """One row per rig: each model of `specs` trained on the default physics, as trained and adapted,
+    then each model of `more` (paths)."""
     training = frames(work, "ch3-force-gripper", MATERIAL_PIPELINE.format(n=neurotac()), f"--gripper force --seed 2 {extra}")
     models = []
     for spec in specs:
@@ -119,6 +178,7 @@ def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MO
             if not model.exists():
                 sh(f"{neurotac()} train --model {spec} {options} --seed 1 -o {model} {training}")
             models.append(model)
+    models += list(more)
     with concurrent.futures.ThreadPoolExecutor(max(1, jobs)) as pool:  # each simulation is a process of its own
         made = list(pool.map(lambda seed: rig_data(work, seed, extra), rigs))
     rows, means = [], [[] for _ in models]

@@ -459,7 +459,10 @@ def test_the_material_domains_script_scores_sizes_and_sensors_both_ways_and_a_qu
     assert [row.split(" | ")[1] for row in sizes] == ["5 mm", "7.5 mm", "10 mm"]
     sensors = [line for line in out.splitlines() if line.startswith(f"| {script.RIGS[0]} |")]
     assert len(sensors) == 1
+    assert len(sensors[0].split(" | ")) == 2 + 2 + 1  # rig, physics, material-timing both ways, many sensors
     for row in sizes + sensors:
         cells = [float(cell) for cell in row.strip(" |").split(" | ")[2:]]
         assert all(0 <= cell <= 100 for cell in cells)
+    (family,) = [line for line in out.splitlines() if line.startswith("| membrane |")]
+    assert all(0 <= float(cell) <= 100 for cell in family.split(" | ")[1:3])
     assert (tmp_path / "material_domains.md").exists() and not published

@@ -48,7 +48,8 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     With a `variation` (sim.physics), each trial gets its own physics and camera, drawn from the
     varied families' ranges, and is simulated on its own; its drawn values go to `grasp.extra["physics"]`.
     With `rigs` as well, the grasps are dealt in turn to that many rigs instead, each one draw of the
-    physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN.
+    physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN-seedS
+    (the seed in the name: another seed's rigN is another sensor).
     """
     streams = np.random.SeedSequence(seed).spawn(4)
     camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
@@ -66,7 +67,7 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
             members = range(k, len(grasps), rigs)  # dealt in turn: each rig gets a share of every group
             planned = []
             for i in members:
-                grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": f"rig{k + 1}"}))
+                grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": f"rig{k + 1}-seed{seed}"}))
                 grasp.extra["physics"] = physics
                 planned.append(grasp)
             made = _simulate_trials(varied, dvs.make_camera(varied, rng), planned, [noise_rngs[i] for i in members], None)

@@ -105,8 +105,8 @@ def test_rigs_share_one_draw_of_the_physics_among_their_grasps_and_label_them(tm
         done = subprocess.run([*args, "--out", str(tmp_path / name)], capture_output=True)
         assert done.returncode == 0, done.stderr.decode()
     rows = list(csv.DictReader(open(tmp_path / "a" / "manifest.csv")))
-    assert [r["rig"] for r in rows] == ["rig1", "rig2"] * 4  # dealt in turn: each rig gets a grasp of every group
-    for rig in ("rig1", "rig2"):
+    assert [r["rig"] for r in rows] == ["rig1-seed4", "rig2-seed4"] * 4  # dealt in turn: each rig gets a grasp of every group
+    for rig in ("rig1-seed4", "rig2-seed4"):
         assert sorted(r["material"] for r in rows if r["rig"] == rig) == ["foam", "rubber", "silicone", "steel"]
         assert len({r["true_on_threshold"] for r in rows if r["rig"] == rig}) == 1  # one sensor per rig
     assert len({r["true_membrane_youngs_pa"] for r in rows}) == 2
