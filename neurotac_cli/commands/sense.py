@@ -30,7 +30,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     for three other processes to be scheduled: the lowest latency from a window's close to its force
     row. CAMERA is a camera file (any format `import` reads), `-` for stdin, a FIFO, a file still being
     written (--follow) or a recording replayed at its recorded pace (--realtime). The box must be fixed
-    (--box, or --size with --center X,Y): a live stream has no whole input to find the contact in.
+    (--box, or --size with --center X,Y): a live stream has no whole input to find the contact in;
+    without a box or --pool the whole frames go to the model (one trained on uncropped frames).
     Ctrl-C (or SIGTERM) ends it with the output complete, exit 0. Frames and estimates outside the
     model's training data, and the slip bars the stream followed, are told on stderr as `predict`
     tells them.
@@ -59,7 +60,8 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     stream = events.import_events([path], sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
                                   speed=pace, stop=live.stop_on_signals())
     framing = Framing(window_us=window, trial=camera_file_stem(stream.schema) or "events")
-    schema, batches, report = sense.sense(stream, loaded(), framing, CropSpec(box=box, size=size, center=center, pool=pool),
+    box_spec = CropSpec(box=box, size=size, center=center, pool=pool) if (box, size, pool) != (None, None, None) else None
+    schema, batches, report = sense.sense(stream, loaded(), framing, box_spec,
                                           material=material(), sensor=sensor,
                                           say=lambda line: echo_lines("sense", [line], "warning: "))
     tables.write(output, batches, step=history(), schema=schema, flush_each=True)

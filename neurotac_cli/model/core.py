@@ -189,8 +189,9 @@ def input_spec_of(schema: pa.Schema, accumulated: bool) -> dict:
     }
 
 
-def check_input(model: Model, schema: pa.Schema):
-    """Refuse frames that differ from the training frames in window, crop or channels."""
+def check_input(model: Model, schema: pa.Schema, advice: str | None = None):
+    """Refuse frames that differ from the training frames in window, crop or channels; `advice`: how
+    to make them as the training frames were (default: with `frame` and `crop`)."""
     spec = model.input_spec
     here = input_spec_of(schema, already_accumulated(schema))
 
@@ -218,9 +219,10 @@ def check_input(model: Model, schema: pa.Schema):
     if problems:
         raise ModelError(
             f"model {model.name!r} was trained on {describe(spec, trained)}, this input has {describe(here, given)} "
-            f"(different {' and '.join(problems)}); prepare the frames as the training frames were: `neurotac frame "
-            f"--window {(spec.get('window_us') or 10000) / 1000:g}ms | neurotac crop` with the training's --size, --center and --pool, and frame's --dtype "
-            f"(`neurotac info` of the training frames shows them)"
+            f"(different {' and '.join(problems)}); "
+            + (advice or f"prepare the frames as the training frames were: `neurotac frame --window {(spec.get('window_us') or 10000) / 1000:g}ms "
+               "| neurotac crop` with the training's --size, --center and --pool, and frame's --dtype (`neurotac info` of the "
+               "training frames shows them)")
         )
 
 

@@ -35,17 +35,23 @@ class SenseReport:
         return self.framing.messages() + self.crop.messages(warn_above) + outside + self.notes
 
 
-def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec,
+def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, box: cropping.CropSpec | None,
           material: core.Model | None = None, sensor=None, say=None) -> tuple[pa.Schema, object, SenseReport]:
     """(predictions schema, batches, report) of an events `stream`: framed by `framing`, cropped to a
-    fixed `box`, estimated by `model`, each window as soon as it has closed; `say` is called with a
+    fixed `box` (None: whole frames, for a model trained on them), estimated by `model`, each window
+    as soon as it has closed; `say` is called with a
     line when a frame or an estimate first lies outside the model's training data (`predict.Outside`)."""
-    if box.center == "auto":
+    if box is not None and box.center == "auto":
         raise UsageError("sense streams, and --center auto needs the whole input: give the centre as X,Y "
                          "(`neurotac info` or `neurotac crop --center auto` on a recording shows it)")
     report = SenseReport()
     schema, frames = framing_ops.frame_events(stream.schema, stream.batches, framing, report.framing, sensor=sensor)
-    schema, cropped, report.crop = cropping.crop(schema, frames, box)
+    cropped = frames
+    if box is not None:
+        schema, cropped, report.crop = cropping.crop(schema, frames, box)
+    core.check_streams(model)  # a classifier given as the force model is named as such first
+    core.check_input(model, schema, advice=f"give `sense` the training's --window ({(model.input_spec.get('window_us') or 10000) / 1000:g}ms), "
+                     "--size with --center (or --box) and --pool (`neurotac info` of the training frames shows them)")
     report.outside = predict.Outside.of(model, say=say)
     schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside, notes=report.notes)
     return schema, batches, report

@@ -73,3 +73,20 @@ def test_sense_refuses_a_missing_model_in_one_line(rig, tmp_path):
     _, camera = rig
     done = neurotac("sense", str(camera), "--model", str(tmp_path / "none.model"), *BOX)
     assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_sense_without_a_box_feeds_whole_frames_to_a_model_trained_on_them(rig):
+    folder, camera = rig
+    shell(f"neurotac sync --manifest {folder}/sim/manifest.csv | neurotac frame --window 10ms "
+          f"| neurotac train --model tdnn --epochs 1 -o {folder}/whole.model")
+    shell(f"neurotac import {camera} | neurotac frame --window 10ms | neurotac predict --model {folder}/whole.model -o {folder}/wpipe.arrows")
+    done = neurotac("sense", str(camera), "--model", f"{folder}/whole.model", "-o", f"{folder}/wone.arrows")
+    assert done.returncode == 0, done.stderr
+    pipe, one = tables.read([f"{folder}/wpipe.arrows"]), tables.read([f"{folder}/wone.arrows"])
+    np.testing.assert_allclose(one.column("force_pred").to_numpy(), pipe.column("force_pred").to_numpy(), atol=1e-6)
+
+
+def test_sense_tells_its_own_options_when_the_box_differs_from_the_training_frames(rig):
+    folder, camera = rig
+    done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", "--size", "40x40", "--center", "120,90", "--pool", "4x4")
+    assert done.returncode == 1 and "give `sense` the training's --window" in done.stderr and "neurotac crop" not in done.stderr
