@@ -125,6 +125,12 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
             if value is not None and expected[what] is not None and value != expected[what]:
                 raise SchemaError(f"{name} has {what} {_show(value)}, {first_name} {_show(expected[what])}; "
                                   "concatenate tables made alike (crop and frame them the same way)")
+            # the output keeps one table's window: frames that do not say theirs would be labelled with it
+            if what == "frame window (µs)" and (value is None) != (expected[what] is None):
+                known, unknown = (name, first_name) if value is not None else (first_name, name)
+                raise SchemaError(f"{unknown} does not record its frame window (metadata {sch.WINDOW}) and {known} has "
+                                  f"{_show(value if value is not None else expected[what])} µs; frame both with `neurotac "
+                                  "frame --window` so that the window is known")
 
 
 def _show(value) -> str:

@@ -56,6 +56,15 @@ def test_concat_refuses_frames_of_another_window():
         concat([("a", tiny_frames(trials=1)), ("b", tiny_frames(trials=1, seed=1, window_us=7000))])
 
 
+def test_concat_refuses_frames_that_do_not_record_their_window_beside_frames_that_do():
+    known = tiny_frames(trials=1)
+    unknown = tiny_frames(trials=1, seed=1, window_us=7000)
+    unknown = unknown.replace_schema_metadata({k: v for k, v in unknown.schema.metadata.items() if k != sch.WINDOW.encode()})
+    for parts in ([("a", known), ("b", unknown)], [("b", unknown), ("a", known)]):
+        with pytest.raises(SchemaError, match="b does not record its frame window"):
+            concat(parts)
+
+
 def test_split_by_fraction_is_seeded_keeps_copies_with_their_source_and_stratifies():
     frames = tiny_frames(trials=8, augmented_copies=1)
     train, test, report = split(frames, fraction=0.25, per="object", seed=3)
