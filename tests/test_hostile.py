@@ -260,6 +260,39 @@ def test_a_training_set_that_cannot_train_is_refused_before_any_progress_line(tm
         assert one_line(stderr, code, 1) and said in stderr
 
 
+def _with_column(table, name, values):
+    field = table.schema.field(name)
+    return table.set_column(table.schema.get_field_index(name), field, pa.array(values, field.type))
+
+
+def test_training_data_that_would_train_silently_wrong_is_refused(tmp_path):
+    table = frames_table(trials=("a", "b", "c"))
+    n = table.num_rows
+    spike = _with_column(table, "force", [0.5] * 5 + [1e30] + [0.5] * (n - 6))
+    flat = _with_column(table, "force", [0.0] * n)
+    mixed = _with_column(table, "material", ["rubber"] + table.column("material").to_pylist()[1:])  # trial a: foam and rubber
+    unlabelled = _with_column(table, "material", [None] * 4 + table.column("material").to_pylist()[4:])
+    empty = _with_column(table, "material", [""] * 4 + table.column("material").to_pylist()[4:])
+    for data, args, said in [(spike, ["--model", "tdnn"], "force of 1e+30 N"), (flat, ["--model", "tdnn"], "0 N on every frame"),
+                             (mixed, ["--model", "material-dnn"], "trial 'a' has more than one material (foam, rubber)"),
+                             (unlabelled, ["--model", "material-dnn"], "1 trial without a material value (a)"),
+                             (empty, ["--model", "material-dnn"], "1 trial without a material value (a)"),
+                             (table, ["--model", "tdnn", "--val-per", "nosuch"], "--val-per nosuch: no label column"),
+                             (table, ["--model", "tdnn", "--val-trials", "a", "--val-where", "material=foam"], "give one of them")]:
+        path = str(tmp_path / "f.arrows")
+        tables.write(path, data)
+        code, stderr, _ = invoke(["train", *args, "--epochs", "1", "-o", str(tmp_path / "m.model"), path])
+        assert one_line(stderr, code, 2 if "give one" in said else 1) and said in stderr, stderr
+
+
+def test_a_validation_fraction_that_draws_no_trial_is_told(tmp_path):
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, frames_table(trials=("a", "b")))  # one trial per material: none to draw per material
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--val-fraction", "0.5", "--val-per", "material", "--epochs", "1",
+                              "-o", str(tmp_path / "m.model"), path])
+    assert code == 0 and "no material value has two source trials to draw from" in stderr
+
+
 def test_a_classifier_cannot_be_cross_validated_by_holding_out_its_own_classes(tmp_path):
     path = str(tmp_path / "f.arrows")
     tables.write(path, frames_table(trials=("a", "b", "c")))

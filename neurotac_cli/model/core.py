@@ -273,11 +273,18 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     """
     sch.validate(table.schema, "frames")
     name, config, fit_config = split_spec(spec)
-    per = per or (label if name in MATERIAL_MODELS else "object")
     data = sequences(table)
+    if per is not None and per not in data.labels:
+        raise ModelError(f"--val-per {per}: no label column {per!r} in the frames (labels: {', '.join(data.labels) or 'none'})")
+    per = per or (label if name in MATERIAL_MODELS else "object")
+    if name in MATERIAL_MODELS:
+        _check_classes(data, label)
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
     in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
+    if val_fraction and not in_val.any() and progress:
+        progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
+                 "is held out for validation (early stopping follows the training loss)")
     train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
     accumulated = already_accumulated(table.schema)
     input_spec = input_spec_of(table.schema, accumulated)
@@ -300,12 +307,33 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress)
 
 
+MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
+
+
+def _check_classes(data, label: str):
+    """Every trial has a class to learn: a missing or empty label would become a class of its own, or fail later."""
+    if label not in data.labels:
+        return  # told by _check_training_set, with the labels there are
+    missing = [trial for trial, value in zip(data.trials, data.labels[label]) if value is None or not value.strip()]
+    if missing:
+        raise ModelError(f"{counted(len(missing), 'trial')} without a {label} value ({', '.join(missing[:3])}"
+                         f"{', ...' if len(missing) > 3 else ''}); label them, or leave them out (`neurotac select`)")
+
+
 def _check_training_set(name, config, train_set, label):
     """What the training trials must hold, checked before the first progress line so that a refusal
     is the only line on stderr."""
     if name not in MATERIAL_MODELS:
-        if np.isnan(np.concatenate(train_set.force)).all():
+        forces = np.concatenate(train_set.force)
+        known = forces[~np.isnan(forces)]
+        if not len(known):
             raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
+        if np.abs(known).max() > MAX_FORCE_N:
+            raise ModelError(f"the training frames carry a force of {known[np.argmax(np.abs(known))]:.3g} N, beyond any contact "
+                             f"force (> {MAX_FORCE_N:g} N): a corrupt sample or a log in another unit; clean the force log")
+        if known.min() == known.max():
+            raise ModelError(f"the training frames' force is {known[0]:g} N on every frame: there is no force to learn "
+                             "(did the force sensor record?)")
         return
     if label not in train_set.labels:
         raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")

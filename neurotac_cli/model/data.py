@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import ModelError, UsageError
 
 
 @dataclass
@@ -71,6 +71,8 @@ def sequences(table: pa.Table) -> Sequences:
     split = lambda values: np.split(values, bounds)  # noqa: E731
     trials = [names[c] for c in codes[starts]]
     label_names = sch.label_columns(table.schema)
+    for name in label_names:
+        _check_one_value_per_trial(table.column(name), order, codes, names, name)
     labels = {name: _first_per_trial(table.column(name), order, starts) for name in label_names}
     if "source_trial" in table.schema.names:
         source = [s if s else trial for s, trial in zip(_first_per_trial(table.column("source_trial"), order, starts), trials)]
@@ -84,6 +86,19 @@ def sequences(table: pa.Table) -> Sequences:
         trials=trials, counts=split(counts), t=split(t), frame=split(frames), force=split(force),
         phase=split(phase), labels=labels, source=source, augmented=augmented,
     )
+
+
+def _check_one_value_per_trial(column, order, codes, names, label: str):
+    """Refuse a label whose value changes inside a trial: a trial is one sample with one label, and
+    reading its first frame's would train on (or score against) a value the rest of it contradicts."""
+    encoded = pc.dictionary_encode(column).combine_chunks()
+    values = encoded.indices.fill_null(-1).to_numpy(zero_copy_only=False)[order]
+    changed = np.flatnonzero((values[1:] != values[:-1]) & (codes[1:] == codes[:-1]))
+    if len(changed):
+        trial = names[codes[changed[0]]]
+        seen = sorted({str(v) for v in np.asarray(column.to_pylist(), dtype=object)[order][codes == codes[changed[0]]]})
+        raise ModelError(f"trial {trial!r} has more than one {label} ({', '.join(seen[:4])}); a label holds one value "
+                         "per trial: correct it, or give the parts trial ids of their own")
 
 
 def _first_per_trial(column, order, starts) -> list:
@@ -132,6 +147,9 @@ def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None
     Validation always holds whole source groups; explicit choices that split a group are refused.
     """
     n = len(data)
+    given = [flag for flag, value in (("--val-trials", trials), ("--val-where", where), ("--val-fraction", fraction)) if value]
+    if len(given) > 1:
+        raise UsageError(f"{' and '.join(given)} each choose the validation trials; give one of them")
     if trials:
         wanted = set(trials)
         unknown = wanted - set(data.trials) - set(data.source)
