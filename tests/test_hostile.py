@@ -512,3 +512,18 @@ def test_sense_asks_for_a_centre_it_can_take_and_durations_take_hours(tmp_path):
     code, stderr, _ = invoke(["sense", "--model", "m.model", "--size", "60x60", "cam.raw"])
     assert code == 2 and "--size needs --center X,Y (sense streams" in stderr
     assert parse_duration_us("1h") == 3_600_000_000
+
+
+@pytest.mark.parametrize("args, said, code", [
+    (["train", "--model", "tdnn", "--epochs", "1", "-o", "-"], "not stdout", 2),
+    (["train", "--model", "tdnn", "--epochs", "1", "-o", "{d}/m.arrows"], ".arrows names a table", 2),
+    (["train", "--model", "tdnn", "--epochs", "1", "--label", "object", "-o", "{d}/m.model"], "--label chooses the class", 2),
+    (["eval", "--cv", "group:material=", "--model-spec", "tdnn", "--epochs", "1"], "give the value to hold out", 2),
+    (["study", "--model-spec", "tdnn", "--epochs", "1", "--cv", "kfold:2", "--metrics", "{d}/no/m.parquet"], "folder", 1),
+])
+def test_options_that_would_be_ignored_or_fail_late_are_refused_first(tmp_path, args, said, code):
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, frames_table(trials=("a", "b", "c")))
+    done, stderr, _ = invoke([arg.replace("{d}", str(tmp_path)) for arg in args] + [path])
+    assert one_line(stderr, done, code) and said in stderr, stderr
+    assert not any(tmp_path.glob("m.*")) and not (tmp_path / "-").exists()

@@ -48,6 +48,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     from neurotac_cli import tables
     from neurotac_cli.model import evaluate
 
+    tables.check_folder(*(path for path in (output, metrics_path) if path not in (None, "-")))  # before hours of training
     table = tables.read(paths, kind="frames")
     use_device(device)
     result = evaluate.study(

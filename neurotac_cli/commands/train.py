@@ -1,8 +1,23 @@
+import os
+
 import click
 
+from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 from neurotac_cli.options import (PlotPath, TablePath, device_option, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
                                   seed_option, threads_option, use_device, validation_options)
+
+
+def _model_file(path: str) -> str:
+    """A model is written to a file of its own: `-` (stdout) or a table's suffix would pass it off as a table."""
+    from neurotac_cli.tables import SUFFIXES
+
+    if path == "-":
+        raise UsageError("-o: a model is written to a file, not stdout: give its path, e.g. -o force.model")
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix in SUFFIXES:
+        raise UsageError(f"-o {path}: {suffix} names a table; name the model file otherwise, e.g. force.model")
+    return path
 
 
 @click.command()
@@ -10,7 +25,8 @@ from neurotac_cli.options import (PlotPath, TablePath, device_option, history, h
 @click.option("--model", "model_name", type=click.Choice(FORCE_MODELS + MATERIAL_MODELS), required=True,
               help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), deform-gru (ours); "
               "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves, material-timing (loading timing, linear discriminant).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="The model file to write (safetensors with a JSON header).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, callback=lambda ctx, param, value: _model_file(value),
+              help="The model file to write (safetensors with a JSON header), e.g. force.model.")
 @hyperparameter_options
 @validation_options
 @click.option("--contacts", is_flag=True,
@@ -44,7 +60,9 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     from neurotac_cli.model.plots import curve_figure
 
     if contacts and model_name in MATERIAL_MODELS:
-        raise click.UsageError("--contacts trains force models; a material classifier takes whole trials")
+        raise UsageError("--contacts trains force models; a material classifier takes whole trials")
+    if model_name not in MATERIAL_MODELS and click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT:
+        raise UsageError(f"--label chooses the class a classifier predicts; {model_name} estimates force (leave --label out)")
     tables.check_folder(*(path for path in (output, curve, plot) if path))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch

@@ -17,7 +17,9 @@ from neurotac_cli.model.curve import best_epoch
 
 def _group(cv: str) -> tuple[str, str]:
     """The label and the value (empty: every value) of `group:LABEL[=VALUE]`."""
-    label, _, value = cv.partition(":")[2].partition("=")
+    label, equals, value = cv.partition(":")[2].partition("=")
+    if equals and not value:
+        raise UsageError(f"--cv {cv}: give the value to hold out after '=' (group:{label}=VALUE), or leave '=' out to hold out each value in turn")
     return label, value
 
 
