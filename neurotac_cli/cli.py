@@ -49,6 +49,12 @@ class LazyGroup(click.Group):
         module = importlib.import_module(f"neurotac_cli.commands.{COMMANDS[name][0]}")
         return getattr(module, "command")
 
+    def resolve_command(self, ctx, args):
+        name, command, rest = super().resolve_command(ctx, args)
+        if command is not None and not ctx.resilient_parsing:
+            _refuse_repeated_options(command, name, rest, ctx)
+        return name, command, rest
+
     def format_commands(self, ctx, formatter):
         rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
         if rows:
@@ -76,6 +82,30 @@ class LazyGroup(click.Group):
             if error.errno not in OutputError.ONLY_WRITING:
                 raise
             _fail(f"{_who(ctx)}: error: {OutputError.from_os(error.filename or 'the output', error)}")
+
+
+def _refuse_repeated_options(command, name, args, parent):
+    """An option that takes one value, given twice, is a usage error: click would keep the last one
+    and drop the other without a word. Repeatable options (`multiple`, `count`) are not checked."""
+    ctx = click.Context(command, info_name=name, parent=parent)
+    try:
+        _, _, order = command.make_parser(ctx).parse_args(list(args))
+    except click.UsageError:
+        return  # the real parse reports it
+    if any(getattr(param, "is_eager", False) for param in order):
+        return  # --help: nothing runs
+    seen = set()
+    for param in order:
+        if not isinstance(param, click.Option) or param.multiple or param.count:
+            continue
+        if param.name in seen:
+            raise click.UsageError(f"{_option_name(param)} given twice; give it once", ctx=ctx)
+        seen.add(param.name)
+
+
+def _option_name(param) -> str:
+    name = max(param.opts, key=len)  # --output rather than -o
+    return f"{name}/{max(param.secondary_opts, key=len)}" if param.secondary_opts else name
 
 
 def _who(ctx) -> str:

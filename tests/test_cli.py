@@ -44,3 +44,21 @@ def test_shell_completion_completes_commands_and_options():
         env = dict(os.environ, _NEUROTAC_COMPLETE=f"{shell}_source")
         script = subprocess.run(["neurotac"], env=env, capture_output=True, text=True).stdout
         assert "neurotac" in script and "_NEUROTAC_COMPLETE" in script
+
+
+def test_an_option_given_twice_is_a_usage_error_in_every_command():
+    for option, args in [("--where", ["select", "--where", "material='steel'", "--where", "frame<3"]),
+                         ("--fs", ["augment", "--fs", "1", "--fs", "-1"]),
+                         ("--window", ["frame", "--window", "10ms", "--window", "7ms"]),
+                         ("--output", ["frame", "--window", "10ms", "-o", "a.arrow", "--output", "b.arrow"])]:
+        result = CliRunner().invoke(cli, args, input=b"")
+        assert result.exit_code == 2, (args, result.output)
+        assert f"{option} given twice; give it once" in result.output
+
+
+def test_repeatable_options_and_help_still_work(tmp_path):
+    result = CliRunner().invoke(cli, ["frame", "--window", "10ms", "--window", "7ms", "--help"])
+    assert result.exit_code == 0 and "Bin each trial" in result.output
+    result = CliRunner().invoke(cli, ["simulate", "--trials", "1", "--set", "no_such=1", "--set", "other=2", "--out", str(tmp_path)])
+    assert "given twice" not in result.output and "unknown simulator parameter 'no_such'" in result.output
+
