@@ -86,6 +86,15 @@ class KeyValue(ParamType):
         return name.strip(), text.strip()
 
 
+def distinct_names(ctx, param, pairs):
+    """Callback of a repeatable NAME=VALUE option: one NAME twice would keep only its last VALUE."""
+    names = [name for name, _ in pairs]
+    for name in names:
+        if names.count(name) > 1:
+            raise click.BadParameter(f"{name} given twice; give each NAME once", ctx=ctx, param=param)
+    return pairs
+
+
 class IntTuple(ParamType):
     """`count` comma-separated whole numbers >= 0 (`60,30,115,115`), as a tuple; `words` also accepted as they are."""
 

@@ -62,3 +62,9 @@ def test_repeatable_options_and_help_still_work(tmp_path):
     result = CliRunner().invoke(cli, ["simulate", "--trials", "1", "--set", "no_such=1", "--set", "other=2", "--out", str(tmp_path)])
     assert "given twice" not in result.output and "unknown simulator parameter 'no_such'" in result.output
 
+
+def test_a_name_given_twice_to_a_repeatable_name_value_option_is_a_usage_error():
+    for args in (["sync", "x.aedat", "--label", "material=A", "--label", "material=B"],
+                 ["simulate", "--set", "on_threshold=0.3", "--set", "on_threshold=0.4"]):
+        result = CliRunner().invoke(cli, args)
+        assert result.exit_code == 2 and "given twice; give each NAME once" in result.output, result.output

@@ -4,7 +4,7 @@ import sys
 
 import click
 
-from neurotac_cli.options import Duration, KeyValue, history, output_option, seed_option
+from neurotac_cli.options import Duration, KeyValue, distinct_names, history, output_option, seed_option
 
 
 def _progress_printer():
@@ -82,7 +82,7 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Force sensor model: fast F/T cell or slow, hysteretic piezoresistive sensor.")
 @click.option("--background-rate", type=float, default=None, help="Background activity per pixel, in Hz (0.1).")
 @click.option("--sensor", "sensor_size", default=None, metavar="WxH", help="Sensor size in pixels (240x180).")
-@click.option("--set", "settings", type=KeyValue(), multiple=True,
+@click.option("--set", "settings", type=KeyValue(), multiple=True, callback=distinct_names,
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
                    "(the full list with units and sources: docs/simulator.md).")
 @click.option("--keep-led", is_flag=True, help="With --synced: keep the LED blink's events in each trial, as `sync --keep-led` does (by default they are left out: they mark the instant, they are not touch).")

@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import Duration, KeyValue, ParamType, Size, echo_lines, history, output_option
+from neurotac_cli.options import Duration, KeyValue, ParamType, Size, distinct_names, echo_lines, history, output_option
 
 
 class Region(ParamType):
@@ -46,7 +46,7 @@ class SensorLag(ParamType):
 @output_option
 @click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV or Parquet): time and force columns, e.g. t_ms,force_N.")
 @click.option("--trial", default=None, help="Trial id (default: the events file's name); a session's trials are numbered after it.")
-@click.option("--label", "labels", type=KeyValue(), multiple=True, help="A label of the trial, NAME=VALUE (repeatable): --label material=foam.")
+@click.option("--label", "labels", type=KeyValue(), multiple=True, callback=distinct_names, help="A label of the trial, NAME=VALUE (repeatable): --label material=foam.")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="CSV with one row per recording: trial,events,force,<labels> (paths relative to it); true_* columns are ignored.")
 @click.option("--method", type=click.Choice(["led", "trigger", "offset", "xcorr"]), default="led", show_default=True,
               help="led: LED-off spike of OFF events; trigger: AEDAT4 external triggers; offset: a known offset; xcorr: event rate vs |dF/dt| (the signed rate, OFF minus ON, vs dF/dt where the force sensor is slow to unload).")
