@@ -316,6 +316,14 @@ GRID_HELP = ("Hyperparameters to vary, as train's option names with _ for -: lay
              "in one quoted argument; a single value fixes a parameter (epochs=30), as does its option (--epochs 30).")
 
 
+def checked_grid(ctx, param, specs):
+    """Callback of --grid: a grid that does not parse is refused before any input is read."""
+    from neurotac_cli.study import parse_grid
+
+    parse_grid(specs)
+    return specs
+
+
 def hyperparameter_options(function):
     for option, name, kind, text in reversed(HYPERPARAMETERS):
         function = click.option(option, name, type=kind, default=None, help=text)(function)

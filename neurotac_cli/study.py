@@ -547,8 +547,14 @@ def _grid_values(name: str, text: str) -> list:
         match = _RANGE.match(part)
         if match:
             start, stop = _scalar(match.group(1)), _scalar(match.group(2))
+            if not match.group(3) and not (isinstance(start, int) and isinstance(stop, int)):
+                # A..B steps by 1: between 1e-3 and 1e-2 that is one value, not the range meant
+                raise UsageError(f"--grid {name}={text}: {part} has no step, and A..B steps by 1 between whole numbers "
+                                 f"only; give a step ({part}:STEP) or list the values ({name}=A,B,C)")
             step = _scalar(match.group(3)) if match.group(3) else 1
             values.extend(_arange(start, stop, step, name, text))
+        elif ".." in part:
+            raise UsageError(f"--grid {name}={text}: {part!r} is not a range of numbers (write e.g. {name}=1..5 or {name}=1..9:2)")
         else:
             values.append(_scalar(part))
         index += 1

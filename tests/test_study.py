@@ -399,3 +399,19 @@ def test_a_setting_of_the_wrong_type_is_refused_before_training(setting, value, 
     with pytest.raises(ModelError, match=words):
         make_spec("tdnn", **{setting: value})
     assert make_spec("tdnn", layers=2.0)["layers"] == 2 and isinstance(make_spec("tdnn", layers=2.0)["layers"], int)
+
+
+@pytest.mark.parametrize("spec, words", [("lr=1e-3..1e-2", "give a step"), ("lr=0.5..2", "give a step"),
+                                         ("layers=1..x", "not a range of numbers")])
+def test_a_range_that_would_collapse_or_does_not_parse_is_refused_naming_the_grid(spec, words):
+    with pytest.raises(NeurotacError, match=f"--grid {spec}: .*{words}"):
+        parse_grid([spec])
+    assert [p["lr"] for p in parse_grid(["lr=1e-3..3e-3:1e-3"])] == [0.001, 0.002, 0.003]
+
+
+@pytest.mark.parametrize("verb", [["study"], ["eval", "--cv", "loo"]])
+def test_a_bad_grid_is_a_usage_error_before_any_input_is_read(verb):
+    from neurotac_cli.cli import cli
+
+    result = CliRunner().invoke(cli, [*verb, "--model-spec", "tdnn", "--grid", "layers=1..x"], input=b"")
+    assert result.exit_code == 2 and "--grid layers=1..x" in result.output and "--layers" not in result.output

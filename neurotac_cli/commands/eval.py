@@ -1,7 +1,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, checked_grid, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, threads_option, use_device)
 
 
@@ -14,7 +14,7 @@ from neurotac_cli.options import (GRID_HELP, PlotPath, TablePath, device_option,
               "label value; group:object=bolt12 holds out that object only) and score the out-of-fold predictions.")
 @click.option("--model-spec", type=click.Choice(FORCE_MODELS + MATERIAL_MODELS), default=None, help="With --cv: the model to train per fold (hyperparameters as in train).")
 @hyperparameter_options
-@click.option("--grid", "grid", multiple=True, metavar="NAME=VALUES",
+@click.option("--grid", "grid", multiple=True, callback=checked_grid, metavar="NAME=VALUES",
               help="With --cv: cross-validate --model-spec at every point of this grid, as `neurotac study` does "
               "(metrics get one column per grid parameter; stderr one line per point). " + GRID_HELP)
 @fold_options(prefix="With --cv: ")

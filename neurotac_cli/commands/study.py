@@ -5,7 +5,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, checked_grid, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, seed_option, study_options, use_device)
 
 
@@ -14,7 +14,7 @@ from neurotac_cli.options import (GRID_HELP, TablePath, device_option, fold_opti
 @output_option
 @click.option("--model-spec", "model", type=click.Choice(FORCE_MODELS + MATERIAL_MODELS), required=True,
               help="The model trained at every grid point and fold (as `neurotac train --model`).")
-@click.option("--grid", "grid", multiple=True, metavar="NAME=VALUES", help=GRID_HELP)
+@click.option("--grid", "grid", multiple=True, callback=checked_grid, metavar="NAME=VALUES", help=GRID_HELP)
 @hyperparameter_options
 @click.option("--cv", default="loo", show_default=True, metavar="loo|kfold:K|group:LABEL[=VALUE]",
               help="Folds, as in `neurotac eval --cv`.")
