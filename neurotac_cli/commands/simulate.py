@@ -147,6 +147,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
 def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_range, hold, force_sensor,
                background_rate, sensor_size) -> dict:
     """The simulator parameters the options set, by field name."""
+    from neurotac_cli.errors import NeurotacError, UsageError
     from neurotac_cli.sim.config import parse_value
     from neurotac_cli.units import parse_size
 
@@ -168,7 +169,10 @@ def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_
     if background_rate is not None:
         overrides["background_rate_hz"] = background_rate
     if sensor_size:
-        overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
+        try:
+            overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
+        except NeurotacError as error:
+            raise UsageError(f"--sensor: {error}") from None
     return overrides
 
 

@@ -54,7 +54,7 @@ class SyncMethod:
         if self.method not in METHODS:
             raise NeurotacError(f"unknown sync method {self.method!r} (use one of {', '.join(METHODS)})")
         if self.method == "offset" and self.offset_us is None:
-            raise NeurotacError("--method offset needs --offset DURATION (the camera time of the force log's zero)")
+            raise UsageError("--method offset needs --offset DURATION (the camera time of the force log's zero)")
         if self.method != "offset" and self.offset_us is not None:
             raise UsageError(f"--offset sets the instant for --method offset; with --method {self.method} it would be ignored "
                              "(add --method offset, or leave --offset out)")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, UsageError
 from neurotac_cli.sim.force_sensor import DEFAULT_NOISE_N, sensor_lag_us
 
 SEEN_SHARE = 2 / 3  # the seen part of a held-out range: its lower two thirds in the drawing scale
@@ -122,11 +122,17 @@ class Variation:
 def parse_variation(families: str | None, held_out: str | None = None, unseen: str | None = None) -> Variation | None:
     """`--vary pixels,membrane` (or `all`), `--hold-out FAMILY` (seen part only), `--unseen FAMILY` (unseen part only)."""
     if held_out and unseen:
-        raise NeurotacError("give --hold-out (training data) or --unseen (test data), not both")
-    names = [] if not families else [part.strip() for part in families.split(",") if part.strip()]
+        raise UsageError("give --hold-out (training data) or --unseen (test data), not both")
+    names = [] if families is None else [part.strip() for part in families.split(",")]
+    if "" in names:
+        raise UsageError(f"--vary {families!r} has an empty family name (give families separated by commas, from "
+                         f"{', '.join(FAMILIES)}, or all)")
     if names == ["all"]:
         names = list(FAMILIES)
     family = held_out or unseen
+    unknown = [name for name in (*names, family) if name is not None and name not in FAMILIES]
+    if unknown:
+        raise UsageError(f"unknown parameter family {unknown[0]!r} (choose from {', '.join(FAMILIES)}, or all)")
     if family and family not in names:
         names.append(family)  # the held-out family is varied on its own side of the range
     if not names:

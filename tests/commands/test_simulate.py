@@ -146,6 +146,11 @@ def test_the_objects_option_and_labels(tmp_path):
         (["--synced", "--objects", "wood:hex:2"], "unknown material"),
         (["--synced", "--force-range", "3..1"], "force range"),
         (["--out", "x", "-o", "y.arrows"], "-o writes the --synced table"),
+        (["--synced", "--vary", "bogus"], "unknown parameter family 'bogus'"),
+        (["--synced", "--vary", ""], "empty family name"),
+        (["--synced", "--hold-out", "bogus"], "unknown parameter family 'bogus'"),
+        (["--synced", "--sensor", "0x0"], "--sensor: cannot read size '0x0'"),
+        (["--synced", "--hold-out", "membrane", "--unseen", "membrane"], "not both"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(args, message, tmp_path):

@@ -418,3 +418,8 @@ def test_sensor_lag_and_saturation_are_validated():
         sy.SyncMethod(method="xcorr", sensor_lag_us=(1000, -1))
     with pytest.raises(NeurotacError, match="saturation"):
         sy.SyncMethod(method="xcorr", saturation=-0.5)
+
+
+def test_method_offset_without_offset_is_a_usage_error():
+    with pytest.raises(UsageError, match="--method offset needs --offset"):
+        sy.SyncMethod(method="offset")
