@@ -24,12 +24,14 @@ class Scale(ParamType):
     def convert(self, value, param, ctx):
         if value is None or isinstance(value, tuple):
             return value
+        import math
+
         try:
             values = tuple(float(v) for v in str(value).split(","))
         except ValueError:
             self.fail(f"expected one or two positive counts (OFF,ON), e.g. 40 or 40,55, got {value!r}", param, ctx)
-        if len(values) not in (1, 2) or min(values) <= 0:
-            self.fail(f"expected one or two positive counts (OFF,ON), e.g. 40 or 40,55, got {value!r}", param, ctx)
+        if len(values) not in (1, 2) or not all(math.isfinite(v) and v > 0 for v in values):
+            self.fail(f"expected one or two positive, finite counts (OFF,ON), e.g. 40 or 40,55, got {value!r}", param, ctx)
         return values * 2 if len(values) == 1 else values
 
 
@@ -119,6 +121,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             | neurotac frame --window 10ms --phases session --slips s/grasps.csv
     """
     from neurotac_cli import tables
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.io.slips import read_slips
     from neurotac_cli.ops import frame as fr
@@ -127,9 +130,15 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
     if phases not in ("auto", "none", "session"):
         phases = tuple(parse_ranges(phases))
     source = tables.open_input(paths, kind=("recordings", "events"))
+    events_only = [flag for flag, given in (("--start", start is not None), ("--trial", trial is not None), ("--sort", sort)) if given]
+    if source.kind == "recordings" and events_only:
+        one = len(events_only) == 1
+        raise UsageError(f"{', '.join(events_only)} {'is' if one else 'are'} for plain events tables (from `neurotac import`); "
+                         "a recordings table's trials keep their ids and are framed from their sync instant t0: leave "
+                         f"{'it' if one else 'them'} out")
     framing = fr.Framing(
         window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
-        dtype=dtype, scale=scale, start_us=start, trial=trial or camera_file_stem(source.schema) or "events",
+        dtype=dtype, scale=scale, start_us=start, trial=(camera_file_stem(source.schema) or "events") if trial is None else trial,
         max_frames=max_frames, sort=sort, slips=None if slips_path is None else read_slips(slips_path),
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)

@@ -36,6 +36,7 @@ from neurotac_cli.units import counted
 from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
+SMALLEST_SCALE = MAX_COUNT / float(np.finfo(np.float32).max)  # below it the largest count divided by it is inf in float32
 FORCE_AT = ("end", "mean", "median")
 BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
 SCAN_EVENTS = 1 << 18  # events counted at a time, so the frames of a huge input batch leave as it is counted
@@ -95,13 +96,18 @@ class Framing:
             raise UsageError(f"force-at must be one of {', '.join(FORCE_AT)}, got {self.force_at!r}")
         if not isinstance(self.max_frames, (int, np.integer)) or self.max_frames <= 0:
             raise UsageError(f"max-frames must be a positive number of frames, got {self.max_frames!r}")
+        if not isinstance(self.trial, str) or not self.trial.strip():
+            raise UsageError(f"a trial id cannot be empty, got {self.trial!r} (give --trial a name, e.g. g1)")
         if self.dtype not in ("uint16", "float32"):
             raise UsageError(f"dtype must be uint16 or float32, got {self.dtype!r}")
         if self.scale is not None:
             if self.dtype != "float32":
                 raise UsageError("a scale only applies to --dtype float32")
-            if len(self.scale) != 2 or min(self.scale) <= 0:
+            if len(self.scale) != 2 or not all(np.isfinite(s) and s > 0 for s in self.scale):
                 raise UsageError(f"scale must be one or two positive counts (OFF,ON), got {self.scale!r}")
+            if min(self.scale) < SMALLEST_SCALE:
+                raise UsageError(f"scale {min(self.scale):g} is below {SMALLEST_SCALE:.3g}: counts divided by it "
+                                 "overflow float32 (give counts such as 40,55)")
         if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
             raise UsageError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
         for trial, spans in (self.slips or {}).items():

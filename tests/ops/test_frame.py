@@ -421,6 +421,33 @@ def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
     assert done.returncode == 2 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
 
 
+@pytest.mark.parametrize("scale", ["nan", "inf", "1e-45", "1e-40", "0", "-1", "40,nan"])
+def test_a_scale_that_is_not_finite_positive_or_that_overflows_float32_is_a_one_line_usage_error(scale, tmp_path):
+    source = tmp_path / "rec.arrows"
+    trial = {"trial": "a", "t0": 0, "events": (np.array([1_000, 12_000]), np.zeros(2), np.zeros(2), np.array([1, 0])),
+             "force": (np.arange(0, 18_001, 2000), np.zeros(10))}
+    tables.write(str(source), recordings([trial]))
+    done = run(["frame", "--window", "10ms", "--dtype", "float32", f"--scale={scale}", str(source)])
+    assert done.returncode == 2 and b"RuntimeWarning" not in done.stderr and b"scale" in done.stderr, done.stderr
+    assert done.stdout == b""
+
+
+def test_events_table_options_are_refused_with_a_recordings_table_and_an_empty_trial_id(tmp_path):
+    source = tmp_path / "rec.arrows"
+    trial = {"trial": "a", "t0": 0, "events": (np.array([1_000, 12_000]), np.zeros(2), np.zeros(2), np.array([1, 0])),
+             "force": (np.arange(0, 18_001, 2000), np.zeros(10))}
+    tables.write(str(source), recordings([trial]))
+    for options, named in ((["--start", "1s"], "--start is"), (["--trial", "X"], "--trial is"), (["--sort"], "--sort is")):
+        done = run(["frame", "--window", "10ms", *options, str(source)])
+        message = done.stderr.decode()
+        assert done.returncode == 2 and message.count("\n") == 1 and named in message, message
+    t, x, y, p = random_events(1)
+    events = tmp_path / "ev.arrows"
+    tables.write(str(events), sch.events_table(t, x, y, p, W, H))
+    done = run(["frame", "--window", "10ms", "--trial", "", str(events)])
+    assert done.returncode == 2 and b"trial id cannot be empty" in done.stderr
+
+
 def test_frame_command_refuses_a_window_that_is_not_positive():
     for window in ("0ms", "-5ms"):
         done = run(["frame", "--window", window])
