@@ -114,6 +114,15 @@ def test_refusals_are_one_line(tmp_path):
     assert not list(tmp_path.glob("x.*"))
 
 
+def test_slices_of_a_frames_table_are_a_usage_error_not_ignored(tmp_path):
+    path = write_input(tmp_path, frames_table())
+    for args, named in ((["--slices", "4"], "--slices cuts"), (["--slice", "50ms"], "--slice cuts")):
+        result = run(path, *args, "-o", str(tmp_path / "x.png"))
+        assert result.exit_code == 2 and named in result.output, result.output
+    assert not list(tmp_path.glob("x.*"))
+    assert run(write_input(tmp_path, events_table(), "e.arrows"), "--slices", "4", "-o", str(tmp_path / "e.png")).exit_code == 0
+
+
 def test_colours_are_white_for_nothing_red_for_on_blue_for_off():
     counts = np.zeros((2, 1, 3))
     counts[1, 0, 1] = 4  # ON

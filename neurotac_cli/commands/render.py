@@ -40,11 +40,17 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     from neurotac_cli import rendering as rd, tables
     from neurotac_cli.ops.crop import CropSpec
 
-    if rd.output_format(output) == "png" and click.get_current_context().get_parameter_source("fps") != click.core.ParameterSource.DEFAULT:
+    ctx = click.get_current_context()
+    given = {name for name in ("fps", "slices", "slice_us") if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT}
+    if rd.output_format(output) == "png" and "fps" in given:
         raise click.UsageError("--fps sets the pace of a GIF or MP4; a PNG is one picture (write -o NAME.gif to animate)")
     crop = CropSpec(box=box, size=size, center=center) if box or size else None
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))
+    sliced = [flag for flag, name in (("--slices", "slices"), ("--slice", "slice_us")) if name in given]
+    if sliced and rd.table_kind(table.schema) == "frames":
+        raise click.UsageError(f"{' and '.join(sliced)} cut{'s' if len(sliced) == 1 else ''} events or recordings into time "
+                               "slices; frames are drawn as they are (use --every to draw fewer)")
     done = rd.render(table, output, spec)
     click.echo(f"neurotac render: wrote {output}: {done['view']} of trial {done['trial']!r}, {done['pictures']} "
                f"picture{'s' if done['pictures'] > 1 else ''} of {done['width']}x{done['height']} pixels", err=True)
