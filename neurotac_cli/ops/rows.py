@@ -19,6 +19,10 @@ from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 
 
 ROW_INDEX = "neurotac_row_index"  # a column the condition is evaluated beside, to keep the rows in order
+# Functions of the clock: not volatile to DuckDB, but their answer depends on when the command runs.
+# The last five are also written without parentheses, which DuckDB parses as column names.
+CLOCK_FUNCTIONS = {"now", "today", "get_current_time", "get_current_timestamp", "transaction_timestamp", "current_localtime",
+                   "current_localtimestamp", "current_date", "current_time", "current_timestamp", "localtime", "localtimestamp"}
 PER_ROW = "an aggregate such as max() needs OVER (), e.g. frame = max(frame) OVER (PARTITION BY trial)"
 
 
@@ -39,6 +43,7 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     connection = duckdb.connect()
     try:
         connection.execute("SET enable_external_access = false")
+        _refuse_changing_answers(connection, expression, plain.column_names)
         connection.register("input_rows", plain)
         keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows "
                                   f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
@@ -58,9 +63,48 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     return keep
 
 
+def _refuse_changing_answers(connection, expression: str, columns: list[str]) -> None:
+    """A condition that draws random numbers or reads the clock keeps other rows on each run, so the
+    same command would not write the same bytes. Found in DuckDB's own parse of the expression, so a
+    string such as 'random()' is not mistaken for a call."""
+    import json
+
+    parsed = json.loads(connection.execute("SELECT json_serialize_sql(?)", [f"SELECT ({expression})"]).fetchall()[0][0])
+    if parsed.get("error"):
+        return  # evaluating it says what is wrong
+    volatile = {name for (name,) in connection.execute(
+        "SELECT DISTINCT function_name FROM duckdb_functions() WHERE stability = 'VOLATILE'").fetchall()} | CLOCK_FUNCTIONS
+    nodes = [parsed]
+    while nodes:
+        node = nodes.pop()
+        if isinstance(node, list):
+            nodes.extend(node)
+            continue
+        if not isinstance(node, dict):
+            continue
+        called, shown = None, None
+        if node.get("class") == "FUNCTION":
+            called = node.get("function_name")
+            shown = f"{called}()"
+        elif node.get("class") == "COLUMN_REF" and len(node.get("column_names", ())) == 1 and node["column_names"][0] not in columns:
+            called = shown = node["column_names"][0]
+        if called and called.lower() in volatile:
+            raise UsageError(f"--where {expression!r} calls {shown}, whose answer changes from run to run, so the rows kept "
+                             "would too; select by the table's values (for a random share of the trials, "
+                             "`neurotac split --fraction F --seed N`)")
+        if node.get("sample"):
+            raise UsageError(f"--where {expression!r} samples rows, which keeps other rows on each run; "
+                             "for a random share of the trials, `neurotac split --fraction F --seed N`")
+        nodes.extend(node.values())
+
+
 def select(table: pa.Table, expression: str) -> tuple[pa.Table, dict]:
-    """The rows the expression keeps; (table, {"kept": n, "dropped": m})."""
+    """The rows the expression keeps; (table, {"kept": n, "dropped": m}). A condition that keeps no
+    row is refused: the empty table would only fail in the next command, far from its cause."""
     keep = where_mask(table, expression)
+    if not keep.any():
+        raise NeurotacError(f"no row matches --where {expression!r} (of {table.num_rows:,} rows; `neurotac info` shows "
+                            "the trials and label values)")
     return table.filter(pa.array(keep)), {"kept": int(keep.sum()), "dropped": int((~keep).sum())}
 
 

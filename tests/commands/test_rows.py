@@ -1,5 +1,6 @@
 """select, concat, split: rows by a condition, tables joined with checks, trials split whole."""
 
+import re
 import subprocess
 
 import numpy as np
@@ -9,7 +10,7 @@ from click.testing import CliRunner
 
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.cli import cli
-from neurotac_cli.errors import NeurotacError, SchemaError
+from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 from neurotac_cli.ops.rows import concat, select, split
 from tests.model.helpers import tiny_frames
 
@@ -21,7 +22,8 @@ def test_select_keeps_tensors_and_metadata_and_drops_null_conditions():
     assert kept.schema.equals(frames.schema, check_metadata=True)
     assert set(kept.column("trial").to_pylist()) == {"t0", "t2"} and set(kept.column("frame").to_pylist()) == {2, 3, 4}
     nulls = frames.set_column(frames.schema.get_field_index("object"), "object", pa.array([None] * frames.num_rows, pa.string()))
-    assert select(nulls, "object <> 'small'")[1]["kept"] == 0
+    with pytest.raises(NeurotacError, match="no row matches --where \"object <> 'small'\""):
+        select(nulls, "object <> 'small'")
 
 
 def test_select_with_a_window_function_keeps_the_rows_it_names():
@@ -40,6 +42,24 @@ def test_select_with_a_window_function_keeps_the_rows_it_names():
 def test_select_refuses_what_it_cannot_evaluate(expression, words):
     with pytest.raises(NeurotacError, match=words):
         select(tiny_frames(trials=2), expression)
+
+
+@pytest.mark.parametrize("expression, words", [("random() < 0.5", "calls random()"), ("frame < 3 AND RANDOM() < 0.5", "calls random()"),
+                                               ("uuid() IS NOT NULL", "calls uuid()"), ("now() > TIMESTAMP '2000-01-01'", "calls now()"),
+                                               ("current_date > DATE '2000-01-01'", "calls current_date"),
+                                               ("frame IN (SELECT frame FROM input_rows USING SAMPLE 50%)", "samples rows")])
+def test_select_refuses_a_condition_whose_answer_changes_from_run_to_run(expression, words):
+    with pytest.raises(UsageError, match=re.escape(words)):
+        select(tiny_frames(trials=2), expression)
+    assert select(tiny_frames(trials=2), "object <> 'random()'")[1]["kept"] > 0  # a string is not a call
+
+
+def test_select_command_refuses_a_condition_no_row_matches_in_one_line(tmp_path):
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, tiny_frames(trials=2))
+    result = CliRunner().invoke(cli, ["select", "--where", "frame < 0", path, "-o", str(tmp_path / "s.arrows")])
+    assert result.exit_code == 1 and result.stderr.count("\n") == 1 and "no row matches --where 'frame < 0'" in result.stderr
+    assert not (tmp_path / "s.arrows").exists()
 
 
 def test_concat_refuses_a_trial_twice_or_renames_it():
