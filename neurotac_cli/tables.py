@@ -188,7 +188,10 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
         else:
             data = pa.BufferReader(head + source.read()) if path in (None, "-") else None
             if fmt == "file":
-                reader = ipc.open_file(data if data is not None else pa.memory_map(path))
+                try:
+                    reader = ipc.open_file(data if data is not None else pa.memory_map(path))
+                except pa.ArrowInvalid:  # it starts as an Arrow file (sniffed), so its end is what is missing
+                    raise InputError(f"{name}: Arrow file is cut short or damaged (its footer is missing)") from None
                 yield reader.schema, _guard((reader.get_batch(i) for i in range(reader.num_record_batches)), name)
             else:
                 import pyarrow.parquet as pq  # only for Parquet: its import costs a pipe's every process

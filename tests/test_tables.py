@@ -113,6 +113,16 @@ def test_a_parquet_file_cut_short_is_one_clear_error(tmp_path):
         tables.read([str(tmp_path / "cut.parquet")], kind="events")
 
 
+def test_an_arrow_file_cut_short_says_so_from_a_path_and_from_a_pipe(tmp_path):
+    path = write_to(tmp_path / "a.arrow", events(2000))
+    cut = path.read_bytes()[: len(path.read_bytes()) // 2]
+    (tmp_path / "cut.arrow").write_bytes(cut)
+    with pytest.raises(InputError, match="Arrow file is cut short or damaged"):
+        tables.read([str(tmp_path / "cut.arrow")], kind="events")
+    done = subprocess.run(["neurotac", "info"], input=cut, capture_output=True)
+    assert done.returncode == 1 and done.stderr == b"neurotac info: error: stdin: Arrow file is cut short or damaged (its footer is missing)\n"
+
+
 def test_not_a_table_directory_missing_and_empty(tmp_path):
     (tmp_path / "x.csv").write_text("t,x,y,p\n1,2,3,1\n")
     (tmp_path / "empty.arrows").write_bytes(b"")
