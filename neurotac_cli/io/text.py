@@ -83,7 +83,8 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
                 start = raw.rfind(b"\n", 0, offset) + 1
                 end = raw.find(b"\n", offset)
                 text = raw[start : end if end >= 0 else len(raw)].decode("utf-8", "replace").rstrip("\r")
-                raise FormatError(f"line {number}: {kernels.TEXT_PROBLEMS[status]}: {text[:80]!r} (fix or delete that row)")
+                culprit = _culprit(text, roles, delimiter == ",", status)
+                raise FormatError(f"line {number}: {kernels.TEXT_PROBLEMS[status]}: {culprit[:80]!r} (fix or delete that row)")
             line += newlines
             yield t, x, y, p
 
@@ -114,6 +115,28 @@ def _line_blocks(path: str, first_line: int):
             yield memoryview(data)[:cut]
         if rest:
             yield memoryview(rest)
+
+
+def _culprit(line: str, roles: np.ndarray, comma: bool, status: int) -> str:
+    """The field of a bad row to quote (the kernel says which row and what is wrong, not which field);
+    the whole row where it has the wrong number of fields or no one field is to blame."""
+    from neurotac_cli.io import kernels
+
+    fields = [field.strip() for field in (line.split(",") if comma else line.split())]
+    if status == kernels.TEXT_FIELDS or len(fields) != len(roles):
+        return line
+    read = [(field, int(role)) for field, role in zip(fields, roles) if role >= 0]
+    if status == kernels.TEXT_NUMBER:
+        blamed = [field for field, _ in read if not _is_number(field)]
+    elif status == kernels.TEXT_COORDINATE:
+        blamed = [field for field, role in read if role in (1, 2) and not (field.isdigit() and int(field) <= 65535)]
+    elif status == kernels.TEXT_POLARITY:
+        blamed = [field for field, role in read if role == 3]
+    elif status == kernels.TEXT_FRACTION:
+        blamed = [field for field, role in read if role == 0]
+    else:  # too many digits: the longest
+        blamed = sorted((field for field, _ in read), key=len, reverse=True)[:1]
+    return blamed[0] if blamed else line
 
 
 def _is_number(text: str) -> bool:

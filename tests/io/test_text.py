@@ -136,6 +136,21 @@ def test_times_too_large_are_a_clear_error(tmp_path, value):
         read_events_table(write(tmp_path, "e.csv", f"t,x,y,p\n{value},1,2,1\n"))
 
 
+@pytest.mark.parametrize("name, text, said", [
+    ("e.csv", "t,x,y,p\n1,2,3,1\n2,4,5,0\noops,1,1,1\n", "line 4: not a number: 'oops' "),
+    ("e.csv", "t,x,y,p,note\n1,2,3,1,a\n2,1e,5,0,b\n", "line 3: not a number: '1e' "),
+    ("e.csv", "t,x,y,p\n1,2,70000,1\n", "line 2: x and y must be whole numbers from 0 to 65535: '70000' "),
+    ("e.csv", "t,x,y,p\n1,2,3,5\n", "line 2: polarity must be 0/1 or -1/1: '5' "),
+    ("e.csv", "t,x,y,p\n1.5,2,3,1\n", "line 2: time is not a whole number of microseconds: '1.5' "),
+    ("e.txt", "0.1 2 3 1\n0.2 x 3 1\n", "line 2: not a number: 'x' "),
+    ("e.csv", "t,x,y,p\n1,2,3\n", "line 2: wrong number of fields: '1,2,3' "),
+])
+def test_a_bad_row_is_told_by_its_line_and_the_field_to_blame(tmp_path, name, text, said):
+    with pytest.raises(FormatError) as error:
+        read_events_table(write(tmp_path, name, text))
+    assert said in str(error.value)
+
+
 def test_long_numbers_with_only_zeros_beyond_int64_are_fine(tmp_path):
     table = read_events_table(write(tmp_path, "e.csv", "t_s,x,y,p\n0000000000000000001.50000000000000000000,1,2,1\n"))
     assert table["t"].to_pylist() == [1_500_000]
