@@ -240,7 +240,7 @@ def study_options(function):
     function = click.option(
         "--jobs",
         "-j",
-        type=int,
+        type=click.IntRange(min=0),
         default=1,
         show_default=True,
         envvar="NEUROTAC_JOBS",
@@ -394,7 +394,7 @@ def use_device(device: str):
 
 def threads_option(default: int, text: str = "CPU threads for torch."):
     """`--threads`: how many CPU threads torch uses (parameter `threads`)."""
-    return click.option("--threads", type=int, default=default, show_default=True, help=text)
+    return click.option("--threads", type=click.IntRange(min=1), default=default, show_default=True, help=text)
 
 
 def progress_printer(every: int = 25, quiet_s: float = 30.0):

@@ -36,3 +36,11 @@ def test_an_output_path_accepts_every_suffix_the_writer_writes():
     from neurotac_cli.options import TablePath
 
     assert set(TablePath.SUFFIXES) == set(tables.SUFFIXES)
+
+
+def test_threads_below_1_and_negative_jobs_are_usage_errors():
+    for args in (["predict", "--model", "m.model", "--threads", "0"], ["train", "--model", "tdnn", "--threads", "-1"],
+                 ["eval", "--model", "m.model", "--threads", "0"], ["study", "--model-spec", "tdnn", "--jobs", "-1"],
+                 ["eval", "--cv", "loo", "--model-spec", "tdnn", "-j", "-2"]):
+        result = CliRunner().invoke(cli, args, input=b"")
+        assert result.exit_code == 2 and "is not in the range" in result.output, (args, result.output)
