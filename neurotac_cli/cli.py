@@ -55,6 +55,22 @@ class LazyGroup(click.Group):
             _refuse_repeated_options(command, name, rest, ctx)
         return name, command, rest
 
+    def main(self, args=None, prog_name=None, **extra):
+        """click's own usage errors (a missing argument, a value of the wrong type, an unknown option)
+        as one line, as the commands' own refusals are: a batch log shows one line per failure."""
+        extra.pop("standalone_mode", None)
+        try:
+            result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+        except click.UsageError as error:
+            name = error.ctx.command_path if error.ctx is not None else "neurotac"
+            _fail(f"{name}: error: {' '.join(error.format_message().split())} (see `{name} --help`)", code=2)
+        except click.ClickException as error:
+            error.show()
+            sys.exit(error.exit_code)
+        except click.exceptions.Abort:
+            _fail("neurotac: interrupted", code=130)
+        sys.exit(result if isinstance(result, int) else 0)
+
     def format_commands(self, ctx, formatter):
         rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
         if rows:

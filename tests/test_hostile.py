@@ -527,3 +527,17 @@ def test_options_that_would_be_ignored_or_fail_late_are_refused_first(tmp_path, 
     done, stderr, _ = invoke([arg.replace("{d}", str(tmp_path)) for arg in args] + [path])
     assert one_line(stderr, done, code) and said in stderr, stderr
     assert not any(tmp_path.glob("m.*")) and not (tmp_path / "-").exists()
+
+
+@pytest.mark.parametrize("args, said", [
+    (["train"], "Missing option '--model'. Choose from: tdnn, gp"),
+    (["frame", "--window", "10ms", "--window", "7ms"], "--window given twice"),
+    (["nosuch"], "No such command 'nosuch'"),
+])
+def test_click_s_own_usage_errors_are_one_line(args, said):
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", "from neurotac_cli.cli import main; main()", *args], capture_output=True, text=True,
+                          stdin=subprocess.DEVNULL)
+    assert one_line(done.stderr, done.returncode, 2) and said in done.stderr and "--help`)" in done.stderr, done.stderr

@@ -282,15 +282,15 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
     in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
-    if val_fraction and not in_val.any() and progress:
-        progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
-                 "is held out for validation (early stopping follows the training loss)")
     train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
     accumulated = already_accumulated(table.schema)
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
     _check_training_set(name, config, train_set, label)
+    if val_fraction and not in_val.any() and progress:
+        progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
+                 "is held out for validation (early stopping follows the training loss)")
     if progress:
         progress(f"{name}: {counted(len(train_set), 'training trial')}, {counted(len(val_set), 'validation trial')}")
     training = {
