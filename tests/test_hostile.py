@@ -285,6 +285,18 @@ def test_training_data_that_would_train_silently_wrong_is_refused(tmp_path):
         assert one_line(stderr, code, 2 if "give one" in said else 1) and said in stderr, stderr
 
 
+def test_a_session_s_labels_may_change_with_its_grasps():
+    from neurotac_cli.errors import ModelError
+    from neurotac_cli.model.data import sequences
+
+    table = frames_table(trials=("s",), frames=6)
+    table = _with_column(table, "material", ["foam"] * 3 + ["steel"] * 3)
+    with pytest.raises(ModelError, match="more than one material"):
+        sequences(table)
+    session = table.append_column("grasp", pa.array([0, 0, 0, 1, 1, 1], pa.int32()))
+    assert sequences(session).labels["material"] == ["foam"]
+
+
 def test_a_validation_fraction_that_draws_no_trial_is_told(tmp_path):
     path = str(tmp_path / "f.arrows")
     tables.write(path, frames_table(trials=("a", "b")))  # one trial per material: none to draw per material

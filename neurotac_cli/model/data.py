@@ -71,7 +71,9 @@ def sequences(table: pa.Table) -> Sequences:
     split = lambda values: np.split(values, bounds)  # noqa: E731
     trials = [names[c] for c in codes[starts]]
     label_names = sch.label_columns(table.schema)
-    for name in label_names:
+    # a session's trial holds many grasps, whose labels (object, material) may change with them
+    session = "grasp" in table.schema.names and pa.types.is_integer(table.schema.field("grasp").type)
+    for name in label_names if not session else ():
         _check_one_value_per_trial(table.column(name), order, codes, names, name)
     labels = {name: _first_per_trial(table.column(name), order, starts) for name in label_names}
     if "source_trial" in table.schema.names:
