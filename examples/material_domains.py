@@ -108,7 +108,8 @@ def main(argv=None):
         f"Trained on the default physics (`ch3 --gripper force --seed 2`, {grasps} grasps), scored on each rig's {grasps} grasps "
         "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %; "
         f"in the last column `material-timing` trained instead on {many_rigs} simulated sensors of {4 * many_per} grasps each "
-        f"(`simulate --preset ch3 --gripper force {many_vary} --rigs {many_rigs} --seed 31`, {many_per} grasps of each material "
+        f"(`simulate --preset ch3 --gripper force {many_vary} --rigs {many_rigs} --objects {sensor_objects(many_rigs, many_per)} "
+        f"--seed 31`, {many_per} grasps of each material "
         "on each sensor; `train --adapt-by rig`), none of them a rig of the table:",
         "",
         md_table(["rig", "physics", *(f"{spec}, {name}" for spec in specs for name, _ in WAYS),
@@ -143,11 +144,15 @@ def classified(model: pathlib.Path, data: pathlib.Path, recall: bool = False):
     return accuracy, {scope.split(":", 1)[1]: 100 * value for (scope, metric), value in scores.items() if metric == "recall"}
 
 
+def sensor_objects(rigs: int, per: int) -> str:
+    """simulate's --objects for `per` hexagons of each material on each of `rigs` sensors."""
+    return ",".join(f"{material}:hex:{rigs * per}" for material in MATERIALS)
+
+
 def sensors_data(work: pathlib.Path, tag: str, vary: str, rigs: int, per: int, seed: int) -> pathlib.Path:
     """Frames of `rigs` simulated sensors of drawn physics, `per` grasps of each material on each, labelled `rig`."""
-    objects = ",".join(f"{material}:hex:{rigs * per}" for material in MATERIALS)
     return frames(work, f"ch3-sensors-{tag}-r{rigs}x{per}-s{seed}", MATERIAL_PIPELINE.format(n=neurotac()),
-                  f"--objects {objects} --gripper force --seed {seed} {vary} --rigs {rigs}")
+                  f"--objects {sensor_objects(rigs, per)} --gripper force --seed {seed} {vary} --rigs {rigs}")
 
 
 def many_sensor_model(work: pathlib.Path, tag: str, vary: str, rigs: int, per: int, seed: int) -> pathlib.Path:

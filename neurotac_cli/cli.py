@@ -61,6 +61,9 @@ class LazyGroup(click.Group):
         extra.pop("standalone_mode", None)
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as error:  # bare `neurotac`: its help, as click shows it
+            error.show()
+            sys.exit(error.exit_code)
         except click.UsageError as error:
             name = error.ctx.command_path if error.ctx is not None else "neurotac"
             _fail(f"{name}: error: {' '.join(error.format_message().split())} (see `{name} --help`)", code=2)

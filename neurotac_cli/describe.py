@@ -20,7 +20,7 @@ METRICS_KEPT = 200
 def describe(schema: pa.Schema, batches, camera: dict | None = None, everything: bool = False) -> dict:
     """A dict describing the table `schema` + `batches`. `camera` = {"format": ...} for a camera file
     decoded on the fly (not imported yet). `everything`: keep every metric row, not the first METRICS_KEPT."""
-    kind = sch.kind_of(schema) or sch._guess_kind(schema)
+    kind = sch.table_kind(schema)
     sensor = sch.sensor_of(schema)
     info = {"kind": kind or "unknown", "rows": 0}
     if camera:

@@ -121,7 +121,7 @@ def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
 def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
     """(t, x, y, p, width, height) of an events table, or of one trial of a recordings table on the
     camera's clock (t0 added back)."""
-    kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
+    kind = sch.table_kind(table.schema)
     sensor = sch.sensor_of(table.schema)
     if sensor is None:
         raise NeurotacError("the table does not say its sensor size, which a camera file needs (import with --sensor WxH)")

@@ -104,13 +104,9 @@ def pick_trial(table: pa.Table, trial: str | None) -> str:
     return trial
 
 
-def table_kind(schema: pa.Schema) -> str | None:
-    return sch.kind_of(schema) or sch._guess_kind(schema)
-
-
 def steps_of(table: pa.Table, trial: str, spec: RenderSpec) -> Steps:
     """The images of one trial: its frames, or equal time slices of its events."""
-    kind = table_kind(table.schema)
+    kind = sch.table_kind(table.schema)
     if kind == "frames":
         return _frame_steps(table, trial)
     if kind == "recordings":

@@ -344,6 +344,20 @@ def validate(schema: pa.Schema, kind) -> str:
     return found
 
 
+def table_kind(schema: pa.Schema) -> str | None:
+    """The table's kind: as its metadata says, else as its columns say (`_guess_kind`)."""
+    return kind_of(schema) or _guess_kind(schema)
+
+
+def unlike_windows(first: pa.Schema, other: pa.Schema) -> tuple | None:
+    """(first's window, other's window) in µs where frames tables disagree, a window missing beside a
+    known one included (read as one table, the unknown one would take the other's); None where alike."""
+    a, b = get_meta(first, WINDOW), get_meta(other, WINDOW)
+    if a == b or "frames" not in (table_kind(first), table_kind(other)):
+        return None
+    return a, b
+
+
 def _guess_kind(schema: pa.Schema) -> str | None:
     """Tables from other tools (DuckDB, Polars) lose our metadata: recognise them by their columns."""
     names = set(schema.names)

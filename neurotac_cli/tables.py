@@ -265,7 +265,7 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
     (schema, first_batches), first_rest = opened[0]
     schema, first_batches = bridges.accept(schema, first_batches)  # DuckDB/Polars/evlib layouts
     opened[0] = ((schema, first_batches), first_rest)
-    found = sch.validate(schema, kind) if kind else (sch.kind_of(schema) or sch._guess_kind(schema))
+    found = sch.validate(schema, kind) if kind else sch.table_kind(schema)
     if not kind and found in sch.REQUIRED:
         sch.validate(schema, found)  # a table that says what it is, but lacks its columns
     if found and sch.kind_of(schema) is None:
@@ -329,15 +329,16 @@ def _align(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
 
 
 def _check_compatible(first: pa.Schema, other: pa.Schema, kind):
-    other_kind = sch.kind_of(other) or sch._guess_kind(other)
+    other_kind = sch.table_kind(other)
     if kind and other_kind != kind:
         raise SchemaError(f"cannot read a {other_kind} table after a {kind} table as one input")
     a, b = sch.sensor_of(first), sch.sensor_of(other)
     if a and b and a != b:
         raise SchemaError(f"input tables have different sensor sizes ({a[0]}x{a[1]} vs {b[0]}x{b[1]}); crop them alike first")
-    wa, wb = sch.get_meta(first, sch.WINDOW), sch.get_meta(other, sch.WINDOW)
-    if wa and wb and wa != wb:
-        raise SchemaError(f"input frames have different windows ({wa} µs vs {wb} µs); frame them alike")
+    windows = sch.unlike_windows(first, other)
+    if windows:
+        shown = [f"{w} µs" if w else "no recorded window" for w in windows]
+        raise SchemaError(f"input frames have different windows ({shown[0]} vs {shown[1]}); frame them alike with `neurotac frame --window`")
 
 
 def read(paths, kind=None, allow_empty=False) -> pa.Table:

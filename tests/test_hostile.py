@@ -553,3 +553,13 @@ def test_click_s_own_usage_errors_are_one_line(args, said):
     done = subprocess.run([sys.executable, "-c", "from neurotac_cli.cli import main; main()", *args], capture_output=True, text=True,
                           stdin=subprocess.DEVNULL)
     assert one_line(done.stderr, done.returncode, 2) and said in done.stderr and "--help`)" in done.stderr, done.stderr
+
+
+def test_bare_neurotac_shows_its_help():
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", "from neurotac_cli.cli import main; main()"], capture_output=True, text=True,
+                          stdin=subprocess.DEVNULL)
+    shown = done.stdout + done.stderr
+    assert "Usage: neurotac" in shown and "Commands:" in shown and "error:" not in shown

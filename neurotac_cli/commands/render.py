@@ -37,7 +37,7 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
         neurotac render frames.arrows --view crop --size 115x115 --center auto -o box.png
         neurotac augment --rotate 30 < frames.arrows | neurotac render --view augmented -o rotated.gif
     """
-    from neurotac_cli import rendering as rd, tables
+    from neurotac_cli import rendering as rd, schema as sch, tables
     from neurotac_cli.ops.crop import CropSpec
 
     ctx = click.get_current_context()
@@ -48,7 +48,7 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))
     sliced = [flag for flag, name in (("--slices", "slices"), ("--slice", "slice_us")) if name in given]
-    if sliced and rd.table_kind(table.schema) == "frames":
+    if sliced and sch.table_kind(table.schema) == "frames":
         raise click.UsageError(f"{' and '.join(sliced)} cut{'s' if len(sliced) == 1 else ''} events or recordings into time "
                                "slices; frames are drawn as they are (use --every to draw fewer)")
     done = rd.render(table, output, spec)

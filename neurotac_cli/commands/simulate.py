@@ -4,7 +4,7 @@ import sys
 
 import click
 
-from neurotac_cli.options import Duration, KeyValue, distinct_names, history, output_option, seed_option
+from neurotac_cli.options import Duration, KeyValue, Size, distinct_names, history, output_option, seed_option
 
 
 def _progress_printer():
@@ -81,7 +81,7 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
 @click.option("--force-sensor", type=click.Choice(["nano17", "flexiforce"]), default=None,
               help="Force sensor model: fast F/T cell or slow, hysteretic piezoresistive sensor.")
 @click.option("--background-rate", type=float, default=None, help="Background activity per pixel, in Hz (0.1).")
-@click.option("--sensor", "sensor_size", default=None, metavar="WxH", help="Sensor size in pixels (240x180).")
+@click.option("--sensor", "sensor_size", type=Size(), default=None, help="Sensor size in pixels (240x180).")
 @click.option("--set", "settings", type=KeyValue(), multiple=True, callback=distinct_names,
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
                    "(the full list with units and sources: docs/simulator.md).")
@@ -147,9 +147,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
 def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_range, hold, force_sensor,
                background_rate, sensor_size) -> dict:
     """The simulator parameters the options set, by field name."""
-    from neurotac_cli.errors import NeurotacError, UsageError
     from neurotac_cli.sim.config import parse_value
-    from neurotac_cli.units import parse_size
 
     overrides = {name: parse_value(name, value) for name, value in settings}
     if groups:
@@ -169,10 +167,7 @@ def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_
     if background_rate is not None:
         overrides["background_rate_hz"] = background_rate
     if sensor_size:
-        try:
-            overrides["sensor_width"], overrides["sensor_height"] = parse_size(sensor_size)
-        except NeurotacError as error:
-            raise UsageError(f"--sensor: {error}") from None
+        overrides["sensor_width"], overrides["sensor_height"] = sensor_size
     return overrides
 
 

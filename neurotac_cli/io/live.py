@@ -168,7 +168,9 @@ def _wait_for(path, idle_timeout: float, stop: Callable[[], bool]):
         return
     end = time.monotonic() + idle_timeout
     while not os.path.lexists(path):
-        if stop() or time.monotonic() >= end:
+        if stop():
+            raise InputError(f"{path}: stopped before the file appeared (no table to write)")
+        if time.monotonic() >= end:
             raise InputError(f"{path}: no such file after waiting {idle_timeout:g} s (--idle-timeout); "
                              "is the camera writing it, and is the path right?")
         time.sleep(IDLE_POLL_S)

@@ -117,6 +117,11 @@ def _line_blocks(path: str, first_line: int):
             yield memoryview(rest)
 
 
+def _is_coordinate(field: str) -> bool:
+    """A pixel coordinate as the kernel reads it: a whole number 0..65535, written 5, 5.0 or 5e0."""
+    return _is_number(field) and float(field).is_integer() and 0 <= float(field) <= 65535
+
+
 def _culprit(line: str, roles: np.ndarray, comma: bool, status: int) -> str:
     """The field of a bad row to quote (the kernel says which row and what is wrong, not which field);
     the whole row where it has the wrong number of fields or no one field is to blame."""
@@ -129,7 +134,7 @@ def _culprit(line: str, roles: np.ndarray, comma: bool, status: int) -> str:
     if status == kernels.TEXT_NUMBER:
         blamed = [field for field, _ in read if not _is_number(field)]
     elif status == kernels.TEXT_COORDINATE:
-        blamed = [field for field, role in read if role in (1, 2) and not (field.isdigit() and int(field) <= 65535)]
+        blamed = [field for field, role in read if role in (1, 2) and not _is_coordinate(field)]
     elif status == kernels.TEXT_POLARITY:
         blamed = [field for field, role in read if role == 3]
     elif status == kernels.TEXT_FRACTION:

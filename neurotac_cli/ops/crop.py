@@ -382,7 +382,7 @@ def _crop_recordings_batch(batch: pa.RecordBatch, box, pool, report: CropReport,
 def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None, sensor=None) -> pa.Table:
     """Crop a whole frames, recordings or events table (auto centre from the whole table)."""
     report = report if report is not None else CropReport()
-    kind = sch.kind_of(table.schema) or sch._guess_kind(table.schema)
+    kind = sch.table_kind(table.schema)
     if sensor is not None and kind != "frames":
         table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
     dims = sensor_size(table.schema)
@@ -408,7 +408,7 @@ def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Sc
     batch as it arrives, so memory does not grow with it and a live stream flows through; the report
     fills as the batches are written. The automatic centre needs the whole input: it is read whole."""
     report = CropReport()
-    kind = sch.kind_of(schema) or sch._guess_kind(schema)
+    kind = sch.table_kind(schema)
     try:
         if spec.center != "auto" and kind in STREAMERS:
             dims = sensor_size(schema) if kind == "frames" else (sensor or sensor_size(schema))

@@ -37,6 +37,7 @@ from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 SMALLEST_SCALE = MAX_COUNT / float(np.finfo(np.float32).max)  # below it the largest count divided by it is inf in float32
+LARGEST_SCALE = float(np.finfo(np.float32).max)  # a scale is stored as float32: beyond it, it is inf and every count 0
 FORCE_AT = ("end", "mean", "median")
 BUFFER_CELLS = 1 << 22  # uint16 cells of one streaming buffer: 8 MiB, whatever the recording's length
 SCAN_EVENTS = 1 << 18  # events counted at a time, so the frames of a huge input batch leave as it is counted
@@ -108,6 +109,8 @@ class Framing:
             if min(self.scale) < SMALLEST_SCALE:
                 raise UsageError(f"scale {min(self.scale):g} is below {SMALLEST_SCALE:.3g}: counts divided by it "
                                  "overflow float32 (give counts such as 40,55)")
+            if max(self.scale) > LARGEST_SCALE:
+                raise UsageError(f"scale {max(self.scale):g} is beyond float32 (at most {LARGEST_SCALE:.3g}); give counts such as 40,55")
         if not (self.phases in ("auto", "none", "session") or (isinstance(self.phases, tuple) and len(self.phases) == 3)):
             raise UsageError(f"phases must be auto, session, none or three frame ranges, got {self.phases!r}")
         for trial, spans in (self.slips or {}).items():

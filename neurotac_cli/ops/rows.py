@@ -161,7 +161,7 @@ def _difference(first: pa.Schema, other: pa.Schema, name: str) -> str:
 def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
     """The parts are of one kind, sensor size and frame window."""
     first_name, first = parts[0]
-    facts = lambda schema: {"kind": sch.kind_of(schema) or sch._guess_kind(schema), "sensor size": sch.sensor_of(schema),  # noqa: E731
+    facts = lambda schema: {"kind": sch.table_kind(schema), "sensor size": sch.sensor_of(schema),  # noqa: E731
                             "frame window (µs)": sch.get_meta(schema, sch.WINDOW)}
     expected = facts(first.schema)
     for name, table in parts[1:]:
@@ -169,12 +169,11 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
             if value is not None and expected[what] is not None and value != expected[what]:
                 raise SchemaError(f"{name} has {what} {_show(value)}, {first_name} {_show(expected[what])}; "
                                   "concatenate tables made alike (crop and frame them the same way)")
-            # the output keeps one table's window: frames that do not say theirs would be labelled with it
-            if what == "frame window (µs)" and (value is None) != (expected[what] is None):
-                known, unknown = (name, first_name) if value is not None else (first_name, name)
-                raise SchemaError(f"{unknown} does not record its frame window (metadata {sch.WINDOW}) and {known} has "
-                                  f"{_show(value if value is not None else expected[what])} µs; frame both with `neurotac "
-                                  "frame --window` so that the window is known")
+        windows = sch.unlike_windows(first.schema, table.schema)
+        if windows and None in windows:  # the output keeps one table's window: the other's frames would be labelled with it
+            known, unknown = (first_name, name) if windows[0] is not None else (name, first_name)
+            raise SchemaError(f"{unknown} does not record its frame window (metadata {sch.WINDOW}) and {known} has "
+                              f"{windows[0] or windows[1]} µs; frame both with `neurotac frame --window` so that the window is known")
 
 
 def _show(value) -> str:

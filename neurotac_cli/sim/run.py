@@ -5,6 +5,7 @@
     recordings(simulation) -> pa.Table         the synced `recordings` table (true sync instant)
 """
 
+import collections
 import csv
 import dataclasses
 import io
@@ -47,7 +48,7 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
 
     With a `variation` (sim.physics), each trial gets its own physics and camera, drawn from the
     varied families' ranges, and is simulated on its own; its drawn values go to `grasp.extra["physics"]`.
-    With `rigs` as well, the grasps are dealt in turn to that many rigs instead, each one draw of the
+    With `rigs` as well, each group's grasps are dealt in turn to that many rigs instead, each one draw of the
     physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN-seedS
     (the seed in the name: another seed's rigN is another sensor).
     """
@@ -58,13 +59,12 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     if variation is None:
         result = _simulate_trials(config, camera, grasps, noise_rngs, progress)
     elif rigs:
-        if rigs > len(grasps):
-            raise UsageError(f"--rigs {rigs}: more rigs than the {len(grasps)} grasps to deal to them")
+        rig_of = _dealt(grasps, rigs)
         result = [None] * len(grasps)
         for k, seq in enumerate(streams[3].spawn(rigs)):
             rng = np.random.default_rng(seq)
             varied, physics = variation.draw(config, rng)
-            members = range(k, len(grasps), rigs)  # dealt in turn: each rig gets a share of every group
+            members = [i for i, rig in enumerate(rig_of) if rig == k]
             planned = []
             for i in members:
                 grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": f"rig{k + 1}-seed{seed}"}))
@@ -87,6 +87,24 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     order = np.argsort(still[0], kind="stable")
     still = tuple(a[order] for a in still)
     return Simulation(config, seed, result, (still[0], still[1].astype(np.uint16), still[2].astype(np.uint16), still[3].astype(np.uint8)))
+
+
+def _dealt(grasps: list, rigs: int) -> list[int]:
+    """Each grasp's rig: the grasps of every group (material, object and labels) dealt in turn, so
+    that every rig holds every group (standardising per rig needs each material on each sensor)."""
+    groups = [(g.material, g.shape.name, tuple(sorted((k, v) for k, v in g.labels.items() if k not in ("material", "object", "size_mm"))))
+              for g in grasps]
+    sizes = collections.Counter(groups)
+    smallest = min(sizes, key=sizes.get)
+    if sizes[smallest] < rigs:
+        raise UsageError(f"--rigs {rigs}: the group {':'.join(smallest[:2])} has {sizes[smallest]} grasp(s), and every rig "
+                         f"needs one of every group; give at most {sizes[smallest]} rigs, or more grasps (--trials, --objects)")
+    seen = collections.Counter()
+    rig_of = []
+    for group in groups:
+        rig_of.append(seen[group] % rigs)
+        seen[group] += 1
+    return rig_of
 
 
 def replan(config: SimConfig, rng: np.random.Generator, grasp: Grasp) -> Grasp:

@@ -85,6 +85,16 @@ def test_concat_refuses_frames_that_do_not_record_their_window_beside_frames_tha
             concat(parts)
 
 
+def test_several_inputs_read_as_one_refuse_frames_without_a_window_beside_frames_with_one(tmp_path):
+    known = tiny_frames(trials=1)
+    unknown = tiny_frames(trials=1, seed=1)
+    unknown = unknown.replace_schema_metadata({k: v for k, v in unknown.schema.metadata.items() if k != sch.WINDOW.encode()})
+    tables.write(str(tmp_path / "a.arrows"), known)
+    tables.write(str(tmp_path / "b.arrows"), unknown)
+    with pytest.raises(SchemaError, match="different windows \\(10000 µs vs no recorded window\\)"):
+        tables.read([str(tmp_path / "a.arrows"), str(tmp_path / "b.arrows")], kind="frames")
+
+
 def test_split_by_fraction_is_seeded_keeps_copies_with_their_source_and_stratifies():
     frames = tiny_frames(trials=8, augmented_copies=1)
     train, test, report = split(frames, fraction=0.25, per="object", seed=3)

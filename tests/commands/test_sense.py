@@ -62,6 +62,7 @@ def test_sense_reads_a_camera_on_stdin(rig):
 @pytest.mark.parametrize("args, words", [
     (["--center", "auto", "--size", "60x60"], "--center auto needs the whole input"),
     (["--speed", "2"], "--speed sets the pace of a replay"),
+    (["--center", "120,90"], "--center needs --size"),
 ])
 def test_sense_refuses_what_cannot_stream_in_one_line(rig, args, words):
     folder, camera = rig

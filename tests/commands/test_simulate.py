@@ -149,7 +149,7 @@ def test_the_objects_option_and_labels(tmp_path):
         (["--synced", "--vary", "bogus"], "unknown parameter family 'bogus'"),
         (["--synced", "--vary", ""], "empty family name"),
         (["--synced", "--hold-out", "bogus"], "unknown parameter family 'bogus'"),
-        (["--synced", "--sensor", "0x0"], "--sensor: cannot read size '0x0'"),
+        (["--synced", "--sensor", "0x0"], "Invalid value for '--sensor': cannot read size '0x0'"),
         (["--synced", "--hold-out", "membrane", "--unseen", "membrane"], "not both"),
     ],
 )

@@ -114,6 +114,16 @@ def test_a_followed_file_that_never_appears_is_one_line_after_the_timeout(tmp_pa
     assert time.monotonic() - start >= 0.3
 
 
+def test_ctrl_c_while_waiting_for_a_followed_file_is_one_line(tmp_path):
+    process = subprocess.Popen(["neurotac", "import", "--follow", "--idle-timeout", "20s", str(tmp_path / "cam.raw")],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=20)
+    lines = stderr.decode().strip().splitlines()
+    assert process.returncode == 1 and len(lines) == 1 and "stopped before the file appeared" in lines[0], stderr
+
+
 def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     source = real_file("prophesee_vga_faery.evt2.raw")
     data = source.read_bytes()

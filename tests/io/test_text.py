@@ -140,6 +140,7 @@ def test_times_too_large_are_a_clear_error(tmp_path, value):
     ("e.csv", "t,x,y,p\n1,2,3,1\n2,4,5,0\noops,1,1,1\n", "line 4: not a number: 'oops' "),
     ("e.csv", "t,x,y,p,note\n1,2,3,1,a\n2,1e,5,0,b\n", "line 3: not a number: '1e' "),
     ("e.csv", "t,x,y,p\n1,2,70000,1\n", "line 2: x and y must be whole numbers from 0 to 65535: '70000' "),
+    ("e.csv", "t,x,y,p\n100,5.0,70000,1\n", "line 2: x and y must be whole numbers from 0 to 65535: '70000' "),
     ("e.csv", "t,x,y,p\n1,2,3,5\n", "line 2: polarity must be 0/1 or -1/1: '5' "),
     ("e.csv", "t,x,y,p\n1.5,2,3,1\n", "line 2: time is not a whole number of microseconds: '1.5' "),
     ("e.txt", "0.1 2 3 1\n0.2 x 3 1\n", "line 2: not a number: 'x' "),

@@ -421,7 +421,7 @@ def test_frame_command_rejects_a_bare_number_and_bad_ranges(tmp_path):
     assert done.returncode == 2 and done.stderr.decode().count("\n") == 1 and "phases" in done.stderr.decode()
 
 
-@pytest.mark.parametrize("scale", ["nan", "inf", "1e-45", "1e-40", "0", "-1", "40,nan"])
+@pytest.mark.parametrize("scale", ["nan", "inf", "1e-45", "1e-40", "1e39", "0", "-1", "40,nan"])
 def test_a_scale_that_is_not_finite_positive_or_that_overflows_float32_is_a_one_line_usage_error(scale, tmp_path):
     source = tmp_path / "rec.arrows"
     trial = {"trial": "a", "t0": 0, "events": (np.array([1_000, 12_000]), np.zeros(2), np.zeros(2), np.array([1, 0])),

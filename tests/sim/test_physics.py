@@ -114,3 +114,16 @@ def test_rigs_share_one_draw_of_the_physics_among_their_grasps_and_label_them(tm
     for bad in (["--rigs", "2"], ["--vary", "all", "--rigs", "9"]):
         done = subprocess.run(["neurotac", "simulate", "--preset", "ch3", "--trials", "8", "--synced", *bad], capture_output=True)
         assert done.returncode == 2 and len(done.stderr.decode().strip().splitlines()) == 1, done.stderr
+
+
+def test_rigs_get_every_group_however_the_groups_divide_and_too_many_rigs_are_refused():
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.sim.run import _dealt
+
+    grasps = plan_grasps(preset_config("ch3"), np.random.default_rng(0), 24)  # 6 of each material, in blocks
+    rigs = _dealt(grasps, 4)
+    for rig in range(4):
+        materials = sorted(g.material for g, r in zip(grasps, rigs) if r == rig)
+        assert set(materials) == {"foam", "rubber", "silicone", "steel"} and len(materials) in (4, 8)
+    with pytest.raises(UsageError, match="--rigs 7: the group .* has 6 grasp"):
+        _dealt(grasps, 7)
