@@ -296,7 +296,9 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
                     count += batch.num_rows
                     yield batch
         if count == 0 and not allow_empty:
-            raise InputError(f"input {found + ' table' if found else 'table'} has no rows (an empty recording, or the command before it failed)")
+            named = ", ".join(path for path in paths if path != "-")
+            raise InputError(f"{named + ': ' if named else ''}input {found + ' table' if found else 'table'} has no rows "
+                             "(an empty recording, or the command before it failed)")
 
     return Input(schema=schema, batches=batches(), kind=found)
 
