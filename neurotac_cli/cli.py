@@ -61,9 +61,9 @@ class LazyGroup(click.Group):
         extra.pop("standalone_mode", None)
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
-        except click.exceptions.NoArgsIsHelpError as error:  # bare `neurotac`: its help, as click shows it
-            error.show()
-            sys.exit(error.exit_code)
+        except click.exceptions.NoArgsIsHelpError as error:  # bare `neurotac`: its help, readable through a pager
+            click.echo(error.ctx.get_help())
+            sys.exit(0)
         except click.UsageError as error:
             name = error.ctx.command_path if error.ctx is not None else "neurotac"
             _fail(f"{name}: error: {' '.join(error.format_message().split())} (see `{name} --help`)", code=2)
@@ -84,7 +84,7 @@ class LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except UsageError as error:
-            _fail(f"{_who(ctx)}: error: {error}", code=2)
+            _fail(f"{_who(ctx)}: error: {error} (see `{_who(ctx)} --help`)", code=2)
         except NeurotacError as error:
             _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:

@@ -392,7 +392,7 @@ def _steps_lines(title: str, history: list) -> list:
     """A title, then one line per step of a history: the command, its settings, the version that ran it."""
     lines = [title if history else (title, "(none)")]
     for step in history:
-        args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if v not in (None, False, [], {}))
+        args = " ".join(f"{k}={_compact(v)}" for k, v in (step.get("args") or {}).items() if not _unset(v))
         lines.append(f"  {step.get('command', '?')} {args}".rstrip() + f"  (neurotac {step.get('version', '?')})")
     return lines
 
@@ -406,6 +406,11 @@ def _sync_cell(entry: dict, method) -> str:
     if entry.get("uncertainty_us") is not None:
         text += f" ±{entry['uncertainty_us'] / 1000:.1f} ms"
     return text
+
+
+def _unset(value) -> bool:
+    """A history setting left at nothing (None, off, empty); 0 is a value (`0 == False` in Python)."""
+    return value is None or value is False or (isinstance(value, (list, dict)) and not value)
 
 
 def _compact(value) -> str:

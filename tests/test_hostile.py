@@ -275,8 +275,8 @@ def test_training_data_that_would_train_silently_wrong_is_refused(tmp_path):
     empty = _with_column(table, "material", [""] * 4 + table.column("material").to_pylist()[4:])
     for data, args, said in [(spike, ["--model", "tdnn"], "force of 1e+30 N"), (flat, ["--model", "tdnn"], "0 N on every frame"),
                              (mixed, ["--model", "material-dnn"], "trial 'a' has more than one material (foam, rubber)"),
-                             (unlabelled, ["--model", "material-dnn"], "1 trial without a material value (a)"),
-                             (empty, ["--model", "material-dnn"], "1 trial without a material value (a)"),
+                             (unlabelled, ["--model", "material-dnn"], "1 trial with no material (a)"),
+                             (empty, ["--model", "material-dnn"], "1 trial with no material (a)"),
                              (table, ["--model", "tdnn", "--val-per", "nosuch"], "--val-per nosuch: no label column"),
                              (table, ["--model", "tdnn", "--val-trials", "a", "--val-where", "material=foam"], "give one of them")]:
         path = str(tmp_path / "f.arrows")
@@ -555,11 +555,24 @@ def test_click_s_own_usage_errors_are_one_line(args, said):
     assert one_line(done.stderr, done.returncode, 2) and said in done.stderr and "--help`)" in done.stderr, done.stderr
 
 
-def test_bare_neurotac_shows_its_help():
+def test_bare_neurotac_shows_its_help_on_stdout():
     import subprocess
     import sys
 
     done = subprocess.run([sys.executable, "-c", "from neurotac_cli.cli import main; main()"], capture_output=True, text=True,
                           stdin=subprocess.DEVNULL)
-    shown = done.stdout + done.stderr
-    assert "Usage: neurotac" in shown and "Commands:" in shown and "error:" not in shown
+    assert done.returncode == 0 and "Usage: neurotac" in done.stdout and "Commands:" in done.stdout and not done.stderr
+
+
+def test_train_warns_of_forces_beyond_any_flexiforce_range_and_info_shows_settings_of_zero(tmp_path):
+    table = frames_table(trials=("a", "b", "c"))
+    table = _with_column(table, "force", (np.asarray(table.column("force").to_pylist()) * 1000).tolist())  # a log in mN
+    path = str(tmp_path / "f.arrows")
+    tables.write(path, table)
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "--seed", "0", "-o", str(tmp_path / "m.model"), path])
+    assert code == 0 and "beyond 450 N" in stderr
+    made = table.replace_schema_metadata(sch.set_meta(table.schema, history=[
+        {"command": "simulate", "args": {"seed": 0, "keep_led": False, "trials": 3}, "version": "0"}]).metadata)
+    tables.write(str(tmp_path / "h.arrows"), made)
+    code, _, described = invoke(["info", str(tmp_path / "h.arrows")])
+    assert code == 0 and "simulate seed=0 trials=3" in described, described

@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import history, input_paths, output_option
+from neurotac_cli.options import echo_lines, history, input_paths, output_option
 
 
 @click.command()
@@ -12,7 +12,8 @@ def command(paths, output, model_path):
 
     A model trained with --adapt-by LABEL standardises its features within each value of LABEL in the
     input that has at least 8 trials (over all trials where the input has no LABEL column): give the
-    grasps of a new object size or sensor together, about balanced across the classes.
+    grasps of a new object size or sensor together, about balanced across the classes. A smaller
+    one takes the training's figures for it (or the training's pooled ones), and is named on stderr.
 
     \b
         neurotac classify --model material.model < frames.arrows | neurotac info -
@@ -24,4 +25,7 @@ def command(paths, output, model_path):
     read_header(model_path)  # a wrong model file fails at once, an empty input next, before torch's import
     table = tables.read(paths, kind="frames")
     model = models.load(model_path)
-    tables.write(output, models.classify_table(model, table), step=history())
+    notes = []
+    predicted = models.classify_table(model, table, notes)
+    echo_lines("classify", notes, "warning: ")
+    tables.write(output, predicted, step=history())

@@ -61,7 +61,7 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Test data: draw FAMILY from the upper third of each of its ranges only, physics --hold-out training never saw.")
 @click.option("--rigs", type=click.IntRange(min=1), default=None,
               help="With --vary: deal the grasps in turn to this many rigs, each one draw of the physics shared by its grasps "
-                   "(a lab's sensors, each with several grasps of every group), labelled `rig` (rig1-seedS, rig2-seedS, ...): "
+                   "(a lab's sensors, each with several grasps of every group), labelled `rig` (rig1-XXXXXX, ...: the suffix a digest of the rig's physics): "
                    "training data for `train --adapt-by rig`.")
 @click.option("--trials", type=click.IntRange(min=1), default=None,
               help="Simulate only this many grasps, spread over the preset's groups in turn (a small, fast data set).")

@@ -10,6 +10,7 @@ import torch
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.ops.forcelog import RANGE_N
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
@@ -158,13 +159,17 @@ class Model:
             out, state = self.net(torch.from_numpy(counts), torch.as_tensor(t_us / 1e6), state)
         return out.numpy().astype(np.float32) * self.force_scale, state
 
-    def proba(self, data: Sequences) -> np.ndarray:
+    def proba(self, data: Sequences, notes: list | None = None) -> np.ndarray:
+        """Each trial's class probabilities; `notes` gets a line for each domain of an adapted model's
+        input too small to be standardised over its own grasps."""
         from neurotac_cli.model import material
 
         x = material.features(data, self.config)
         adapt = self.input_spec.get("adapt")
         if adapt:  # each domain of the input over its own grasps where it has enough, else as training saw it
             domains = material.domains_of(data, adapt["by"])
+            if notes is not None:
+                notes += material.fallback_notes(domains, adapt, adapt["by"] in data.labels)
             stats = {domain: (np.asarray(mean), np.asarray(std)) for domain, (mean, std) in adapt["stats"].items()}
             stats.update(material.domain_stats(x, domains, least=material.MIN_DOMAIN_TRIALS))
             x = material.standardised(x, domains, stats, (np.asarray(adapt["mean"]), np.asarray(adapt["std"])))
@@ -288,6 +293,10 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
     _check_training_set(name, config, train_set, label)
+    largest = np.nanmax(np.abs(np.concatenate(train_set.force))) if name not in MATERIAL_MODELS else 0.0
+    if largest > RANGE_N and progress:  # as `sync` warns of a log
+        progress(f"warning: the training frames carry forces up to {largest:.4g} N, beyond {RANGE_N:g} N (the largest "
+                 "FlexiForce range): a log in another unit (mN, g)? the model will read in those units")
     if val_fraction and not in_val.any() and progress:
         progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
                  "is held out for validation (early stopping follows the training loss)")
@@ -316,7 +325,7 @@ def _check_classes(data, label: str):
         return  # told by _check_training_set, with the labels there are
     missing = [trial for trial, value in zip(data.trials, data.labels[label]) if value is None or not value.strip()]
     if missing:
-        raise ModelError(f"{counted(len(missing), 'trial')} without a {label} value ({', '.join(missing[:3])}"
+        raise ModelError(f"{counted(len(missing), 'trial')} with no {label} ({', '.join(missing[:3])}"
                          f"{', ...' if len(missing) > 3 else ''}); label them, or leave them out (`neurotac select`)")
 
 
@@ -431,6 +440,9 @@ def _train_material(name, config, fit_config, train_set, val_set, input_spec, tr
     x = material.features(train_set, config)
     val_x = material.features(val_set, config) if len(val_set) else None
     if config.adapt_by:
+        if config.adapt_by == label:
+            raise UsageError(f"--adapt-by {label}: that is the label the classifier predicts; adapt by what sets the "
+                             "grasps apart otherwise (an object size, a sensor: e.g. object, rig)")
         if config.adapt_by not in train_set.labels:
             raise ModelError(f"--adapt-by {config.adapt_by}: the training frames have no {config.adapt_by!r} label column "
                              f"(labels: {', '.join(sorted(train_set.labels)) or 'none'})")
@@ -547,13 +559,14 @@ def stream_trials(model: Model, schema: pa.Schema, batches):
     return out_schema, run()
 
 
-def classify_table(model: Model, table: pa.Table) -> pa.Table:
-    """One row per trial: the true class where known, the predicted class and every class's probability."""
+def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> pa.Table:
+    """One row per trial: the true class where known, the predicted class and every class's probability;
+    `notes` gets what an adapted model could not standardise over the input's own grasps (`Model.proba`)."""
     if model.task != "material":
         raise ModelError(f"model {model.name!r} estimates force; use `neurotac eval` or `neurotac predict`")
     check_input(model, table.schema)
     data = sequences(table)
-    proba = model.proba(data)
+    proba = model.proba(data, notes)
     label = model.training.get("label", "material")
     fields = [("trial", pa.string())]
     columns = [pa.array(data.trials, pa.string())]

@@ -67,7 +67,10 @@ def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparamet
         name = model_spec
     else:
         model = load(model_path)
-        predictions, rows = evaluate_model(model, frames, nonzero=nonzero, per_trial=per_trial)
+        notes = []
+        predictions, rows = evaluate_model(model, frames, nonzero=nonzero, per_trial=per_trial, notes=notes)
+        for note in notes if progress else ():
+            progress(f"warning: {note}")
         name, spec = model.name, None
     trials = len(set(predictions.column("trial").to_pylist()))
     title = f"{name} on {counted(trials, 'trial')}" + (" (non-zero force only)" if nonzero else "")
@@ -88,11 +91,11 @@ def study(frames: pa.Table, model_spec: str, grid, fixed: dict | None, folds: Fo
     return Evaluation(model_spec, predictions, grid_metrics_table(rows, model_spec), lines)
 
 
-def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True):
-    """(predictions, metric rows) of a trained model on a frames table."""
+def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True, notes: list | None = None):
+    """(predictions, metric rows) of a trained model on a frames table; `notes` as `classify_table`'s."""
     if model.task == "material":
         label = model.training.get("label", "material")
-        predictions = classify_table(model, table)
+        predictions = classify_table(model, table, notes)
         if label in predictions.column_names:
             given = {value for value in predictions.column(label).to_pylist() if value is not None}
             if given and not given & set(model.classes):

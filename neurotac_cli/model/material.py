@@ -19,12 +19,14 @@
 Inputs are standardised with constants fitted on training trials (buffers saved in the model file).
 """
 
+import collections
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import nn
 
+from neurotac_cli.errors import ModelError
 from neurotac_cli.model.data import Sequences, resample
 
 
@@ -86,9 +88,30 @@ MIN_DOMAIN_TRIALS = 8  # a domain with fewer grasps in the input takes its train
 
 
 def domains_of(data: Sequences, label: str) -> np.ndarray:
-    """Each trial's domain: its value of `label`, or one domain for all where the input has no such label."""
+    """Each trial's domain: its value of `label`, or one domain for all where the input has no such label.
+    A trial without a value is refused: it would be standardised with grasps of another domain."""
     values = data.labels.get(label)
-    return np.asarray([str(v) for v in values] if values is not None else ["all"] * len(data), dtype=object)
+    if values is None:
+        return np.asarray(["all"] * len(data), dtype=object)
+    missing = [trial for trial, value in zip(data.trials, values) if value is None or not str(value).strip()]
+    if missing:
+        raise ModelError(f"{len(missing)} trial(s) with no {label} ({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}); "
+                         f"a model adapted by {label} standardises each {label} apart: label them, or leave them out")
+    return np.asarray([str(v) for v in values], dtype=object)
+
+
+def fallback_notes(domains: np.ndarray, adapt: dict, labelled: bool) -> list[str]:
+    """A line for each domain of the input too small to be standardised over its own grasps, saying
+    whose figures it took instead (`Model.proba`)."""
+    notes = []
+    for domain, count in collections.Counter(domains.tolist()).items():
+        if count >= MIN_DOMAIN_TRIALS:
+            continue
+        what = f"{adapt['by']} {domain}" if labelled else f"the input (no {adapt['by']} column: one domain)"
+        whose = f"the training's figures for {domain}" if domain in adapt["stats"] else "the training grasps' figures, pooled"
+        notes.append(f"{what}: {count} trial(s), fewer than the {MIN_DOMAIN_TRIALS} to standardise over its own, so {whose}; "
+                     "give a new size's or sensor's grasps together, about balanced across the classes")
+    return notes
 
 
 def domain_stats(x: np.ndarray, domains: np.ndarray, least: int = 1) -> dict:

@@ -318,6 +318,9 @@ def check_material(model, material):
         raise ModelError(f"the material model {material.name!r} was trained on {spec.get('width')}x{spec.get('height')} "
                          f"{'accumulated ' if spec.get('accumulated') else ''}frames; a contact's material needs one trained on "
                          "plain counts pooled to one pixel (`neurotac crop --pool all`)")
+    if spec.get("adapt"):
+        raise ModelError(f"the material model was trained with --adapt-by {spec['adapt']['by']}: it standardises a batch of "
+                         "grasps together, and a contact is named alone as it ends; give one trained without --adapt-by")
     if spec.get("window_us") != model.input_spec.get("window_us"):
         raise ModelError(f"the material model was trained on {spec.get('window_us')} µs windows, the force model on "
                          f"{model.input_spec.get('window_us')} µs; frame both the same way")

@@ -145,6 +145,11 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
         wanted = " ".join(filter(None, [f"of type {method.trigger_type!r}" if method.trigger_type is not None else "",
                                         f"on input {method.trigger_id}" if method.trigger_id is not None else ""]))
         raise SyncError(f"no trigger {wanted} ({has}); choose with --trigger-type / --trigger-id")
+    kinds_chosen = sorted({(str(item.get("type")), item.get("id")) for item in chosen}, key=str)
+    if count == 1 and len(kinds_chosen) > 1:  # which one marks the trial is not ours to guess
+        listed = ", ".join(f"{kind}" + (f" on input {input_id}" if input_id is not None else "") for kind, input_id in kinds_chosen)
+        raise SyncError(f"the recording has triggers of several kinds ({listed}); choose the one that marks the grasp with "
+                        "--trigger-type and, where inputs differ, --trigger-id")
     if count > 1 and len(chosen) != count:
         raise SyncError(
             f"{len(chosen)} triggers but {count} trials in the force log; pick triggers with --trigger-type or --trigger-id ({has})"

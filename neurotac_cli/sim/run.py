@@ -8,7 +8,9 @@
 import collections
 import csv
 import dataclasses
+import hashlib
 import io
+import json
 import os
 from dataclasses import dataclass
 
@@ -49,8 +51,8 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
     With a `variation` (sim.physics), each trial gets its own physics and camera, drawn from the
     varied families' ranges, and is simulated on its own; its drawn values go to `grasp.extra["physics"]`.
     With `rigs` as well, each group's grasps are dealt in turn to that many rigs instead, each one draw of the
-    physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN-seedS
-    (the seed in the name: another seed's rigN is another sensor).
+    physics and one camera shared by its grasps (a lab's sensors), its grasps labelled `rig` = rigN-XXXXXX,
+    the suffix a digest of the rig's drawn physics: one name, one sensor, whatever the run that made it.
     """
     streams = np.random.SeedSequence(seed).spawn(4)
     camera = dvs.make_camera(config, np.random.default_rng(streams[0]))
@@ -65,9 +67,10 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
             rng = np.random.default_rng(seq)
             varied, physics = variation.draw(config, rng)
             members = [i for i, rig in enumerate(rig_of) if rig == k]
+            name = f"rig{k + 1}-{hashlib.sha1(json.dumps(physics, sort_keys=True, default=str).encode()).hexdigest()[:6]}"
             planned = []
             for i in members:
-                grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": f"rig{k + 1}-seed{seed}"}))
+                grasp = replan(varied, rng, dataclasses.replace(grasps[i], labels={**grasps[i].labels, "rig": name}))
                 grasp.extra["physics"] = physics
                 planned.append(grasp)
             made = _simulate_trials(varied, dvs.make_camera(varied, rng), planned, [noise_rngs[i] for i in members], None)

@@ -1,6 +1,7 @@
 """The material classifiers' timing features: what a slower loading and a larger force do to them."""
 
 import numpy as np
+import pytest
 
 from neurotac_cli.model import material
 
@@ -115,3 +116,27 @@ def test_a_size_training_never_saw_is_read_against_its_own_grasps_with_adapt_by(
     alone = core.classify_table(model, training.slice(0, 80 * 3)).select(probability).to_pandas().to_numpy()
     together = core.classify_table(model, training).select(probability).to_pandas().to_numpy()[:3]
     np.testing.assert_allclose(alone, together, rtol=1e-5, atol=1e-6)
+
+
+def test_adapting_needs_every_trial_s_domain_and_a_label_other_than_the_class_and_says_what_fell_back():
+    import pyarrow as pa
+
+    from neurotac_cli import model as models
+    from neurotac_cli.errors import ModelError, UsageError
+    from neurotac_cli.model import core
+
+    training = domain_frames({"small": 1.0, "medium": 1.5})
+    with pytest.raises(UsageError, match="--adapt-by material: that is the label the classifier predicts"):
+        models.train(training, models.make_spec("material-timing", adapt_by="material"), seed=0)
+    objects = training.column("object").to_pylist()
+    unlabelled = training.set_column(training.schema.get_field_index("object"), training.schema.field("object"),
+                                     pa.array([None] * 80 + objects[80:], pa.string()))
+    with pytest.raises(ModelError, match="1 trial\\(s\\) with no object \\(small-steel-0\\)"):
+        models.train(unlabelled, models.make_spec("material-timing", adapt_by="object"), seed=0)
+    model = models.train(training, models.make_spec("material-timing", adapt_by="object"), seed=0)
+    notes = []
+    core.classify_table(model, domain_frames({"large": 3.0}, seed=1).slice(0, 80 * 3), notes)
+    assert len(notes) == 1 and notes[0].startswith("object large: 3 trial(s), fewer than the 8") and "pooled" in notes[0]
+    notes = []
+    core.classify_table(model, domain_frames({"large": 3.0}, seed=1), notes)
+    assert notes == []  # 12 grasps: standardised over their own

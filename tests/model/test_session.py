@@ -539,6 +539,13 @@ def test_a_stream_that_ends_inside_a_contact_names_its_material_in_a_note(traine
     assert len(ended) == 1 and ended[0].startswith("trial test:") and ended[0].split("material ")[1].split(" ")[0] in material.classes
 
 
+def test_a_material_model_that_adapts_by_batches_is_refused_for_contacts_named_alone(trained):
+    material = pooled_material_model()
+    material.input_spec["adapt"] = {"by": "object", "mean": [], "std": [], "stats": {}}
+    with pytest.raises(ModelError, match="trained with --adapt-by object"):
+        session.check_material(trained, material)
+
+
 def test_a_material_model_on_unpooled_frames_is_refused(trained):
     from tests.model.helpers import tiny_frames
 

@@ -191,6 +191,8 @@ def test_triggers_of_one_input_are_chosen_by_id():
         sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger", trigger_id=2))
     with pytest.raises(UsageError, match="--method led"):
         sy.SyncMethod(method="led", trigger_id=1)
+    with pytest.raises(SyncError, match="triggers of several kinds \\(falling on input 0, rising on input 0, rising on input 1\\)"):
+        sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger"))
 
 
 # ---------------------------------------------------------------- simulated grasps

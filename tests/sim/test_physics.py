@@ -105,11 +105,17 @@ def test_rigs_share_one_draw_of_the_physics_among_their_grasps_and_label_them(tm
         done = subprocess.run([*args, "--out", str(tmp_path / name)], capture_output=True)
         assert done.returncode == 0, done.stderr.decode()
     rows = list(csv.DictReader(open(tmp_path / "a" / "manifest.csv")))
-    assert [r["rig"] for r in rows] == ["rig1-seed4", "rig2-seed4"] * 4  # dealt in turn: each rig gets a grasp of every group
-    for rig in ("rig1-seed4", "rig2-seed4"):
+    names = [r["rig"] for r in rows]
+    assert names[:2] != names[2:] and names == names[:2] * 4  # dealt in turn: each rig gets a grasp of every group
+    assert [name.split("-")[0] for name in names[:2]] == ["rig1", "rig2"]
+    for rig in names[:2]:
         assert sorted(r["material"] for r in rows if r["rig"] == rig) == ["foam", "rubber", "silicone", "steel"]
         assert len({r["true_on_threshold"] for r in rows if r["rig"] == rig}) == 1  # one sensor per rig
     assert len({r["true_membrane_youngs_pa"] for r in rows}) == 2
+    # the name is the sensor's: another run drawing other physics for its first rig names it otherwise
+    other = subprocess.run([*args[:-2], "--unseen", "membrane", "--rigs", "2", "--out", str(tmp_path / "c")], capture_output=True)
+    assert other.returncode == 0, other.stderr.decode()
+    assert not {r["rig"] for r in csv.DictReader(open(tmp_path / "c" / "manifest.csv"))} & set(names)
     assert (tmp_path / "a" / "manifest.csv").read_bytes() == (tmp_path / "b" / "manifest.csv").read_bytes()
     for bad in (["--rigs", "2"], ["--vary", "all", "--rigs", "9"]):
         done = subprocess.run(["neurotac", "simulate", "--preset", "ch3", "--trials", "8", "--synced", *bad], capture_output=True)
