@@ -28,7 +28,7 @@ def test_contradicting_options_are_one_usage_line_and_exit_2():
     done = CliRunner().invoke(cli, ["eval", "--grid", "layers=1,2"])
     assert done.exit_code == 2
     assert done.output.strip().splitlines() == [
-        "neurotac eval: error: --grid needs --cv and --model-spec (a grid of cross-validated models)"]
+        "neurotac eval: error: --grid needs --cv and --model-spec (a grid of cross-validated models) (see `neurotac eval --help`)"]
 
 
 def test_an_output_path_accepts_every_suffix_the_writer_writes():
