@@ -48,7 +48,7 @@ def write_text(path: str, fmt: str, schema: pa.Schema, batches) -> None:
         sink.write("[" if fmt == "json" else "")
         for batch in batches:
             for row in batch.to_pylist():
-                text = json.dumps({key: _jsonable(value) for key, value in row.items()}, ensure_ascii=False, allow_nan=False)
+                text = json.dumps({key: jsonable(value) for key, value in row.items()}, ensure_ascii=False, allow_nan=False)
                 if fmt == "json":
                     sink.write(("\n" if first else ",\n") + text)
                 else:
@@ -57,13 +57,14 @@ def write_text(path: str, fmt: str, schema: pa.Schema, batches) -> None:
         sink.write("\n]\n" if fmt == "json" else "")
 
 
-def _jsonable(value):
+def jsonable(value):
+    """`value` as strict JSON holds it: NaN and infinities as null (jq refuses a bare NaN), tuples as lists, bytes as text."""
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, dict):
-        return {key: _jsonable(item) for key, item in value.items()}
+        return {key: jsonable(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(item) for item in value]
+        return [jsonable(item) for item in value]
     if isinstance(value, bytes):
         return value.decode("utf-8", "replace")
     return value

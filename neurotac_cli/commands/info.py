@@ -33,9 +33,9 @@ def command(paths, as_json, everything, sensor):
 
     info = describe_paths(paths, sensor=sensor, everything=everything)
     if as_json:
-        from neurotac_cli.textout import _jsonable  # NaN as null: strict JSON parsers (jq) refuse a bare NaN
+        from neurotac_cli.textout import jsonable  # NaN as null: strict JSON parsers (jq) refuse a bare NaN
 
-        click.echo(json.dumps(_jsonable(info), indent=2, sort_keys=True, ensure_ascii=False))
+        click.echo(json.dumps(jsonable(info), indent=2, sort_keys=True, ensure_ascii=False))
     else:
         click.echo(format_text(info, everything), nl=False)
 

@@ -522,13 +522,14 @@ def check_streams(model: Model):
                          "(a classifier goes to --material-model)")
 
 
-def stream_trials(model: Model, schema: pa.Schema, batches):
-    """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame.
+def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None = None):
+    """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame
+    (`advice` as `check_input`'s).
 
     Returns (predictions schema, iterator of record batches).
     """
     check_streams(model)
-    check_input(model, schema)
+    check_input(model, schema, advice)
     out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
     states = {}
     # a first step pays its one-off costs (allocations, kernel choices) now, not on the first frame

@@ -22,21 +22,22 @@ def predict_table(model: core.Model, table: pa.Table) -> pa.Table:
 
 
 def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model | None = None, outside: "Outside | None" = None,
-           notes: list | None = None):
+           notes: list | None = None, advice: str | None = None):
     """(predictions schema, batches) as frames arrive (as `predict` writes them); `material`: a
     classifier naming each contact's material, for models trained on contacts; `outside` counts the
     frames and estimates beyond the model's training data as they pass; `notes` gets the slip bars
-    each stream of a model trained on contacts followed (`session.stream`), once the batches end."""
+    each stream of a model trained on contacts followed (`session.stream`), once the batches end;
+    `advice`: how to make frames like the training's, where they differ (`core.check_input`)."""
     core.check_streams(model)  # a classifier given as the force model is named as such, whatever else is given
     if outside is not None:
         batches = outside.watch_frames(batches)
     if session.is_session_model(model):
-        schema, out = session.stream(model, schema, batches, material=material, notes=notes)
+        schema, out = session.stream(model, schema, batches, material=material, notes=notes, advice=advice)
     elif material is not None:
         raise ModelError(f"--material-model names each contact's material: it needs a force model trained with --contacts, "
                          f"and {model.name!r} was trained on whole trials")
     else:
-        schema, out = core.stream_trials(model, schema, batches)
+        schema, out = core.stream_trials(model, schema, batches, advice=advice)
     return schema, (out if outside is None else outside.watch_estimates(out))
 
 

@@ -49,9 +49,10 @@ def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, 
     cropped = frames
     if box is not None:
         schema, cropped, report.crop = cropping.crop(schema, frames, box)
-    core.check_streams(model)  # a classifier given as the force model is named as such first
-    core.check_input(model, schema, advice=f"give `sense` the training's --window ({(model.input_spec.get('window_us') or 10000) / 1000:g}ms), "
-                     "--size with --center (or --box) and --pool (`neurotac info` of the training frames shows them)")
+    core.check_streams(model)  # a classifier given as the force model is named as such, before the watcher reads it
     report.outside = predict.Outside.of(model, say=say)
-    schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside, notes=report.notes)
+    advice = (f"give `sense` the training's --window ({(model.input_spec.get('window_us') or 10000) / 1000:g}ms), --size with "
+              "--center (or --box) and --pool (`neurotac info` of the training frames shows them)")
+    schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside, notes=report.notes,
+                                     advice=advice)
     return schema, batches, report

@@ -273,12 +273,12 @@ def predict_table(model, table: pa.Table, material=None) -> pa.Table:
     return pa.Table.from_batches(list(batches), schema=schema)
 
 
-def stream(model, schema: pa.Schema, batches, material=None, notes: list | None = None):
+def stream(model, schema: pa.Schema, batches, material=None, notes: list | None = None, advice: str | None = None):
     """Predictions batch by batch; each trial's detector and force state carried from frame to frame.
     With `material` (a material model on frames pooled to one pixel, at the same window), each
     contact's material in `material_pred` on the frame where it ends. With `notes`, a line per trial
     whose slip bars followed its presses, and (with `material`) per trial that ended inside a contact,
-    is appended once the batches are exhausted.
+    is appended once the batches are exhausted. `advice` as `core.check_input`'s.
 
     Frames of a trial must arrive in order (as `frame` writes them)."""
     from neurotac_cli.model.core import check_input, check_streams
@@ -286,7 +286,7 @@ def stream(model, schema: pa.Schema, batches, material=None, notes: list | None 
     check_streams(model)
     if material is not None:
         check_material(model, material)
-    check_input(model, schema)
+    check_input(model, schema, advice)
     for name, (what, fits) in TRUTH_TYPES.items():
         if name in schema.names and not fits(schema.field(name).type):
             raise SchemaError(f"frames column {name!r} has type {schema.field(name).type}, expected {what} for a model "
