@@ -65,8 +65,7 @@ class LazyGroup(click.Group):
             click.echo(error.ctx.get_help())
             sys.exit(0)
         except click.UsageError as error:
-            name = error.ctx.command_path if error.ctx is not None else "neurotac"
-            _fail(f"{name}: error: {' '.join(error.format_message().split())} (see `{name} --help`)", code=2)
+            _fail_usage(error.ctx.command_path if error.ctx is not None else "neurotac", error.format_message())
         except click.ClickException as error:
             error.show()
             sys.exit(error.exit_code)
@@ -84,7 +83,7 @@ class LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except UsageError as error:
-            _fail(f"{_who(ctx)}: error: {error} (see `{_who(ctx)} --help`)", code=2)
+            _fail_usage(_who(ctx), str(error))
         except NeurotacError as error:
             _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:
@@ -131,6 +130,11 @@ def _who(ctx) -> str:
     """`neurotac CMD` for messages; the subcommand is not known to click yet while its module loads."""
     name = ctx.invoked_subcommand or next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
     return f"neurotac {name}" if name else "neurotac"
+
+
+def _fail_usage(who: str, message: str):
+    """A usage error, click's or a command's own: one line, exit 2, pointing at the command's help."""
+    _fail(f"{who}: error: {' '.join(message.split())} (see `{who} --help`)", code=2)
 
 
 def _fail(message: str, code: int = 1):

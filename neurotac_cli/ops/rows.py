@@ -161,8 +161,7 @@ def _difference(first: pa.Schema, other: pa.Schema, name: str) -> str:
 def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
     """The parts are of one kind, sensor size and frame window."""
     first_name, first = parts[0]
-    facts = lambda schema: {"kind": sch.table_kind(schema), "sensor size": sch.sensor_of(schema),  # noqa: E731
-                            "frame window (µs)": sch.get_meta(schema, sch.WINDOW)}
+    facts = lambda schema: {"kind": sch.table_kind(schema), "sensor size": sch.sensor_of(schema)}  # noqa: E731
     expected = facts(first.schema)
     for name, table in parts[1:]:
         for what, value in facts(table.schema).items():
@@ -170,7 +169,10 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
                 raise SchemaError(f"{name} has {what} {_show(value)}, {first_name} {_show(expected[what])}; "
                                   "concatenate tables made alike (crop and frame them the same way)")
         windows = sch.unlike_windows(first.schema, table.schema)
-        if windows and None in windows:  # the output keeps one table's window: the other's frames would be labelled with it
+        if windows and None not in windows:
+            raise SchemaError(f"{name} has frame window (µs) {windows[1]}, {first_name} {windows[0]}; "
+                              "concatenate tables made alike (crop and frame them the same way)")
+        if windows:  # the output keeps one table's window: the other's frames would be labelled with it
             known, unknown = (first_name, name) if windows[0] is not None else (name, first_name)
             raise SchemaError(f"{unknown} does not record its frame window (metadata {sch.WINDOW}) and {known} has "
                               f"{windows[0] or windows[1]} µs; frame both with `neurotac frame --window` so that the window is known")

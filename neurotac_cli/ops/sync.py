@@ -154,8 +154,8 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
         raise SyncError(
             f"{len(chosen)} triggers but {count} trials in the force log; pick triggers with --trigger-type or --trigger-id ({has})"
         )
-    return [Instant(t0=int(item["t"]), details={"type": item.get("type"), "triggers": len(chosen),
-                                                                   **({"id": item["id"]} if item.get("id") is not None else {})}) for item in chosen[:count]]
+    details = lambda item: {"type": item.get("type"), "triggers": len(chosen), **({"id": item["id"]} if "id" in item else {})}  # noqa: E731
+    return [Instant(t0=int(item["t"]), details=details(item)) for item in chosen[:count]]
 
 
 # ---------------------------------------------------------------- trials

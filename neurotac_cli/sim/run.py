@@ -95,12 +95,12 @@ def simulate(config: SimConfig, seed: int = 0, trials: int | None = None, progre
 def _dealt(grasps: list, rigs: int) -> list[int]:
     """Each grasp's rig: the grasps of every group (material, object and labels) dealt in turn, so
     that every rig holds every group (standardising per rig needs each material on each sensor)."""
-    groups = [(g.material, g.shape.name, tuple(sorted((k, v) for k, v in g.labels.items() if k not in ("material", "object", "size_mm"))))
-              for g in grasps]
+    groups = [tuple(sorted(g.labels.items())) for g in grasps]  # material, object, size and the group's own labels
     sizes = collections.Counter(groups)
     smallest = min(sizes, key=sizes.get)
     if sizes[smallest] < rigs:
-        raise UsageError(f"--rigs {rigs}: the group {':'.join(smallest[:2])} has {sizes[smallest]} grasp(s), and every rig "
+        group = dict(smallest)
+        raise UsageError(f"--rigs {rigs}: the group {group['material']}:{group['object']} has {sizes[smallest]} grasp(s), and every rig "
                          f"needs one of every group; give at most {sizes[smallest]} rigs, or more grasps (--trials, --objects)")
     seen = collections.Counter()
     rig_of = []
