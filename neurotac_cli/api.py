@@ -19,6 +19,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError
+from neurotac_cli.units import parse_ints
 from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
 
 TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
@@ -129,11 +130,9 @@ def crop(table: pa.Table, box=None, size=None, center=None, pool=None) -> pa.Tab
     _table(table, "frames", "recordings", "events")
     if isinstance(center, str) and center != "auto":  # "X,Y", as the command line writes it
         try:
-            center = tuple(int(value) for value in center.split(","))
-        except ValueError:
-            center = ()
-        if len(center) != 2:
-            raise NeurotacError("center must be (x, y), \"X,Y\" or \"auto\"")
+            center = parse_ints(center, 2)
+        except NeurotacError:
+            raise NeurotacError("center must be (x, y), \"X,Y\" or \"auto\"") from None
     return cr.crop_table(table, cr.CropSpec(box=box, size=size, center=center, pool=pool))
 
 

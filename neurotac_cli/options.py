@@ -5,7 +5,7 @@ import os
 import click
 
 from neurotac_cli.errors import NeurotacError
-from neurotac_cli.units import parse_duration_us, parse_size
+from neurotac_cli.units import parse_duration_us, parse_ints, parse_size
 
 
 class ParamType(click.ParamType):
@@ -105,12 +105,9 @@ class IntTuple(ParamType):
         if isinstance(value, tuple) or value in self.words:
             return value
         try:
-            parts = tuple(int(v) for v in str(value).split(","))
-        except ValueError:
-            parts = ()
-        if len(parts) != self.count or min(parts) < 0:
+            return parse_ints(value, self.count)
+        except NeurotacError:
             self.fail(f"expected {self.name}, e.g. {self.example}, got {value!r}", param, ctx)
-        return parts
 
 
 def input_paths(function):

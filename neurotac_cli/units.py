@@ -35,6 +35,17 @@ def parse_size(text: str) -> tuple[int, int]:
 MAX_SIDE = 65535  # x and y of an event are uint16
 
 
+def parse_ints(text: str, count: int) -> tuple[int, ...]:
+    """`60,30,115,115` -> (60, 30, 115, 115): `count` comma-separated whole numbers >= 0."""
+    try:
+        parts = tuple(int(v) for v in str(text).split(","))
+    except ValueError:
+        parts = ()
+    if len(parts) != count or min(parts) < 0:
+        raise NeurotacError(f"expected {count} comma-separated whole numbers >= 0, got {text!r}")
+    return parts
+
+
 def counted(n: int, noun: str) -> str:
     """`1 trial`, `3 trials`: a count and its noun, plural where it is not one."""
     return f"{n:,} {noun}{'' if n == 1 else 's'}"
