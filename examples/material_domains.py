@@ -130,18 +130,14 @@ def main(argv=None):
         publish_section(SECTION, body, TITLE)
 
 
-def classified(model: pathlib.Path, data: pathlib.Path, recall: bool = False):
-    """Accuracy (%) of a classifier on a frames table, from the metrics table `eval --model` writes
-    (with `recall`, and the recall per class in %)."""
+def classified(model: pathlib.Path, data: pathlib.Path) -> tuple[float, dict]:
+    """(accuracy %, {class: recall %}) of a classifier on a frames table, from the metrics table `eval --model` writes."""
     name = data.parent.name if data.parent.name.startswith("rig") else data.stem
     path = model.with_name(f"{model.stem}-{name}.parquet")
     if not path.exists():
         sh(f"{neurotac()} eval --model {model} --metrics {path} < {data} > /dev/null")
     scores = metrics(path)
-    accuracy = 100 * scores[("all", "accuracy")]
-    if not recall:
-        return accuracy
-    return accuracy, {scope.split(":", 1)[1]: 100 * value for (scope, metric), value in scores.items() if metric == "recall"}
+    return 100 * scores[("all", "accuracy")], {scope.split(":", 1)[1]: 100 * value for (scope, metric), value in scores.items() if metric == "recall"}
 
 
 def sensor_objects(rigs: int, per: int) -> str:
@@ -167,9 +163,8 @@ def many_sensor_model(work: pathlib.Path, tag: str, vary: str, rigs: int, per: i
 def family_row(work: pathlib.Path, family: str, rigs: int, per: int, test_rigs: int, test_per: int) -> list:
     """One row of the held-out families' table: seen and unseen accuracy of the many-sensor model trained without FAMILY's upper third."""
     model = many_sensor_model(work, f"{family}-seen", f"--vary all --hold-out {family}", rigs, per, 31)
-    seen = classified(model, sensors_data(work, f"{family}-seen", f"--vary all --hold-out {family}", test_rigs, test_per, 41))
-    unseen, recall = classified(model, sensors_data(work, f"{family}-unseen", f"--vary all --unseen {family}", test_rigs, test_per, 42),
-                                recall=True)
+    seen, _ = classified(model, sensors_data(work, f"{family}-seen", f"--vary all --hold-out {family}", test_rigs, test_per, 41))
+    unseen, recall = classified(model, sensors_data(work, f"{family}-unseen", f"--vary all --unseen {family}", test_rigs, test_per, 42))
     return [family, f"{seen:.1f}", f"{unseen:.1f}", f"{unseen / seen:.2f}" if seen else "",
             ", ".join(f"{name} {value:.0f}%" for name, value in sorted(recall.items()))]
 
@@ -190,7 +185,7 @@ def sensor_rows(work: pathlib.Path, rigs, extra: str, jobs: int, specs=SENSOR_MO
         made = list(pool.map(lambda seed: rig_data(work, seed, extra), rigs))
     rows, means = [], [[] for _ in models]
     for seed, (data, about) in zip(rigs, made):
-        cells = [classified(model, data) for model in models]
+        cells = [classified(model, data)[0] for model in models]
         for values, value in zip(means, cells):
             values.append(value)
         rows.append([str(seed), about, *(f"{value:.1f}" for value in cells)])
