@@ -175,6 +175,27 @@ def test_a_force_log_naming_a_column_twice_is_one_line(tmp_path):
         read_force_log(str(path))
 
 
+def test_a_force_log_from_a_pipe_is_read_and_an_empty_device_is_named(tmp_path):
+    """bash's `<(...)` gives a path that is a pipe, not a file: read once; /dev/null exists but holds nothing."""
+    import os
+
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.io.force import read_force_log
+
+    fifo = str(tmp_path / "log")
+    os.mkfifo(fifo)
+    pid = os.fork()
+    if pid == 0:  # the writer end, as the shell's process substitution would be
+        with open(fifo, "w") as handle:
+            handle.write("t_ms,force_N\n0,0.5\n1,0.7\n")
+        os._exit(0)
+    log = read_force_log(fifo)
+    os.waitpid(pid, 0)
+    assert len(log) == 1 and len(log[0].t) == 2
+    with pytest.raises(FormatError, match="the force log is empty"):
+        read_force_log("/dev/null")
+
+
 def test_a_frame_window_past_the_table_format_is_a_usage_error(files):  # noqa: F811
     code, stderr, _ = invoke(["frame", "--window", "9223372036854775807us", "-"])
     assert code == 2 and "longest duration" in stderr

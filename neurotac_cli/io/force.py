@@ -59,20 +59,31 @@ def force_unit_of(name: str) -> str | None:
 
 
 def read_table(path: str) -> pa.Table:
-    """A force log's columns as written (CSV or Parquet, told from the first bytes), before any is chosen."""
-    if not os.path.isfile(path):
+    """A force log's columns as written (CSV or Parquet, told from the first bytes), before any is chosen.
+    A path that is not a regular file (a pipe such as bash's `<(...)`) is read once, into memory."""
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a folder, not a force log")
+    if not os.path.exists(path):
         raise InputError(f"{path}: no such force log")
-    with open(path, "rb") as handle:
-        head = handle.read(4)
+    whole = not os.path.isfile(path)
     try:
-        if head == b"PAR1":
+        with open(path, "rb") as handle:
+            data = handle.read() if whole else handle.read(4)
+    except OSError as error:
+        raise InputError(f"{path}: cannot read the force log ({error.strerror or error})") from None
+    if whole and not data:
+        raise FormatError(f"{path}: the force log is empty; expected CSV or Parquet with a header such as t_ms,force_N")
+    source = pa.BufferReader(data) if whole else path
+    try:
+        if data[:4] == b"PAR1":
             import pyarrow.parquet as pq
 
-            table = pq.read_table(path)
+            table = pq.read_table(source)
         else:
             import pyarrow.csv as csv
 
-            table = csv.read_csv(path, parse_options=csv.ParseOptions(delimiter=_delimiter(path)))
+            first = data.split(b"\n", 1)[0].decode(errors="replace") if whole else _first_line(path)
+            table = csv.read_csv(source, parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
     except (pa.ArrowInvalid, OSError) as error:
         raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV or Parquet with a header such as t_ms,force_N)") from None
     names = table.column_names
@@ -82,9 +93,12 @@ def read_table(path: str) -> pa.Table:
     return table
 
 
-def _delimiter(path: str) -> str:
+def _first_line(path: str) -> str:
     with open(path, "r", errors="replace") as handle:
-        line = handle.readline()
+        return handle.readline()
+
+
+def _delimiter(line: str) -> str:
     for delimiter in (",", ";", "\t"):
         if delimiter in line:
             return delimiter
