@@ -292,8 +292,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
-    _check_training_set(name, config, train_set, label)
-    largest = np.nanmax(np.abs(np.concatenate(train_set.force))) if name not in MATERIAL_MODELS else 0.0
+    largest = _check_training_set(name, config, train_set, label)
     if largest > RANGE_N and progress:  # as `sync` warns of a log
         progress(f"warning: the training frames carry forces up to {largest:.4g} N, beyond {RANGE_N:g} N (the largest "
                  "FlexiForce range): a log in another unit (mN, g)? the model will read in those units")
@@ -313,7 +312,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
         config = dataclasses.replace(config, accumulate=False)
     if name in MATERIAL_MODELS:
         return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
-    return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress)
+    return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress, largest)
 
 
 MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
@@ -329,9 +328,9 @@ def _check_classes(data, label: str):
                          f"{', ...' if len(missing) > 3 else ''}); label them, or leave them out (`neurotac select`)")
 
 
-def _check_training_set(name, config, train_set, label):
+def _check_training_set(name, config, train_set, label) -> float:
     """What the training trials must hold, checked before the first progress line so that a refusal
-    is the only line on stderr."""
+    is the only line on stderr. Returns a force model's largest |force| in training (0 for a classifier)."""
     if name not in MATERIAL_MODELS:
         forces = np.concatenate(train_set.force)
         known = forces[~np.isnan(forces)]
@@ -343,7 +342,7 @@ def _check_training_set(name, config, train_set, label):
         if known.min() == known.max():
             raise ModelError(f"the training frames' force is {known[0]:g} N on every frame: there is no force to learn "
                              "(did the force sensor record?)")
-        return
+        return float(np.abs(known).max())
     if label not in train_set.labels:
         raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")
     classes = {v for v in train_set.labels[label] if v is not None}
@@ -351,15 +350,15 @@ def _check_training_set(name, config, train_set, label):
         raise ModelError(f"the training trials hold {len(classes)} {label} class(es); a classifier needs at least two")
     if config.inputs == "force" and np.isnan(np.concatenate(train_set.force)).all():
         raise ModelError("material-force needs the measured force in the frames (column force is empty)")
+    return 0.0
 
 
 def _seconds(data):
     return [t / 1e6 for t in data.t]
 
 
-def _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress):
-    forces = np.concatenate(train_set.force)
-    force_scale = float(max(np.nanmax(np.abs(forces)), 1e-6))
+def _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress, largest):
+    force_scale = max(largest, 1e-6)
     # kept so that `predict` can name frames busier than any it learnt from (model.predict.Outside)
     training["events_per_frame_max"] = float(max(c.reshape(len(c), -1).sum(axis=1, dtype=np.float64).max(initial=0.0)
                                                  for c in train_set.counts))
