@@ -118,6 +118,9 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     if set(options) - known:
         raise NeurotacError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
     if _kind(table, "recordings", "events") == "recordings":
+        events_only = sorted({"start_us", "trial", "sort"} & set(options))
+        if events_only:  # a recordings table's trials keep their ids and start at their sync instant
+            raise NeurotacError(f"frame() takes {', '.join(events_only)} for a plain events table only, not a recordings table")
         return fr.frame_recordings(table, _us(window), **options)
     return fr.frames_from_events_table(table, _us(window), **options)
 

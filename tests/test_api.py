@@ -63,6 +63,7 @@ def test_odd_arguments_give_a_neurotac_error(tmp_path):
         lambda: api.write([1, 2], str(tmp_path / "x.parquet")),
         lambda: api.frame(frames, "10ms"),
         lambda: api.frame(recordings, "10ms", bogus=1),
+        lambda: api.frame(recordings, "10ms", start_us=0),
         lambda: api.crop(frames, size=(6, 6), center="10;10"),
         lambda: api.augment(frames, "rotate"),
         lambda: api.augment(frames.slice(0, 0), api.Rotate(0, 10)),
