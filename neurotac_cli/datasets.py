@@ -17,7 +17,7 @@ import pyarrow as pa
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError
 
-CAMERA_SUFFIXES = (".aedat", ".aedat4", ".raw", ".dat", ".es")
+CAMERA_SUFFIXES = (".aedat", ".aedat4", ".raw", ".dat", ".es", ".h5", ".hdf5")
 
 
 def expand(paths) -> list[str]:

@@ -8,7 +8,7 @@ from neurotac_cli.options import Size, camera_input_options, echo_lines, history
 @click.command("import")
 @click.argument("paths", nargs=-1, required=True, metavar="FILE...")
 @output_option
-@click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the file does not say (DAT, text), or to override it.")
+@click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the file does not say (DAT, HDF5, text), or to override it.")
 @camera_input_options
 @click.option("--one-stream", is_flag=True, help="Several files: read them in order as one events table instead of one "
               "trial per file.")
@@ -16,7 +16,8 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
 
     Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
-    APS/IMU words skipped), AEDAT 3.1 (cAER; polarity events), AEDAT 4.0, Prophesee EVT 2.0 and EVT 3.0 .raw and .dat, Event Stream .es, CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
+    APS/IMU words skipped), AEDAT 3.1 (cAER; polarity events), AEDAT 4.0, Prophesee EVT 2.0 and EVT 3.0 .raw and .dat, Event Stream .es, HDF5 (.h5/.hdf5: Metavision's CD/events, DSEC's events/x,y,t,p,
+    e2vid's events/xs,ys,ts,ps), CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
     whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them; external
     trigger events (AEDAT 3.1/4.0, EVT 2.0/3.0) go into the metadata for `sync --method trigger`; `-`
     reads a file from stdin. Several files, a directory or a glob give a recordings table with one
@@ -26,8 +27,8 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     process substitution (`<(...)`) are decoded as their bytes arrive, and so is a file still being
     written with --follow; each read's whole records go on as one batch at once (a record cut
     mid-write waits for its rest). A stream's external triggers cannot go into the metadata, which is
-    written before they arrive: they are counted in a warning. Text, and DAT without a sensor size,
-    are read whole. Ctrl-C (or SIGTERM) ends a followed file, a pipe or a replay with the output
+    written before they arrive: they are counted in a warning. Text, HDF5, and DAT without a sensor
+    size are read whole. Ctrl-C (or SIGTERM) ends a followed file, a pipe or a replay with the output
     complete, exit 0.
 
     \b

@@ -19,13 +19,14 @@ import pyarrow as pa
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError
 from neurotac_cli.io import reader
+from neurotac_cli.io.hdf5 import is_hdf5
 from neurotac_cli.io.reader import Decoded
 from neurotac_cli.io.readers import OPENERS
 from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
-FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text")
+FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text", "hdf5")
 FORMAT_NAMES = {
     "aedat2": "AEDAT 2.0 (jAER)",
     "aedat3": "AEDAT 3.1 (cAER)",
@@ -36,6 +37,7 @@ FORMAT_NAMES = {
     "es": "Event Stream",
     "csv": "CSV text (t,x,y,p)",
     "text": "whitespace text (t x y p, seconds)",
+    "hdf5": "HDF5 events",
 }
 
 
@@ -106,6 +108,8 @@ def detect_format(path, head: bytes) -> str:
         if "version" in header or any("data file containing" in key for key in header) or name.lower().endswith(".dat"):
             return "dat"
         raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2 or --format evt3)")
+    if is_hdf5(head):
+        return "hdf5"
     if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
         raise FormatError(f"{name} is already a table, not a camera file (use it directly, or `neurotac info {name}`)")
     if _looks_like_text(head.removeprefix(BOM)):
@@ -113,7 +117,7 @@ def detect_format(path, head: bytes) -> str:
         return "csv" if "," in first else "text"
     raise FormatError(
         f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
-        "Event Stream .es, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
+        "Event Stream .es, HDF5 events, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
     )
 
 

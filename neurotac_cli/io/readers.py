@@ -4,6 +4,7 @@ from neurotac_cli.io.aedat2 import open_aedat2
 from neurotac_cli.io.aedat3 import open_aedat3
 from neurotac_cli.io.aedat4 import open_aedat4
 from neurotac_cli.io.eventstream import open_es
+from neurotac_cli.io.hdf5 import open_hdf5
 from neurotac_cli.io.prophesee import open_dat, open_evt2, open_evt3
 from neurotac_cli.io.text import open_text
 
@@ -17,4 +18,5 @@ OPENERS = {
     "es": open_es,
     "csv": open_text,
     "text": open_text,
+    "hdf5": open_hdf5,
 }
