@@ -597,3 +597,25 @@ def test_train_warns_of_forces_beyond_any_flexiforce_range_and_info_shows_settin
     tables.write(str(tmp_path / "h.arrows"), made)
     code, _, described = invoke(["info", str(tmp_path / "h.arrows")])
     assert code == 0 and "simulate seed=0 trials=3" in described, described
+
+
+def test_an_aedat4_recording_stopped_between_packets_reads_its_whole_packets(tmp_path):
+    """A recorder stopped before it writes the index table leaves a file that ends at a packet's end:
+    it is read as far as it goes (as a pipe reads it), and a header alone is an empty table."""
+    import struct
+
+    from neurotac_cli.io import read_events_table
+    from tests.conftest import real_file
+
+    data = real_file("dvxplorer_tonic.aedat4").read_bytes()
+    header = end = 18 + struct.unpack_from("<I", data, 14)[0]
+    for _ in range(20):
+        end += 8 + struct.unpack_from("<I", data, end + 4)[0]
+    whole = read_events_table(real_file("dvxplorer_tonic.aedat4"))
+    (tmp_path / "stopped.aedat4").write_bytes(data[:end])
+    stopped = read_events_table(tmp_path / "stopped.aedat4")
+    assert 0 < stopped.num_rows < whole.num_rows
+    assert stopped.select(["t", "x", "y", "p"]).equals(whole.slice(0, stopped.num_rows).select(["t", "x", "y", "p"]))
+    (tmp_path / "header.aedat4").write_bytes(data[:header])
+    code, stderr, _ = invoke(["import", str(tmp_path / "header.aedat4"), "-o", str(tmp_path / "e.arrows")])
+    assert code == 0 and "no events in the file" in stderr

@@ -116,8 +116,9 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     events_id = event_ids[0]
     declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
     has_triggers = any(s.get("type") == "triggers" for s in streams.values())
-    whole, cut = whole_packets(path, streams)
-    limit = whole if cut else None  # a recording stopped mid-write: its whole packets are read, the rest noted
+    # A recording stopped mid-write (mid-packet, or between packets before its index table) is read as
+    # far as its last whole packet: the decoder, asked for one more, fails on the missing bytes.
+    limit, cut = whole_packets(path, streams)
     if not has_triggers:
         packets.close()
         return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path, limit=limit), events_id), meta={},
