@@ -619,3 +619,20 @@ def test_an_aedat4_recording_stopped_between_packets_reads_its_whole_packets(tmp
     (tmp_path / "header.aedat4").write_bytes(data[:header])
     code, stderr, _ = invoke(["import", str(tmp_path / "header.aedat4"), "-o", str(tmp_path / "e.arrows")])
     assert code == 0 and "no events in the file" in stderr
+
+
+@pytest.mark.parametrize("header, size", [
+    (b"% evt 2.0\n% geometry 70000x70000\n", "70000x70000"),
+    (b"% evt 3.0\n% format EVT3;width=0;height=0\n", "0x0"),
+    (b"#!AER-DAT2.0\r\n# sensor: 240x65537\r\n# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n", "240x65537"),
+])
+def test_a_sensor_size_in_a_header_that_no_event_could_lie_on_is_refused(tmp_path, header, size):
+    """Past 16 bits a jAER row flip wraps, and at 0 every event is outside: a damaged header, said so."""
+    path = tmp_path / "rec.raw"
+    path.write_bytes(header + bytes(64))
+    for args, stdin in ((["import", str(path)], None), (["import", "-"], header + bytes(64))):
+        code, stderr, _ = invoke(args + ["-o", str(tmp_path / "e.arrows")], stdin=stdin)
+        assert one_line(stderr, code, 1) and f"declares a {size} sensor, which cannot be" in stderr, stderr
+    code, stderr, _ = invoke(["import", str(path), "--sensor", "640x480", "-o", str(tmp_path / "e.arrows")])
+    # --sensor overrides a Prophesee header's size; a jAER file's own height still flips its rows
+    assert code == 0 if header.startswith(b"%") else one_line(stderr, code, 1) and "declares" in stderr

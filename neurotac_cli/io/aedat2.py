@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import Decoded, cut_bytes, read_chunks
+from neurotac_cli.io.reader import Decoded, check_sensor, cut_bytes, read_chunks
 
 # AEChip class name (lowercase, a fragment of it) -> (width, height)
 CHIPS = [
@@ -89,7 +89,7 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
         raise FormatError(f"the AEDAT 2.0 header is cut short: the file ends mid-line after {len(header)} bytes "
                           "(is it the whole file?)")
     chip = chip_of(header)
-    declared = sensor_line(header) or sensor_of_chip(chip)
+    declared = check_sensor(sensor_line(header) or sensor_of_chip(chip))  # its height flips the rows, --sensor or not
     offset = len(header)
     if is_dvs128(chip):
 

@@ -189,7 +189,7 @@ def read_local(local: str, name: str, sensor=None, fmt: str | None = None, clean
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))
         decoded = _guarded_call(name, fmt, lambda: _decoder(fmt)(local, head, sensor))
-        declared = sensor or decoded.sensor
+        declared = sensor or _guarded_call(name, fmt, lambda: reader.check_sensor(decoded.sensor))
         source = "option" if sensor else ("file" if decoded.sensor else "events")
         if declared is None:
             declared = _extent(name, fmt, decoded)

@@ -29,6 +29,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, cannot_open
+from neurotac_cli.io.reader import check_sensor
 
 STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "aedat3", "es", "dat")
 POLL_S = 0.0002  # a followed file is checked for new bytes this often while it grows (a pipe wakes the reader itself):
@@ -144,7 +145,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         buffer = _read_until(feed, buffer, lambda data, end: header_length(fmt, data, end) is not None)
         length = camera._guarded_call(name, fmt, lambda: header_length(fmt, buffer, True))
         decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, bytes(buffer[:length]), sensor))
-        declared = sensor or decoder.sensor
+        declared = sensor or camera._guarded_call(name, fmt, lambda: check_sensor(decoder.sensor))
         if declared is None:
             decoder.close()
             return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))

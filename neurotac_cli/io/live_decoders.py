@@ -14,6 +14,7 @@ import tempfile
 import numpy as np
 
 from neurotac_cli.errors import FormatError
+from neurotac_cli.io.reader import check_sensor
 
 
 class _Records:
@@ -66,7 +67,7 @@ class Davis(_Records):
 
         chip = aedat2.chip_of(header)
         self.dvs128 = aedat2.is_dvs128(chip)
-        self.sensor = (128, 128) if self.dvs128 else aedat2.sensor_line(header) or aedat2.sensor_of_chip(chip)
+        self.sensor = (128, 128) if self.dvs128 else check_sensor(aedat2.sensor_line(header) or aedat2.sensor_of_chip(chip))
         self.meta = {"source": {"camera": chip}} if chip else {}
         self.height = (self.sensor or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
         if self.height is None and not self.dvs128:

@@ -10,6 +10,9 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from neurotac_cli.errors import FormatError
+from neurotac_cli.units import MAX_SIDE
+
 CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
 
 
@@ -21,6 +24,15 @@ class Decoded:
     chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
     meta: dict = field(default_factory=dict)
     cut_bytes: int = 0  # bytes after the last whole record (a file cut mid-record): not decoded
+
+
+def check_sensor(sensor: tuple[int, int] | None) -> tuple[int, int] | None:
+    """The sensor a file's header declares, refused where no event could lie on it or its sides pass
+    the 16-bit coordinates (a damaged header: at 0x0 every event is outside, 70000 rows wrap a flip)."""
+    if sensor is not None and not (1 <= sensor[0] <= MAX_SIDE and 1 <= sensor[1] <= MAX_SIDE):
+        raise FormatError(f"the file declares a {sensor[0]}x{sensor[1]} sensor, which cannot be (sides of 1 to {MAX_SIDE} "
+                          "pixels); the file is damaged, or give the right size with --sensor WxH")
+    return sensor
 
 
 def cut_bytes(path: str, offset: int, record: int) -> int:
