@@ -194,7 +194,7 @@ def camera_input_options(function):
                      "appeared after this long."),
         click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
                      "when that much time has passed since the first event (to test a controller against a recording)."),
-        click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=None,
+        click.option("--speed", type=Finite(above=0), default=None,
                      help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1]."),
     ]):
         function = option(function)

@@ -340,7 +340,7 @@ def test_realtime_replays_at_the_recorded_pace(tmp_path):
     assert events(read([str(tmp_path / "r.arrows")])).equals(events(read_events_table(source)))
 
 
-@pytest.mark.parametrize("args", [["--speed", "2"], ["--realtime", "--speed", "0"], ["--follow", "a", "b"], ["--follow", "--idle-timeout", "0s"]])
+@pytest.mark.parametrize("args", [["--speed", "2"], ["--realtime", "--speed", "0"], ["--realtime", "--speed", "nan"], ["--realtime", "--speed", "inf"], ["--follow", "a", "b"], ["--follow", "--idle-timeout", "0s"]])
 def test_live_usage_errors_exit_2(args, tmp_path):
     done = subprocess.run(["neurotac", "import", *args, str(tmp_path / "x.raw")], capture_output=True)
     assert done.returncode == 2, done.stderr
