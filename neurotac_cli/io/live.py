@@ -80,6 +80,7 @@ class Feed:
         self.regular = stat.S_ISREG(os.fstat(fd).st_mode)
         self.last = time.monotonic()
         self.ended = False
+        self.shrunk = None  # (bytes read, bytes left) where a followed file was cut shorter while read
         # every read lands in this one buffer: os.read(fd, READ_BYTES) asks malloc for READ_BYTES each
         # time and shrinks it to the few kB that came; glibc carves those requests out of its heap, and
         # the holes they leave, each a little short of the next request, make a live import's memory
@@ -92,6 +93,12 @@ class Feed:
         if self.regular:
             data = self._read()
             if not data and self.follow:
+                # a file cut shorter than what was read (rewritten, or truncated to start afresh) would
+                # never grow past the offset again: its new bytes must not be waited for in silence
+                at, size = os.lseek(self.fd, 0, os.SEEK_CUR), os.fstat(self.fd).st_size
+                if size < at:
+                    self.shrunk, self.ended = (at, size), True
+                    return None
                 time.sleep(POLL_S if time.monotonic() - self.last < IDLE_AFTER_S else IDLE_POLL_S)
         else:
             ready, _, _ = select.select([self.fd], [], [], WAKE_S)
@@ -313,6 +320,10 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
         cut = len(pending) + decoder.held()
         if cut and not decoder.finished:
             notes.append(cut_note(name, cut))
+        if feed.shrunk:
+            notes.append(f"{name}: the file shrank from {feed.shrunk[0]:,} to {feed.shrunk[1]:,} bytes while it was followed "
+                         "(rewritten or truncated by another program); the events read before were kept and the rest "
+                         "left out: import the new file on its own")
         if decoder.triggers:
             notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
                          "before they arrive); import the finished file for `sync --method trigger`")

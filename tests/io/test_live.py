@@ -63,6 +63,8 @@ def collect(stream: live.Stream) -> tuple[pa.Table, int]:
 class Reads:
     """A feed that gives these reads, then ends."""
 
+    shrunk = None
+
     def __init__(self, *reads):
         self.reads = list(reads)
 
@@ -136,6 +138,23 @@ def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     assert 0.3 <= waited < 10  # ends after the timeout, not at once and not never (a loaded machine is slow)
     assert table.num_rows > 0 and len(stream.notes) == 1 and "cut short" in stream.notes[0]
     assert events(table).equals(events(read_events_table(source)).slice(0, table.num_rows))
+
+
+def test_a_followed_file_cut_shorter_while_read_ends_with_a_note(tmp_path):
+    """A recorder that rewrites its file from the start never grows it past what was read: said, not
+    waited out in silence with the new recording left out."""
+    data = real_file("prophesee_vga_faery.evt2.raw").read_bytes()
+    path = tmp_path / "cam.raw"
+    path.write_bytes(data[:400_002])
+    stream = live.open_stream(str(path), follow=True, idle_timeout=5)
+    batches = iter(stream.batches)
+    first = next(batches)
+    path.write_bytes(data[:1_000])  # truncated, and a new recording begun
+    start = time.monotonic()
+    rest = list(batches)
+    assert time.monotonic() - start < 4  # ended when seen, not after the idle timeout
+    assert first.num_rows + sum(b.num_rows for b in rest) > 0
+    assert any("shrank from 400,002 to 1,000 bytes while it was followed" in note for note in stream.notes), stream.notes
 
 
 @pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
