@@ -636,3 +636,12 @@ def test_a_sensor_size_in_a_header_that_no_event_could_lie_on_is_refused(tmp_pat
     code, stderr, _ = invoke(["import", str(path), "--sensor", "640x480", "-o", str(tmp_path / "e.arrows")])
     # --sensor overrides a Prophesee header's size; a jAER file's own height still flips its rows
     assert code == 0 if header.startswith(b"%") else one_line(stderr, code, 1) and "declares" in stderr
+
+
+@pytest.mark.parametrize("header", ["t,x,y,p,x", "t,x,y,p,p", "t,t,x,y,p"])
+def test_an_events_csv_naming_a_column_twice_is_one_line(tmp_path, header):
+    """One of the two would be read and the other ignored, without a word: which holds the events cannot be told."""
+    path = tmp_path / "e.csv"
+    path.write_text(f"{header}\n1,2,3,1,0\n")
+    code, stderr, _ = invoke(["import", str(path), "-o", str(tmp_path / "e.arrows")])
+    assert one_line(stderr, code, 1) and "more than once" in stderr, stderr

@@ -65,6 +65,9 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     missing = [label for label, found in (("t", time_name), ("x", "x" in names), ("y", "y" in names), ("p", polarity_name)) if not found]
     if missing:
         raise FormatError(f"header {first.strip()!r} has no {', '.join(missing)} column (expected t,x,y,p; t may be t_us, t_ms or t_s)")
+    repeated = next((n for n in (time_name, "x", "y", polarity_name) if names.count(n) > 1), None)
+    if repeated:  # which of the two columns holds the events cannot be told
+        raise FormatError(f"header {first.strip()!r} names column {repeated!r} more than once; give each column its own name")
     factor = TIME_NAMES[time_name] or (1 if delimiter == "," else 1_000_000)
     data_line = skip + 1 + (1 if has_header else 0)  # 1-based line number of the first data row
     roles = np.array([{time_name: 0, "x": 1, "y": 2, polarity_name: 3}.get(name, -1) for name in names], dtype=np.int64)
