@@ -645,3 +645,15 @@ def test_an_events_csv_naming_a_column_twice_is_one_line(tmp_path, header):
     path.write_text(f"{header}\n1,2,3,1,0\n")
     code, stderr, _ = invoke(["import", str(path), "-o", str(tmp_path / "e.arrows")])
     assert one_line(stderr, code, 1) and "more than once" in stderr, stderr
+
+
+def test_sync_says_when_a_force_log_of_one_grasp_reads_as_several_because_a_row_is_out_of_place(tmp_path):
+    rng = np.random.default_rng(0)
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, sch.events_table(np.arange(2000) * 200, rng.integers(0, 20, 2000), rng.integers(0, 20, 2000),
+                                        rng.integers(0, 2, 2000), 20, 20))
+    times = list(range(0, 80, 2))
+    times[10], times[11] = times[11], times[10]
+    (tmp_path / "f.csv").write_text("t_ms,force_N\n" + "".join(f"{t},1\n" for t in times))
+    code, stderr, _ = invoke(["sync", path, "--force", str(tmp_path / "f.csv"), "-o", str(tmp_path / "r.arrows")])
+    assert one_line(stderr, code, 1) and "read as 2 trials because its time steps back" in stderr and "from 22 to 20 ms" in stderr, stderr
