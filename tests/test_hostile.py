@@ -657,3 +657,15 @@ def test_sync_says_when_a_force_log_of_one_grasp_reads_as_several_because_a_row_
     (tmp_path / "f.csv").write_text("t_ms,force_N\n" + "".join(f"{t},1\n" for t in times))
     code, stderr, _ = invoke(["sync", path, "--force", str(tmp_path / "f.csv"), "-o", str(tmp_path / "r.arrows")])
     assert one_line(stderr, code, 1) and "read as 2 trials because its time steps back" in stderr and "from 22 to 20 ms" in stderr, stderr
+
+
+@pytest.mark.parametrize("header, times", [("t_ms", [10**16 + 2 * i for i in range(20)]), ("t_s", [i * 10**13 for i in range(20)])])
+def test_force_times_past_a_microsecond_clock_are_one_line_not_a_numpy_warning(tmp_path, header, times):
+    """Past 2^53 they were called no numbers; past 2^63 µs they wrapped with a numpy warning on stderr."""
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.io.force import read_force_log
+
+    path = tmp_path / "f.csv"
+    path.write_text(f"{header},force_N\n" + "".join(f"{t},1\n" for t in times))
+    with np.errstate(invalid="raise"), pytest.raises(FormatError, match="beyond what a clock in µs holds"):
+        read_force_log(str(path))

@@ -142,14 +142,18 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
                      f"force column {force_name!r}: {suffix!r} is no force unit (N, mN, kN, g, kg, lbf): read as newtons "
                      "(give --force-unit if they are not)")
     try:
-        times = table.column(time_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
-        values = table.column(force_name).cast(pa.float64()).to_numpy(zero_copy_only=False)
+        # unsafe: a whole number past 2^53 is still a number (the range is checked below), not a cast error
+        times = table.column(time_name).cast(pa.float64(), safe=False).to_numpy(zero_copy_only=False)
+        values = table.column(force_name).cast(pa.float64(), safe=False).to_numpy(zero_copy_only=False)
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
         raise FormatError(f"{path}: time column {time_name!r} and force column {force_name!r} must be numbers") from None
     if not np.isfinite(times).all():
         raise FormatError(f"{path}: {int((~np.isfinite(times)).sum())} empty, infinite or non-numeric times in column {time_name!r}")
     if not np.isfinite(values).all():
         raise FormatError(f"{path}: {int((~np.isfinite(values)).sum())} force values are not numbers (NaN or empty, or inf); clean the force log first")
+    if len(times) and np.abs(times).max() * TIME_UNITS_US[unit] >= 2.0**62:  # would wrap in int64 µs
+        raise FormatError(f"{path}: force time {np.abs(times).max():g} {unit} is beyond what a clock in µs holds (about "
+                          "146,000 years); check the time column and its unit (--force-time-unit)")
     t_us = np.round(times * TIME_UNITS_US[unit]).astype(np.int64)
     newtons = values * FORCE_UNITS_N[funit]
     if "trial" in table.column_names:
