@@ -101,6 +101,8 @@ def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
         f'<attr key="sizeX" type="int">{int(width)}</attr><attr key="sizeY" type="int">{int(height)}</attr>'
         '<attr key="source" type="string">neurotac</attr></node></node></node></dv>'
     ).encode()
+    if width > 32768 or height > 32768:  # dv's Event holds x and y as int16: a larger one would wrap negative
+        raise NeurotacError(f"AEDAT 4.0 addresses 32768x32768 pixels at most (16-bit signed x and y), the sensor is {width}x{height}")
     # IOHeader: root offset, "IOHE", vtable (10 bytes) at 8, table at 24: soffset, compression at +4,
     # file_data_position (int64, 8-aligned) at +8, description offset at +16 -> string at 44
     header = struct.pack("<I4sHHHHH6xiiqI", 24, b"IOHE", 10, 20, 4, 8, 16, 16, 0, -1, 4)

@@ -669,3 +669,12 @@ def test_force_times_past_a_microsecond_clock_are_one_line_not_a_numpy_warning(t
     path.write_text(f"{header},force_N\n" + "".join(f"{t},1\n" for t in times))
     with np.errstate(invalid="raise"), pytest.raises(FormatError, match="beyond what a clock in µs holds"):
         read_force_log(str(path))
+
+
+def test_export_to_aedat4_refuses_coordinates_past_its_signed_16_bits(tmp_path):
+    """dv's events hold x and y as int16: x = 40000 would be written as -25536."""
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([40_000, 0], [0, 5], [1, 0], 40_001, 10))
+    code, stderr, _ = invoke(["export", "-o", str(tmp_path / "e.aedat4"), path])
+    assert one_line(stderr, code, 1) and "AEDAT 4.0 addresses 32768x32768 pixels at most" in stderr
+    assert not (tmp_path / "e.aedat4").exists()
