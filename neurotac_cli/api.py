@@ -19,7 +19,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError
-from neurotac_cli.units import parse_ints
+from neurotac_cli.units import MAX_SIDE, parse_ints
 from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
 
 TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
@@ -46,6 +46,20 @@ def _model(model):
         hint = " (load it with api.load_model(path))" if isinstance(model, (str, bytes)) else ""
         raise NeurotacError(f"expected a model from api.train or api.load_model, got {type(model).__name__}{hint}")
     return model
+
+
+def _whole(value, what: str, least: int = 0, most: int = 2**63 - 1) -> int:
+    """`value` checked as a whole number from `least` to `most` (the command line's types check theirs)."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not least <= value <= most:
+        raise NeurotacError(f"{what} must be a whole number {f'>= {least}' if most == 2**63 - 1 else f'from {least} to {most}'}, got {value!r}")
+    return int(value)
+
+
+def _trial(trial) -> str:
+    """A trial id: a string (the trial column is text), not a number that could never match."""
+    if not isinstance(trial, str):
+        raise NeurotacError(f"trial must be a trial id (a string), got {trial!r}")
+    return trial
 
 
 def _us(duration) -> int:
@@ -81,7 +95,12 @@ def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
     from neurotac_cli.io.events import read_events_table
     from neurotac_cli.units import parse_size
 
-    return read_events_table(path, sensor=parse_size(sensor) if isinstance(sensor, str) else sensor)
+    if isinstance(sensor, str):
+        sensor = parse_size(sensor)
+    elif sensor is not None and not (isinstance(sensor, (tuple, list)) and len(sensor) == 2
+                                     and all(isinstance(v, (int, np.integer)) and 1 <= v <= MAX_SIDE for v in sensor)):
+        raise NeurotacError(f"sensor must be (width, height), whole numbers from 1 to {MAX_SIDE}, or \"WxH\"; got {sensor!r}")
+    return read_events_table(path, sensor=sensor)
 
 
 def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **overrides) -> pa.Table:
@@ -89,9 +108,8 @@ def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **ov
     from neurotac_cli.sim.config import preset_config
     from neurotac_cli.sim.run import recordings, simulate as run
 
-    if trials is not None and trials < 1:
-        raise NeurotacError(f"trials must be at least 1, got {trials}")
-    return recordings(run(preset_config(preset, **overrides), seed=seed, trials=trials))
+    trials = None if trials is None else _whole(trials, "trials", 1)
+    return recordings(run(preset_config(preset, **overrides), seed=_whole(seed, "seed"), trials=trials))
 
 
 def sync(camera, force: str, method: str = "led", trial: str | None = None, labels: dict | None = None) -> pa.Table:
@@ -102,6 +120,8 @@ def sync(camera, force: str, method: str = "led", trial: str | None = None, labe
 
     events = import_camera(camera) if isinstance(camera, str) else _table(camera, "events")
     name = trial or (trial_name(camera) if isinstance(camera, str) else "trial")
+    if labels is not None and not isinstance(labels, dict):
+        raise NeurotacError(f"labels must be a dict of label names to values, e.g. {{'material': 'foam'}}, got {labels!r}")
     source = Source(trial=name, events=events, force=ForceOptions().read(force), labels=dict(labels or {}))
     return sy.sync_sources([source], sy.sync_method(method))
 
@@ -148,7 +168,8 @@ def augment(frames: pa.Table, *methods, copies: int = 1, combine: str = "indepen
         raise NeurotacError("the frames table is empty: nothing to augment")
     if not methods or not all(isinstance(method, (Rotate, Resize, FrameShift, EventShift, Noise)) for method in methods):
         raise NeurotacError("give augmentation methods as objects, e.g. api.Rotate(0, 45), api.FrameShift(-1)")
-    table, _ = augment_frames(frames, list(methods), copies=copies, combine=combine, keep_original=keep_original, seed=seed)
+    table, _ = augment_frames(frames, list(methods), copies=_whole(copies, "copies", 1), combine=combine,
+                              keep_original=keep_original, seed=_whole(seed, "seed"))
     return table
 
 
@@ -158,7 +179,9 @@ def counts(frames: pa.Table, trial: str | None = None) -> np.ndarray:
 
     _table(frames, "frames")
     if trial is not None:
-        frames = frames.filter(pc.equal(frames.column("trial"), trial))
+        frames = frames.filter(pc.equal(frames.column("trial"), _trial(trial)))
+        if not frames.num_rows:
+            raise NeurotacError(f"no trial {trial!r} in the frames")
         frames = frames.take(pc.sort_indices(frames.column("frame")))
     return sch.counts_numpy(frames.column("counts"))
 
@@ -173,7 +196,7 @@ def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: fl
     _table(frames, "frames")
     if val_fraction is not None and not 0 <= val_fraction < 1:
         raise NeurotacError(f"val_fraction must lie in [0, 1), got {val_fraction}")
-    return models.train(frames, models.make_spec(model, **options), val_fraction=val_fraction, seed=seed)
+    return models.train(frames, models.make_spec(model, **options), val_fraction=val_fraction, seed=_whole(seed, "seed"))
 
 
 def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, pa.Table]:
@@ -252,7 +275,7 @@ def from_tonic(array: np.ndarray, sensor_size: tuple) -> pa.Table:
 
 def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
     """tonic's sensor_size (W, H, 2) of an events table."""
-    sensor = sch.sensor_of(events.schema)
+    sensor = sch.sensor_of(_table(events, "events").schema)
     if sensor is None:
         raise NeurotacError("the events table does not say its sensor size (import it with --sensor WxH)")
     return sensor[0], sensor[1], 2
@@ -261,7 +284,7 @@ def tonic_sensor_size(events: pa.Table) -> tuple[int, int, int]:
 def events_of(recordings: pa.Table, trial: str) -> pa.Table:
     """One trial of a recordings table as an events table, times relative to its t0."""
     _table(recordings, "recordings")
-    found = sch.trial_recording(recordings, trial)
+    found = sch.trial_recording(recordings, _trial(trial))
     if found is None:
         raise NeurotacError(f"no trial {trial!r} in the recordings")
     sensor = sch.sensor_of(recordings.schema) or (None, None)

@@ -77,6 +77,26 @@ def test_odd_arguments_give_a_neurotac_error(tmp_path):
         lambda: api.events_of(frames, "x"),
         lambda: api.render(frames, str(tmp_path / "x.png"), bogus=1),
         lambda: api.render(frames.slice(0, 0), str(tmp_path / "x.png")),
+        # once a numpy, Arrow or Python error from deeper down
+        lambda: api.simulate("ch4", trials=1, seed=-1),
+        lambda: api.simulate("ch4", trials=1.5),
+        lambda: api.train(frames, "tdnn", seed=-1, epochs=1),
+        lambda: api.augment(frames, api.FrameShift(1), copies="2"),
+        lambda: api.augment(frames, api.FrameShift(1), seed="a"),
+        lambda: api.crop(frames, size=(0, 0), center="auto"),
+        lambda: api.crop(frames, size=(-5, 5), center="auto"),
+        lambda: api.crop(frames, size="6x6", center="auto"),
+        lambda: api.crop(frames, size=(6, 6), center=(1, 2, 3)),
+        lambda: api.counts(frames, trial=5),
+        lambda: api.counts(frames, trial="no such trial"),
+        lambda: api.events_of(recordings, 5),
+        lambda: api.Rotate(float("nan"), 30),
+        lambda: api.Resize(float("inf")),
+        lambda: api.FrameShift(1.5),
+        lambda: api.EventShift(1, "x"),
+        lambda: api.import_camera(str(tmp_path / "x.csv"), sensor=(240,)),
+        lambda: api.import_camera(str(tmp_path / "x.csv"), sensor=(70_000, 70_000)),
+        lambda: api.tonic_sensor_size(None),
     ]
     for call in calls:  # each raises the library's error with its message, not another exception
         with pytest.raises(NeurotacError):
@@ -92,6 +112,7 @@ def test_sync_pairs_a_camera_file_with_its_force_log(tmp_path):
     import subprocess
 
     from neurotac_cli import api, schema as sch
+    from neurotac_cli.errors import NeurotacError
 
     done = subprocess.run(["neurotac", "simulate", "--preset", "ch4", "--trials", "1", "--seed", "4", "--out", str(tmp_path)],
                           capture_output=True)
@@ -99,3 +120,5 @@ def test_sync_pairs_a_camera_file_with_its_force_log(tmp_path):
     camera = next(tmp_path.glob("steel-*.aedat"))
     recordings = api.sync(str(camera), str(camera.with_name(camera.stem + "_force.csv")))
     assert sch.kind_of(recordings.schema) == "recordings" and recordings.num_rows == 1
+    with pytest.raises(NeurotacError, match="labels must be a dict"):
+        api.sync(str(camera), str(camera.with_name(camera.stem + "_force.csv")), labels=["material=foam"])

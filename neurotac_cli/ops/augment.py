@@ -303,6 +303,8 @@ class Rotate:
     name = "rotate"
 
     def __post_init__(self):
+        if not all(_finite(v) for v in (self.low, self.high) if v is not None):
+            raise UsageError(f"rotation angles must be finite numbers of degrees, got {self.low!r}, {self.high!r}")
         if self.high is not None and self.high < self.low:
             raise UsageError(f"rotation range {self.low:g}..{self.high:g} is empty (give the smaller angle first)")
 
@@ -324,8 +326,8 @@ class Resize:
     name = "resize"
 
     def __post_init__(self):
-        if not self.beta > 0:
-            raise UsageError(f"resize factor must be positive, got {self.beta:g} (the thesis uses 1.25 and 0.83)")
+        if not (_finite(self.beta) and self.beta > 0):
+            raise UsageError(f"resize factor must be a finite number above 0, got {self.beta!r} (the thesis uses 1.25 and 0.83)")
 
     def __call__(self, counts, rng):
         label = f"resize({_number(self.beta)})"
@@ -342,6 +344,9 @@ class FrameShift:
     shift: int
     name = "fs"
 
+    def __post_init__(self):
+        _check_shift(self.shift, "FS")
+
     def __call__(self, counts, rng):
         result = frame_shift(counts, self.shift)
         lost = float(counts.sum(dtype=np.float64) - result.sum(dtype=np.float64))
@@ -357,8 +362,9 @@ class EventShift:
     name = "tes"
 
     def __post_init__(self):
-        if not 0 <= self.zeta <= 1:
-            raise UsageError(f"TES fraction must lie in [0, 1], got {self.zeta:g} (the thesis uses 0.25, 0.5, 0.75)")
+        _check_shift(self.shift, "TES")
+        if not (_finite(self.zeta) and 0 <= self.zeta <= 1):
+            raise UsageError(f"TES fraction must lie in [0, 1], got {self.zeta!r} (the thesis uses 0.25, 0.5, 0.75)")
 
     def __call__(self, counts, rng):
         result, moved, lost = temporal_event_shift(counts, self.shift, self.zeta, rng)
@@ -379,6 +385,16 @@ class Noise:
     def __call__(self, counts, rng):
         result, added, _ = add_noise(counts, list(self.pool), rng)
         return result, "noise", {"events_added": added}
+
+
+def _finite(value) -> bool:
+    """Whether `value` is a real number that is neither NaN nor infinite (a library caller may pass anything)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) and bool(np.isfinite(value))
+
+
+def _check_shift(shift, name: str) -> None:
+    if not isinstance(shift, (int, np.integer)) or isinstance(shift, bool):
+        raise UsageError(f"{name} shift must be a whole number of frames, got {shift!r}")
 
 
 def _number(value: float) -> str:

@@ -24,6 +24,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError, UsageError
+from neurotac_cli.units import MAX_SIDE
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 
@@ -44,14 +45,25 @@ class CropSpec:
             raise UsageError("--size needs --center X,Y or --center auto")
         if self.center is not None and self.size is None:
             raise UsageError("--center needs --size WxH")
-        if self.box is not None and (len(self.box) != 4 or self.box[2] <= 0 or self.box[3] <= 0 or min(self.box) < 0):
+        # the library passes these as it likes (lists, strings, floats): each is checked as the command line's types are
+        if self.size is not None and (not _whole_numbers(self.size, 2) or min(self.size) <= 0 or max(self.size) > MAX_SIDE):
+            raise UsageError(f"size must be (W, H) with whole W and H from 1 to {MAX_SIDE}, got {self.size!r}")
+        if self.center is not None and self.center != "auto" and (not _whole_numbers(self.center, 2) or min(self.center) < 0):
+            raise UsageError(f"center must be (x, y) with whole x, y >= 0, or auto, got {self.center!r}")
+        if self.box is not None and (not _whole_numbers(self.box, 4) or self.box[2] <= 0 or self.box[3] <= 0 or min(self.box) < 0):
             raise UsageError(f"box must be X,Y,W,H with X,Y >= 0 and W,H > 0, got {self.box}")
-        if isinstance(self.pool, tuple) and (len(self.pool) != 2 or min(self.pool) <= 0):
+        if isinstance(self.pool, tuple) and (not _whole_numbers(self.pool, 2) or min(self.pool) <= 0):
             raise UsageError(f"pool must be KxL with positive K and L, got {self.pool}")
         if self.pool is not None and not isinstance(self.pool, tuple) and self.pool != "all":
             raise UsageError(f"pool must be KxL or all, got {self.pool!r}")
         if self.box is None and self.size is None and self.pool is None:
             raise UsageError("nothing to do: give --box, --size with --center, or --pool")
+
+
+def _whole_numbers(value, count: int) -> bool:
+    """Whether `value` is a tuple or list of `count` whole numbers."""
+    return (isinstance(value, (tuple, list)) and len(value) == count
+            and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value))
 
 
 @dataclass
