@@ -174,27 +174,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     count = len(logs)
     forcelog.check_samples(logs, source.trial)
     forces = [condition_force(log, method.median_us) for log in logs]
-    try:
-        if method.method == "led":
-            instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
-        elif method.method == "trigger":
-            instants = find_triggers(table.schema, method, count)
-        elif method.method == "offset":
-            if count > 1:
-                raise SyncError(f"--method offset gives one instant, but the force log holds {count} trials; use --method led or trigger")
-            instants = [Instant(t0=int(method.offset_us), details={"offset_us": int(method.offset_us)})]
-        else:
-            if count > 1:
-                raise SyncError(f"--method xcorr aligns one force trace, but the force log holds {count} trials; split the log")
-            instants = [xcorr_instant(t, x, y, logs[0].t, forces[0], method, p)]
-    except SyncError as error:
-        if count > 1 and logs[0].trial is None:
-            # the trials were told only from the log's time stepping back: a log of one grasp with a row
-            # out of place reads as several, and the error about them would not say why
-            raise SyncError(f"{error}; the force log was read as {count} trials because its time steps back (the first time "
-                            f"at sample {len(logs[0].t)}, from {logs[0].t[-1] / 1000:g} to {logs[1].t[0] / 1000:g} ms): "
-                            "if it is one trial, sort it by time") from None
-        raise
+    instants = _instants(table, t, x, y, p, logs, forces, method)
     forcelog.check_logs(t, instants, logs, source.trial)
     order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
     if order is not None:
@@ -231,6 +211,33 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
             entry["notes"] = log.notes
         info[name] = entry
     return trials, info
+
+
+def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
+    """The sync instant of each trial of the force log, found by the chosen method."""
+    count = len(logs)
+    try:
+        if method.method == "led":
+            instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
+        elif method.method == "trigger":
+            instants = find_triggers(table.schema, method, count)
+        elif method.method == "offset":
+            if count > 1:
+                raise SyncError(f"--method offset gives one instant, but the force log holds {count} trials; use --method led or trigger")
+            instants = [Instant(t0=int(method.offset_us), details={"offset_us": int(method.offset_us)})]
+        else:
+            if count > 1:
+                raise SyncError(f"--method xcorr aligns one force trace, but the force log holds {count} trials; split the log")
+            instants = [xcorr_instant(t, x, y, logs[0].t, forces[0], method, p)]
+    except SyncError as error:
+        if count > 1 and logs[0].trial is None:
+            # the trials were told only from the log's time stepping back: a log of one grasp with a row
+            # out of place reads as several, and the error about them would not say why
+            raise SyncError(f"{error}; the force log was read as {count} trials because its time steps back (the first time "
+                            f"at sample {len(logs[0].t)}, from {logs[0].t[-1] / 1000:g} to {logs[1].t[0] / 1000:g} ms): "
+                            "if it is one trial, sort it by time") from None
+        raise
+    return instants
 
 
 def _column(table: pa.Table, name: str, dtype) -> np.ndarray:
