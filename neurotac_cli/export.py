@@ -1,5 +1,6 @@
 """Events tables back into camera files, for the vendors' tools: Prophesee EVT 3.0 (.raw), iniVation
-AEDAT 4.0 (.aedat4, `aedat4_bytes`) and jAER AEDAT 2.0 (.aedat, io/writers.py).
+AEDAT 4.0 (.aedat4, `aedat4_bytes`), jAER AEDAT 2.0 (.aedat, io/writers.py), and HDF5 in DSEC's layout
+(.h5/.hdf5, `write_hdf5`) for Python tools.
 
 EVT 3.0 is 16-bit little-endian words after a `%` header (`% evt 3.0`, `% format EVT3;height=H;width=W`,
 `% geometry WxH`, `% end`). Time is a 24-bit µs counter: TIME_HIGH (0x8) holds bits 12-23, TIME_LOW
@@ -22,7 +23,7 @@ from neurotac_cli.errors import NeurotacError, UsageError
 
 EVT3_LOOP_US = 1 << 24
 WALK_LIMIT_US = 600_000_000  # first events up to 10 min in: TIME_HIGH walked from 0 (146k words at most)
-FORMATS = {".raw": "evt3", ".aedat": "aedat2", ".aedat4": "aedat4"}
+FORMATS = {".raw": "evt3", ".aedat": "aedat2", ".aedat4": "aedat4", ".h5": "hdf5", ".hdf5": "hdf5"}
 AEDAT4_PACKET_EVENTS = 1 << 15
 AEDAT4_EVENT = np.dtype({"names": ["t", "x", "y", "on"], "formats": ["<i8", "<i2", "<i2", "u1"], "offsets": [0, 8, 10, 12], "itemsize": 16})
 
@@ -32,7 +33,8 @@ def export_format(path: str) -> str:
 
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in FORMATS:
-        raise UsageError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat4 for AEDAT 4.0, .aedat for AEDAT 2.0)")
+        raise UsageError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat4 for AEDAT 4.0, "
+                         ".aedat for AEDAT 2.0, .h5 for HDF5)")
     return FORMATS[suffix]
 
 
@@ -120,6 +122,33 @@ def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
     return b"".join(out)
 
 
+def write_hdf5(path: str, t, x, y, p, width: int, height: int) -> bool:
+    """An HDF5 file in DSEC's layout: `events/{x, y, t, p}` (uint16, uint16, int64 µs after `t_offset`,
+    uint8 0/1), `t_offset` (the first event's time, µs) and, for time-sorted events, `ms_to_idx` (the
+    index of the first event at or after each millisecond from `t_offset`); the sensor as `width`,
+    `height` and `geometry` attributes. gzip-compressed, which every HDF5 reader decodes without a
+    plugin. Returns whether `ms_to_idx` was written (it needs the events in time order)."""
+    import h5py
+
+    t = np.asarray(t, dtype=np.int64)
+    offset = int(t.min()) if len(t) else 0
+    ordered = not len(t) or bool(np.all(np.diff(t) >= 0))
+    chunked = {"chunks": True, "compression": "gzip", "compression_opts": 4, "shuffle": True} if len(t) else {}
+    with h5py.File(path, "w") as handle:
+        group = handle.create_group("events")
+        group.create_dataset("x", data=np.asarray(x, dtype=np.uint16), **chunked)
+        group.create_dataset("y", data=np.asarray(y, dtype=np.uint16), **chunked)
+        group.create_dataset("t", data=t - offset, **chunked)
+        group.create_dataset("p", data=(np.asarray(p) > 0).astype(np.uint8), **chunked)
+        handle.create_dataset("t_offset", data=np.int64(offset))
+        if ordered:
+            milliseconds = np.arange(0, (int(t[-1]) - offset) // 1000 + 2 if len(t) else 1) * 1000
+            handle.create_dataset("ms_to_idx", data=np.searchsorted(t - offset, milliseconds).astype(np.uint64))
+        handle.attrs["width"], handle.attrs["height"] = int(width), int(height)
+        handle.attrs["geometry"] = f"{int(width)}x{int(height)}"
+    return ordered
+
+
 def events_arrays(table: pa.Table, trial: str | None = None) -> tuple:
     """(t, x, y, p, width, height) of an events table, or of one trial of a recordings table on the
     camera's clock (t0 added back)."""
@@ -153,6 +182,13 @@ def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
     fmt = export_format(path)
     t, x, y, p, width, height = events_arrays(table, trial)
     sch.check_events(t, x, y, p, (width, height), sorted_time=False)  # a camera file cannot hold them as they are
+    if fmt == "hdf5":
+        import os
+
+        with atomic_file(path) as temporary:
+            indexed = write_hdf5(temporary, t, x, y, p, width, height)
+            size = os.path.getsize(temporary)
+        return {"format": fmt, "events": int(len(t)), "bytes": size, "shift_us": 0, "unindexed": not indexed}
     if fmt == "evt3":
         data, shift = evt3_bytes(t, x, y, p, width, height)
     elif fmt == "aedat4":

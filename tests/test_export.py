@@ -22,7 +22,7 @@ def columns(table):
     return [table.column(name).to_numpy().astype(np.int64) for name in ("t", "x", "y", "p")]
 
 
-@pytest.mark.parametrize("suffix", [".raw", ".aedat", ".aedat4"])
+@pytest.mark.parametrize("suffix", [".raw", ".aedat", ".aedat4", ".h5"])
 def test_written_files_read_back_equal(tmp_path, suffix):
     table = events(width=240, height=180)
     path = str(tmp_path / f"e{suffix}")
@@ -97,3 +97,25 @@ def test_events_before_time_zero_are_refused_in_one_line(tmp_path):
     table = sch.events_table([-5, 3], [0, 1], [0, 1], [1, 0], 4, 4)
     with pytest.raises(NeurotacError, match="first event is at -5"):
         evt3_bytes(*columns(table), 4, 4)
+
+
+def test_hdf5_is_dsecs_layout_as_its_readers_take_it(tmp_path):
+    """What DSEC's loaders do (tonic's: events/x,y,t,p plus t_offset; seeking by ms_to_idx) gives the events back."""
+    import h5py
+
+    table = events(seed=3)
+    t, x, y, p = columns(table)
+    assert not export(table, str(tmp_path / "e.h5"))["unindexed"]
+    with h5py.File(tmp_path / "e.h5", "r") as handle:
+        group = handle["events"]
+        assert np.array_equal(group["t"][()] + handle["t_offset"][()], t)
+        assert np.array_equal(group["x"][()], x) and np.array_equal(group["y"][()], y) and np.array_equal(group["p"][()], p)
+        index = handle["ms_to_idx"][()]
+        for ms in (0, 50, 199):
+            assert np.all(group["t"][()][index[ms]:] >= ms * 1000) and np.all(group["t"][()][:index[ms]] < ms * 1000)
+        assert handle.attrs["geometry"] == "640x480"
+    shuffled = table.take(np.random.default_rng(0).permutation(table.num_rows))
+    tables.write(str(tmp_path / "s.parquet"), shuffled)
+    result = CliRunner().invoke(cli, ["export", "-o", str(tmp_path / "s.h5"), str(tmp_path / "s.parquet")])
+    assert result.exit_code == 0 and "no ms_to_idx index was written" in result.stderr
+    assert np.array_equal(read_events_table(tmp_path / "s.h5").column("t").to_numpy(), shuffled.column("t").to_numpy())
