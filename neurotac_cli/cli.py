@@ -14,7 +14,7 @@ from neurotac_cli.errors import NeurotacError, OutputError, UsageError
 # so `neurotac --help` needs neither pyarrow nor torch.
 COMMANDS = {
     "simulate": ("simulate", "Simulate grasps: camera files, force logs and a manifest."),
-    "import": ("import_", "Read camera files (AEDAT, EVT2/3, DAT, ES, text) into an events table."),
+    "import": ("import_", "Read camera files (AEDAT, EVT2/3, DAT, ES, HDF5, text) into an events table."),
     "info": ("info", "Describe a table or camera file for a person."),
     "sync": ("sync", "Align camera events with a force log; cut and label trials."),
     "frame": ("frame", "Bin each trial's events into two-channel count frames."),
@@ -31,7 +31,7 @@ COMMANDS = {
     "select": ("select", "Keep the rows for which a condition holds (SQL): trials, labels, phases, times."),
     "concat": ("concat", "Concatenate tables of one kind, refusing trial ids they share."),
     "split": ("split", "Split into training and test tables by whole trials, seeded."),
-    "export": ("export", "Write events as a camera file: EVT 3.0, AEDAT 4.0 or AEDAT 2.0."),
+    "export": ("export", "Write events as a camera file (EVT 3.0, AEDAT 4.0, AEDAT 2.0) or HDF5."),
 }
 
 

@@ -46,7 +46,7 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     if len(files) > 1 and not one_stream and not (follow or realtime):
         recordings = datasets.recordings_per_file(files, sensor, fmt)
         tables.write(output, recordings, step=history(paths=files, unused=("idle_timeout",)))
-        echo_lines("import", events.cut_notes(recordings.schema), prefix="warning: ")
+        echo_lines("import", events.source_notes(recordings.schema), prefix="warning: ")
         return
     paths = files
     is_live = follow or realtime or any(live.is_stream(p) for p in paths)

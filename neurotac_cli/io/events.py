@@ -78,17 +78,24 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
         stream = live.open_stream(paths[0], sensor, fmt, follow=follow, idle_timeout=idle_timeout, stop=stop)
     else:
         stream = live.Stream(*import_files(paths, sensor=sensor, fmt=fmt))
-        stream.notes += cut_notes(stream.schema)
+        stream.notes += source_notes(stream.schema)
     if speed is not None:
         stream.batches = live.replay(stream.batches, speed, stop)
     stream.batches = _counted(stream, stream.batches)
     return stream
 
 
-def cut_notes(schema) -> list[str]:
-    """A note for every camera file behind a table whose last record was cut short (not decoded)."""
-    return [live.cut_note(source.get("file", "a camera file"), source["cut_bytes"])
-            for source in sch.camera_sources(schema) if isinstance(source, dict) and source.get("cut_bytes")]
+def source_notes(schema) -> list[str]:
+    """A note for every camera file behind a table whose last record was cut short (not decoded), and
+    each note a reader left about a file (`neurotac:source`'s `note`)."""
+    notes = []
+    for source in sch.camera_sources(schema):
+        if isinstance(source, dict):
+            if source.get("cut_bytes"):
+                notes.append(live.cut_note(source.get("file", "a camera file"), source["cut_bytes"]))
+            if source.get("note"):
+                notes.append(f"{source.get('file', 'a camera file')}: {source['note']}")
+    return notes
 
 
 def _counted(stream: live.Stream, batches):

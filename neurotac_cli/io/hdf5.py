@@ -2,32 +2,39 @@
 
 Three layouts are in common use, each found by its names:
 
-- Prophesee Metavision: a compound dataset `CD/events` of (x, y, p, t); t in µs. The SDK compresses
-  it with its ECF codec, an HDF5 filter plugin that HDF5 loads from `HDF5_PLUGIN_PATH`; without it
-  the data cannot be decoded, and the error says so.
-- One dataset per field in a group (`events/` or the root): `x, y, t, p` (DSEC, TUM-VIE; DSEC adds
-  a `t_offset` in µs at the root) or `xs, ys, ts, ps` (the e2vid convention, evlib).
-- Time: integer timestamps are µs; floating-point ones are seconds (the e2vid convention). Polarity:
-  above zero is ON, so 0/1, -1/1 and booleans all read the same.
+- Prophesee Metavision: a compound dataset `CD/events` of (x, y, p, t), t in integer µs. The SDK
+  compresses it with its ECF codec, an HDF5 filter plugin that HDF5 loads from `HDF5_PLUGIN_PATH`;
+  without it the data cannot be decoded, and the error says so.
+- DSEC, TUM-VIE: one dataset per field, `x, y, t, p`, in a group `events/` (or at the root); DSEC
+  adds a `t_offset` in µs at the root, added to every t.
+- e2vid: `xs, ys, ts, ps` in `events/`; its times are float seconds. evlib writes the same names
+  with float µs, so float times that are all whole numbers are read as µs, others as seconds.
 
-The sensor size comes from a `geometry` attribute ("1280x720", as Metavision writes it) or
-`width`/`height` attributes of the file or the events' group; otherwise from --sensor, else from the
-events' extent, as for a DAT file without one. Compression other than ECF (gzip, and Blosc, LZ4 or
-Zstd through hdf5plugin, which DSEC needs) is decoded where the plugin is installed.
+Integer times are µs. A polarity above zero is ON, so 0/1, -1/1 and booleans read alike.
+Coordinates must be whole numbers. The sensor size comes from a `geometry` attribute ("1280x720",
+as Metavision writes it) or integer `width`/`height` attributes of the file or the events' group;
+otherwise from --sensor, else from the events' extent (a first pass over them), as for a DAT file.
+
+What is refused, in one line, rather than read as something else: two layouts in one group (which
+one is meant?), a field that is not one number per event, events stored in other files (external
+links, virtual datasets: their bytes would escape the file's hash and depend on the working
+folder), datasets declared longer than the data written into them (HDF5 hands out fill values for
+the rest), a codec HDF5 cannot load, and a file another program holds open for writing.
 """
 
 import numpy as np
 
-from neurotac_cli.errors import FormatError
+from neurotac_cli.errors import FormatError, InputError
 from neurotac_cli.io.reader import Decoded
 
 SIGNATURE = b"\x89HDF\r\n\x1a\n"
-SIGNATURE_OFFSETS = (0, 512, 1024, 2048)  # a user block before the superblock moves it to a power of two
+# the superblock sits at 0 or, after a user block, at 512 x 2^n bytes (those a 64 KiB head holds)
+SIGNATURE_OFFSETS = (0, 512, 1024, 2048, 4096, 8192, 16384, 32768)
 SLICE_EVENTS = 1 << 20
-FIELD_SETS = (("x", "y", "t", "p"), ("xs", "ys", "ts", "ps"))
+DSEC_FIELDS, E2VID_FIELDS = ("x", "y", "t", "p"), ("xs", "ys", "ts", "ps")
 GROUPS = ("events", "")
 LARGEST_US = 2.0**62  # timestamps beyond it (about 146,000 years) are damage, and would overflow int64 µs
-ECF_FILTER = 0x8ECF  # Prophesee's registered-by-itself filter code
+ECF_FILTER = 0x8ECF  # Prophesee's self-assigned filter code
 
 
 def is_hdf5(head: bytes) -> bool:
@@ -41,62 +48,132 @@ def open_hdf5(path: str, head: bytes, sensor) -> Decoded:
         import hdf5plugin  # noqa: F401 - registers Blosc, LZ4, Zstd, ... with HDF5 (DSEC is Blosc-compressed)
     except ImportError:
         pass
-    with h5py.File(path, "r") as handle:
+    with _opened(h5py, path) as handle:
         layout = _layout(handle)
+        datasets = _datasets(handle, layout)
+        for name, dataset in ({layout["compound"]: datasets["t"]} if layout["compound"] else datasets).items():
+            _check_stored(name, dataset)
+        count = len(next(iter(datasets.values())))
+        offset = _offset(handle) if layout["fields"] == DSEC_FIELDS else 0
+        seconds, note = _time_unit(layout, datasets["t"], count)
         declared = _declared_sensor(handle, layout)
-        count = layout["count"](handle)
-        for dataset in _datasets(handle, layout):
-            _check_codecs(dataset)
     meta = {"source": {"hdf5_layout": layout["name"], "hdf5_events": int(count)}}
+    if note:
+        meta["source"]["note"] = note
 
     def chunks():
-        with h5py.File(path, "r") as handle:
+        with _opened(h5py, path) as handle:
+            datasets = _datasets(handle, layout)
             for start in range(0, count, SLICE_EVENTS):
-                yield _slice(handle, layout, start, min(count, start + SLICE_EVENTS))
+                yield _slice(datasets, layout, start, min(count, start + SLICE_EVENTS), offset, seconds)
 
     return Decoded(sensor=declared, chunks=chunks, meta=meta)
 
 
+def _opened(h5py, path: str):
+    try:
+        return h5py.File(path, "r")
+    except OSError as error:
+        if "unable to lock file" in str(error).lower():
+            raise InputError("another program holds the file open for writing (HDF5's file lock); import it once "
+                             "written, or, if no writer is left, set HDF5_USE_FILE_LOCKING=FALSE") from None
+        raise
+
+
 def _layout(handle) -> dict:
     """How the events are stored, as the names of what to read."""
-    cd = handle.get("CD/events")
-    if cd is not None and getattr(cd, "dtype", None) is not None and cd.dtype.names:
-        missing = {"x", "y", "p", "t"} - set(cd.dtype.names)
-        if missing:
-            raise FormatError(f"CD/events has no field {sorted(missing)[0]!r} (fields: {', '.join(cd.dtype.names)})")
-        return {"name": "metavision", "group": "CD", "fields": ("x", "y", "t", "p"), "compound": "CD/events",
-                "count": lambda h: len(h["CD/events"])}
-    for group in GROUPS:
-        node = handle.get(group) if group else handle
-        if node is None or not hasattr(node, "keys"):
+    import h5py
+
+    for group, name in (("CD", "events"), ("", "events")):  # Metavision's compound, or the same at the root
+        if group and handle.get(group, getlink=True) is None:
             continue
-        for fields in FIELD_SETS:
-            if all(name in node and hasattr(node[name], "shape") for name in fields):
-                lengths = {int(node[name].shape[0]) if node[name].shape else -1 for name in fields}
-                if len(lengths) != 1 or -1 in lengths:
-                    shown = ", ".join(f"{name} {node[name].shape}" for name in fields)
-                    raise FormatError(f"the event fields of /{group} are not four lists of one length ({shown})")
-                for name in fields:
-                    if node[name].ndim != 1 or not np.issubdtype(node[name].dtype, np.number) and node[name].dtype != bool:
-                        raise FormatError(f"/{'/'.join(filter(None, (group, name)))} holds {node[name].dtype} "
-                                          f"of shape {node[name].shape}, not one number per event")
-                return {"name": "/".join(filter(None, (group, ",".join(fields)))), "group": group, "fields": fields,
-                        "compound": None, "count": lambda h, g=group, f=fields[0]: int((h[g] if g else h)[f].shape[0])}
+        parent = _node(handle, group) if group else handle
+        if not isinstance(parent, h5py.Group) or parent.get(name, getlink=True) is None:
+            continue
+        shown = "/".join(filter(None, (group, name)))
+        node = _node(parent, name, shown)
+        if isinstance(node, h5py.Dataset) and node.dtype.names:
+            compound = _member(parent, name, shown)
+            missing = {"x", "y", "p", "t"} - set(compound.dtype.names)
+            if missing:
+                raise FormatError(f"{shown} has no field {sorted(missing)[0]!r} (fields: {', '.join(compound.dtype.names)})")
+            if compound.ndim != 1:
+                raise FormatError(f"{shown} has shape {compound.shape}: Metavision's events are one list")
+            return {"name": "metavision" if group else "compound events", "group": group, "fields": ("x", "y", "t", "p"),
+                    "compound": name}
+    for group in GROUPS:
+        if group and handle.get(group, getlink=True) is None:
+            continue
+        node = _node(handle, group) if group else handle
+        if isinstance(node, h5py.Dataset):
+            raise FormatError(f"/{group} is one dataset ({node.dtype} of shape {node.shape}), whose columns this reader "
+                              "cannot name: it reads one dataset per field in events/ (x, y, t, p as DSEC; xs, ys, ts, ps as "
+                              "e2vid) or Metavision's compound CD/events")
+        sets = [fields for fields in (DSEC_FIELDS, E2VID_FIELDS) if all(name in node for name in fields)]
+        if len(sets) > 1:
+            raise FormatError(f"/{group} holds both x,y,t,p and xs,ys,ts,ps: which events are meant is not clear; keep one")
+        if sets:
+            return {"name": "/".join(filter(None, (group, ",".join(sets[0])))), "group": group, "fields": sets[0], "compound": None}
+        partial = [name for name in DSEC_FIELDS + E2VID_FIELDS if name in node]
+        if partial:
+            raise FormatError(f"/{group} holds {', '.join(partial)} but not a whole set of x, y, t, p (DSEC) or xs, ys, ts, "
+                              "ps (e2vid)")
     raise FormatError("an HDF5 file without events in a layout this reader knows: CD/events (Metavision), "
                       "events/{x,y,t,p} (DSEC), events/{xs,ys,ts,ps} (e2vid); found "
                       f"{', '.join(sorted(handle.keys())[:8]) or 'nothing'} at the root")
 
 
-def _datasets(handle, layout) -> list:
+def _node(group, name: str, shown: str | None = None):
+    """A member of the file itself: links to other files are refused, as are links to nothing."""
+    import h5py
+
+    shown = shown or name
+    link = group.get(name, getlink=True)
+    if isinstance(link, h5py.ExternalLink):
+        raise FormatError(f"/{shown} is a link to {link.filename}: import that file; events in other files would depend "
+                          "on the folder it is read from and escape this file's hash")
+    try:
+        return group[name]
+    except (KeyError, RuntimeError):  # a soft link to nothing, or a loop of soft links
+        raise FormatError(f"/{shown} is a link that leads to no object") from None
+
+
+def _member(group, name: str, shown: str):
+    """A dataset of the file itself (`_node`), not a virtual one gathered from other files."""
+    import h5py
+
+    dataset = _node(group, name, shown)
+    if not isinstance(dataset, h5py.Dataset):
+        raise FormatError(f"/{shown} is a group, not a dataset of events")
+    if dataset.is_virtual:
+        raise FormatError(f"/{shown} is a virtual dataset whose events live in other files: import those files")
+    return dataset
+
+
+def _datasets(handle, layout) -> dict:
+    """{field: dataset} (the one compound dataset under each name for Metavision), each checked."""
+    group = handle[layout["group"]] if layout["group"] else handle
     if layout["compound"]:
-        return [handle[layout["compound"]]]
-    node = handle[layout["group"]] if layout["group"] else handle
-    return [node[name] for name in layout["fields"]]
+        dataset = _member(group, layout["compound"], "/".join(filter(None, (layout["group"], layout["compound"]))))
+        return {field: dataset for field in ("x", "y", "t", "p")}
+    found = {}
+    for field, name in zip("xytp", layout["fields"]):
+        shown = "/".join(filter(None, (layout["group"], name)))
+        dataset = _member(group, name, shown)
+        if dataset.ndim != 1 or dataset.dtype.names or not (np.issubdtype(dataset.dtype, np.integer)
+                                                             or np.issubdtype(dataset.dtype, np.floating) or dataset.dtype == bool):
+            raise FormatError(f"/{shown} holds {dataset.dtype} of shape {dataset.shape}, not one number per event")
+        found[field] = dataset
+    lengths = {len(dataset) for dataset in found.values()}
+    if len(lengths) != 1:
+        shown = ", ".join(f"{name} {dataset.shape}" for name, dataset in zip(layout["fields"], found.values()))
+        raise FormatError(f"the event fields of /{layout['group']} are not four lists of one length ({shown})")
+    return found
 
 
-def _check_codecs(dataset):
-    """Refuse, before reading, events compressed with a filter HDF5 cannot load (its own message is
-    about a plugin directory, not the file)."""
+def _check_stored(field: str, dataset):
+    """Refuse what HDF5 would read as something else: a codec it cannot load, or room declared for
+    more events than were written (it fills the rest with the fill value, silently)."""
     import h5py
 
     plist = dataset.id.get_create_plist()
@@ -110,6 +187,53 @@ def _check_codecs(dataset):
             label = name.decode(errors="replace") if isinstance(name, bytes) else str(name)
             raise FormatError(f"the events are compressed with HDF5 filter {code} ({label or 'unnamed'}), which this "
                               "installation cannot load: install its plugin (hdf5plugin has most) or rewrite the file uncompressed")
+    if not len(dataset):
+        return
+    if dataset.chunks:
+        expected = -(-len(dataset) // dataset.chunks[0])
+        written = dataset.id.get_num_chunks()
+    else:  # contiguous storage is allocated when written; compact storage lives in the header
+        expected = 1
+        written = 1 if plist.get_layout() == h5py.h5d.COMPACT or dataset.id.get_storage_size() > 0 else 0
+    if written < expected:
+        raise FormatError(f"the {field} field declares {len(dataset):,} events but only {written} of its {expected} "
+                          "blocks were written (a recording cut short, or a file still being written): HDF5 would "
+                          "fill the rest with made-up values")
+
+
+def _offset(handle) -> int:
+    """DSEC's `t_offset`: one whole number of µs at the root, added to every t."""
+    if "t_offset" not in handle:
+        return 0
+    value = handle["t_offset"]
+    if not hasattr(value, "dtype") or not value.size or value.size != 1 or not np.issubdtype(value.dtype, np.integer):
+        shown = (f"{value.dtype} of shape {value.shape}" if value.shape is not None else "no value") if hasattr(value, "dtype") else "a group"
+        raise FormatError(f"t_offset holds {shown}; DSEC's is one whole number of µs")
+    offset = int(np.asarray(value[()]).ravel()[0])
+    if abs(offset) >= LARGEST_US:
+        raise FormatError(f"t_offset of {offset} µs is not a time a camera writes")
+    return offset
+
+
+def _time_unit(layout, dataset, count: int) -> tuple[bool, str | None]:
+    """(float times are seconds, a note on their resolution). Metavision writes integer µs only."""
+    if not np.issubdtype(dataset.dtype, np.floating):
+        return False, None
+    if layout["compound"]:
+        raise FormatError("the compound events hold float times; Metavision writes whole µs (int64)")
+    sample = np.asarray(dataset[: min(count, 4096)])
+    # whole numbers in a type that could hold fractions there are µs (evlib); in float32 past 2^24
+    # every value is whole, so they say nothing of the unit
+    fractions_possible = len(sample) and np.spacing(np.abs(sample).max()) < 1
+    seconds = not (fractions_possible and np.all(sample == np.round(sample)))
+    note = None
+    if dataset.dtype.itemsize < 8 and count:
+        last = abs(float(dataset[count - 1]))
+        step = float(np.spacing(np.float32(last))) * (1e6 if seconds else 1.0)
+        if step > 1.0:
+            note = (f"the times are stored as 32-bit floats, which near the recording's end ({last:g} "
+                    f"{'s' if seconds else 'µs'}) tell apart only {step:,.0f} µs: finer times were lost when the file was written")
+    return seconds, note
 
 
 def _declared_sensor(handle, layout) -> tuple[int, int] | None:
@@ -117,38 +241,47 @@ def _declared_sensor(handle, layout) -> tuple[int, int] | None:
         attrs = node.attrs
         if "geometry" in attrs:
             text = attrs["geometry"]
-            text = text.decode() if isinstance(text, bytes) else str(text)
+            text = text.decode(errors="replace") if isinstance(text, bytes) else str(text)
             width, sep, height = text.lower().partition("x")
-            if not sep or not width.strip().isdigit() or not height.strip().isdigit() or int(width) <= 0 or int(height) <= 0:
+            width, height = width.strip(), height.strip()
+            if not sep or not (width.isascii() and width.isdigit() and height.isascii() and height.isdigit()) \
+                    or int(width) <= 0 or int(height) <= 0:
                 raise FormatError(f"cannot read the geometry attribute {text!r} (expected WxH, e.g. 1280x720)")
             return int(width), int(height)
         if "width" in attrs and "height" in attrs:
-            width, height = int(np.asarray(attrs["width"]).ravel()[0]), int(np.asarray(attrs["height"]).ravel()[0])
+            values = [np.asarray(attrs[name]).ravel() for name in ("width", "height")]
+            if any(v.size != 1 or not np.issubdtype(v.dtype, np.integer) for v in values):
+                shown = [str(v.tolist()[0] if v.size == 1 else v.tolist()) for v in values]
+                raise FormatError(f"the width and height attributes hold {shown[0]} and {shown[1]}, not whole numbers of pixels")
+            width, height = int(values[0][0]), int(values[1][0])
             if width <= 0 or height <= 0:
                 raise FormatError(f"the file's attributes declare a {width}x{height} sensor")
             return width, height
     return None
 
 
-def _slice(handle, layout, start: int, stop: int):
+def _slice(datasets: dict, layout, start: int, stop: int, offset: int, seconds: bool):
     """(t µs, x, y, p) of events [start, stop)."""
     if layout["compound"]:
-        rows = handle[layout["compound"]][start:stop]
-        x, y, t, p = (rows[name] for name in layout["fields"])
+        rows = datasets["t"][start:stop]
+        x, y, t, p = (rows[name] for name in "xytp")
     else:
-        node = handle[layout["group"]] if layout["group"] else handle
-        x, y, t, p = (node[name][start:stop] for name in layout["fields"])
+        x, y, t, p = (datasets[field][start:stop] for field in "xytp")
     t = np.asarray(t)
     if np.issubdtype(t.dtype, np.floating):
-        t = t * 1e6
-    if len(t) and not (np.isfinite(t).all() and t.min() > -LARGEST_US and t.max() < LARGEST_US):
-        bad = t[~(np.isfinite(t) & (np.abs(t) < LARGEST_US))][0]
-        raise FormatError(f"a timestamp of {bad:.6g} µs among events {start}-{stop} is not a time a camera writes")
-    t = np.round(t).astype(np.int64) if np.issubdtype(t.dtype, np.floating) else t.astype(np.int64)
-    if "t_offset" in handle:  # DSEC: the recording's start on the camera clock, in µs
-        t = t + int(np.asarray(handle["t_offset"]).ravel()[0])
-    x, y = np.asarray(x), np.asarray(y)
-    for name, values in (("x", x), ("y", y)):
+        t = t.astype(np.float64) * (1e6 if seconds else 1.0)
+        if not np.isfinite(t).all() or (len(t) and np.abs(t).max() >= LARGEST_US):
+            bad = t[~(np.isfinite(t) & (np.abs(t) < LARGEST_US))][0]
+            raise FormatError(f"a timestamp of {bad:.6g} µs among events {start}-{stop} is not a time a camera writes")
+        t = np.round(t).astype(np.int64)
+    elif len(t) and (t.max() >= LARGEST_US or (np.issubdtype(t.dtype, np.signedinteger) and t.min() <= -LARGEST_US)):
+        raise FormatError(f"a timestamp among events {start}-{stop} is beyond what a clock in µs holds")
+    t = t.astype(np.int64) + offset
+    coordinates = []
+    for name, values in (("x", np.asarray(x)), ("y", np.asarray(y))):
+        if len(values) and np.issubdtype(values.dtype, np.floating) and not np.all(values == np.round(values)):
+            raise FormatError(f"coordinate {name}={values[values != np.round(values)][0]:g} is not a whole pixel")
         if len(values) and (values.min() < 0 or values.max() > 0xFFFF):
             raise FormatError(f"coordinate {name}={int(values.min() if values.min() < 0 else values.max())} lies outside any sensor")
-    return t, x.astype(np.uint16), y.astype(np.uint16), (np.asarray(p) > 0).astype(np.uint8)
+        coordinates.append(values.astype(np.uint16))
+    return t, coordinates[0], coordinates[1], (np.asarray(p) > 0).astype(np.uint8)

@@ -113,6 +113,23 @@ def test_damaged_and_foreign_files_are_one_line(tmp_path):
         handle.attrs["geometry"] = "wide"
 
     assert "geometry attribute" in refusal(make("g.h5", geometry))
+    assert "holds both" in refusal(make("i.h5", fields(x=three, y=three, t=three, p=three, xs=three, ys=three, ts=three, ps=three)))
+    assert "x, y, t but not a whole set" in refusal(make("j.h5", fields(x=three, y=three, t=three)))
+    assert "columns this reader cannot name" in refusal(make("k.h5", lambda h: h.create_dataset("events", data=np.zeros((3, 4)))))
+    assert "not a whole pixel" in refusal(make("l.h5", fields(x=three + 0.5, y=three, t=three, p=three)))
+
+    def offset(value):
+        return lambda handle: (fields(x=three, y=three, t=three, p=three)(handle), handle.create_dataset("t_offset", data=value))
+
+    assert "one whole number of µs" in refusal(make("m.h5", offset(np.float64(12.5))))
+    assert "one whole number of µs" in refusal(make("n.h5", offset(np.array([1, 2]))))
+    assert "not a time a camera writes" in refusal(make("o.h5", offset(np.int64(2**63 - 1000))))
+
+    def unwritten(handle):  # room for a million events, none written: HDF5 would read zeros
+        for name in "xytp":
+            handle.create_dataset(f"events/{name}", shape=(1_000_000,), dtype=np.int64, chunks=(65536,))
+
+    assert "blocks were written" in refusal(make("q.h5", unwritten))
     whole = make("h.h5", fields(x=np.arange(5000), y=np.arange(5000), t=np.arange(5000), p=np.arange(5000)))
     (tmp_path / "cut.h5").write_bytes(whole.read_bytes()[:2000])
     assert "not a valid HDF5 events file" in refusal(tmp_path / "cut.h5")
@@ -130,3 +147,59 @@ def test_a_codec_hdf5_cannot_load_is_named(real, tmp_path):
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 1 and "HDF5 filter 32004" in result.stderr and "install its plugin" in result.stderr
     assert result.stderr.strip().count("\n") == 0
+
+
+def test_links_to_other_files_are_refused(tmp_path):
+    """Events in another file would depend on the folder the link is read from, and escape the hash."""
+    with h5py.File(tmp_path / "target.h5", "w") as handle:
+        for name in "xytp":
+            handle.create_dataset(f"events/{name}", data=np.arange(3))
+    with h5py.File(tmp_path / "link.h5", "w") as handle:
+        handle["events"] = h5py.ExternalLink("target.h5", "/events")
+    assert "is a link to target.h5" in refusal(tmp_path / "link.h5")
+    with h5py.File(tmp_path / "virtual.h5", "w") as handle:
+        for name in "xytp":
+            layout = h5py.VirtualLayout(shape=(3,), dtype=np.int64)
+            layout[:] = h5py.VirtualSource(str(tmp_path / "target.h5"), f"events/{name}", shape=(3,))
+            handle.create_virtual_dataset(f"events/{name}", layout)
+    assert "virtual dataset" in refusal(tmp_path / "virtual.h5")
+
+
+def test_float_times_whole_numbers_are_microseconds_fractions_seconds(real, tmp_path):
+    """e2vid writes seconds; evlib the same names with whole-number µs in float64."""
+    t, x, y, p, width, height = real
+    for name, times in (("seconds.h5", (t - t[0]) / 1e6), ("micro.h5", (t - t[0]).astype(np.float64))):
+        with h5py.File(tmp_path / name, "w") as handle:
+            handle["events/xs"], handle["events/ys"], handle["events/ts"], handle["events/ps"] = x, y, times, p
+        assert np.array_equal(read_events_table(tmp_path / name).column("t").to_numpy(), t - t[0]), name
+
+
+def test_times_in_32_bit_floats_say_what_they_lost(tmp_path):
+    from neurotac_cli.io.events import source_notes
+
+    with h5py.File(tmp_path / "f32.h5", "w") as handle:
+        handle["events/xs"], handle["events/ys"], handle["events/ps"] = np.zeros(3), np.zeros(3), np.ones(3)
+        handle["events/ts"] = np.array([100.0, 100.0001, 100.0002], dtype=np.float32)
+    table = read_events_table(tmp_path / "f32.h5")
+    (note,) = source_notes(table.schema)
+    assert "32-bit floats" in note and "tell apart only 8 µs" in note
+
+
+def test_a_file_held_open_by_a_writer_is_told_as_such(tmp_path):
+    path = tmp_path / "open.h5"
+    with h5py.File(path, "w") as handle:
+        for name in "xytp":
+            handle.create_dataset(f"events/{name}", data=np.arange(3))
+    writer = subprocess.Popen([sys.executable, "-c", f"import h5py, time; h = h5py.File({str(path)!r}, 'a'); print(1, flush=True); time.sleep(30)"],
+                              stdout=subprocess.PIPE)
+    try:
+        writer.stdout.readline()
+        try:
+            read_events_table(path)
+        except NeurotacError as error:
+            assert "holds the file open for writing" in str(error)
+        else:
+            pytest.skip("HDF5's file locks are not enforced here (HDF5_USE_FILE_LOCKING, or the file system)")
+    finally:
+        writer.kill()
+        writer.wait()
