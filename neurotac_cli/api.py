@@ -91,7 +91,7 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
 
 
 def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
-    """A camera file (AEDAT, EVT2/3, DAT, ES, CSV, text) as an events table, timestamps as written."""
+    """A camera file (AEDAT, EVT 2.0/2.1/3.0, DAT, ES, HDF5, CSV, text) as an events table, timestamps as written."""
     from neurotac_cli.io.events import read_events_table
     from neurotac_cli.units import parse_size
 

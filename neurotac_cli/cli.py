@@ -14,7 +14,7 @@ from neurotac_cli.errors import NeurotacError, OutputError, UsageError
 # so `neurotac --help` needs neither pyarrow nor torch.
 COMMANDS = {
     "simulate": ("simulate", "Simulate grasps: camera files, force logs and a manifest."),
-    "import": ("import_", "Read camera files (AEDAT, EVT2/3, DAT, ES, HDF5, text) into an events table."),
+    "import": ("import_", "Read camera files (AEDAT, EVT 2.0/2.1/3.0, DAT, ES, HDF5, text) into an events table."),
     "info": ("info", "Describe a table or camera file for a person."),
     "sync": ("sync", "Align camera events with a force log; cut and label trials."),
     "frame": ("frame", "Bin each trial's events into two-channel count frames."),

@@ -178,7 +178,7 @@ def crop_box_options(function):
     return function
 
 
-CAMERA_FORMATS = ["aedat2", "aedat3", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text", "hdf5"]  # io.camera.FORMATS, without its imports
+CAMERA_FORMATS = ["aedat2", "aedat3", "aedat4", "evt2", "evt21", "evt3", "dat", "es", "csv", "text", "hdf5"]  # io.camera.FORMATS, without its imports
 
 
 def camera_input_options(function):

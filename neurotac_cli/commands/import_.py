@@ -16,14 +16,14 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     """Read camera files into an events table (t µs, x, y, p; origin top-left; 1 = ON).
 
     Formats, told from the first bytes: AEDAT 2.0 (jAER; DAVIS chips, y flipped to image rows,
-    APS/IMU words skipped), AEDAT 3.1 (cAER; polarity events), AEDAT 4.0, Prophesee EVT 2.0 and EVT 3.0 .raw and .dat, Event Stream .es, HDF5 (.h5/.hdf5: Metavision's CD/events, DSEC's events/x,y,t,p,
+    APS/IMU words skipped), AEDAT 3.1 (cAER; polarity events), AEDAT 4.0, Prophesee EVT 2.0, 2.1 and 3.0 .raw and .dat, Event Stream .es, HDF5 (.h5/.hdf5: Metavision's CD/events, DSEC's events/x,y,t,p,
     e2vid's events/xs,ys,ts,ps), CSV with a `t,x,y,p` header (t in µs, or t_ms, t_s) and
     whitespace `t x y p` text with t in seconds. Timestamps are kept as the camera wrote them; external
-    trigger events (AEDAT 3.1/4.0, EVT 2.0/3.0) go into the metadata for `sync --method trigger`; `-`
+    trigger events (AEDAT 3.1/4.0, EVT 2.0/2.1/3.0) go into the metadata for `sync --method trigger`; `-`
     reads a file from stdin. Several files, a directory or a glob give a recordings table with one
     trial per file, named after it, each starting at its first event (--one-stream: one events table).
 
-    Live input: AEDAT 4.0, EVT 3.0, EVT 2.0, AEDAT 2.0/3.1, Event Stream and DAT from stdin, a FIFO or a
+    Live input: AEDAT 4.0, EVT 3.0, 2.1 and 2.0, AEDAT 2.0/3.1, Event Stream and DAT from stdin, a FIFO or a
     process substitution (`<(...)`) are decoded as their bytes arrive, and so is a file still being
     written with --follow; each read's whole records go on as one batch at once (a record cut
     mid-write waits for its rest). A stream's external triggers cannot go into the metadata, which is

@@ -67,7 +67,7 @@ class SensorLag(ParamType):
 @click.option("--keep-led", is_flag=True, help="LED method: keep the blink's switch-off burst in each trial (by default its events are left out and counted in the sync metadata: they mark the instant, they are not touch).")
 @click.option("--trigger-type", default=None, help="Trigger method: only triggers of this type (rising, falling, pulse, ...); default any.")
 @click.option("--trigger-id", type=click.IntRange(min=0), default=None,
-              help="Trigger method: only triggers of this input (AEDAT 3.1) or channel (EVT 2.0/3.0); default any.")
+              help="Trigger method: only triggers of this input (AEDAT 3.1) or channel (EVT 2.0/2.1/3.0); default any.")
 @click.option("--median", "median_window", type=Duration(), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
 @click.option("--force-time-column", default=None, help="Force log: the time column (name or 0-based index) [default: first].")
 @click.option("--force-column", default=None, help="Force log: the force column (name or index) [default: second].")

@@ -1,4 +1,4 @@
-"""Camera files in (AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/3.0 and DAT, Event Stream, text) and force logs.
+"""Camera files in (AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/2.1/3.0 and DAT, Event Stream, HDF5, text) and force logs.
 
     read_events(path, sensor=None) -> (schema, batches)   decoded chunk by chunk
     read_events_table(path, sensor=None) -> pa.Table

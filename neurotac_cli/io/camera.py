@@ -26,12 +26,13 @@ from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
 
-FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt3", "dat", "es", "csv", "text", "hdf5")
+FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt21", "evt3", "dat", "es", "csv", "text", "hdf5")
 FORMAT_NAMES = {
     "aedat2": "AEDAT 2.0 (jAER)",
     "aedat3": "AEDAT 3.1 (cAER)",
     "aedat4": "AEDAT 4.0",
     "evt2": "Prophesee EVT 2.0 raw",
+    "evt21": "Prophesee EVT 2.1 raw",
     "evt3": "Prophesee EVT 3.0 raw",
     "dat": "Prophesee DAT",
     "es": "Event Stream",
@@ -99,15 +100,15 @@ def detect_format(path, head: bytes) -> str:
         if "evt" in header or "format" in header:
             version = (header.get("evt") or header.get("format", "")).upper().replace("EVT", "").split(";")[0].strip()
             if version in ("2.1", "21"):
-                raise FormatError(f"{name}: Prophesee EVT 2.1 is not supported (EVT 2.0 and 3.0 are); convert it with metavision_file_to_dat or to EVT 3.0")
+                return "evt21"
             if version.startswith("3"):
                 return "evt3"
             if version.startswith("2"):
                 return "evt2"
-            raise FormatError(f"{name}: Prophesee raw format {version!r} is not supported (EVT 2.0 and 3.0 are)")
+            raise FormatError(f"{name}: Prophesee raw format {version!r} is not supported (EVT 2.0, 2.1 and 3.0 are)")
         if "version" in header or any("data file containing" in key for key in header) or name.lower().endswith(".dat"):
             return "dat"
-        raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2 or --format evt3)")
+        raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2, evt21 or evt3)")
     if is_hdf5(head):
         return "hdf5"
     if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
@@ -116,7 +117,7 @@ def detect_format(path, head: bytes) -> str:
         first = first_data_line(head.removeprefix(BOM))
         return "csv" if "," in first else "text"
     raise FormatError(
-        f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/3.0 .raw and .dat, "
+        f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/2.1/3.0 .raw and .dat, "
         "Event Stream .es, HDF5 events, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
     )
 

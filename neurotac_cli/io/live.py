@@ -1,7 +1,7 @@
 """Camera bytes as they arrive: a recording still being written (`--follow`), a pipe, a FIFO, stdin;
 and a finished recording replayed at its recorded speed.
 
-AEDAT 4.0, EVT 3.0, EVT 2.0, AEDAT 2.0, Event Stream and DAT are read front to back, so they are
+AEDAT 4.0, EVT 3.0, EVT 2.1, EVT 2.0, AEDAT 2.0, Event Stream and DAT are read front to back, so they are
 decoded as their bytes arrive: each read's whole records become one batch, and a record cut by the
 read (a writer caught mid-record) waits in a buffer for its rest. The decoders are the ones files use
 (the compiled word kernels with their state carried across reads; AEDAT 4.0 packets through the
@@ -31,7 +31,7 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, cannot_open
 from neurotac_cli.io.reader import check_sensor
 
-STREAMED = ("aedat4", "evt3", "evt2", "aedat2", "aedat3", "es", "dat")
+STREAMED = ("aedat4", "evt3", "evt2", "evt21", "aedat2", "aedat3", "es", "dat")
 POLL_S = 0.0002  # a followed file is checked for new bytes this often while it grows (a pipe wakes the reader itself):
 # a camera writes every millisecond or so, and the poll's wait is part of every window's latency
 IDLE_POLL_S = 0.002  # ... and this often once nothing has arrived for IDLE_AFTER_S (a fifth of the CPU time)
@@ -284,7 +284,7 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
         if fmt in STREAMED:
             raise InputError(f"{name}: {label} does not declare the sensor size, which takes a pass over the whole "
                              "file to find; give --sensor WxH to follow it")
-        raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.0, "
+        raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.1/2.0, "
                          "AEDAT 2.0/3.1, Event Stream and DAT); import it without --follow once it is written")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stream-")
     with os.fdopen(handle, "wb") as sink:

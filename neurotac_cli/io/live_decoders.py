@@ -57,6 +57,31 @@ class Words(_Records):
         return self._decode(words, self.state)
 
 
+class Evt21(_Records):
+    """Prophesee EVT 2.1 (8-byte words); the word order from the header, or from the first words."""
+
+    record = 8
+
+    def __init__(self, header: bytes, sensor):
+        from neurotac_cli.io import prophesee
+
+        _, fields = prophesee.header_of(None, header)
+        self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
+        self.legacy = prophesee.evt21_order_of_header(fields)
+        self.state = {"high": None, "loop": 0}
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import prophesee
+
+        pairs = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
+        if self.legacy is None:
+            self.legacy = prophesee.evt21_order_of_words(pairs)
+        info, mask = (pairs[:, 0], pairs[:, 1]) if self.legacy else (pairs[:, 1], pairs[:, 0])
+        t, x, y, p, triggers = prophesee.decode_evt21(info, mask, self.state)
+        self.triggers += len(triggers)
+        return t, x, y, p
+
+
 class Davis(_Records):
     """AEDAT 2.0 (jAER) 8-byte records: DAVIS chips, or DVS128."""
 
@@ -232,6 +257,7 @@ def _without_table_position(header: bytes) -> bytes:
 DECODERS = {
     "evt2": lambda header, sensor: Words(header, sensor, 4),
     "evt3": lambda header, sensor: Words(header, sensor, 2),
+    "evt21": Evt21,
     "aedat2": Davis,
     "aedat3": Aedat3,
     "es": EventStream,

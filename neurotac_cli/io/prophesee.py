@@ -1,7 +1,8 @@
-"""Prophesee files: EVT 2.0 and EVT 3.0 `.raw` words, and `.dat` records, decoded with numpy.
+"""Prophesee files: EVT 2.0, 2.1 and 3.0 `.raw` words, and `.dat` records, decoded with numpy.
 
-The word streams are decoded a chunk at a time by the compiled kernels of `io/kernels.py`, with the
-decoder state (time high, time low, row, vector base) carried across chunks.
+The word streams are decoded a chunk at a time, EVT 2.0 and 3.0 by the compiled kernels of
+`io/kernels.py`, EVT 2.1 (whole 64-bit words, no state but the time base) with numpy, the decoder state
+(time high, time low, row, vector base) carried across chunks.
 
 Times follow Prophesee's own decoder (OpenEB): EVT 3.0 time = time-high base + the last time low,
 where a TIME_HIGH resets the low part; a TIME_LOW that steps back without a new TIME_HIGH is kept
@@ -183,3 +184,121 @@ def decode_dat(block: bytes, state: dict):
         ((data >> 14) & 0x3FFF).astype(np.uint16),
         ((data >> 28) & 0x1).astype(np.uint8),
     )
+
+
+# ---------------------------------------------------------------- EVT 2.1
+
+EVT21_KINDS = (0x0, 0x1, 0x8, 0xA, 0xE, 0xF)  # CD OFF, CD ON, TIME_HIGH, EXT_TRIGGER, OTHERS, CONTINUED
+EVT21_MAX_HIGH = ((1 << 28) - 1) << 6  # a TIME_HIGH falling back by this much is a wrap of 2^34 µs
+EVT21_LOOP_US = 1 << 34
+
+
+def open_evt21(path: str, head: bytes, sensor) -> Decoded:
+    """EVT 2.1: 64-bit words, CD events in vectors of 32 pixels (a base x aligned on 32 and a mask).
+
+    Each word is two little-endian 32-bit halves: the event's fields (type in the top 4 bits, a 6-bit
+    time low, x, y) and the 32-bit mask. Prophesee's `% format EVT21` header says in which order
+    (`endianness=legacy`, IMX636's: fields first; otherwise mask first, as OpenEB reads them); an older
+    file with no `format` line is told by which order gives only EVT 2.1 word types, TIME_HIGH words
+    whose other half is empty, and time-high values that rise (or wrap)."""
+    offset, fields = header_of(path, head)
+    legacy = _evt21_order(path, offset, fields)
+
+    def words():
+        for block in read_chunks(path, offset, 8):
+            pairs = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
+            yield (pairs[:, 0], pairs[:, 1]) if legacy else (pairs[:, 1], pairs[:, 0])
+
+    def chunks():
+        state = {"high": None, "loop": 0}
+        for info, mask in words():
+            yield decode_evt21(info, mask, state)[:4]
+
+    triggers, state = [], {"high": None, "loop": 0}
+    for info, mask in words():
+        if np.any(info >> 28 == 0xA):
+            triggers += decode_evt21(info, mask, state)[4]
+        else:
+            decode_evt21(info[info >> 28 == 0x8], mask[info >> 28 == 0x8], state)  # keep the time base only
+    meta = _meta(fields)
+    meta.setdefault("source", {})["evt21_order"] = "legacy" if legacy else "little"
+    if triggers:
+        meta["triggers"] = triggers
+    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta, cut_bytes=cut_bytes(path, offset, 8))
+
+
+def _evt21_order(path: str, offset: int, fields: dict) -> bool:
+    """Whether the words are in IMX636's legacy order (fields first), from the header or the words."""
+    said = evt21_order_of_header(fields)
+    if said is not None:
+        return said
+    with open(path, "rb") as handle:
+        handle.seek(offset)
+        data = handle.read(8 * 8192)
+    return evt21_order_of_words(np.frombuffer(data[: len(data) - len(data) % 8], dtype="<u4").reshape(-1, 2))
+
+
+def evt21_order_of_header(fields: dict) -> bool | None:
+    """Legacy (True) or little (False) as the header says it, or None for an older header that does not."""
+    match = re.search(r"endianness=(\w+)", fields.get("format", ""), re.IGNORECASE)
+    if match:
+        if match.group(1).lower() not in ("legacy", "little"):
+            raise FormatError(f"EVT 2.1 endianness {match.group(1)!r} is not one Prophesee writes (legacy or little)")
+        return match.group(1).lower() == "legacy"
+    return False if "format" in fields else None  # a `% format EVT21` line without an order: OpenEB reads it little
+
+
+def evt21_order_of_words(pairs: np.ndarray) -> bool:
+    """Legacy (True) or little (False): read the right way, every word has an EVT 2.1 type, there are
+    TIME_HIGH words, their other half is unused (0), and their values rise (or wrap)."""
+    fits = []
+    for info, other in ((pairs[:, 1], pairs[:, 0]), (pairs[:, 0], pairs[:, 1])):  # little, then legacy
+        kinds = info >> 28
+        highs = (info[kinds == 0x8] & 0x0FFFFFFF).astype(np.int64)
+        steps = np.diff(highs)
+        fits.append(bool(np.isin(kinds, EVT21_KINDS).all()) and len(highs) > 0 and not other[kinds == 0x8].any()
+                    and bool(np.all((steps >= 0) | (steps <= -(1 << 27)))))
+    if fits[0] == fits[1]:
+        if not len(pairs) or fits[0]:
+            return False  # nothing tells them apart: OpenEB's default order
+        raise FormatError("the EVT 2.1 words fit neither word order (little nor IMX636's legacy): the file is damaged, "
+                          "or not EVT 2.1")
+    return fits[1]
+
+
+def decode_evt21(info: np.ndarray, mask: np.ndarray, state: dict):
+    """One chunk of EVT 2.1 words as (t, x, y, p, triggers), as OpenEB's decoder reads them: a word's
+    time is the last TIME_HIGH (x 64 µs, plus 2^34 µs per wrap) plus its own 6-bit low part; words
+    before the first TIME_HIGH have no time base and are skipped. `state` ({"high": None, "loop": 0})
+    carries the time base from chunk to chunk."""
+    kinds = info >> 28
+    positions = np.arange(len(info))
+    is_high = kinds == 0x8
+    highs = (info[is_high] & 0x0FFFFFFF).astype(np.int64) << 6
+    before = state["high"] % EVT21_LOOP_US if state["high"] is not None else None
+    previous = np.concatenate(([before if before is not None else highs[0] if len(highs) else 0], highs[:-1]))
+    loops = state["loop"] + np.cumsum(previous - highs >= EVT21_MAX_HIGH)
+    full = highs + (loops << 34)
+    # each word's base: the last TIME_HIGH at or before it, or the one carried from the chunk before
+    last = np.maximum.accumulate(np.where(is_high, positions, -1)) if len(info) else positions
+    carried = state["high"] if state["high"] is not None else -1
+    if len(full):
+        base = np.where(last >= 0, full[np.minimum(np.searchsorted(positions[is_high], last), len(full) - 1)], carried)
+    else:
+        base = np.full(len(info), carried, dtype=np.int64)
+    timed = base >= 0
+    if len(full):
+        state["high"], state["loop"] = int(full[-1]), int(loops[-1])
+    low = ((info >> 22) & 0x3F).astype(np.int64)
+    cd = timed & (kinds <= 0x1)
+    bits_set = np.unpackbits(mask[cd].astype("<u4").view(np.uint8).reshape(-1, 4), axis=1, bitorder="little")
+    rows, bits = np.nonzero(bits_set)  # in each word, the pixels from its base x up, as OpenEB emits them
+    words = np.flatnonzero(cd)[rows]
+    t = base[words] + low[words]
+    x = (((info[words] >> 11) & 0x7FF) + bits.astype(np.uint32)).astype(np.uint16)
+    y = (info[words] & 0x7FF).astype(np.uint16)
+    p = kinds[words].astype(np.uint8)
+    trigger = np.flatnonzero(timed & (kinds == 0xA))
+    triggers = [{"t": int(base[i] + low[i]), "type": "rising" if info[i] & 1 else "falling", "id": int((info[i] >> 8) & 0x1F)}
+                for i in trigger]
+    return t, x, y, p, triggers

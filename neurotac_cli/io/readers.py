@@ -5,7 +5,7 @@ from neurotac_cli.io.aedat3 import open_aedat3
 from neurotac_cli.io.aedat4 import open_aedat4
 from neurotac_cli.io.eventstream import open_es
 from neurotac_cli.io.hdf5 import open_hdf5
-from neurotac_cli.io.prophesee import open_dat, open_evt2, open_evt3
+from neurotac_cli.io.prophesee import open_dat, open_evt2, open_evt3, open_evt21
 from neurotac_cli.io.text import open_text
 
 OPENERS = {
@@ -13,6 +13,7 @@ OPENERS = {
     "aedat3": open_aedat3,
     "aedat4": open_aedat4,
     "evt2": open_evt2,
+    "evt21": open_evt21,
     "evt3": open_evt3,
     "dat": open_dat,
     "es": open_es,

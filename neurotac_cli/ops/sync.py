@@ -133,7 +133,7 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
     triggers = sch.get_meta(schema, "neurotac:triggers", None)
     if not triggers:
         raise SyncError(
-            "the recording has no external trigger events (AEDAT 3.1/4.0 and EVT 2.0/3.0 files carry them, kept by `neurotac import`); "
+            "the recording has no external trigger events (AEDAT 3.1/4.0 and EVT 2.0/2.1/3.0 files carry them, kept by `neurotac import`); "
             "use --method led, xcorr or offset"
         )
     kinds = sorted({str(item.get("type")) for item in triggers})

@@ -1,0 +1,119 @@
+"""Prophesee EVT 2.1: files written here in OpenEB's word layout (its decoder's bit fields, both word
+orders) from a real recording's events, read back event for event, and against evlib's reader."""
+
+import numpy as np
+import pytest
+
+from neurotac_cli import schema as sch
+from neurotac_cli.errors import FormatError
+from neurotac_cli.io import read_events_table, reader
+from tests.conftest import real_file
+
+HEADER = b"%% evt 2.1\n%% format EVT21;%sheight=720;width=1280\n%% end\n"
+
+
+def encode(t, x, y, p, legacy=False, triggers=(), start_high=0):
+    """EVT 2.1 words for time-ordered events: a TIME_HIGH for every 64 µs step (from `start_high`),
+    CD vectors of consecutive events with one (t, y, p) within one 32-pixel block, x rising."""
+    words, high, i, pending = [], start_high - 1, 0, sorted(triggers)
+
+    def walk(to):
+        nonlocal high
+        while high < to >> 6:
+            high += 1
+            words.append(((0x8 << 28) | (high & 0x0FFFFFFF), 0))
+
+    while i < len(t) or pending:
+        if pending and (i >= len(t) or pending[0][0] <= t[i]):
+            when, value, channel = pending.pop(0)
+            walk(when)
+            words.append(((0xA << 28) | ((when & 63) << 22) | (channel << 8) | value, 0))
+            continue
+        walk(int(t[i]))
+        base, mask, j = int(x[i]) & ~31, 0, i
+        while (j < len(t) and t[j] == t[i] and y[j] == y[i] and p[j] == p[i] and int(x[j]) & ~31 == base
+               and (j == i or x[j] > x[j - 1])):
+            mask |= 1 << (int(x[j]) - base)
+            j += 1
+        words.append(((int(p[i]) << 28) | ((int(t[i]) & 63) << 22) | (base << 11) | int(y[i]), mask))
+        i = j
+    pairs = np.array(words, dtype=np.uint64).astype("<u4")  # (fields, mask) per word
+    return np.ascontiguousarray(pairs if legacy else pairs[:, ::-1]).tobytes()
+
+
+@pytest.fixture(scope="module")
+def real():
+    table = read_events_table(real_file("prophesee_hd_expelliarmus.evt3.raw"))
+    t, x, y, p = (table.column(c).to_numpy() for c in "txyp")
+    order = np.lexsort((x, p, y, t))  # EVT 2.1 needs time order; vectors group one row's pixels
+    return t[order], x[order], y[order], p[order]
+
+
+def same(table, t, x, y, p):
+    return all(np.array_equal(table.column(c).to_numpy(), v) for c, v in zip("txyp", (t, x, y, p)))
+
+
+@pytest.mark.parametrize("order", ["little", "legacy"])
+def test_a_real_recording_reads_back_in_either_word_order_from_the_header_or_the_words(real, tmp_path, order):
+    data = encode(*real, legacy=order == "legacy")
+    for name, header in (("said.raw", HEADER % (b"endianness=legacy;" if order == "legacy" else b"")),
+                         ("unsaid.raw", b"% evt 2.1\n% geometry 1280x720\n% end\n")):
+        (tmp_path / name).write_bytes(header + data)
+        table = read_events_table(tmp_path / name)
+        assert same(table, *real), name
+        assert sch.get_meta(table.schema, "neurotac:source")["evt21_order"] == order
+        assert sch.sensor_of(table.schema) == (1280, 720)
+
+
+def test_evlib_reads_the_same_events(real, tmp_path):
+    evlib = pytest.importorskip("evlib")
+    path = tmp_path / "e.raw"
+    path.write_bytes(HEADER % b"" + encode(*real))
+    theirs = evlib.load_events(str(path)).collect()
+    t, x, y, p = real
+    assert np.array_equal(theirs["t"].cast(int).to_numpy(), t)
+    assert np.array_equal(theirs["x"].to_numpy(), x) and np.array_equal(theirs["y"].to_numpy(), y)
+    assert np.array_equal(theirs["polarity"].to_numpy() > 0, p > 0)
+
+
+def test_chunks_triggers_wraps_and_a_cut_last_word(real, tmp_path, monkeypatch):
+    t, x, y, p = (v[:3000] for v in real)
+    triggers = [(int(t[10]), 1, 2), (int(t[2000]), 0, 2)]
+    path = tmp_path / "c.raw"
+    path.write_bytes(HEADER % b"" + encode(t, x, y, p, triggers=triggers) + b"\x01\x02\x03")
+    monkeypatch.setattr(reader, "CHUNK_BYTES", 4096)  # a few hundred words a chunk
+    table = read_events_table(path)
+    assert same(table, t, x, y, p)
+    assert sch.get_meta(table.schema, "neurotac:triggers") == [
+        {"t": triggers[0][0], "type": "rising", "id": 2}, {"t": triggers[1][0], "type": "falling", "id": 2}]
+    assert sch.get_meta(table.schema, "neurotac:source")["cut_bytes"] == 3
+    # the 28-bit time high wraps after 2^34 µs: OpenEB counts the loop when it falls back to 0
+    late = np.array([(1 << 34) - 100, (1 << 34) - 10, (1 << 34) + 5, (1 << 34) + 70], dtype=np.int64)
+    words = encode(late, np.array([1, 2, 3, 4]), np.array([5, 5, 5, 5]), np.array([1, 0, 1, 0]), start_high=int(late[0]) >> 6)
+    (tmp_path / "w.raw").write_bytes(HEADER % b"" + words)
+    assert np.array_equal(read_events_table(tmp_path / "w.raw").column("t").to_numpy(), late)
+
+
+def test_words_that_fit_neither_order_are_refused(tmp_path):
+    path = tmp_path / "bad.raw"
+    path.write_bytes(b"% evt 2.1\n% end\n" + np.random.default_rng(0).integers(0, 2**32, 64, dtype=np.uint64).astype("<u4").tobytes())
+    with pytest.raises(FormatError, match="fit neither word order"):
+        read_events_table(path)
+    path.write_bytes(b"% format EVT21;endianness=big\n% end\n" + bytes(16))
+    with pytest.raises(FormatError, match="endianness 'big'"):
+        read_events_table(path)
+
+
+@pytest.mark.parametrize("header", [HEADER % b"endianness=legacy;", b"% evt 2.1\n% geometry 1280x720\n% end\n"])
+def test_a_followed_file_written_mid_word_gives_the_files_events(real, tmp_path, header):
+    from neurotac_cli.io import live
+    from tests.io.test_live import collect, write_in_pieces
+
+    t, x, y, p = (v[:20000] for v in real)
+    data = header + encode(t, x, y, p, legacy=b"legacy" in header or b"format" not in header, start_high=int(t[0]) >> 6)
+    path = tmp_path / "cam.raw"
+    path.write_bytes(b"")
+    writer = write_in_pieces(data, path)
+    table, batches = collect(live.open_stream(str(path), follow=True, idle_timeout=0.5))
+    writer.join()
+    assert batches > 1 and same(table, t, x, y, p)
