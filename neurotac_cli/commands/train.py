@@ -24,7 +24,7 @@ def _model_file(path: str) -> str:
 @input_paths
 @click.option("--model", "model_name", type=click.Choice(FORCE_MODELS + MATERIAL_MODELS), required=True,
               help="Force models: tdnn, gp (thesis ch. 3), lstm, cnnlstm, convlstm (ch. 4), deform-gru (ours); "
-              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves, material-timing (loading timing, linear discriminant).")
+              "material classifiers: material-dnn (thesis), material-force (force-only baseline), material-curves, material-timing (loading timing, linear discriminant), material-rises (its rise times alone: other object sizes, force-controlled grippers).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, callback=lambda ctx, param, value: _model_file(value),
               help="The model file to write (safetensors with a JSON header), e.g. force.model.")
 @hyperparameter_options

@@ -15,6 +15,10 @@
   within classes, fitted in closed form, which weighs the strongly correlated rise times against
   each other better than a small network trained on 40-odd grasps (docs/design.md). The training
   loop then fits only the scale of its logits (a temperature), which leaves its decisions alone.
+- `material-rises`: the same discriminant on the six rise times alone. The amounts count events,
+  which grow with the face's area and with the force: within one object size and a gripper whose
+  squeeze follows the material they help, but on a size training did not hold, or with a force drawn
+  apart from the material, they mislead (docs/design.md has both sides' figures).
 
 Inputs are standardised with constants fitted on training trials (buffers saved in the model file).
 """
@@ -32,7 +36,7 @@ from neurotac_cli.model.data import Sequences, resample
 
 @dataclass(frozen=True)
 class Config:
-    inputs: str = "events"  # events | force | curves | timing
+    inputs: str = "events"  # events | force | curves | timing | rises
     layers: int = 2
     units: int = 30
     points: int = 30
@@ -47,6 +51,7 @@ PRESETS = {
     "material-force": Config(inputs="force"),
     "material-curves": Config(inputs="curves", layers=1, units=30),
     "material-timing": Config(inputs="timing", layers=0, head="lda"),
+    "material-rises": Config(inputs="rises", layers=0, head="lda"),
 }
 LDA_RIDGE = 1e-3  # added to the pooled covariance of the standardised features, so it always inverts
 
@@ -57,7 +62,7 @@ def features(data: Sequences, config: Config) -> np.ndarray:
 
 
 def feature_count(config: Config) -> int:
-    widths = {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points, "timing": DYNAMICS}
+    widths = {"events": 2 * config.points, "force": config.points, "curves": 4 * config.points, "timing": DYNAMICS, "rises": RISES}
     return widths[config.inputs]
 
 
@@ -73,10 +78,13 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     shape = acc / np.maximum(totals, 1.0)
     if config.inputs == "timing":
         return dynamics(sums)
+    if config.inputs == "rises":
+        return dynamics(sums)[:RISES]
     return np.concatenate([np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)])
 
 
 DYNAMICS = 11  # features of `dynamics`
+RISES = 6  # its first six: the loading's rise times
 
 # Per-domain standardisation (`Config.adapt_by`). The features that name a material on one object
 # size or sensor move with the size or sensor as a whole (a larger face is stiffer at the same

@@ -313,7 +313,7 @@ def check_material(model, material):
         raise ModelError(f"a material per contact needs a force model trained with --contacts (model {model.name!r} "
                          "was trained on whole trials); train it with `neurotac train --contacts`")
     if material.task != "material":
-        raise ModelError(f"the material model {material.name!r} estimates force; give a classifier (material-timing, material-curves, material-dnn)")
+        raise ModelError(f"the material model {material.name!r} estimates force; give a classifier (material-timing, material-rises, material-curves, material-dnn)")
     if (spec.get("height"), spec.get("width")) != (1, 1) or spec.get("accumulated"):
         raise ModelError(f"the material model {material.name!r} was trained on {spec.get('width')}x{spec.get('height')} "
                          f"{'accumulated ' if spec.get('accumulated') else ''}frames; a contact's material needs one trained on "

@@ -38,10 +38,13 @@ def test_the_led_spike_before_the_loading_is_not_counted_as_release():
 def test_a_trial_without_events_gives_zeros_and_widths_match_the_features():
     assert not material.dynamics(np.zeros((10, 2))).any()
     counts = grasp(5, 2.0)[1]
-    for inputs in ("timing", "curves"):
+    for inputs in ("timing", "curves", "rises"):
         config = material.Config(inputs=inputs)
         x = material._trial_features(counts, np.zeros(60), config)
         assert x.shape == (material.feature_count(config),) and np.isfinite(x).all()
+    rises = material._trial_features(counts, np.zeros(60), material.PRESETS["material-rises"])
+    timing = material._trial_features(counts, np.zeros(60), material.PRESETS["material-timing"])
+    np.testing.assert_array_equal(rises, timing[:6])  # the rise times, without the amounts
 
 
 def test_the_discriminant_separates_classes_that_differ_along_a_correlated_direction():
@@ -66,9 +69,10 @@ def test_features_are_standardised_per_domain_and_an_unknown_domain_takes_the_po
     assert set(material.domain_stats(x, domains, least=2)) == {"a", "b"}
 
 
-def domain_frames(sizes, per_class=6, seed=0):
+def domain_frames(sizes, per_class=6, seed=0, forces=None):
     """Grasps of two materials on object sizes that slow every loading alike: a stiffer material
-    loads in `rise` frames, a softer one in twice as many, and each size multiplies both."""
+    loads in `rise` frames, a softer one in twice as many, and each size multiplies both. `forces`:
+    {material: (low, high)} peak forces, 1-4 for both by default."""
     import pyarrow as pa
 
     from neurotac_cli import schema as sch
@@ -78,7 +82,7 @@ def domain_frames(sizes, per_class=6, seed=0):
     for size, scale in sizes.items():
         for name, rise in (("steel", 3), ("foam", 6)):
             for copy in range(per_class):
-                _, pixels = grasp(int(round(rise * scale + rng.integers(0, 2))), float(rng.uniform(1, 4)), frames=80)
+                _, pixels = grasp(int(round(rise * scale + rng.integers(0, 2))), float(rng.uniform(*(forces or {}).get(name, (1, 4)))), frames=80)
                 pixels = rng.poisson(pixels + 0.05)
                 trial = f"{size}-{name}-{copy}"
                 for k, frame in enumerate(pixels.reshape(80, 2, 4, 4)):
@@ -140,3 +144,24 @@ def test_adapting_needs_every_trial_s_domain_and_a_label_other_than_the_class_an
     notes = []
     core.classify_table(model, domain_frames({"large": 3.0}, seed=1), notes)
     assert notes == []  # 12 grasps: standardised over their own
+
+
+def test_the_rise_times_alone_name_a_size_whose_event_amounts_training_never_saw():
+    """Trained where the squeeze follows the material (steel pressed harder, more events), the
+    amounts name the material as well as the rise times do; on a larger face every grasp makes more
+    events, so `material-timing` reads the new size's foam as steel, while the rise times alone do
+    not move and `material-rises` reads them as on the sizes it trained on."""
+    from neurotac_cli import model as models, schema as sch
+    from neurotac_cli.model import core
+
+    tied = {"steel": (3.0, 4.0), "foam": (1.0, 1.5)}
+    training = domain_frames({"small": 1.0, "medium": 1.0}, forces=tied)
+    test = domain_frames({"large": 1.0}, seed=1, forces=tied)
+    bigger = sch.counts_array(sch.counts_numpy(test.column("counts")) * 4)
+    test = test.set_column(test.schema.get_field_index("counts"), test.schema.field("counts"), bigger)
+    accuracy = {}
+    for name in ("material-timing", "material-rises"):
+        model = models.train(training, models.make_spec(name), seed=0)
+        predicted = core.classify_table(model, test)
+        accuracy[name] = np.mean(np.asarray(predicted["material_pred"].to_pylist()) == np.asarray(predicted["material"].to_pylist()))
+    assert accuracy["material-rises"] >= 0.9 and accuracy["material-timing"] <= 0.6, accuracy
