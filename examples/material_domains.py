@@ -5,7 +5,8 @@
    7.5 and 10 mm, --per grasps of each, 7 ms frames cropped 116x116 about the contact and pooled
    4x4, as the models section frames materials. `neurotac eval --cv group:object=hexN` trains on
    two sizes and scores the third, without and with the features standardised within each size
-   (`--adapt-by object`: the held-out size's grasps standardised together, docs/design.md).
+   (`--adapt-by object`: the held-out size's grasps standardised together, docs/design.md), with
+   `material-timing` and with `material-rises` (its rise times alone).
 2. Sensors. `material-timing`, `material-curves` and the thesis's DNN (`material-dnn`), trained on
    the models section's default-physics grasps with a force-controlled gripper
    (`ch3 --gripper force --seed 2`, 48 grasps), scored on each rig's 48 grasps (the rigs of
@@ -43,6 +44,7 @@ MANY_RIGS, MANY_PER = 16, 8  # training sensors of the many-sensor models, and g
 HELD_OUT_FAMILIES = ("membrane", "pixels")
 TEST_RIGS, TEST_PER = 8, 4  # sensors of each held-out family's test sets, and grasps of each material on each
 SENSOR_MODELS = ("material-timing", "material-curves", "material-dnn")  # ours, and the thesis's DNN
+SIZE_MODELS = ("material-timing", "material-rises")  # ours, with and without the event amounts
 
 
 def data_set(work: pathlib.Path, seed: int, per: int) -> pathlib.Path:
@@ -52,11 +54,12 @@ def data_set(work: pathlib.Path, seed: int, per: int) -> pathlib.Path:
                   f"--objects {objects} --gripper force --seed {seed}")
 
 
-def accuracy(work: pathlib.Path, frames: pathlib.Path, size: str, options: str, repeats: int) -> float:
+def accuracy(work: pathlib.Path, frames: pathlib.Path, size: str, options: str, repeats: int, spec: str = "material-timing") -> float:
     """Out-of-fold accuracy (%) on the held-out size, from the metrics table `eval` writes."""
-    path = work / f"{frames.stem}-hex{size}{'-adapt' if options else ''}-r{repeats}.parquet"
+    named = "" if spec == "material-timing" else f"-{spec}"
+    path = work / f"{frames.stem}-hex{size}{named}{'-adapt' if options else ''}-r{repeats}.parquet"
     if not path.exists():
-        sh(f"{neurotac()} eval --cv group:object=hex{size} --model-spec material-timing {options} --repeats {repeats} "
+        sh(f"{neurotac()} eval --cv group:object=hex{size} --model-spec {spec} {options} --repeats {repeats} "
            f"--seed 1 --metrics {path} < {frames} > /dev/null")
     return 100 * metrics(path)[("all", "accuracy")]
 
@@ -76,15 +79,16 @@ def main(argv=None):
         seeds, args.per, args.repeats = seeds[:1], 2, 1
     work = pathlib.Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
-    rows, means = [], {name: [] for name, _ in WAYS}
+    columns = [(spec, name, options) for spec in SIZE_MODELS for name, options in WAYS]
+    rows, means = [], [[] for _ in columns]
     for seed in seeds:
         frames = data_set(work, seed, args.per)
         for size in SIZES[1:2] if args.quick else SIZES:  # a quick run holds out the middle size only
-            cells = [accuracy(work, frames, size, options, args.repeats) for _, options in WAYS]
-            for (name, _), value in zip(WAYS, cells):
-                means[name].append(value)
+            cells = [accuracy(work, frames, size, options, args.repeats, spec) for spec, _, options in columns]
+            for values, value in zip(means, cells):
+                values.append(value)
             rows.append([str(seed), f"{size} mm", *(f"{value:.1f}" for value in cells)])
-    rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means.values())])
+    rows.append(["mean", "", *(f"{sum(values) / len(values):.1f}" for values in means)])
     grasps = 12 if args.quick else 48  # ch3's 48, or a quick run's few
     specs = SENSOR_MODELS[:1] if args.quick else SENSOR_MODELS
     many_rigs, many_per = (2, 2) if args.quick else (MANY_RIGS, MANY_PER)
@@ -99,11 +103,11 @@ def main(argv=None):
         f"Made by `make -C examples material-domains` (`examples/material_domains.py`). Simulated `ch3` grasps with a "
         f"force-controlled gripper (peak force independent of material), {len(MATERIALS)} materials x hexagons of "
         f"{', '.join(SIZES)} mm x {args.per} grasps per data set; 7 ms frames, 116x116 about the contact pooled 4x4. "
-        f"`neurotac eval --cv group:object=hexN --model-spec material-timing --repeats {args.repeats}`: trained on two "
+        f"`neurotac eval --cv group:object=hexN --model-spec MODEL --repeats {args.repeats}`: trained on two "
         "sizes, scored on the third (accuracy in %, chance 25%), as trained and with the features standardised within "
-        "each size (`--adapt-by object`).",
+        "each size (`--adapt-by object`); `material-rises` is `material-timing` on its rise times alone.",
         "",
-        md_table(["data set seed", "held-out size", *(name for name, _ in WAYS)], rows),
+        md_table(["data set seed", "held-out size", *(f"{spec}, {name}" for spec, name, _ in columns)], rows),
         "",
         f"Trained on the default physics (`ch3 --gripper force --seed 2`, {grasps} grasps), scored on each rig's {grasps} grasps "
         "(`--gripper force --seed 1` and the rig's physics, as in \"Materials on rigs of other physics\"), accuracy in %; "

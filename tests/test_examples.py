@@ -457,6 +457,7 @@ def test_the_material_domains_script_scores_sizes_and_sensors_both_ways_and_a_qu
     out = capsys.readouterr().out
     sizes = [line for line in out.splitlines() if line.startswith("| 5 |")]
     assert [row.split(" | ")[1] for row in sizes] == ["7.5 mm"]
+    assert len(sizes[0].split(" | ")) == 2 + 4  # seed, size, material-timing and material-rises both ways
     sensors = [line for line in out.splitlines() if line.startswith(f"| {script.RIGS[0]} |")]
     assert len(sensors) == 1
     assert len(sensors[0].split(" | ")) == 2 + 2 + 1  # rig, physics, material-timing both ways, many sensors
