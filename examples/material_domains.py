@@ -24,7 +24,7 @@ Writes the section between `<!-- results:material-domains:start -->` and
 resized run only the latter).
 
     make -C examples material-domains                # the published tables (about 30 minutes on 2 cores)
-    python examples/material_domains.py --quick      # one small data set (middle size held out) and one small rig, 1 seed, material-timing only
+    python examples/material_domains.py --quick      # one small data set (middle size held out) and one small rig, 1 seed
 """
 
 import argparse

@@ -19,7 +19,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError
-from neurotac_cli.units import MAX_SIDE, parse_ints
+from neurotac_cli.units import MAX_SIDE, is_whole, parse_ints
 from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
 
 TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
@@ -50,7 +50,7 @@ def _model(model):
 
 def _whole(value, what: str, least: int = 0, most: int = 2**63 - 1) -> int:
     """`value` checked as a whole number from `least` to `most` (the command line's types check theirs)."""
-    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not least <= value <= most:
+    if not is_whole(value) or not least <= value <= most:
         raise NeurotacError(f"{what} must be a whole number {f'>= {least}' if most == 2**63 - 1 else f'from {least} to {most}'}, got {value!r}")
     return int(value)
 
@@ -98,7 +98,7 @@ def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
     if isinstance(sensor, str):
         sensor = parse_size(sensor)
     elif sensor is not None and not (isinstance(sensor, (tuple, list)) and len(sensor) == 2
-                                     and all(isinstance(v, (int, np.integer)) and 1 <= v <= MAX_SIDE for v in sensor)):
+                                     and all(is_whole(v) and 1 <= v <= MAX_SIDE for v in sensor)):
         raise NeurotacError(f"sensor must be (width, height), whole numbers from 1 to {MAX_SIDE}, or \"WxH\"; got {sensor!r}")
     return read_events_table(path, sensor=sensor)
 

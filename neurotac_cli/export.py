@@ -13,6 +13,7 @@ AEDAT 4.0 writes) is written from the 2^24 µs loop of its first event instead, 
 earlier by whole loops (`shift_us` in the report). Events must be in time order, as EVT 3.0 cannot go back in time.
 """
 
+import os
 import struct
 
 import numpy as np
@@ -29,8 +30,6 @@ AEDAT4_EVENT = np.dtype({"names": ["t", "x", "y", "on"], "formats": ["<i8", "<i2
 
 
 def export_format(path: str) -> str:
-    import os
-
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in FORMATS:
         raise UsageError(f"cannot tell the camera format of {path!r} from its suffix (use .raw for EVT 3.0, .aedat4 for AEDAT 4.0, "
@@ -183,8 +182,6 @@ def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
     t, x, y, p, width, height = events_arrays(table, trial)
     sch.check_events(t, x, y, p, (width, height), sorted_time=False)  # a camera file cannot hold them as they are
     if fmt == "hdf5":
-        import os
-
         with atomic_file(path) as temporary:
             indexed = write_hdf5(temporary, t, x, y, p, width, height)
             size = os.path.getsize(temporary)

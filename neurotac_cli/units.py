@@ -46,6 +46,13 @@ def parse_ints(text: str, count: int) -> tuple[int, ...]:
     return parts
 
 
+def is_whole(value) -> bool:
+    """Whether `value` is a whole number (Python's or numpy's), not a bool, which Python counts as one."""
+    import numbers
+
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def counted(n: int, noun: str) -> str:
     """`1 trial`, `3 trials`: a count and its noun, plural where it is not one."""
     return f"{n:,} {noun}{'' if n == 1 else 's'}"

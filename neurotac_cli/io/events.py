@@ -78,7 +78,8 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
         stream = live.open_stream(paths[0], sensor, fmt, follow=follow, idle_timeout=idle_timeout, stop=stop)
     else:
         stream = live.Stream(*import_files(paths, sensor=sensor, fmt=fmt))
-        stream.notes += source_notes(stream.schema)
+    # a piped file read whole (HDF5, text) carries its reader's notes in the schema, as a file does
+    stream.notes += [note for note in source_notes(stream.schema) if note not in stream.notes]
     if speed is not None:
         stream.batches = live.replay(stream.batches, speed, stop)
     stream.batches = _counted(stream, stream.batches)

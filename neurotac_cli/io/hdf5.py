@@ -8,7 +8,9 @@ Three layouts are in common use, each found by its names:
 - DSEC, TUM-VIE: one dataset per field, `x, y, t, p`, in a group `events/` (or at the root); DSEC
   adds a `t_offset` in µs at the root, added to every t.
 - e2vid: `xs, ys, ts, ps` in `events/`; its times are float seconds. evlib writes the same names
-  with float µs, so float times that are all whole numbers are read as µs, others as seconds.
+  with float µs, so float times that are all whole numbers are read as µs, others as seconds (float
+  whole numbers too large for their type to hold fractions are refused: either unit fits them).
+  `t_offset` belongs to DSEC's layout and is read with it alone.
 
 Integer times are µs. A polarity above zero is ON, so 0/1, -1/1 and booleans read alike.
 Coordinates must be whole numbers. The sensor size comes from a `geometry` attribute ("1280x720",
@@ -17,9 +19,10 @@ otherwise from --sensor, else from the events' extent (a first pass over them), 
 
 What is refused, in one line, rather than read as something else: two layouts in one group (which
 one is meant?), a field that is not one number per event, events stored in other files (external
-links, virtual datasets: their bytes would escape the file's hash and depend on the working
-folder), datasets declared longer than the data written into them (HDF5 hands out fill values for
-the rest), a codec HDF5 cannot load, and a file another program holds open for writing.
+links, virtual datasets, external raw storage: their bytes would escape the file's hash and depend
+on the working folder), chunked datasets with whole chunks never written (HDF5 hands out fill
+values for them; a contiguous dataset written in part cannot be told from a whole one), a codec
+HDF5 cannot load, and a file another program holds open for writing.
 """
 
 import numpy as np
@@ -99,6 +102,8 @@ def _layout(handle) -> dict:
                 raise FormatError(f"{shown} has no field {sorted(missing)[0]!r} (fields: {', '.join(compound.dtype.names)})")
             if compound.ndim != 1:
                 raise FormatError(f"{shown} has shape {compound.shape}: Metavision's events are one list")
+            for field in ("x", "y", "t", "p"):
+                _one_number(compound.dtype[field], f"{shown} field {field}")
             return {"name": "metavision" if group else "compound events", "group": group, "fields": ("x", "y", "t", "p"),
                     "compound": name}
     for group in GROUPS:
@@ -160,15 +165,21 @@ def _datasets(handle, layout) -> dict:
     for field, name in zip("xytp", layout["fields"]):
         shown = "/".join(filter(None, (layout["group"], name)))
         dataset = _member(group, name, shown)
-        if dataset.ndim != 1 or dataset.dtype.names or not (np.issubdtype(dataset.dtype, np.integer)
-                                                             or np.issubdtype(dataset.dtype, np.floating) or dataset.dtype == bool):
+        if dataset.ndim != 1:
             raise FormatError(f"/{shown} holds {dataset.dtype} of shape {dataset.shape}, not one number per event")
+        _one_number(dataset.dtype, f"/{shown}")
         found[field] = dataset
     lengths = {len(dataset) for dataset in found.values()}
     if len(lengths) != 1:
         shown = ", ".join(f"{name} {dataset.shape}" for name, dataset in zip(layout["fields"], found.values()))
         raise FormatError(f"the event fields of /{layout['group']} are not four lists of one length ({shown})")
     return found
+
+
+def _one_number(dtype, shown: str):
+    """An event field is one integer, float or bool: not text, a sub-array or a compound."""
+    if dtype.names or dtype.shape or not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating) or dtype == bool):
+        raise FormatError(f"{shown} holds {dtype}, not one number per event")
 
 
 def _check_stored(field: str, dataset):
@@ -187,6 +198,9 @@ def _check_stored(field: str, dataset):
             label = name.decode(errors="replace") if isinstance(name, bytes) else str(name)
             raise FormatError(f"the events are compressed with HDF5 filter {code} ({label or 'unnamed'}), which this "
                               "installation cannot load: install its plugin (hdf5plugin has most) or rewrite the file uncompressed")
+    if plist.get_external_count():
+        raise FormatError(f"the {field} field keeps its values in raw files beside this one (HDF5 external storage): "
+                          "they would depend on the folder it is read from and escape this file's hash; rewrite it as one file")
     if not len(dataset):
         return
     if dataset.chunks:
@@ -216,23 +230,31 @@ def _offset(handle) -> int:
 
 
 def _time_unit(layout, dataset, count: int) -> tuple[bool, str | None]:
-    """(float times are seconds, a note on their resolution). Metavision writes integer µs only."""
+    """(float times are seconds, a note on their resolution). Metavision writes integer µs only;
+    e2vid float seconds, evlib float whole µs: told apart by fractions in the head, middle and tail
+    (each slice checks it again, `_slice`)."""
     if not np.issubdtype(dataset.dtype, np.floating):
         return False, None
     if layout["compound"]:
         raise FormatError("the compound events hold float times; Metavision writes whole µs (int64)")
-    sample = np.asarray(dataset[: min(count, 4096)])
-    # whole numbers in a type that could hold fractions there are µs (evlib); in float32 past 2^24
-    # every value is whole, so they say nothing of the unit
-    fractions_possible = len(sample) and np.spacing(np.abs(sample).max()) < 1
-    seconds = not (fractions_possible and np.all(sample == np.round(sample)))
+    if not count:
+        return True, None
+    middle = count // 2
+    sample = np.concatenate([np.asarray(dataset[a:b]) for a, b in ((0, 4096), (max(0, middle - 2048), middle + 2048),
+                                                                   (max(0, count - 4096), count))])
+    largest = float(np.nanmax(np.abs(sample))) if np.isfinite(sample).any() else 0.0
+    whole = bool(np.all(sample[np.isfinite(sample)] == np.round(sample[np.isfinite(sample)])))
+    if whole and float(np.spacing(dataset.dtype.type(largest))) >= 1:
+        raise FormatError(f"the times are {dataset.dtype} whole numbers up to {largest:g}, a size at which that type holds "
+                          "no fractions, so whether they are seconds or µs cannot be told: write them as integer µs")
+    seconds = not whole
     note = None
-    if dataset.dtype.itemsize < 8 and count:
+    if seconds and dataset.dtype.itemsize < 8:
         last = abs(float(dataset[count - 1]))
-        step = float(np.spacing(np.float32(last))) * (1e6 if seconds else 1.0)
+        step = float(np.spacing(np.float32(last))) * 1e6
         if step > 1.0:
-            note = (f"the times are stored as 32-bit floats, which near the recording's end ({last:g} "
-                    f"{'s' if seconds else 'µs'}) tell apart only {step:,.0f} µs: finer times were lost when the file was written")
+            note = (f"the times are stored as 32-bit floats, which near the recording's end ({last:g} s) tell apart "
+                    f"only {step:,.0f} µs: finer times were lost when the file was written")
     return seconds, note
 
 
@@ -269,13 +291,16 @@ def _slice(datasets: dict, layout, start: int, stop: int, offset: int, seconds: 
         x, y, t, p = (datasets[field][start:stop] for field in "xytp")
     t = np.asarray(t)
     if np.issubdtype(t.dtype, np.floating):
+        if not seconds and not np.all(t[np.isfinite(t)] == np.round(t[np.isfinite(t)])):
+            raise FormatError(f"the times among events {start}-{stop - 1} have fractions where those read first were "
+                              "whole µs: seconds or µs cannot be told; write them as integer µs")
         t = t.astype(np.float64) * (1e6 if seconds else 1.0)
         if not np.isfinite(t).all() or (len(t) and np.abs(t).max() >= LARGEST_US):
             bad = t[~(np.isfinite(t) & (np.abs(t) < LARGEST_US))][0]
-            raise FormatError(f"a timestamp of {bad:.6g} µs among events {start}-{stop} is not a time a camera writes")
+            raise FormatError(f"a timestamp of {bad:.6g} µs among events {start}-{stop - 1} is not a time a camera writes")
         t = np.round(t).astype(np.int64)
     elif len(t) and (t.max() >= LARGEST_US or (np.issubdtype(t.dtype, np.signedinteger) and t.min() <= -LARGEST_US)):
-        raise FormatError(f"a timestamp among events {start}-{stop} is beyond what a clock in µs holds")
+        raise FormatError(f"a timestamp among events {start}-{stop - 1} is beyond what a clock in µs holds")
     t = t.astype(np.int64) + offset
     coordinates = []
     for name, values in (("x", np.asarray(x)), ("y", np.asarray(y))):
@@ -284,4 +309,7 @@ def _slice(datasets: dict, layout, start: int, stop: int, offset: int, seconds: 
         if len(values) and (values.min() < 0 or values.max() > 0xFFFF):
             raise FormatError(f"coordinate {name}={int(values.min() if values.min() < 0 else values.max())} lies outside any sensor")
         coordinates.append(values.astype(np.uint16))
-    return t, coordinates[0], coordinates[1], (np.asarray(p) > 0).astype(np.uint8)
+    p = np.asarray(p)
+    if np.issubdtype(p.dtype, np.floating) and not np.isfinite(p).all():
+        raise FormatError(f"a polarity among events {start}-{stop - 1} is not a number")
+    return t, coordinates[0], coordinates[1], (p > 0).astype(np.uint8)

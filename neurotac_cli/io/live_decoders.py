@@ -58,7 +58,8 @@ class Words(_Records):
 
 
 class Evt21(_Records):
-    """Prophesee EVT 2.1 (8-byte words); the word order from the header, or from the first words."""
+    """Prophesee EVT 2.1 (8-byte words); the word order from the header, or from the first words that
+    hold a TIME_HIGH (the words before it have no time base, so nothing of them is lost)."""
 
     record = 8
 
@@ -68,7 +69,7 @@ class Evt21(_Records):
         _, fields = prophesee.header_of(None, header)
         self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
         self.legacy = prophesee.evt21_order_of_header(fields)
-        self.state = {"high": None, "loop": 0}
+        self.state = prophesee.evt21_state()
 
     def decode(self, block: bytes):
         from neurotac_cli.io import prophesee
@@ -76,8 +77,10 @@ class Evt21(_Records):
         pairs = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
         if self.legacy is None:
             self.legacy = prophesee.evt21_order_of_words(pairs)
-        info, mask = (pairs[:, 0], pairs[:, 1]) if self.legacy else (pairs[:, 1], pairs[:, 0])
-        t, x, y, p, triggers = prophesee.decode_evt21(info, mask, self.state)
+            if self.legacy is None:
+                empty = np.zeros(0, np.uint16)
+                return np.zeros(0, np.int64), empty, empty, np.zeros(0, np.uint8)
+        t, x, y, p, triggers = prophesee.decode_evt21(*prophesee.evt21_halves(pairs, self.legacy), self.state)
         self.triggers += len(triggers)
         return t, x, y, p
 

@@ -189,8 +189,18 @@ def decode_dat(block: bytes, state: dict):
 # ---------------------------------------------------------------- EVT 2.1
 
 EVT21_KINDS = (0x0, 0x1, 0x8, 0xA, 0xE, 0xF)  # CD OFF, CD ON, TIME_HIGH, EXT_TRIGGER, OTHERS, CONTINUED
-EVT21_MAX_HIGH = ((1 << 28) - 1) << 6  # a TIME_HIGH falling back by this much is a wrap of 2^34 µs
-EVT21_LOOP_US = 1 << 34
+EVT21_LOOP_US = 1 << 34  # the 28-bit TIME_HIGH in units of 64 µs wraps after this
+EVT21_WRAP_FALL = 1 << 33  # a TIME_HIGH falling back by more than half its range is a wrap (as the EVT 2.0 kernel counts)
+
+
+def evt21_state() -> dict:
+    """The time base an EVT 2.1 decoder carries from chunk to chunk: none before the first TIME_HIGH."""
+    return {"high": None, "loop": 0}
+
+
+def evt21_halves(pairs: np.ndarray, legacy: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(fields, mask) of (N, 2) little-endian 32-bit halves: IMX636's legacy order puts the fields first."""
+    return (pairs[:, 0], pairs[:, 1]) if legacy else (pairs[:, 1], pairs[:, 0])
 
 
 def open_evt21(path: str, head: bytes, sensor) -> Decoded:
@@ -201,25 +211,26 @@ def open_evt21(path: str, head: bytes, sensor) -> Decoded:
     (`endianness=legacy`, IMX636's: fields first; otherwise mask first, as OpenEB reads them); an older
     file with no `format` line is told by which order gives only EVT 2.1 word types, TIME_HIGH words
     whose other half is empty, and time-high values that rise (or wrap)."""
+    from neurotac_cli.io import reader
+
     offset, fields = header_of(path, head)
     legacy = _evt21_order(path, offset, fields)
+    # a file of one chunk is read once; a longer one twice (its triggers go into the metadata first)
+    held = list(read_chunks(path, offset, 8)) if os.path.getsize(path) - offset <= reader.CHUNK_BYTES else None
 
     def words():
-        for block in read_chunks(path, offset, 8):
-            pairs = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
-            yield (pairs[:, 0], pairs[:, 1]) if legacy else (pairs[:, 1], pairs[:, 0])
+        for block in held if held is not None else read_chunks(path, offset, 8):
+            yield evt21_halves(np.frombuffer(block, dtype="<u4").reshape(-1, 2), legacy)
 
     def chunks():
-        state = {"high": None, "loop": 0}
+        state = evt21_state()
         for info, mask in words():
             yield decode_evt21(info, mask, state)[:4]
 
-    triggers, state = [], {"high": None, "loop": 0}
+    triggers, state = [], evt21_state()
     for info, mask in words():
-        if np.any(info >> 28 == 0xA):
-            triggers += decode_evt21(info, mask, state)[4]
-        else:
-            decode_evt21(info[info >> 28 == 0x8], mask[info >> 28 == 0x8], state)  # keep the time base only
+        timing = (info >> 28 == 0x8) | (info >> 28 == 0xA)  # the time base and the triggers, no pixels
+        triggers += decode_evt21(info[timing], mask[timing], state)[4]
     meta = _meta(fields)
     meta.setdefault("source", {})["evt21_order"] = "legacy" if legacy else "little"
     if triggers:
@@ -235,7 +246,8 @@ def _evt21_order(path: str, offset: int, fields: dict) -> bool:
     with open(path, "rb") as handle:
         handle.seek(offset)
         data = handle.read(8 * 8192)
-    return evt21_order_of_words(np.frombuffer(data[: len(data) - len(data) % 8], dtype="<u4").reshape(-1, 2))
+    order = evt21_order_of_words(np.frombuffer(data[: len(data) - len(data) % 8], dtype="<u4").reshape(-1, 2))
+    return bool(order)  # words without a TIME_HIGH decode to nothing in either order
 
 
 def evt21_order_of_header(fields: dict) -> bool | None:
@@ -248,36 +260,40 @@ def evt21_order_of_header(fields: dict) -> bool | None:
     return False if "format" in fields else None  # a `% format EVT21` line without an order: OpenEB reads it little
 
 
-def evt21_order_of_words(pairs: np.ndarray) -> bool:
+def evt21_order_of_words(pairs: np.ndarray) -> bool | None:
     """Legacy (True) or little (False): read the right way, every word has an EVT 2.1 type, there are
-    TIME_HIGH words, their other half is unused (0), and their values rise (or wrap)."""
-    fits = []
-    for info, other in ((pairs[:, 1], pairs[:, 0]), (pairs[:, 0], pairs[:, 1])):  # little, then legacy
+    TIME_HIGH words, their other half is unused (0), and their values rise (or wrap). None where the
+    words hold no TIME_HIGH either way (nothing before the first one is decoded anyway)."""
+    fits, timed = [], []
+    for info, other in (evt21_halves(pairs, False), evt21_halves(pairs, True)):
         kinds = info >> 28
         highs = (info[kinds == 0x8] & 0x0FFFFFFF).astype(np.int64)
         steps = np.diff(highs)
+        timed.append(len(highs) > 0)
         fits.append(bool(np.isin(kinds, EVT21_KINDS).all()) and len(highs) > 0 and not other[kinds == 0x8].any()
                     and bool(np.all((steps >= 0) | (steps <= -(1 << 27)))))
-    if fits[0] == fits[1]:
-        if not len(pairs) or fits[0]:
-            return False  # nothing tells them apart: OpenEB's default order
-        raise FormatError("the EVT 2.1 words fit neither word order (little nor IMX636's legacy): the file is damaged, "
-                          "or not EVT 2.1")
-    return fits[1]
+    if fits[0] != fits[1]:
+        return fits[1]
+    if fits[0] or not len(pairs):
+        return False  # nothing tells them apart: OpenEB's default order
+    if not any(timed):
+        return None
+    raise FormatError("the EVT 2.1 words fit neither word order (little nor IMX636's legacy): the file is damaged, "
+                      "or not EVT 2.1")
 
 
 def decode_evt21(info: np.ndarray, mask: np.ndarray, state: dict):
     """One chunk of EVT 2.1 words as (t, x, y, p, triggers), as OpenEB's decoder reads them: a word's
     time is the last TIME_HIGH (x 64 µs, plus 2^34 µs per wrap) plus its own 6-bit low part; words
-    before the first TIME_HIGH have no time base and are skipped. `state` ({"high": None, "loop": 0})
-    carries the time base from chunk to chunk."""
+    before the first TIME_HIGH have no time base and are skipped. `state` (`evt21_state`) carries the
+    time base from chunk to chunk."""
     kinds = info >> 28
     positions = np.arange(len(info))
     is_high = kinds == 0x8
     highs = (info[is_high] & 0x0FFFFFFF).astype(np.int64) << 6
     before = state["high"] % EVT21_LOOP_US if state["high"] is not None else None
     previous = np.concatenate(([before if before is not None else highs[0] if len(highs) else 0], highs[:-1]))
-    loops = state["loop"] + np.cumsum(previous - highs >= EVT21_MAX_HIGH)
+    loops = state["loop"] + np.cumsum(previous - highs > EVT21_WRAP_FALL)
     full = highs + (loops << 34)
     # each word's base: the last TIME_HIGH at or before it, or the one carried from the chunk before
     last = np.maximum.accumulate(np.where(is_high, positions, -1)) if len(info) else positions

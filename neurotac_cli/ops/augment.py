@@ -26,6 +26,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
+from neurotac_cli.units import is_whole
 
 COMBINES = ("independent", "hybrid")
 # Hybrid copies compose methods in this order: geometry first, then timing, and the sensor's
@@ -393,7 +394,7 @@ def _finite(value) -> bool:
 
 
 def _check_shift(shift, name: str) -> None:
-    if not isinstance(shift, (int, np.integer)) or isinstance(shift, bool):
+    if not is_whole(shift):
         raise UsageError(f"{name} shift must be a whole number of frames, got {shift!r}")
 
 

@@ -24,7 +24,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError, UsageError
-from neurotac_cli.units import MAX_SIDE
+from neurotac_cli.units import MAX_SIDE, is_whole
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
 
@@ -63,7 +63,7 @@ class CropSpec:
 def _whole_numbers(value, count: int) -> bool:
     """Whether `value` is a tuple or list of `count` whole numbers."""
     return (isinstance(value, (tuple, list)) and len(value) == count
-            and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value))
+            and all(is_whole(v) for v in value))
 
 
 @dataclass

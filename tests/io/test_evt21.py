@@ -87,7 +87,7 @@ def test_chunks_triggers_wraps_and_a_cut_last_word(real, tmp_path, monkeypatch):
     assert sch.get_meta(table.schema, "neurotac:triggers") == [
         {"t": triggers[0][0], "type": "rising", "id": 2}, {"t": triggers[1][0], "type": "falling", "id": 2}]
     assert sch.get_meta(table.schema, "neurotac:source")["cut_bytes"] == 3
-    # the 28-bit time high wraps after 2^34 µs: OpenEB counts the loop when it falls back to 0
+    # the 28-bit time high wraps after 2^34 µs: a fall back to 0 is a loop
     late = np.array([(1 << 34) - 100, (1 << 34) - 10, (1 << 34) + 5, (1 << 34) + 70], dtype=np.int64)
     words = encode(late, np.array([1, 2, 3, 4]), np.array([5, 5, 5, 5]), np.array([1, 0, 1, 0]), start_high=int(late[0]) >> 6)
     (tmp_path / "w.raw").write_bytes(HEADER % b"" + words)
@@ -117,3 +117,29 @@ def test_a_followed_file_written_mid_word_gives_the_files_events(real, tmp_path,
     table, batches = collect(live.open_stream(str(path), follow=True, idle_timeout=0.5))
     writer.join()
     assert batches > 1 and same(table, t, x, y, p)
+
+
+def test_a_wrap_across_a_missing_time_high_is_still_a_wrap(tmp_path):
+    """A TIME_HIGH that falls back by more than half its range is a wrap, even when the words of the
+    top values were dropped (a camera under load, a recording cut and joined)."""
+    late = np.array([(1 << 34) - 300, (1 << 34) + 150], dtype=np.int64)
+    words = np.frombuffer(encode(late, np.array([1, 2]), np.array([5, 5]), np.array([1, 0]), start_high=int(late[0]) >> 6), dtype="<u4")
+    pairs = words.reshape(-1, 2)
+    highs = pairs[:, 1] >> 28 == 0x8
+    top = highs & ((pairs[:, 1] & 0x0FFFFFFF) >= (1 << 28) - 2)  # drop the last two TIME_HIGHs before the wrap
+    (tmp_path / "gap.raw").write_bytes(HEADER % b"" + np.ascontiguousarray(pairs[~top]).tobytes())
+    assert np.array_equal(read_events_table(tmp_path / "gap.raw").column("t").to_numpy(), late)
+
+
+def test_a_stream_whose_first_read_holds_no_time_high_waits_for_one(real):
+    """Without an order in the header, the live decoder decides at the first words that tell it."""
+    from neurotac_cli.io import live_decoders
+
+    t, x, y, p = (v[:2000] for v in real)
+    data = encode(t, x, y, p, legacy=True, start_high=int(t[0]) >> 6)
+    words = np.frombuffer(data, dtype="<u4").reshape(-1, 2)
+    no_high = words[words[:, 0] >> 28 != 0x8][:5]  # CD words of a stream joined before its first TIME_HIGH
+    decoder = live_decoders.Evt21(b"% evt 2.1\n% end\n", None)
+    assert not len(decoder.decode(np.ascontiguousarray(no_high).tobytes())[0])
+    decoded = decoder.decode(data)
+    assert decoder.legacy and np.array_equal(decoded[0], t)

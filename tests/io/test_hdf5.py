@@ -203,3 +203,33 @@ def test_a_file_held_open_by_a_writer_is_told_as_such(tmp_path):
     finally:
         writer.kill()
         writer.wait()
+
+
+def test_what_the_review_found_read_as_something_else(tmp_path):
+    def make(name, build):
+        with h5py.File(tmp_path / name, "w") as handle:
+            build(handle)
+        return tmp_path / name
+
+    def e2vid(ts, ps=None):
+        n = len(ts)
+        return lambda h: [h.create_dataset(f"events/{k}", data=v) for k, v in
+                          (("xs", np.zeros(n, np.uint16)), ("ys", np.zeros(n, np.uint16)), ("ts", ts), ("ps", np.ones(n) if ps is None else ps))]
+
+    # e2vid seconds whose first thousands are 0.0: the middle and the tail say seconds
+    ts = np.concatenate([np.zeros(5000), np.linspace(0.001, 2.5, 5000)])
+    table = read_events_table(make("zeros_first.h5", e2vid(ts)))
+    assert table.column("t").to_numpy()[-1] == 2_500_000
+    assert "cannot be told" in refusal(make("f32_whole.h5", e2vid(np.array([2e7, 3e7], dtype=np.float32))))
+    assert "not a number" in refusal(make("nan_p.h5", e2vid(np.array([0.1, 0.2]), np.array([1.0, np.nan]))))
+    subarray = np.dtype([("x", "<u2", (2,)), ("y", "<u2"), ("p", "<i2"), ("t", "<i8")])
+    assert "not one number per event" in refusal(make("sub.hdf5", lambda h: h.create_dataset("CD/events", data=np.zeros(3, subarray))))
+    raw = tmp_path / "x.bin"
+    raw.write_bytes(np.arange(3, dtype=np.int64).tobytes())
+
+    def external(handle):
+        handle.create_dataset("events/x", shape=(3,), dtype=np.int64, external=[(str(raw), 0, 24)])
+        for name in "ytp":
+            handle.create_dataset(f"events/{name}", data=np.arange(3))
+
+    assert "external storage" in refusal(make("ext.h5", external))
