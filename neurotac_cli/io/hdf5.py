@@ -57,7 +57,7 @@ def open_hdf5(path: str, head: bytes, sensor) -> Decoded:
         for name, dataset in ({layout["compound"]: datasets["t"]} if layout["compound"] else datasets).items():
             _check_stored(name, dataset)
         count = len(next(iter(datasets.values())))
-        offset = _offset(handle) if layout["fields"] == DSEC_FIELDS else 0
+        offset = _offset(handle) if layout["fields"] == DSEC_FIELDS and not layout["compound"] else 0
         seconds, note = _time_unit(layout, datasets["t"], count)
         declared = _declared_sensor(handle, layout)
     meta = {"source": {"hdf5_layout": layout["name"], "hdf5_events": int(count)}}

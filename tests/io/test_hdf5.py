@@ -233,3 +233,11 @@ def test_what_the_review_found_read_as_something_else(tmp_path):
             handle.create_dataset(f"events/{name}", data=np.arange(3))
 
     assert "external storage" in refusal(make("ext.h5", external))
+
+    def metavision_with_offset(handle):  # DSEC's t_offset belongs to DSEC's layout, not Metavision's
+        rows = np.zeros(2, np.dtype([("x", "<u2"), ("y", "<u2"), ("p", "<i2"), ("t", "<i8")]))
+        rows["t"] = [5, 9]
+        handle.create_dataset("CD/events", data=rows)
+        handle.create_dataset("t_offset", data=np.int64(1000))
+
+    assert list(read_events_table(make("mv_offset.hdf5", metavision_with_offset)).column("t").to_numpy()) == [5, 9]
