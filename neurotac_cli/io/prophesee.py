@@ -271,7 +271,7 @@ def evt21_order_of_words(pairs: np.ndarray) -> bool | None:
         steps = np.diff(highs)
         timed.append(len(highs) > 0)
         fits.append(bool(np.isin(kinds, EVT21_KINDS).all()) and len(highs) > 0 and not other[kinds == 0x8].any()
-                    and bool(np.all((steps >= 0) | (steps <= -(1 << 27)))))
+                    and bool(np.all((steps >= 0) | (steps < -(EVT21_WRAP_FALL >> 6)))))
     if fits[0] != fits[1]:
         return fits[1]
     if fits[0] or not len(pairs):
@@ -288,20 +288,15 @@ def decode_evt21(info: np.ndarray, mask: np.ndarray, state: dict):
     before the first TIME_HIGH have no time base and are skipped. `state` (`evt21_state`) carries the
     time base from chunk to chunk."""
     kinds = info >> 28
-    positions = np.arange(len(info))
     is_high = kinds == 0x8
     highs = (info[is_high] & 0x0FFFFFFF).astype(np.int64) << 6
-    before = state["high"] % EVT21_LOOP_US if state["high"] is not None else None
-    previous = np.concatenate(([before if before is not None else highs[0] if len(highs) else 0], highs[:-1]))
-    loops = state["loop"] + np.cumsum(previous - highs > EVT21_WRAP_FALL)
+    carried = state["high"]
+    first = carried % EVT21_LOOP_US if carried is not None else (highs[0] if len(highs) else 0)
+    loops = state["loop"] + np.cumsum(np.concatenate(([first], highs[:-1])) - highs > EVT21_WRAP_FALL)
     full = highs + (loops << 34)
-    # each word's base: the last TIME_HIGH at or before it, or the one carried from the chunk before
-    last = np.maximum.accumulate(np.where(is_high, positions, -1)) if len(info) else positions
-    carried = state["high"] if state["high"] is not None else -1
-    if len(full):
-        base = np.where(last >= 0, full[np.minimum(np.searchsorted(positions[is_high], last), len(full) - 1)], carried)
-    else:
-        base = np.full(len(info), carried, dtype=np.int64)
+    # each word's base: the last TIME_HIGH at or before it, else the one carried from the chunk
+    # before (-1: none yet, so the word has no time)
+    base = np.concatenate(([-1 if carried is None else carried], full))[np.cumsum(is_high)]
     timed = base >= 0
     if len(full):
         state["high"], state["loop"] = int(full[-1]), int(loops[-1])
