@@ -27,8 +27,9 @@ HDF5 cannot load, and a file another program holds open for writing.
 
 import numpy as np
 
-from neurotac_cli.errors import FormatError, InputError
+from neurotac_cli.errors import FormatError, InputError, NeurotacError
 from neurotac_cli.io.reader import Decoded
+from neurotac_cli.units import parse_size
 
 SIGNATURE = b"\x89HDF\r\n\x1a\n"
 # the superblock sits at 0 or, after a user block, at 512 x 2^n bytes (those a 64 KiB head holds)
@@ -88,13 +89,9 @@ def _layout(handle) -> dict:
     import h5py
 
     for group, name in (("CD", "events"), ("", "events")):  # Metavision's compound, or the same at the root
-        if group and handle.get(group, getlink=True) is None:
-            continue
-        parent = _node(handle, group) if group else handle
-        if not isinstance(parent, h5py.Group) or parent.get(name, getlink=True) is None:
-            continue
+        parent = _present(handle, group)
+        node = _present(parent, name, "/".join(filter(None, (group, name)))) if isinstance(parent, h5py.Group) else None
         shown = "/".join(filter(None, (group, name)))
-        node = _node(parent, name, shown)
         if isinstance(node, h5py.Dataset) and node.dtype.names:
             compound = _member(parent, name, shown)
             missing = {"x", "y", "p", "t"} - set(compound.dtype.names)
@@ -107,9 +104,9 @@ def _layout(handle) -> dict:
             return {"name": "metavision" if group else "compound events", "group": group, "fields": ("x", "y", "t", "p"),
                     "compound": name}
     for group in GROUPS:
-        if group and handle.get(group, getlink=True) is None:
+        node = _present(handle, group)
+        if node is None:
             continue
-        node = _node(handle, group) if group else handle
         if isinstance(node, h5py.Dataset):
             raise FormatError(f"/{group} is one dataset ({node.dtype} of shape {node.shape}), whose columns this reader "
                               "cannot name: it reads one dataset per field in events/ (x, y, t, p as DSEC; xs, ys, ts, ps as "
@@ -126,6 +123,13 @@ def _layout(handle) -> dict:
     raise FormatError("an HDF5 file without events in a layout this reader knows: CD/events (Metavision), "
                       "events/{x,y,t,p} (DSEC), events/{xs,ys,ts,ps} (e2vid); found "
                       f"{', '.join(sorted(handle.keys())[:8]) or 'nothing'} at the root")
+
+
+def _present(group, name: str, shown: str | None = None):
+    """`_node`, or None where `group` has no member `name` ("" is the group itself)."""
+    if not name:
+        return group
+    return _node(group, name, shown) if group.get(name, getlink=True) is not None else None
 
 
 def _node(group, name: str, shown: str | None = None):
@@ -183,8 +187,9 @@ def _one_number(dtype, shown: str):
 
 
 def _check_stored(field: str, dataset):
-    """Refuse what HDF5 would read as something else: a codec it cannot load, or room declared for
-    more events than were written (it fills the rest with the fill value, silently)."""
+    """Refuse what HDF5 would read as something else, or from elsewhere: a codec it cannot load, values
+    kept in raw files beside this one, or whole chunks declared and never written (it fills them with
+    the fill value, silently)."""
     import h5py
 
     plist = dataset.id.get_create_plist()
@@ -220,7 +225,7 @@ def _offset(handle) -> int:
     if "t_offset" not in handle:
         return 0
     value = handle["t_offset"]
-    if not hasattr(value, "dtype") or not value.size or value.size != 1 or not np.issubdtype(value.dtype, np.integer):
+    if not hasattr(value, "dtype") or value.size != 1 or not np.issubdtype(value.dtype, np.integer):
         shown = (f"{value.dtype} of shape {value.shape}" if value.shape is not None else "no value") if hasattr(value, "dtype") else "a group"
         raise FormatError(f"t_offset holds {shown}; DSEC's is one whole number of µs")
     offset = int(np.asarray(value[()]).ravel()[0])
@@ -264,12 +269,10 @@ def _declared_sensor(handle, layout) -> tuple[int, int] | None:
         if "geometry" in attrs:
             text = attrs["geometry"]
             text = text.decode(errors="replace") if isinstance(text, bytes) else str(text)
-            width, sep, height = text.lower().partition("x")
-            width, height = width.strip(), height.strip()
-            if not sep or not (width.isascii() and width.isdigit() and height.isascii() and height.isdigit()) \
-                    or int(width) <= 0 or int(height) <= 0:
-                raise FormatError(f"cannot read the geometry attribute {text!r} (expected WxH, e.g. 1280x720)")
-            return int(width), int(height)
+            try:
+                return parse_size(text)
+            except NeurotacError as error:
+                raise FormatError(f"the geometry attribute: {error}") from None
         if "width" in attrs and "height" in attrs:
             values = [np.asarray(attrs[name]).ravel() for name in ("width", "height")]
             if any(v.size != 1 or not np.issubdtype(v.dtype, np.integer) for v in values):
