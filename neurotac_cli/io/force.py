@@ -60,30 +60,28 @@ def force_unit_of(name: str) -> str | None:
 
 def read_table(path: str) -> pa.Table:
     """A force log's columns as written (CSV or Parquet, told from the first bytes), before any is chosen.
-    A path that is not a regular file (a pipe such as bash's `<(...)`) is read once, into memory."""
+    Read once, into memory (a log is small), so a pipe such as bash's `<(...)` serves as well as a file."""
     if os.path.isdir(path):
         raise InputError(f"{path}: is a folder, not a force log")
     if not os.path.exists(path):
         raise InputError(f"{path}: no such force log")
-    whole = not os.path.isfile(path)
     try:
         with open(path, "rb") as handle:
-            data = handle.read() if whole else handle.read(4)
+            data = handle.read()
     except OSError as error:
         raise InputError(f"{path}: cannot read the force log ({error.strerror or error})") from None
-    if whole and not data:
+    if not data:
         raise FormatError(f"{path}: the force log is empty; expected CSV or Parquet with a header such as t_ms,force_N")
-    source = pa.BufferReader(data) if whole else path
     try:
         if data[:4] == b"PAR1":
             import pyarrow.parquet as pq
 
-            table = pq.read_table(source)
+            table = pq.read_table(pa.BufferReader(data))
         else:
             import pyarrow.csv as csv
 
-            first = data.split(b"\n", 1)[0].decode(errors="replace") if whole else _first_line(path)
-            table = csv.read_csv(source, parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
+            first = data.split(b"\n", 1)[0].decode(errors="replace")
+            table = csv.read_csv(pa.BufferReader(data), parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
     except (pa.ArrowInvalid, OSError) as error:
         raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV or Parquet with a header such as t_ms,force_N)") from None
     names = table.column_names
@@ -91,11 +89,6 @@ def read_table(path: str) -> pa.Table:
     if repeated:
         raise FormatError(f"{path}: the force log names column {repeated[0]!r} more than once; give each column its own name")
     return table
-
-
-def _first_line(path: str) -> str:
-    with open(path, "r", errors="replace") as handle:
-        return handle.readline()
 
 
 def _delimiter(line: str) -> str:
