@@ -163,3 +163,43 @@ def test_a_bit_flip_in_a_davis_address_is_a_clear_error_or_a_valid_event():
         damaged = bytearray(data)
         damaged[int(rng.integers(len(data) // 2, len(data)))] ^= 0x40
         outcome(bytes(damaged))
+
+
+def written_bytes(kind: str) -> bytes:
+    """A file of a format no shared recording is in, written here from a real recording's events:
+    HDF5 in each layout, EVT 2.1 in both word orders."""
+    if kind not in _cache:
+        from neurotac_cli.io import read_events_table
+        from tests.io.test_evt21 import HEADER, encode
+        from tests.io.test_hdf5 import write
+
+        if kind.startswith("hdf5"):
+            table = read_events_table(REAL_DATA / "davis346_aestream.aedat4")
+            t, x, y, p = (table.column(c).to_numpy()[:2000] for c in "txyp")
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / "f.h5"
+                write(path, kind.split("-")[1], t, x, y, p, 346, 260)
+                _cache[kind] = path.read_bytes()
+        else:
+            table = read_events_table(REAL_DATA / "prophesee_hd_expelliarmus.evt3.raw")
+            t, x, y, p = (table.column(c).to_numpy()[:3000] for c in "txyp")
+            order = np.lexsort((x, p, y, t))
+            legacy = kind.endswith("legacy")
+            header = HEADER % (b"endianness=legacy;" if legacy else b"") if "said" in kind else b"% evt 2.1\n% end\n"
+            _cache[kind] = header + encode(t[order], x[order], y[order], p[order], legacy=legacy, start_high=int(t[order][0]) >> 6)
+    return _cache[kind]
+
+
+WRITTEN = ["hdf5-metavision", "hdf5-dsec", "hdf5-e2vid", "evt21-said-little", "evt21-said-legacy", "evt21-unsaid-legacy"]
+
+
+@pytest.mark.parametrize("kind", WRITTEN)
+@FUZZ
+@given(cut=st.floats(0, 1), flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(0, 7)), max_size=8))
+def test_written_file_cut_and_bit_flipped(kind, cut, flips):
+    if not REAL_DATA.is_dir():
+        pytest.skip(f"real recordings not found at {REAL_DATA}")
+    data = bytearray(written_bytes(kind))
+    for where, bit in flips:
+        data[int(where * len(data))] ^= 1 << bit
+    outcome(bytes(data[: max(8, int(len(data) * cut))]), ".h5" if kind.startswith("hdf5") else ".raw")
