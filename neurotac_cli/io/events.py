@@ -79,7 +79,7 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
     else:
         stream = live.Stream(*import_files(paths, sensor=sensor, fmt=fmt))
     # a piped file read whole (HDF5, text) carries its reader's notes in the schema, as a file does
-    stream.notes += [note for note in source_notes(stream.schema) if note not in stream.notes]
+    stream.notes += source_notes(stream.schema)
     if speed is not None:
         stream.batches = live.replay(stream.batches, speed, stop)
     stream.batches = _counted(stream, stream.batches)
