@@ -19,12 +19,15 @@ import pyarrow as pa
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError
 from neurotac_cli.io import reader
-from neurotac_cli.io.hdf5 import is_hdf5
+from neurotac_cli.io.hdf5 import SIGNATURE as HDF5_SIGNATURE, is_hdf5
 from neurotac_cli.io.reader import Decoded
 from neurotac_cli.io.readers import OPENERS
 from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
+
+# A file cut inside one of these is named as cut, not read as text that holds no rows.
+SIGNATURES = ((b"#!AER-DAT", "AEDAT"), (b"Event Stream", "Event Stream"), (HDF5_SIGNATURE, "HDF5"))
 
 FORMATS = ("aedat2", "aedat3", "aedat4", "evt2", "evt21", "evt3", "dat", "es", "csv", "text", "hdf5")
 FORMAT_NAMES = {
@@ -85,6 +88,9 @@ def is_table(path) -> bool:
 def detect_format(path, head: bytes) -> str:
     """The camera format of a file from its first bytes (and, for Prophesee raw files, its header)."""
     name = os.path.basename(str(path))
+    cut = next((label for magic, label in SIGNATURES if 3 <= len(head) <= len(magic) and magic.startswith(head)), None)
+    if cut:
+        raise FormatError(f"{name}: the file holds only {len(head)} bytes, the start of an {cut} file's signature (is it the whole file?)")
     if head.startswith(b"#!AER-DAT2") or head.startswith(b"#!AER-DAT1"):
         if head.startswith(b"#!AER-DAT1"):
             raise FormatError(f"{name}: AEDAT 1.0 is not supported (convert it to AEDAT 2.0 or 4.0 with jAER or dv)")
@@ -95,6 +101,9 @@ def detect_format(path, head: bytes) -> str:
         return "aedat4"
     if head.startswith(b"Event Stream"):
         return "es"
+    if head.startswith(b"#!AER-DAT"):
+        version = head[9:].split(b"\n")[0].strip().decode("latin-1")
+        raise FormatError(f"{name}: AEDAT version {version!r} is not supported (AEDAT 2.0, 3.1 and 4.0 are)")
     if head.startswith(b"%"):
         header = _percent_header(head)
         if "evt" in header or "format" in header:
