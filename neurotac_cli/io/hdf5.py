@@ -92,6 +92,9 @@ def _layout(handle) -> dict:
         parent = _present(handle, group)
         node = _present(parent, name, "/".join(filter(None, (group, name)))) if isinstance(parent, h5py.Group) else None
         shown = "/".join(filter(None, (group, name)))
+        if group and node is not None and not (isinstance(node, h5py.Dataset) and node.dtype.names):
+            found = "a group" if isinstance(node, h5py.Group) else f"a dataset of {node.dtype}"
+            raise FormatError(f"/{shown} is {found}, not Metavision's compound dataset of events (fields x, y, p, t)")
         if isinstance(node, h5py.Dataset) and node.dtype.names:
             compound = _member(parent, name, shown)
             missing = {"x", "y", "p", "t"} - set(compound.dtype.names)

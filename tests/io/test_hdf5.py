@@ -107,6 +107,8 @@ def test_damaged_and_foreign_files_are_one_line(tmp_path):
     assert "outside any sensor" in refusal(make("e.h5", fields(x=-three, y=three, t=three, p=three)))
     assert "has no field 'p'" in refusal(make("f.hdf5", lambda h: h.create_dataset(
         "CD/events", data=np.zeros(3, np.dtype([("x", "<u2"), ("y", "<u2"), ("t", "<i8")])))))
+    assert "/CD/events is a group, not Metavision's compound" in refusal(make("f2.h5", lambda h: h.create_dataset("CD/events/x", data=three)))
+    assert "/CD/events is a dataset of int64" in refusal(make("f3.h5", lambda h: h.create_dataset("CD/events", data=three)))
 
     def geometry(handle):
         fields(x=three, y=three, t=three, p=three)(handle)
