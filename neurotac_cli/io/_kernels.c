@@ -43,6 +43,7 @@ static int take_events(PyObject *ot, PyObject *ox, PyObject *oy, PyObject *op, B
 
 static inline uint16_t load16(const unsigned char *p) { uint16_t v; memcpy(&v, p, 2); return v; }
 static inline uint32_t load32(const unsigned char *p) { uint32_t v; memcpy(&v, p, 4); return v; }
+static inline uint64_t load64(const unsigned char *p) { uint64_t v; memcpy(&v, p, 8); return v; }
 
 static inline int popcount(int64_t v) { return __builtin_popcountll((unsigned long long)v); }
 
@@ -281,7 +282,70 @@ static PyObject *evt2_decode(PyObject *self, PyObject *args) {
     return PyLong_FromSsize_t(k);
 }
 
-/* ------------------------------------------------------------------ EVT 2.0/3.0 external triggers */
+/* ------------------------------------------------------------------ Prophesee EVT 2.1 */
+
+/* EVT 2.1 times as EVT 2.0 does (the same TIME_HIGH word), so its state is EVT 2.0's slots plus the
+ * word order, fixed when the state is made: each 64-bit word is two little-endian 32-bit halves, the
+ * fields (type, time low, x, y) and a 32-pixel mask, fields first in IMX636's legacy order. */
+enum { E21_LEGACY = 3 };
+
+static inline uint32_t evt21_half(uint64_t word, int first) { return (uint32_t)(first ? word : word >> 32); }
+
+static PyObject *evt21_count(PyObject *self, PyObject *args) {
+    PyObject *ow;
+    int legacy;
+    if (!PyArg_ParseTuple(args, "Op", &ow, &legacy)) return NULL;
+    Buf b[1];
+    memset(b, 0, sizeof b);
+    if (take(ow, &b[0], 0, 8, "words")) { release(b, 1); return NULL; }
+    const unsigned char *w = b[0].view.buf;
+    Py_ssize_t n = b[0].view.len / 8;
+    long long count = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        uint64_t word = load64(w + 8 * i);
+        if ((evt21_half(word, legacy) >> 28) <= 1) count += __builtin_popcount(evt21_half(word, !legacy));
+    }
+    release(b, 1);
+    return PyLong_FromLongLong(count);
+}
+
+/* A CD word's pixels go out from its base x up, as OpenEB emits them. */
+static PyObject *evt21_decode(PyObject *self, PyObject *args) {
+    PyObject *ow, *os, *ot, *ox, *oy, *op;
+    if (!PyArg_ParseTuple(args, "OOOOOO", &ow, &os, &ot, &ox, &oy, &op)) return NULL;
+    Buf b[6];
+    memset(b, 0, sizeof b);
+    if (take(ow, &b[0], 0, 8, "words") || take(os, &b[1], 1, 8, "state") || take_events(ot, ox, oy, op, &b[2])) { release(b, 6); return NULL; }
+    if (ITEMS(b[1], int64_t) != 4) { release(b, 6); PyErr_SetString(PyExc_ValueError, "evt21_decode: the state holds 4 items"); return NULL; }
+    const unsigned char *w = b[0].view.buf;
+    Py_ssize_t n = b[0].view.len / 8, cap = ITEMS(b[2], int64_t);
+    int64_t s[4];
+    memcpy(s, b[1].view.buf, sizeof s);
+    int legacy = s[E21_LEGACY] != 0;
+    int64_t *t = DATA(b[2], int64_t);
+    uint16_t *x = DATA(b[3], uint16_t), *y = DATA(b[4], uint16_t);
+    uint8_t *p = DATA(b[5], uint8_t);
+    Py_ssize_t k = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        uint64_t word = load64(w + 8 * i);
+        uint32_t fields = evt21_half(word, legacy), mask = evt21_half(word, !legacy);
+        int64_t kind = fields >> 28;
+        if (kind <= 1) {
+            if (!s[E2_TIMED]) continue;
+            int64_t now = (s[E2_HIGH] << 6) + s[E2_LOOP] * EVT2_LOOP + ((fields >> 22) & 0x3F);
+            uint16_t base = (fields >> 11) & 0x7FF, row = fields & 0x7FF;
+            for (; mask && k < cap; mask &= mask - 1) {
+                t[k] = now; x[k] = base + (uint16_t)__builtin_ctz(mask); y[k] = row; p[k] = (uint8_t)kind;
+                k++;
+            }
+        } else if (kind == 0x8) evt2_time(fields, s);
+    }
+    memcpy(b[1].view.buf, s, sizeof s);
+    release(b, 6);
+    return PyLong_FromSsize_t(k);
+}
+
+/* ------------------------------------------------------------------ EVT 2.0/2.1/3.0 external triggers */
 
 static PyObject *triggers(PyObject *self, PyObject *args) {
     PyObject *ow, *os, *ot, *ov, *oc;
@@ -291,13 +355,18 @@ static PyObject *triggers(PyObject *self, PyObject *args) {
     memset(b, 0, sizeof b);
     if (take(ow, &b[0], 0, word_bytes, "words") || take(os, &b[1], 1, 8, "state") || take(ot, &b[2], 1, 8, "t") ||
         take(ov, &b[3], 1, 1, "value") || take(oc, &b[4], 1, 1, "id")) { release(b, 5); return NULL; }
+    if (ITEMS(b[1], int64_t) < (word_bytes == 2 ? 7 : word_bytes == 8 ? 4 : 3)) {
+        release(b, 5);
+        PyErr_SetString(PyExc_ValueError, "triggers: a state too small for these words");
+        return NULL;
+    }
     const unsigned char *w = b[0].view.buf;
     Py_ssize_t n = b[0].view.len / word_bytes, cap = ITEMS(b[2], int64_t), k = 0;
     int64_t *s = DATA(b[1], int64_t), *t = DATA(b[2], int64_t);
     uint8_t *value = DATA(b[3], uint8_t), *channel = DATA(b[4], uint8_t);
     for (Py_ssize_t i = 0; i < n; i++) {
-        if (word_bytes == 4) {
-            int64_t word = load32(w + 4 * i), kind = word >> 28;
+        if (word_bytes >= 4) {  /* EVT 2.1's fields half is an EVT 2.0 word, as far as time and triggers go */
+            int64_t word = word_bytes == 8 ? evt21_half(load64(w + 8 * i), s[E21_LEGACY] != 0) : load32(w + 4 * i), kind = word >> 28;
             if (kind == 0x8) evt2_time(word, s);
             else if (kind == 0xA && s[E2_TIMED] && k < cap) {
                 t[k] = (s[E2_HIGH] << 6) + s[E2_LOOP] * EVT2_LOOP + ((word >> 22) & 0x3F);
@@ -320,7 +389,8 @@ static PyObject *triggers(PyObject *self, PyObject *args) {
     return PyLong_FromSsize_t(k);
 }
 
-/* How many words have `kind` in their top bits (shift 28 for 32-bit words, 12 for 16-bit words). */
+/* How many words have `kind` in the 4 bits from `shift` (28 for 32-bit words, 12 for 16-bit words,
+ * 60 or 28 for EVT 2.1's 64-bit words, little or legacy). */
 static PyObject *count_kind(PyObject *self, PyObject *args) {
     PyObject *ow;
     int word_bytes, shift;
@@ -332,7 +402,9 @@ static PyObject *count_kind(PyObject *self, PyObject *args) {
     const unsigned char *w = b[0].view.buf;
     Py_ssize_t n = b[0].view.len / word_bytes;
     long long count = 0;
-    if (word_bytes == 4)
+    if (word_bytes == 8)
+        for (Py_ssize_t i = 0; i < n; i++) count += ((load64(w + 8 * i) >> shift) & 0xF) == (uint64_t)kind;
+    else if (word_bytes == 4)
         for (Py_ssize_t i = 0; i < n; i++) count += (load32(w + 4 * i) >> shift) == kind;
     else
         for (Py_ssize_t i = 0; i < n; i++) count += (load16(w + 2 * i) >> shift) == kind;
@@ -583,7 +655,9 @@ static PyMethodDef methods[] = {
     {"evt3_decode", evt3_decode, METH_VARARGS, "Decode EVT 3.0 words into given arrays; returns how many."},
     {"evt2_count", evt2_count, METH_VARARGS, "Events in EVT 2.0 words."},
     {"evt2_decode", evt2_decode, METH_VARARGS, "Decode EVT 2.0 words into given arrays; returns how many."},
-    {"triggers", triggers, METH_VARARGS, "External triggers of EVT 2.0/3.0 words into given arrays; returns how many."},
+    {"evt21_count", evt21_count, METH_VARARGS, "Events in EVT 2.1 words (in the given order)."},
+    {"evt21_decode", evt21_decode, METH_VARARGS, "Decode EVT 2.1 words into given arrays; returns how many."},
+    {"triggers", triggers, METH_VARARGS, "External triggers of EVT 2.0/2.1/3.0 words into given arrays; returns how many."},
     {"count_kind", count_kind, METH_VARARGS, "Words of one kind."},
     {"davis_count", davis_count, METH_VARARGS, "DVS events in AEDAT 2.0 DAVIS records."},
     {"davis_decode", davis_decode, METH_VARARGS, "Decode AEDAT 2.0 DAVIS records; returns (how many, largest jAER row)."},

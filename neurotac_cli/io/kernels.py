@@ -1,6 +1,6 @@
 """Compiled kernels: the framing count and the decoders of camera formats whose words carry state.
 
-EVT 2.0/3.0, AEDAT 2.0, Event Stream and text rows are sequential state machines (a TIME_HIGH word sets the
+EVT 2.0/2.1/3.0, AEDAT 2.0, Event Stream and text rows are sequential state machines (a TIME_HIGH word sets the
 time of the words after it; an EVT 3.0 vector word's x depends on every vector word since its
 base), and framing is one pass that adds each event to its frame's pixel. They run as C
 (io/_kernels.c, built at install): a neurotac verb is a process in a pipe, and C costs nothing to
@@ -22,8 +22,8 @@ except ImportError as error:  # a source checkout whose extension was never buil
 
 # EVT 3.0 state slots
 HIGH, LOOP, LOW, Y, BASE_X, VECTOR_P, TIMED = range(7)
-# EVT 2.0 state slots
-E2_HIGH, E2_LOOP, E2_TIMED = range(3)
+# EVT 2.0 state slots; EVT 2.1's are these and its word order (the same TIME_HIGH word times both)
+E2_HIGH, E2_LOOP, E2_TIMED, E21_LEGACY = range(4)
 # Event Stream 2.x state slots (FLAGS: bit 0 = ATIS threshold crossing, bit 1 = polarity)
 ES_T, ES_STEP, ES_FLAGS, ES_X, ES_Y = range(5)
 
@@ -45,6 +45,14 @@ def evt3_state() -> np.ndarray:
 
 def evt2_state() -> np.ndarray:
     return np.zeros(3, dtype=np.int64)
+
+
+def evt21_state(legacy: bool) -> np.ndarray:
+    """EVT 2.1's decoder state; `legacy`: the words are in IMX636's legacy order (fields first, then
+    the mask), else in OpenEB's (mask first). The order is fixed for the stream, so it travels with the state."""
+    state = np.zeros(4, dtype=np.int64)
+    state[E21_LEGACY] = bool(legacy)
+    return state
 
 
 def es_state() -> np.ndarray:
@@ -116,6 +124,16 @@ def decode_evt2(words: np.ndarray, state: np.ndarray):
     return t[:k], x[:k], y[:k], p[:k]
 
 
+def decode_evt21(words: np.ndarray, state: np.ndarray):
+    """EVT 2.1 64-bit words -> (t, x, y, p), as OpenEB's decoder reads them: a CD_OFF/CD_ON word is a
+    vector of up to 32 pixels from its base x (emitted from the lowest bit up), timed by the last
+    TIME_HIGH (x 64 µs, plus 2^34 µs per wrap) plus its own 6-bit low part; words before the first
+    TIME_HIGH have no time base and are skipped. `state` (`evt21_state`) carries the time base and the order."""
+    t, x, y, p = _events(_c.evt21_count(words, bool(state[E21_LEGACY])))
+    k = _c.evt21_decode(words, state, t, x, y, p)
+    return t[:k], x[:k], y[:k], p[:k]
+
+
 def decode_davis(data: np.ndarray, height: int):
     """AEDAT 2.0 DAVIS records (big-endian bytes, 8 per record) -> (t, x, row, p, largest) of the DVS
     events; APS/IMU (bit 31) and special (bit 10) words skipped; y flipped; timestamps unsigned.
@@ -139,8 +157,15 @@ def decode_es(data: np.ndarray, width: int, height: int, atis: bool, state: np.n
     return t[:k], x[:k], y[:k], p[:k], outside
 
 
+def kind_shift(word_bytes: int, state: np.ndarray) -> int:
+    """Where a word's 4-bit type lies: the top of a 16- or 32-bit word, or of EVT 2.1's fields half."""
+    if word_bytes == 8:
+        return 28 if state[E21_LEGACY] else 60
+    return 28 if word_bytes == 4 else 12
+
+
 def _triggers(words: np.ndarray, word_bytes: int, state: np.ndarray):
-    count = _c.count_kind(words, word_bytes, 28 if word_bytes == 4 else 12, 0xA)
+    count = _c.count_kind(words, word_bytes, kind_shift(word_bytes, state), 0xA)
     t, value, channel = np.empty(count, np.int64), np.empty(count, np.uint8), np.empty(count, np.uint8)
     k = _c.triggers(words, word_bytes, state, t, value, channel)
     return t[:k], value[:k], channel[:k]
@@ -156,8 +181,13 @@ def evt2_triggers(words: np.ndarray, state: np.ndarray):
     return _triggers(words, 4, state)
 
 
+def evt21_triggers(words: np.ndarray, state: np.ndarray):
+    """EXT_TRIGGER words of EVT 2.1 -> (t, value, id), timed as decode_evt21 times events."""
+    return _triggers(words, 8, state)
+
+
 def has_kind(words: np.ndarray, shift: int, kind: int) -> bool:
-    """Whether any word has `kind` in its top bits (shift 28: 32-bit words, 12: 16-bit words)."""
+    """Whether any word has `kind` in the 4 bits from `shift` (see `kind_shift`)."""
     return _c.count_kind(words, words.dtype.itemsize, shift, kind) > 0
 
 

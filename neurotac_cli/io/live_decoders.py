@@ -37,19 +37,15 @@ class _Records:
 
 
 class Words(_Records):
-    """Prophesee EVT 2.0 (4-byte words) or EVT 3.0 (2-byte words)."""
+    """Prophesee EVT 3.0 (2-byte words), EVT 2.0 (4-byte words) or EVT 2.1 (8-byte words, in the order `legacy`)."""
 
-    def __init__(self, header: bytes, sensor, word_bytes: int):
-        from neurotac_cli.io import kernels, prophesee
+    def __init__(self, header: bytes, sensor, word_bytes: int, legacy: bool | None = None):
+        from neurotac_cli.io import prophesee
 
         _, fields = prophesee.header_of(None, header)
         self.sensor, self.meta, self.record = prophesee.sensor_of_header(fields), prophesee._meta(fields), word_bytes
-        if word_bytes == 4:
-            self._decode, self._find, self.dtype = kernels.decode_evt2, kernels.evt2_triggers, "<u4"
-            self.state, self.trigger_state = kernels.evt2_state(), kernels.evt2_state()
-        else:
-            self._decode, self._find, self.dtype = kernels.decode_evt3, kernels.evt3_triggers, "<u2"
-            self.state, self.trigger_state = kernels.evt3_state(), kernels.evt3_state()
+        self._decode, self._find, fresh, self.dtype = prophesee.word_kernels(word_bytes, legacy)
+        self.state, self.trigger_state = fresh(), fresh()
 
     def decode(self, block: bytes):
         words = np.frombuffer(block, dtype=self.dtype)
@@ -57,32 +53,28 @@ class Words(_Records):
         return self._decode(words, self.state)
 
 
-class Evt21(_Records):
+class Evt21(Words):
     """Prophesee EVT 2.1 (8-byte words); the word order from the header, or from the first words that
     hold a TIME_HIGH (the words before it have no time base, so nothing of them is lost)."""
-
-    record = 8
 
     def __init__(self, header: bytes, sensor):
         from neurotac_cli.io import prophesee
 
         _, fields = prophesee.header_of(None, header)
-        self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
         self.legacy = prophesee.evt21_order_of_header(fields)
-        self.state = prophesee.evt21_state()
+        super().__init__(header, sensor, 8, self.legacy)
 
     def decode(self, block: bytes):
         from neurotac_cli.io import prophesee
 
-        pairs = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
         if self.legacy is None:
-            self.legacy = prophesee.evt21_order_of_words(pairs)
+            self.legacy = prophesee.evt21_order_of_words(np.frombuffer(block, dtype="<u4").reshape(-1, 2))
             if self.legacy is None:
                 empty = np.zeros(0, np.uint16)
                 return np.zeros(0, np.int64), empty, empty, np.zeros(0, np.uint8)
-        t, x, y, p, triggers = prophesee.decode_evt21(*prophesee.evt21_halves(pairs, self.legacy), self.state)
-        self.triggers += len(triggers)
-        return t, x, y, p
+            fresh = prophesee.word_kernels(8, self.legacy)[2]
+            self.state, self.trigger_state = fresh(), fresh()
+        return super().decode(block)
 
 
 class Davis(_Records):

@@ -1,13 +1,13 @@
-"""Prophesee files: EVT 2.0, 2.1 and 3.0 `.raw` words, and `.dat` records, decoded with numpy.
+"""Prophesee files: EVT 2.0, 2.1 and 3.0 `.raw` words (compiled kernels), and `.dat` records (numpy).
 
-The word streams are decoded a chunk at a time, EVT 2.0 and 3.0 by the compiled kernels of
-`io/kernels.py`, EVT 2.1 (whole 64-bit words, no state but the time base) with numpy, the decoder state
-(time high, time low, row, vector base) carried across chunks.
+The word streams are decoded a chunk at a time by the compiled kernels of `io/kernels.py`, the decoder
+state (time high, time low, row, vector base) carried across chunks. The EVT 2.1 word order is told here,
+from the header or the first words.
 
 Times follow Prophesee's own decoder (OpenEB): EVT 3.0 time = time-high base + the last time low,
 where a TIME_HIGH resets the low part; a TIME_LOW that steps back without a new TIME_HIGH is kept
 as written (time is then not monotonic). A TIME_HIGH that falls back by nearly its full range is a
-wrap and adds 2^24 µs (EVT 3.0) or 2^34 µs (EVT 2.0). Events before the first TIME_HIGH have no time
+wrap and adds 2^24 µs (EVT 3.0) or 2^34 µs (EVT 2.0 and 2.1). Events before the first TIME_HIGH have no time
 base and are skipped, as OpenEB does.
 """
 
@@ -79,7 +79,7 @@ def _meta(fields: dict) -> dict:
     return {"source": {"camera": keep.get("plugin_name")}} if keep.get("plugin_name") else {}
 
 
-# ---------------------------------------------------------------- EVT 2.0 and 3.0
+# ---------------------------------------------------------------- EVT 2.0, 2.1 and 3.0
 
 
 def open_evt2(path: str, head: bytes, sensor) -> Decoded:
@@ -90,47 +90,65 @@ def open_evt3(path: str, head: bytes, sensor) -> Decoded:
     return _open_words(path, head, word_bytes=2)
 
 
+def open_evt21(path: str, head: bytes, sensor) -> Decoded:
+    """EVT 2.1: 64-bit words, CD events in vectors of 32 pixels (a base x aligned on 32 and a mask).
+
+    Each word is two little-endian 32-bit halves: the event's fields (type in the top 4 bits, a 6-bit
+    time low, x, y) and the 32-bit mask. Prophesee's `% format EVT21` header says in which order
+    (`endianness=legacy`, IMX636's: fields first; otherwise mask first, as OpenEB reads them); an older
+    file with no `format` line is told by which order gives only EVT 2.1 word types, TIME_HIGH words
+    whose other half is empty, and time-high values that rise (or wrap)."""
+    return _open_words(path, head, word_bytes=8)
+
+
+def word_kernels(word_bytes: int, legacy: bool | None = None) -> tuple:
+    """(decode, find triggers, fresh state, dtype) of the compiled kernels for Prophesee words of
+    `word_bytes` (2: EVT 3.0, 4: EVT 2.0, 8: EVT 2.1, whose word order `legacy` travels in its state)."""
+    from neurotac_cli.io import kernels
+
+    if word_bytes == 8:
+        return kernels.decode_evt21, kernels.evt21_triggers, lambda: kernels.evt21_state(bool(legacy)), "<u8"
+    if word_bytes == 4:
+        return kernels.decode_evt2, kernels.evt2_triggers, kernels.evt2_state, "<u4"
+    return kernels.decode_evt3, kernels.evt3_triggers, kernels.evt3_state, "<u2"
+
+
 def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
-    from neurotac_cli.io import kernels, reader
+    from neurotac_cli.io import reader
 
     offset, fields = header_of(path, head)
-    decode, fresh, dtype = (
-        (kernels.decode_evt2, kernels.evt2_state, "<u4") if word_bytes == 4 else (kernels.decode_evt3, kernels.evt3_state, "<u2")
-    )
-    if os.path.getsize(path) - offset <= reader.CHUNK_BYTES:
-        # one chunk: read it once, look for triggers in memory, decode it when the batches are asked for
-        blocks = list(read_chunks(path, offset, word_bytes))
-        triggers = _triggers(blocks, word_bytes)
+    legacy = _evt21_order(path, offset, fields) if word_bytes == 8 else None
+    decode, find, fresh, dtype = word_kernels(word_bytes, legacy)
+    # one chunk: read it once, look for triggers in memory, decode it when the batches are asked for;
+    # a longer file is read twice (its triggers go into the metadata first)
+    held = list(read_chunks(path, offset, word_bytes)) if os.path.getsize(path) - offset <= reader.CHUNK_BYTES else None
 
-        def chunks():
-            state = fresh()
-            for block in blocks:
-                yield decode(np.frombuffer(block, dtype=dtype), state)
+    def blocks():
+        return held if held is not None else read_chunks(path, offset, word_bytes)
 
-    else:
-        triggers = _triggers(read_chunks(path, offset, word_bytes), word_bytes)
+    def chunks():
+        state = fresh()
+        for block in blocks():
+            yield decode(np.frombuffer(block, dtype=dtype), state)
 
-        def chunks():
-            state = fresh()
-            for block in read_chunks(path, offset, word_bytes):
-                yield decode(np.frombuffer(block, dtype=dtype), state)
-
+    triggers = _triggers(blocks(), dtype, find, fresh())
     meta = _meta(fields)
+    if legacy is not None:
+        note_evt21_order(meta, legacy)
     if triggers is not None:
         meta["triggers"] = triggers
     return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta, cut_bytes=cut_bytes(path, offset, word_bytes))
 
 
-def _triggers(blocks, word_bytes: int) -> list | None:
+def _triggers(blocks, dtype: str, find, state: np.ndarray) -> list | None:
     """External trigger events ([{"t", "type": rising|falling, "id"}]) for `neurotac:triggers`, or
     None when the file has none. Blocks already in memory get a quick compiled look for EXT_TRIGGER
     words first; otherwise (a file of several chunks) the trigger kernel reads them, timing words only."""
     from neurotac_cli.io import kernels
 
-    dtype, shift = ("<u4", 28) if word_bytes == 4 else ("<u2", 12)
+    shift = kernels.kind_shift(np.dtype(dtype).itemsize, state)
     if isinstance(blocks, list) and not any(kernels.has_kind(np.frombuffer(b, dtype=dtype), shift, 0xA) for b in blocks):
         return None
-    find, state = (kernels.evt2_triggers, kernels.evt2_state()) if word_bytes == 4 else (kernels.evt3_triggers, kernels.evt3_state())
     triggers = []
     for block in blocks:
         t, value, channel = find(np.frombuffer(block, dtype=dtype), state)
@@ -186,56 +204,20 @@ def decode_dat(block: bytes, state: dict):
     )
 
 
-# ---------------------------------------------------------------- EVT 2.1
+# ---------------------------------------------------------------- EVT 2.1 word order
 
 EVT21_KINDS = (0x0, 0x1, 0x8, 0xA, 0xE, 0xF)  # CD OFF, CD ON, TIME_HIGH, EXT_TRIGGER, OTHERS, CONTINUED
-EVT21_LOOP_US = 1 << 34  # the 28-bit TIME_HIGH in units of 64 µs wraps after this
-EVT21_WRAP_FALL = 1 << 33  # a TIME_HIGH falling back by more than half its range is a wrap (as the EVT 2.0 kernel counts)
+EVT21_WRAP_FALL = 1 << 33  # a TIME_HIGH falling back by more than half its range is a wrap (as the kernels count)
 
 
-def evt21_state() -> dict:
-    """The time base an EVT 2.1 decoder carries from chunk to chunk: none before the first TIME_HIGH."""
-    return {"high": None, "loop": 0}
+def note_evt21_order(meta: dict, legacy: bool):
+    """Record the word order a reader found (from the header or the words) in `neurotac:source`."""
+    meta.setdefault("source", {})["evt21_order"] = "legacy" if legacy else "little"
 
 
 def evt21_halves(pairs: np.ndarray, legacy: bool) -> tuple[np.ndarray, np.ndarray]:
     """(fields, mask) of (N, 2) little-endian 32-bit halves: IMX636's legacy order puts the fields first."""
     return (pairs[:, 0], pairs[:, 1]) if legacy else (pairs[:, 1], pairs[:, 0])
-
-
-def open_evt21(path: str, head: bytes, sensor) -> Decoded:
-    """EVT 2.1: 64-bit words, CD events in vectors of 32 pixels (a base x aligned on 32 and a mask).
-
-    Each word is two little-endian 32-bit halves: the event's fields (type in the top 4 bits, a 6-bit
-    time low, x, y) and the 32-bit mask. Prophesee's `% format EVT21` header says in which order
-    (`endianness=legacy`, IMX636's: fields first; otherwise mask first, as OpenEB reads them); an older
-    file with no `format` line is told by which order gives only EVT 2.1 word types, TIME_HIGH words
-    whose other half is empty, and time-high values that rise (or wrap)."""
-    from neurotac_cli.io import reader
-
-    offset, fields = header_of(path, head)
-    legacy = _evt21_order(path, offset, fields)
-    # a file of one chunk is read once; a longer one twice (its triggers go into the metadata first)
-    held = list(read_chunks(path, offset, 8)) if os.path.getsize(path) - offset <= reader.CHUNK_BYTES else None
-
-    def words():
-        for block in held if held is not None else read_chunks(path, offset, 8):
-            yield evt21_halves(np.frombuffer(block, dtype="<u4").reshape(-1, 2), legacy)
-
-    def chunks():
-        state = evt21_state()
-        for info, mask in words():
-            yield decode_evt21(info, mask, state)[:4]
-
-    triggers, state = [], evt21_state()
-    for info, mask in words():
-        timing = (info >> 28 == 0x8) | (info >> 28 == 0xA)  # the time base and the triggers, no pixels
-        triggers += decode_evt21(info[timing], mask[timing], state)[4]
-    meta = _meta(fields)
-    meta.setdefault("source", {})["evt21_order"] = "legacy" if legacy else "little"
-    if triggers:
-        meta["triggers"] = triggers
-    return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=meta, cut_bytes=cut_bytes(path, offset, 8))
 
 
 def _evt21_order(path: str, offset: int, fields: dict) -> bool:
@@ -280,36 +262,3 @@ def evt21_order_of_words(pairs: np.ndarray) -> bool | None:
         return None
     raise FormatError("the EVT 2.1 words fit neither word order (little nor IMX636's legacy): the file is damaged, "
                       "or not EVT 2.1")
-
-
-def decode_evt21(info: np.ndarray, mask: np.ndarray, state: dict):
-    """One chunk of EVT 2.1 words as (t, x, y, p, triggers), as OpenEB's decoder reads them: a word's
-    time is the last TIME_HIGH (x 64 µs, plus 2^34 µs per wrap) plus its own 6-bit low part; words
-    before the first TIME_HIGH have no time base and are skipped. `state` (`evt21_state`) carries the
-    time base from chunk to chunk."""
-    kinds = info >> 28
-    is_high = kinds == 0x8
-    highs = (info[is_high] & 0x0FFFFFFF).astype(np.int64) << 6
-    carried = state["high"]
-    first = carried % EVT21_LOOP_US if carried is not None else (highs[0] if len(highs) else 0)
-    loops = state["loop"] + np.cumsum(np.concatenate(([first], highs[:-1])) - highs > EVT21_WRAP_FALL)
-    full = highs + (loops << 34)
-    # each word's base: the last TIME_HIGH at or before it, else the one carried from the chunk
-    # before (-1: none yet, so the word has no time)
-    base = np.concatenate(([-1 if carried is None else carried], full))[np.cumsum(is_high)]
-    timed = base >= 0
-    if len(full):
-        state["high"], state["loop"] = int(full[-1]), int(loops[-1])
-    low = ((info >> 22) & 0x3F).astype(np.int64)
-    cd = timed & (kinds <= 0x1)
-    bits_set = np.unpackbits(mask[cd].astype("<u4").view(np.uint8).reshape(-1, 4), axis=1, bitorder="little")
-    rows, bits = np.nonzero(bits_set)  # in each word, the pixels from its base x up, as OpenEB emits them
-    words = np.flatnonzero(cd)[rows]
-    t = base[words] + low[words]
-    x = (((info[words] >> 11) & 0x7FF) + bits.astype(np.uint32)).astype(np.uint16)
-    y = (info[words] & 0x7FF).astype(np.uint16)
-    p = kinds[words].astype(np.uint8)
-    trigger = np.flatnonzero(timed & (kinds == 0xA))
-    triggers = [{"t": int(base[i] + low[i]), "type": "rising" if info[i] & 1 else "falling", "id": int((info[i] >> 8) & 0x1F)}
-                for i in trigger]
-    return t, x, y, p, triggers

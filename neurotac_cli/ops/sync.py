@@ -45,7 +45,7 @@ class SyncMethod:
     min_z: float = 10.0
     min_coverage: float = 0.05
     trigger_type: str | None = None
-    trigger_id: int | None = None  # the input (AEDAT 3.1) or channel (EVT 2.0/3.0) whose triggers count
+    trigger_id: int | None = None  # the input (AEDAT 3.1) or channel (EVT 2.0/2.1/3.0) whose triggers count
     median_us: int = 10_000
     bin_us: int = 1_000
     keep_led: bool = False  # keep the blink's own events in the trial (they are a marker, not touch)
