@@ -63,6 +63,8 @@ class Evt21(Words):
         _, fields = prophesee.header_of(None, header)
         self.legacy = prophesee.evt21_order_of_header(fields)
         super().__init__(header, sensor, 8, self.legacy)
+        if self.legacy is not None:  # an order found in the words comes after the stream's metadata has gone out
+            prophesee.note_evt21_order(self.meta, self.legacy)
 
     def decode(self, block: bytes):
         from neurotac_cli.io import prophesee

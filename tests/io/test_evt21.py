@@ -117,6 +117,8 @@ def test_a_followed_file_written_mid_word_gives_the_files_events(real, tmp_path,
     table, batches = collect(live.open_stream(str(path), follow=True, idle_timeout=0.5))
     writer.join()
     assert batches > 1 and same(table, t, x, y, p)
+    # the order a header says is in the stream's metadata, as a file's; one found in the words comes too late for it
+    assert sch.get_meta(table.schema, "neurotac:source").get("evt21_order") == ("legacy" if b"format" in header else None)
 
 
 def test_a_wrap_across_a_missing_time_high_is_still_a_wrap(tmp_path):
