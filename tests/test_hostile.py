@@ -678,3 +678,44 @@ def test_export_to_aedat4_refuses_coordinates_past_its_signed_16_bits(tmp_path):
     code, stderr, _ = invoke(["export", "-o", str(tmp_path / "e.aedat4"), path])
     assert one_line(stderr, code, 1) and "AEDAT 4.0 addresses 32768x32768 pixels at most" in stderr
     assert not (tmp_path / "e.aedat4").exists()
+
+
+def _set(path: str, value):
+    """A header edit: the value at a dotted path set, or deleted where `value` is `...`."""
+    def edit(header):
+        *parents, last = path.split(".")
+        part = header
+        for key in parents:
+            part = part[key]
+        if value is ...:
+            del part[last]
+        else:
+            part[last] = value
+        return header
+    return edit
+
+
+@pytest.mark.parametrize("path, value, said", [
+    ("input.normalisation.force_scale", 0, "force scale 0 is not"), ("input.normalisation.force_scale", float("nan"), "force scale nan"),
+    ("input.normalisation.force_scale", "x", "force scale 'x'"), ("input.normalisation.force_scale", ..., "force scale None"),
+    ("input.normalisation", ..., "input normalisation is not"), ("input.window_us", 0, "input window_us is not"),
+    ("input.window_us", "10ms", "input window_us is not"), ("input.height", -10, "input height is not"),
+    ("input.accumulated", "yes", "input accumulated is not"), ("input", [1], "input is not"), ("architecture", None, "architecture is not"),
+    ("training", "x", "training is not"), ("training.data_history", "x", "training data_history is not"),
+    ("task", "bogus", "task 'bogus' is not"), ("format_version", "1", "format_version '1' is not"),
+    ("format_version", 0, "format_version 0 is not")])
+def test_a_force_model_header_edited_to_nonsense_is_one_line(files, tmp_path, path, value, said):  # noqa: F811
+    """A force scale of 0 or NaN once estimated 0 or NaN N on every frame with exit 0; wrong types were tracebacks."""
+    _edit_model(f"{files}/m.model", str(tmp_path / "x.model"), header=_set(path, value))
+    for args in (["info"], ["predict", "--model"], ["eval", "--model"]):
+        code, stderr, _ = invoke(args + [str(tmp_path / "x.model")] + ([f"{files}/f.arrows"] if len(args) > 1 else []))
+        assert one_line(stderr, code, 1) and said in stderr, stderr
+
+
+@pytest.mark.parametrize("classes", [None, "foam", ["foam"], ["foam", "foam"], [1, 2]])
+def test_a_classifier_header_with_a_damaged_class_list_is_one_line(files, tmp_path, classes):  # noqa: F811
+    """Duplicated names and a string (read as its letters) once classified with exit 0; numbers were a traceback."""
+    _edit_model(f"{files}/c.model", str(tmp_path / "x.model"), header=_set("classes", classes))
+    for args in (["info"], ["classify", "--model"]):
+        code, stderr, _ = invoke(args + [str(tmp_path / "x.model")] + ([f"{files}/f.arrows"] if len(args) > 1 else []))
+        assert one_line(stderr, code, 1) and "class list is not two or more distinct class names" in stderr, stderr

@@ -37,7 +37,7 @@ def model_file(path):
     from safetensors.numpy import save_file
 
     header = {"format": "neurotac-model", "model": "deform-gru", "task": "force", "architecture": {},
-              "input": {"window_us": 10_000, "height": 4, "width": 4}}
+              "input": {"window_us": 10_000, "height": 4, "width": 4, "normalisation": {"force_scale": 1.0}}}
     save_file({"w": np.zeros(1, np.float32)}, str(path), metadata={"neurotac": json.dumps(header)})
 
 

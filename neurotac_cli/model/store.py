@@ -3,6 +3,7 @@ arrays and JSON, builds the network from the header's config, and never executes
 
 import dataclasses
 import json
+import math
 import os
 
 from neurotac_cli.errors import ModelError
@@ -62,16 +63,61 @@ def read_header(path: str) -> dict:
         header = json.loads(metadata[HEADER_KEY])
     except ValueError:
         raise ModelError(f"{path}: the model header is not valid JSON (file damaged?)") from None
-    if header.get("format") != "neurotac-model":
+    if not isinstance(header, dict) or header.get("format") != "neurotac-model":
         raise ModelError(f"{path}: not a neurotac model header")
     missing = [key for key in ("model", "task", "architecture", "input") if key not in header]
     if missing:
         raise ModelError(f"{path}: the model header lacks {', '.join(missing)} (file damaged?); train the model again")
     version = header.get("format_version", 1)
-    if not isinstance(version, int) or version > FORMAT_VERSION:
+    if not _whole(version):
+        raise ModelError(f"{path}: the model header's format_version {version!r} is not a format number (file edited or "
+                         "damaged?); train the model again")
+    if version > FORMAT_VERSION:
         raise ModelError(f"{path}: model format {version!r} is newer than this neurotac reads ({FORMAT_VERSION}); "
                          "upgrade neurotac to run it")
+    _check_parts(path, header)
     return header
+
+
+def _whole(value, least: int = 1) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= least
+
+
+def _check_parts(path: str, header: dict):
+    """Refuse a header whose parts are not what `train` writes (a file edited by hand, or damaged):
+    they failed deep in numpy or torch with a traceback, or ran with a nonsense constant (a force
+    scale of 0 or NaN estimated 0 or NaN N on every frame, exit 0)."""
+    def bad(what: str, should: str):
+        return ModelError(f"{path}: the model header's {what} is not {should} (file edited or damaged?); train the model again")
+
+    spec, training, task = header["input"], header.get("training"), header["task"]
+    for what, value, kind in (("architecture", header["architecture"], dict), ("input", spec, dict),
+                              ("training", {} if training is None else training, dict)):
+        if not isinstance(value, kind):
+            raise bad(what, "a JSON object")
+    if task not in ("force", "material"):
+        raise bad(f"task {task!r}", "force or material")
+    for key in ("width", "height"):
+        if not _whole(spec.get(key)):
+            raise bad(f"input {key}", "a whole number of pixels, 1 or more")
+    if spec.get("window_us") is not None and not _whole(spec["window_us"]):
+        raise bad("input window_us", "a whole number of µs, 1 or more")
+    if not isinstance(spec.get("accumulated", False), bool):
+        raise bad("input accumulated", "true or false")
+    normalisation = spec.get("normalisation")
+    if not isinstance(normalisation, dict):
+        raise bad("input normalisation", "a JSON object")
+    scale = normalisation.get("force_scale")
+    if task == "force" and not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and 0 < scale < math.inf):
+        raise bad(f"force scale {scale!r}", "a number of newtons above 0")
+    classes = header.get("classes")
+    if task == "material" and not (isinstance(classes, list) and len(classes) >= 2 and all(isinstance(c, str) and c for c in classes)
+                                   and len(set(classes)) == len(classes)):
+        raise bad("class list", "two or more distinct class names")
+    for key, kind, item in (("data_history", list, dict), ("curve", list, dict), ("trials", dict, None), ("label", str, None)):
+        value = (training or {}).get(key)
+        if value is not None and (not isinstance(value, kind) or (item and not all(isinstance(v, item) for v in value))):
+            raise bad(f"training {key}", f"a {'list of JSON objects' if item else 'JSON object' if kind is dict else 'string'}")
 
 
 def load(path: str):
