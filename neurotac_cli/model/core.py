@@ -9,7 +9,7 @@ import pyarrow as pa
 import torch
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.errors import InputError, ModelError, UsageError
 from neurotac_cli.ops.forcelog import RANGE_N
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
@@ -530,7 +530,7 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
     check_streams(model)
     check_input(model, schema, advice)
     out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
-    states = {}
+    states, last = {}, {}
     # a first step pays its one-off costs (allocations, kernel choices) now, not on the first frame
     model.step(np.zeros((1, 1, len(CHANNELS), *sch.frames_shape(schema)), np.float32), np.zeros((1, 1), np.int64))
 
@@ -541,10 +541,12 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             trials = batch.column("trial").to_pylist()
             counts = sch.counts_numpy(batch.column("counts"))
             t = batch.column("t").to_numpy().astype(np.int64)
+            numbers = batch.column("frame").to_numpy(zero_copy_only=False).astype(np.int64)
             prediction = np.empty(batch.num_rows, dtype=np.float32)
             edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
             for begin, end in zip(edges[:-1], edges[1:]):
                 trial = trials[begin]
+                last[trial] = _in_order(trial, last.get(trial), numbers[begin:end])
                 force, states[trial] = model.step(counts[None, begin:end], t[None, begin:end], states.get(trial))
                 prediction[begin:end] = force[0]
             columns = {
@@ -557,6 +559,20 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             yield pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
 
     return out_schema, run()
+
+
+def _in_order(trial: str, last: int | None, frames: np.ndarray) -> int:
+    """The last of a trial's frames, refusing frames that come before one already read: a stream
+    carries each trial's state from one frame to the next, so frames out of order gave other
+    estimates than `eval` (which sorts each trial's frames) without a word."""
+    given = frames if last is None else np.concatenate([[last], frames])
+    back = np.flatnonzero(np.diff(given) <= 0)
+    if len(back):
+        k = int(back[0])
+        raise InputError(f"trial {trial!r}: frame {int(given[k + 1])} comes after frame {int(given[k])}; a stream reads each "
+                         "trial's frames in the order `frame` writes them (sort the frames by trial and frame, or score the "
+                         "table with `neurotac eval`, which sorts them)")
+    return int(given[-1])
 
 
 def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> pa.Table:

@@ -34,6 +34,19 @@ def test_streaming_in_pieces_equals_eval(name):
     np.testing.assert_allclose([back[k] for k in keys], whole, rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.parametrize("order", [[0, 1, 3, 2], [3, 2, 1, 0]])
+def test_a_trial_s_frames_out_of_order_are_refused_by_the_stream(order):
+    """Out of order, the carried state gave other estimates than `eval`, which sorts, without a word."""
+    from neurotac_cli.errors import InputError
+
+    frames = tiny_frames(trials=1).slice(0, 4)
+    model = models.train(tiny_frames(trials=2), models.make_spec("tdnn", epochs=1), seed=0)
+    shuffled = frames.take(pa.array(order))
+    schema, batches = models.stream(model, shuffled.schema, iter(shuffled.to_batches(max_chunksize=1)))
+    with pytest.raises(InputError, match=r"frame \d+ comes after frame \d+; a stream reads each trial's frames in the order"):
+        list(batches)
+
+
 def test_predict_command_streams_equal_to_eval_command(tmp_path):
     frames = tiny_frames(trials=3)
     model = models.train(frames, models.make_spec("deform-gru", epochs=2), seed=0)
