@@ -78,13 +78,16 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
     groups = parse_groups(config.groups)
     queue = []  # round-robin over groups so a small --trials still covers every group
     remaining = [g[2] for g in groups]
-    while any(remaining):
+    total = sum(remaining)
+    if trials is not None and trials > total:  # fewer trials than asked for, without a word, were written before
+        raise UsageError(f"--trials {trials} is more than the {total} grasps of the preset's groups (or --objects); "
+                         f"give --trials {total} or fewer, or more grasps per group with --objects")
+    wanted = total if trials is None else trials  # the queue stops there: a group of 10^12 with --trials 1 ran out of memory
+    while len(queue) < wanted:
         for index, group in enumerate(groups):
-            if remaining[index]:
+            if remaining[index] and len(queue) < wanted:
                 queue.append(group)
                 remaining[index] -= 1
-    if trials is not None:
-        queue = queue[:trials]
     if not queue:
         raise UsageError("no trials to simulate (every group has a count of 0)")
     counters: dict = {}

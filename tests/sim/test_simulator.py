@@ -179,6 +179,19 @@ def test_force_log_lag_matches_the_chosen_sensor():
 # ---------------------------------------------------------------- presets
 
 
+def test_trials_beyond_the_groups_are_refused_and_a_few_of_a_huge_group_are_planned_at_once():
+    """More trials than the groups hold were written as fewer without a word; one trial of a group of
+    10^12 grasps queued all of them first (out of memory)."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.sim.grasp import plan_grasps
+
+    with pytest.raises(UsageError, match="--trials 36 is more than the 35 grasps"):
+        plan_grasps(preset_config("ch4"), np.random.default_rng(0), 36)
+    assert len(plan_grasps(preset_config("ch4"), np.random.default_rng(0), 35)) == 35
+    (grasp,) = plan_grasps(preset_config("ch4", groups=("steel:hex:1000000000000",)), np.random.default_rng(0), 1)
+    assert grasp.material == "steel"
+
+
 def test_presets_follow_the_thesis_designs():
     from neurotac_cli.sim.grasp import plan_grasps
 
