@@ -295,5 +295,33 @@ def validate(config: SimConfig):
         problems.append("background_on_share in [0, 1], object_contrast and creep in [0, 1)")
     if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
         problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
+    problems += _more_problems(config)
     if problems:
         raise UsageError("bad simulator parameters: " + "; ".join(problems))
+
+
+THRESHOLDS = (1e-3, 10.0)  # log-intensity contrast; DVS pixels: 0.1-0.5
+
+
+def _more_problems(config: SimConfig) -> list[str]:
+    """Settings `validate`'s first checks let pass, which failed with a traceback (a range drawn from
+    high to low, a negative dark level's log), ran for hours (a threshold of 1e9 or 1e-6: billions of
+    LED-blink crossings), or simulated nonsense without a word (negative durations, a Poisson ratio
+    past 0.5)."""
+    problems = []
+    low, high = THRESHOLDS
+    for name in ("on_threshold", "off_threshold"):
+        if not low <= getattr(config, name) <= high:
+            problems.append(f"{name} must be in [{low:g}, {high:g}] (a log-intensity contrast; DVS pixels have 0.1-0.5)")
+    for name in ("contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us"):
+        low, high = getattr(config, name)
+        if not 0 <= low <= high:
+            problems.append(f"{name} must be a range LOW..HIGH with 0 <= LOW <= HIGH")
+    for name in ("creep_us", "servo_settle_us", "settle_us", "still_us", "force_lag_us", "max_duration_us", "duration_jitter",
+                 "texture", "dark_level", "position_jitter_px", "settle_px", "vibration_px", "drift_px", "tilt_deg",
+                 "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"):
+        if getattr(config, name) < 0:
+            problems.append(f"{name} must be >= 0")
+    if not 0 <= config.membrane_poisson < 0.5 or not 0 <= config.vignetting < 1 or not 0 <= config.threshold_mismatch < 1:
+        problems.append("membrane_poisson in [0, 0.5), vignetting and threshold_mismatch in [0, 1)")
+    return problems
