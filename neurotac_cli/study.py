@@ -34,8 +34,9 @@ from neurotac_cli.errors import NeurotacError, UsageError
 DEVICE_VARIABLE = "NEUROTAC_DEVICE"  # where force networks train (`--device`); part of a task's cache key off the CPU
 
 # Bumped when the cache file layout or a task's result changes, so old entries are never misread
-# (2: a cross-validation fold returns its validation figures beside its predictions).
-CACHE_FORMAT = 2
+# (2: a cross-validation fold returns its validation figures beside its predictions; 3: each entry
+# starts with its payload's SHA-256).
+CACHE_FORMAT = 3
 # How long to wait for a Dask scheduler to answer before saying it cannot be reached.
 CONNECT_TIMEOUT = "20s"
 
@@ -385,22 +386,35 @@ class _Cache:
     def path(self, key: str) -> pathlib.Path:
         return self.folder / key[:2] / f"{key}.pkl"
 
+    # Each entry is its payload's SHA-256, then the payload: a damaged entry (a flipped bit, a file
+    # cut or replaced) is run again; read as it was, it failed with a traceback, or its changed
+    # numbers entered the study's results without a word.
+    DIGEST = 32
+
     def get(self, key: str):
         try:
             with open(self.path(key), "rb") as handle:
-                return True, pickle.load(handle)
+                data = handle.read()
         except FileNotFoundError:
             return False, None
-        except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
+        except OSError:
             return False, None  # unreadable entry: run the task again
+        digest, payload = data[: self.DIGEST], data[self.DIGEST :]
+        if len(data) <= self.DIGEST or hashlib.sha256(payload).digest() != digest:
+            return False, None
+        try:
+            return True, pickle.loads(payload)
+        except (EOFError, ValueError, TypeError, pickle.UnpicklingError, AttributeError, ImportError):
+            return False, None  # written by another version of its classes: run the task again
 
     def put(self, key: str, value) -> None:
         from neurotac_cli.tables import atomic_file
 
         target = self.path(key)
         target.parent.mkdir(parents=True, exist_ok=True)
+        payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
         with atomic_file(str(target)) as temporary, open(temporary, "wb") as handle:
-            pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
+            handle.write(hashlib.sha256(payload).digest() + payload)
             handle.flush()
             os.fsync(handle.fileno())
 

@@ -188,6 +188,24 @@ def test_an_unreadable_cache_entry_is_run_again(tmp_path):
     assert run_tasks(square, tasks, cache_dir=tmp_path) == [9]
 
 
+@pytest.mark.parametrize("damage", ["flip", "replace"])
+def test_a_damaged_cache_entry_is_run_again_not_read(tmp_path, damage):
+    """A flipped byte in an entry's pickle was a traceback (UnicodeDecodeError) or a changed result taken
+    without a word; another valid pickle in its place was a traceback where the result was used."""
+    import pickle
+
+    tasks = [{"x": 3, "calls": str(tmp_path / "calls")}]
+    (tmp_path / "calls").mkdir()
+    run_tasks(square, tasks, cache_dir=tmp_path / "c")
+    (entry,) = (tmp_path / "c").glob("*/*.pkl")
+    data = bytearray(entry.read_bytes())
+    if damage == "flip":
+        data[-3] ^= 0x01
+    entry.write_bytes(bytes(data) if damage == "flip" else pickle.dumps("another value"))
+    assert run_tasks(square, tasks, cache_dir=tmp_path / "c") == [9]
+    assert calls_per_task(tmp_path / "calls") == {3: 2}
+
+
 def test_identical_tasks_run_once(tmp_path):
     tasks = [{"x": 2, "calls": str(tmp_path)}] * 3
     assert run_tasks(square, tasks) == [4, 4, 4]
