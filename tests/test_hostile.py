@@ -731,3 +731,13 @@ def test_simulator_settings_that_hung_crashed_or_made_nonsense_are_refused(setti
     and a negative dark level were tracebacks; negative durations simulated without a word."""
     code, stderr, _ = invoke(["simulate", "--trials", "1", "--set", setting, "--out", str(tmp_path / "s")])
     assert code == 2 and "Traceback" not in stderr and said in stderr, stderr
+
+
+@pytest.mark.parametrize("model, label, said", [("c.model", "object", "classifies by 'material', the label it was trained on"),
+                                                ("m.model", "material", "tdnn estimates force")])
+def test_eval_refuses_a_label_its_model_file_does_not_classify_by(files, model, label, said):  # noqa: F811
+    """The --label was ignored: a classifier scored its own label, exit 0, under the name of the one asked for."""
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/{model}", "--label", label, f"{files}/f.arrows"])
+    assert code == 2 and "Traceback" not in stderr and said in stderr, stderr
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", "--label", "material", f"{files}/f.arrows"])
+    assert code == 0, stderr

@@ -54,7 +54,11 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         from neurotac_cli.model.core import unstated_window
         from neurotac_cli.model.store import read_header
 
-        echo_lines("eval", filter(None, [unstated_window(read_header(model_path)["input"], table.schema)]), "warning: ")
+        header = read_header(model_path)
+        label = _model_label(header, label)
+        echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema)]), "warning: ")
+    elif model_spec in FORCE_MODELS:
+        _model_label({"model": model_spec, "task": "force"}, label)
     import torch
 
     from neurotac_cli.model import evaluate, plots
@@ -77,3 +81,21 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         trials = [t.strip() for t in plot_trials.split(",")] if plot_trials else None
         plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
     tables.write(output, result.predictions, step=step)
+
+
+def _model_label(header: dict, label: str) -> str:
+    """The label a model file classifies by (its training's): a --label that differs, or one given
+    for a force model, is refused; it was ignored, and a classifier scored its own label under the
+    name of the one asked for."""
+    from neurotac_cli.errors import UsageError
+
+    given = click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT
+    if header["task"] != "material":
+        if given:
+            raise UsageError(f"--label chooses the class a classifier predicts; {header['model']} estimates force (leave --label out)")
+        return label
+    trained = (header.get("training") or {}).get("label") or "material"
+    if given and label != trained:
+        raise UsageError(f"--label {label}: model {header['model']!r} classifies by {trained!r}, the label it was trained on "
+                         f"(give --label {trained} or leave it out, or train a classifier with --label {label})")
+    return trained
