@@ -703,7 +703,11 @@ def _set(path: str, value):
     ("input.accumulated", "yes", "input accumulated is not"), ("input", [1], "input is not"), ("architecture", None, "architecture is not"),
     ("training", "x", "training is not"), ("training.data_history", "x", "training data_history is not"),
     ("task", "bogus", "task 'bogus' is not"), ("format_version", "1", "format_version '1' is not"),
-    ("format_version", 0, "format_version 0 is not")])
+    ("format_version", 0, "format_version 0 is not"), ("classes", -1, "class list is not"),
+    ("input.sensor", {"a": 1}, "input sensor is not"), ("training.curve", [{"epoch": 0}], "training curve is not"),
+    ("training.data_history", [{"args": "x"}], "training data_history is not"),
+    ("training.trials", {"train": 5}, "training trials is not"), ("training.fit", [1], "training fit is not"),
+    ("training.events_per_frame_max", "x", "events_per_frame_max is not")])
 def test_a_force_model_header_edited_to_nonsense_is_one_line(files, tmp_path, path, value, said):  # noqa: F811
     """A force scale of 0 or NaN once estimated 0 or NaN N on every frame with exit 0; wrong types were tracebacks."""
     _edit_model(f"{files}/m.model", str(tmp_path / "x.model"), header=_set(path, value))

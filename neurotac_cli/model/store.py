@@ -111,13 +111,36 @@ def _check_parts(path: str, header: dict):
     if task == "force" and not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and 0 < scale < math.inf):
         raise bad(f"force scale {scale!r}", "a number of newtons above 0")
     classes = header.get("classes")
-    if task == "material" and not (isinstance(classes, list) and len(classes) >= 2 and all(isinstance(c, str) and c for c in classes)
-                                   and len(set(classes)) == len(classes)):
+    if (task == "material" or classes is not None) and not (
+            isinstance(classes, list) and len(classes) >= (2 if task == "material" else 0)
+            and all(isinstance(c, str) and c for c in classes) and len(set(classes)) == len(classes)):
         raise bad("class list", "two or more distinct class names")
-    for key, kind, item in (("data_history", list, dict), ("curve", list, dict), ("trials", dict, None), ("label", str, None)):
-        value = (training or {}).get(key)
+    sensor = spec.get("sensor")
+    if sensor is not None and not (isinstance(sensor, dict) and _whole(sensor.get("width")) and _whole(sensor.get("height"))):
+        raise bad("input sensor", "a width and a height in pixels")
+    _check_training(bad, training or {})
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _check_training(bad, training: dict):
+    """The parts of a header's training record that `info`, `eval` and `predict` read."""
+    for key, kind, item in (("data_history", list, dict), ("curve", list, dict), ("trials", dict, None), ("fit", dict, None),
+                            ("label", str, None)):
+        value = training.get(key)
         if value is not None and (not isinstance(value, kind) or (item and not all(isinstance(v, item) for v in value))):
             raise bad(f"training {key}", f"a {'list of JSON objects' if item else 'JSON object' if kind is dict else 'string'}")
+    if not all(isinstance(step.get("args", {}), dict) for step in training.get("data_history") or []):
+        raise bad("training data_history", "a list of steps with their arguments as JSON objects")
+    if not all(_number(row.get("train_loss")) and _number(row.get("val_loss")) for row in training.get("curve") or []):
+        raise bad("training curve", "a list of epochs with their train_loss and val_loss")
+    if not all(isinstance(value, list) for value in (training.get("trials") or {}).values()):
+        raise bad("training trials", "lists of trial names")
+    busiest = training.get("events_per_frame_max")
+    if busiest is not None and not _number(busiest):
+        raise bad("training events_per_frame_max", "a number")
 
 
 def load(path: str):
