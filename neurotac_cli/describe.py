@@ -504,10 +504,12 @@ def describe_csv(path: str) -> dict | None:
 
 
 def _is_model(path: str) -> bool:
-    """A safetensors file (8 bytes of header length, then its JSON header): what `neurotac train` writes."""
+    """A safetensors file (8 bytes of header length, then its JSON header): what `neurotac train` writes.
+    A `.model` file is taken for one whatever it holds, so a damaged one is named as a damaged model,
+    not as an unknown camera format."""
     with open(path, "rb") as handle:
         head = handle.read(10)
-    return len(head) == 10 and head[8:10] == b'{"'
+    return (len(head) == 10 and head[8:10] == b'{"') or str(path).endswith(".model")
 
 
 def describe_model(path: str) -> dict:

@@ -148,3 +148,6 @@ def test_a_model_file_is_described_from_its_header(tmp_path):
     assert "material-timing (material)" in text and "classes" in text and "trained on frames made by:" in text
     info = json.loads(runner.invoke(cli, ["info", "--json", str(tmp_path / "m.model")]).output)
     assert info["kind"] == "model" and info["task"] == "material" and info["training"]["trials"] >= 1
+    (tmp_path / "cut.model").write_bytes((tmp_path / "m.model").read_bytes()[:8])
+    cut = runner.invoke(cli, ["info", str(tmp_path / "cut.model")])
+    assert cut.exit_code == 1 and "is not a neurotac model file" in cut.output and "camera format" not in cut.output
