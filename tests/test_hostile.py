@@ -745,3 +745,12 @@ def test_eval_refuses_a_label_its_model_file_does_not_classify_by(files, model, 
     assert code == 2 and "Traceback" not in stderr and said in stderr, stderr
     code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", "--label", "material", f"{files}/f.arrows"])
     assert code == 0, stderr
+
+
+@pytest.mark.parametrize("key, value", [("units", 0), ("layers", -1), ("delays", -2)])
+def test_a_header_architecture_past_trains_bounds_is_one_line(files, tmp_path, key, value):  # noqa: F811
+    """A unit count of 0 built an empty network, with torch's warnings on stderr before the error."""
+    _edit_model(f"{files}/m.model", str(tmp_path / "x.model"), header=_set(f"architecture.{key}", value))
+    for args in (["predict", "--model"], ["eval", "--model"]):
+        code, stderr, _ = invoke(args + [str(tmp_path / "x.model"), f"{files}/f.arrows"])
+        assert one_line(stderr, code, 1) and "architecture is out of bounds" in stderr and f"--{key}" in stderr, stderr

@@ -6,7 +6,7 @@ import json
 import math
 import os
 
-from neurotac_cli.errors import ModelError
+from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
 
@@ -147,7 +147,7 @@ def load(path: str):
     """Read a model file written by `save`."""
     from safetensors.torch import load_file
 
-    from neurotac_cli.model.core import Model, _module
+    from neurotac_cli.model.core import Model, _check_setting, _module
 
     header = read_header(path)
     name = header["model"]
@@ -158,10 +158,15 @@ def load(path: str):
     try:  # a header edited by hand, or damaged, fails here rather than deep in torch
         settings = {**getattr(module, "ABSENT_MEANS", {}), **header["architecture"]}
         config = config_type(**{k: v for k, v in settings.items() if k in known})
+        for key, value in dataclasses.asdict(config).items():  # the bounds `train` holds its options to
+            _check_setting(key, value, name)
         if header["task"] == "material":
             net = module.Net(config, len(header["classes"]))
         else:
             net = module.Net(config, (2, int(spec["height"]), int(spec["width"])))
+    except UsageError as error:
+        raise ModelError(f"{path}: the model header's {name} architecture is out of bounds ({error}); train the model "
+                         "again") from None
     except (TypeError, KeyError, ValueError, AttributeError, RuntimeError) as error:
         raise ModelError(f"{path}: the model header does not describe a {name} network ({type(error).__name__}: "
                          f"{str(error).splitlines()[0] if str(error) else error!r}); train the model again") from None
