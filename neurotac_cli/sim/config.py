@@ -322,6 +322,13 @@ def _more_problems(config: SimConfig) -> list[str]:
                  "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"):
         if getattr(config, name) < 0:
             problems.append(f"{name} must be >= 0")
+    if config.position_jitter_px > min(config.sensor_width, config.sensor_height) / 2:
+        problems.append("position_jitter_px at most half the sensor's smaller side (the objects would land off it)")
+    if config.led_box:
+        x, y, width, height = config.led_box
+        if width <= 0 or height <= 0 or not (0 <= x < config.sensor_width and 0 <= y < config.sensor_height):
+            problems.append(f"led_box {x},{y},{width},{height}: a box of positive size that begins inside the "
+                            f"{config.sensor_width}x{config.sensor_height} sensor (the LED would light no pixel)")
     if not 0 <= config.membrane_poisson < 0.5 or not 0 <= config.vignetting < 1 or not 0 <= config.threshold_mismatch < 1:
         problems.append("membrane_poisson in [0, 0.5), vignetting and threshold_mismatch in [0, 1)")
     return problems
