@@ -322,8 +322,8 @@ def _more_problems(config: SimConfig) -> list[str]:
                  "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"):
         if getattr(config, name) < 0:
             problems.append(f"{name} must be >= 0")
-    if config.position_jitter_px > min(config.sensor_width, config.sensor_height) / 2:
-        problems.append("position_jitter_px at most half the sensor's smaller side (the objects would land off it)")
+    if config.position_jitter_px > max(config.sensor_width, config.sensor_height):
+        problems.append("position_jitter_px at most the sensor's larger side (most objects would land off it)")
     if config.led_box:
         x, y, width, height = config.led_box
         if width <= 0 or height <= 0 or not (0 <= x < config.sensor_width and 0 <= y < config.sensor_height):
