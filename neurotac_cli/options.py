@@ -428,3 +428,17 @@ def echo_lines(command: str, lines, prefix: str = "") -> None:
     """Each line on stderr as `neurotac COMMAND: PREFIXline` (PREFIX e.g. `warning: `)."""
     for line in lines:
         click.echo(f"neurotac {command}: {prefix}{line}", err=True)
+
+
+def label_given() -> bool:
+    """Whether the user gave --label (not its default) to the running command."""
+    return click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT
+
+
+def refuse_label_for_force(model_name: str) -> None:
+    """--label chooses the class a classifier predicts: given with a force model it would change nothing."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.model.names import MATERIAL_MODELS
+
+    if model_name not in MATERIAL_MODELS and label_given():
+        raise UsageError(f"--label chooses the class a classifier predicts; {model_name} estimates force (leave --label out)")

@@ -748,6 +748,14 @@ def test_eval_refuses_a_label_its_model_file_does_not_classify_by(files, model, 
     assert code == 0, stderr
 
 
+@pytest.mark.parametrize("verb", ["eval", "study"])
+def test_a_label_for_a_force_model_spec_is_refused(files, verb):  # noqa: F811
+    """As `train` refuses it: a force model has no class to predict, so --label would change nothing."""
+    extra = ["--cv", "kfold:2"] if verb == "eval" else ["--grid", "units=2,3"]
+    code, stderr, _ = invoke([verb, "--model-spec", "tdnn", "--label", "object", *extra, f"{files}/f.arrows"])
+    assert code == 2 and "Traceback" not in stderr and "tdnn estimates force" in stderr, stderr
+
+
 @pytest.mark.parametrize("key, value", [("units", 0), ("layers", -1), ("delays", -2)])
 def test_a_header_architecture_past_trains_bounds_is_one_line(files, tmp_path, key, value):  # noqa: F811
     """A unit count of 0 built an empty network, with torch's warnings on stderr before the error."""

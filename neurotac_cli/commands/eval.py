@@ -1,7 +1,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, checked_grid, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_label_for_force, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, threads_option, use_device)
 
 
@@ -57,8 +57,8 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         header = read_header(model_path)
         label = _model_label(header, label)
         echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema)]), "warning: ")
-    elif model_spec in FORCE_MODELS:
-        _model_label({"model": model_spec, "task": "force"}, label)
+    elif model_spec:
+        refuse_label_for_force(model_spec)
     import torch
 
     from neurotac_cli.model import evaluate, plots
@@ -84,18 +84,15 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 
 
 def _model_label(header: dict, label: str) -> str:
-    """The label a model file classifies by (its training's): a --label that differs, or one given
-    for a force model, is refused; it was ignored, and a classifier scored its own label under the
-    name of the one asked for."""
+    """The label a model file classifies by (its training's): a classifier predicts only that one, so
+    a --label that differs would score it under another label's name; a force model has none."""
     from neurotac_cli.errors import UsageError
 
-    given = click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT
+    refuse_label_for_force(header["model"])
     if header["task"] != "material":
-        if given:
-            raise UsageError(f"--label chooses the class a classifier predicts; {header['model']} estimates force (leave --label out)")
         return label
     trained = (header.get("training") or {}).get("label") or "material"
-    if given and label != trained:
+    if label_given() and label != trained:
         raise UsageError(f"--label {label}: model {header['model']!r} classifies by {trained!r}, the label it was trained on "
                          f"(give --label {trained} or leave it out, or train a classifier with --label {label})")
     return trained

@@ -5,7 +5,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, checked_grid, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, checked_grid, refuse_label_for_force, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, seed_option, study_options, use_device)
 
 
@@ -48,6 +48,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     from neurotac_cli import tables
     from neurotac_cli.model import evaluate
 
+    refuse_label_for_force(model)
     tables.check_folder(*(path for path in (output, metrics_path) if path not in (None, "-")))  # before hours of training
     table = tables.read(paths, kind="frames")
     use_device(device)

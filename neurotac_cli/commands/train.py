@@ -4,7 +4,7 @@ import click
 
 from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (PlotPath, TablePath, device_option, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
+from neurotac_cli.options import (PlotPath, TablePath, refuse_label_for_force, device_option, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
                                   seed_option, threads_option, use_device, validation_options)
 
 
@@ -61,8 +61,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     if contacts and model_name in MATERIAL_MODELS:
         raise UsageError("--contacts trains force models; a material classifier takes whole trials")
-    if model_name not in MATERIAL_MODELS and click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT:
-        raise UsageError(f"--label chooses the class a classifier predicts; {model_name} estimates force (leave --label out)")
+    refuse_label_for_force(model_name)
     tables.check_folder(*(path for path in (output, curve, plot) if path))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
