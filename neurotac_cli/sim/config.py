@@ -291,8 +291,9 @@ def validate(config: SimConfig):
                  "hold_us", "release_us", "tail_us", "hot_pixels"):
         if getattr(config, name) < 0:
             problems.append(f"{name} must be >= 0")
-    if not 0 <= config.background_on_share <= 1 or not 0 <= config.object_contrast < 1 or not 0 <= config.creep < 1:
-        problems.append("background_on_share in [0, 1], object_contrast and creep in [0, 1)")
+    if not 0 <= config.background_on_share <= 1 or not 0 < config.object_contrast < 1 or not 0 <= config.creep < 1:
+        problems.append("background_on_share in [0, 1], object_contrast in (0, 1) (at 0 the camera cannot see the object), "
+                        "creep in [0, 1)")
     if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
         problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
     problems += _more_problems(config)
