@@ -729,7 +729,7 @@ def test_a_classifier_header_with_a_damaged_class_list_is_one_line(files, tmp_pa
     ("on_threshold=1e9", "on_threshold must be in"), ("off_threshold=1e-6", "off_threshold must be in"),
     ("contact_delay_us=50ms..10ms", "contact_delay_us must be a range"), ("dark_level=-1", "dark_level must be >= 0"),
     ("creep_us=-5ms", "creep_us must be >= 0"), ("camera_offset_us=-5s..-1s", "camera_offset_us must be a range"),
-    ("membrane_poisson=2", "membrane_poisson in [0, 0.5)"),
+    ("membrane_poisson=2", "membrane_poisson must be in [0, 0.5]"),
     ("position_jitter_px=1e9", "position_jitter_px at most the sensor"), ("led_box=500,0,10,10", "the LED would light no pixel"),
     ("object_contrast=0", "the camera cannot see the object")])
 def test_simulator_settings_that_hung_crashed_or_made_nonsense_are_refused(setting, said, tmp_path):

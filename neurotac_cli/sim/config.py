@@ -5,6 +5,7 @@ in `_us` are durations (µs). Sources of the defaults are given in docs/simulato
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 from neurotac_cli.errors import NeurotacError, UsageError
@@ -252,77 +253,75 @@ def _scalar(name, text, default, parse_duration_us):
 
 SESSION_REST_FLOOR_US = 50_000  # sim.session: LEAD_US + SETTLE_US + 10 ms between two grasps
 
+# Each number's bounds: (lowest, highest, lowest excluded, highest excluded). Past them a simulation
+# fails deep in numpy (a negative dark level's log), runs for hours (a threshold of 1e9 or 1e-6: the
+# LED blink crosses it billions of times) or simulates what no camera records (a negative duration).
+_POSITIVE, _NOT_NEGATIVE = (0.0, math.inf, True, False), (0.0, math.inf, False, False)
+_SHARE, _BELOW_ONE = (0.0, 1.0, False, False), (0.0, 1.0, False, True)
+BOUNDS = {
+    **dict.fromkeys(("pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm", "saturation_force_n",
+                     "saturation_sharpness", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s",
+                     "step_us", "force_period_us", "grasp_us", "illumination_period_us"), _POSITIVE),
+    **dict.fromkeys(("background_rate_hz", "hot_rate_hz", "led_gain", "refractory_us", "hold_us", "release_us", "tail_us",
+                     "hot_pixels", "creep_us", "servo_settle_us", "settle_us", "still_us", "force_lag_us", "max_duration_us",
+                     "duration_jitter", "texture", "dark_level", "position_jitter_px", "settle_px", "vibration_px",
+                     "drift_px", "tilt_deg", "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"), _NOT_NEGATIVE),
+    **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share"), _SHARE),
+    **dict.fromkeys(("creep", "vignetting", "threshold_mismatch", "illumination_drift"), _BELOW_ONE),
+    "on_threshold": (1e-3, 10.0, False, False), "off_threshold": (1e-3, 10.0, False, False),
+    "object_contrast": (0.0, 1.0, True, True), "membrane_poisson": (0.0, 0.5, False, False),
+}
+WHY = {"on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "
+       "pixels have 0.1-0.5", "object_contrast": "at 0 the camera cannot see the object", "membrane_poisson": "0.5: incompressible"}
+RANGES = ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_s", "slip_us", "slip_force_drop",
+          "contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us")
+
 
 def validate(config: SimConfig):
-    import math
-
     problems = []
     for item in dataclasses.fields(config):  # NaN passes every comparison below unnoticed
         values = getattr(config, item.name)
         for value in values if isinstance(values, tuple) else (values,):
             if isinstance(value, float) and not math.isfinite(value):
                 problems.append(f"{item.name} must be a finite number, got {value}")
+    if problems:
+        raise UsageError("bad simulator parameters: " + "; ".join(problems))
     if config.gripper not in ("position", "force"):
         problems.append(f"gripper={config.gripper!r} (use position or force)")
-    for name in ("regrasp_share", "change_share", "partial_share", "slip_share"):
-        if not 0 <= getattr(config, name) <= 1:
-            problems.append(f"{name} must be in [0, 1]")
-    for name in ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_s", "slip_us", "slip_force_drop"):
+    if config.force_sensor not in ("nano17", "flexiforce"):
+        problems.append(f"force_sensor={config.force_sensor!r} (use nano17 or flexiforce)")
+    problems += [_out_of_bounds(name, getattr(config, name), *bounds) for name, bounds in BOUNDS.items()]
+    for name in RANGES:
         low, high = getattr(config, name)
         if not 0 <= low <= high or (name == "session_speed" and low <= 0):
             problems.append(f"{name} must be a range LOW..HIGH with 0 {'<' if name == 'session_speed' else '<='} LOW <= HIGH")
     if config.session_rest_us[0] < SESSION_REST_FLOOR_US:
         problems.append(f"session_rest_us must start at {SESSION_REST_FLOOR_US // 1000} ms or more (a grasp's approach "
                         "and the settling of the one before take that long)")
-    if not 0 <= config.illumination_drift < 1 or config.illumination_period_us <= 0:
-        problems.append("illumination_drift in [0, 1) and illumination_period_us > 0")
-    if config.force_sensor not in ("nano17", "flexiforce"):
-        problems.append(f"force_sensor={config.force_sensor!r} (use nano17 or flexiforce)")
     if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:
         problems.append("force range (need 0 <= force_min_n <= force_max_n, force_max_n > 0)")
-    for name in ("on_threshold", "off_threshold", "pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm",
-                 "saturation_force_n", "saturation_sharpness", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s"):
-        if getattr(config, name) <= 0:
-            problems.append(f"{name} must be > 0")
-    for name in ("step_us", "force_period_us", "grasp_us"):
-        if getattr(config, name) <= 0:
-            problems.append(f"{name} must be > 0")
-    for name in ("background_rate_hz", "hot_rate_hz", "threshold_mismatch", "creep", "led_gain", "refractory_us",
-                 "hold_us", "release_us", "tail_us", "hot_pixels"):
-        if getattr(config, name) < 0:
-            problems.append(f"{name} must be >= 0")
-    if not 0 <= config.background_on_share <= 1 or not 0 < config.object_contrast < 1 or not 0 <= config.creep < 1:
-        problems.append("background_on_share in [0, 1], object_contrast in (0, 1) (at 0 the camera cannot see the object), "
-                        "creep in [0, 1)")
-    if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
-        problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
-    problems += _more_problems(config)
+    problems += _placement_problems(config)
+    problems = [problem for problem in problems if problem]
     if problems:
         raise UsageError("bad simulator parameters: " + "; ".join(problems))
 
 
-THRESHOLDS = (1e-3, 10.0)  # log-intensity contrast; DVS pixels: 0.1-0.5
+def _out_of_bounds(name: str, value, low: float, high: float, low_open: bool, high_open: bool) -> str:
+    """A setting's problem with its bounds ("" where it has none)."""
+    if low < value < high or (value == low and not low_open) or (value == high and not high_open):
+        return ""
+    if high == math.inf:
+        bound = f"{'>' if low_open else '>='} {low:g}"
+    else:
+        bound = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+    return f"{name} must be {bound}" + (f" ({WHY[name]})" if name in WHY else "") + f", got {value:g}"
 
 
-def _more_problems(config: SimConfig) -> list[str]:
-    """Settings `validate`'s first checks let pass, which failed with a traceback (a range drawn from
-    high to low, a negative dark level's log), ran for hours (a threshold of 1e9 or 1e-6: billions of
-    LED-blink crossings), or simulated nonsense without a word (negative durations, a Poisson ratio
-    past 0.5)."""
+def _placement_problems(config: SimConfig) -> list[str]:
+    """The sensor's size, and where objects and the LED land on it."""
     problems = []
-    low, high = THRESHOLDS
-    for name in ("on_threshold", "off_threshold"):
-        if not low <= getattr(config, name) <= high:
-            problems.append(f"{name} must be in [{low:g}, {high:g}] (a log-intensity contrast; DVS pixels have 0.1-0.5)")
-    for name in ("contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us"):
-        low, high = getattr(config, name)
-        if not 0 <= low <= high:
-            problems.append(f"{name} must be a range LOW..HIGH with 0 <= LOW <= HIGH")
-    for name in ("creep_us", "servo_settle_us", "settle_us", "still_us", "force_lag_us", "max_duration_us", "duration_jitter",
-                 "texture", "dark_level", "position_jitter_px", "settle_px", "vibration_px", "drift_px", "tilt_deg",
-                 "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"):
-        if getattr(config, name) < 0:
-            problems.append(f"{name} must be >= 0")
+    if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
+        problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
     if config.position_jitter_px > max(config.sensor_width, config.sensor_height):
         problems.append("position_jitter_px at most the sensor's larger side (most objects would land off it)")
     if config.led_box:
@@ -330,6 +329,4 @@ def _more_problems(config: SimConfig) -> list[str]:
         if width <= 0 or height <= 0 or not (0 <= x < config.sensor_width and 0 <= y < config.sensor_height):
             problems.append(f"led_box {x},{y},{width},{height}: a box of positive size that begins inside the "
                             f"{config.sensor_width}x{config.sensor_height} sensor (the LED would light no pixel)")
-    if not 0 <= config.membrane_poisson < 0.5 or not 0 <= config.vignetting < 1 or not 0 <= config.threshold_mismatch < 1:
-        problems.append("membrane_poisson in [0, 0.5), vignetting and threshold_mismatch in [0, 1)")
     return problems
