@@ -102,7 +102,7 @@ def detect_format(path, head: bytes) -> str:
     if head.startswith(b"Event Stream"):
         return "es"
     if head.startswith(b"#!AER-DAT"):
-        version = head[9:].split(b"\n")[0].strip().decode("latin-1")
+        version = (head[9:].split(maxsplit=1) or [b""])[0][:16].decode("latin-1")  # a damaged line may run on for kilobytes
         raise FormatError(f"{name}: AEDAT version {version!r} is not supported (AEDAT 2.0, 3.1 and 4.0 are)")
     if head.startswith(b"%"):
         header = _percent_header(head)

@@ -103,11 +103,12 @@ def test_sensor_option_overrides_and_too_small_a_sensor_is_an_error(tmp_path):
         (lambda d: make(d / "bad.csv", b"t,x,y,p\n1,2,3,1\n2,2,3,1\noops\n"), "line 4"),
         (lambda d: make(d / "v3.aedat", b"#!AER-DAT3.1\r\n"), "AEDAT 3.1"),
         (lambda d: make(d / "v5.aedat", b"#!AER-DAT5.0\r\n1 2 3 1\n"), "AEDAT version '5.0' is not supported"),
+        (lambda d: make(d / "long.aedat", b"#!AER-DAT" + b"x" * 70_000), "AEDAT version 'xxxxxxxxxxxxxxxx' is not"),
         (lambda d: make(d / "cut.aedat4", b"#!AER"), "holds only 5 bytes, the start of an AEDAT file's signature"),
         (lambda d: make(d / "cut.es", b"Event"), "the start of an Event Stream file's signature"),
         (lambda d: make(d / "cut.h5", b"\x89HDF\r"), "the start of an HDF5 file's signature"),
     ],
-    ids=["directory", "missing", "empty", "unknown", "bad-row", "aedat3", "aedat5", "cut-aedat", "cut-es", "cut-hdf5"],
+    ids=["directory", "missing", "empty", "unknown", "bad-row", "aedat3", "aedat5", "aedat-long", "cut-aedat", "cut-es", "cut-hdf5"],
 )
 def test_bad_inputs_give_one_line_and_exit_1(tmp_path, setup, expected):
     path = setup(tmp_path)
