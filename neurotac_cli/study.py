@@ -387,8 +387,8 @@ class _Cache:
         return self.folder / key[:2] / f"{key}.pkl"
 
     # Each entry is its payload's SHA-256, then the payload: a damaged entry (a flipped bit, a file
-    # cut or replaced) is run again; read as it was, it failed with a traceback, or its changed
-    # numbers entered the study's results without a word.
+    # cut or replaced) is run again, since read as it is it would fail with a traceback, or put
+    # changed numbers into the study's results.
     DIGEST = 32
 
     def get(self, key: str):

@@ -563,8 +563,8 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
 
 def _in_order(trial: str, last: int | None, frames: np.ndarray) -> int:
     """The last of a trial's frames, refusing frames that come before one already read: a stream
-    carries each trial's state from one frame to the next, so frames out of order gave other
-    estimates than `eval` (which sorts each trial's frames) without a word."""
+    carries each trial's state from one frame to the next, so frames out of order would give other
+    estimates than `eval` (which sorts each trial's frames)."""
     given = frames if last is None else np.concatenate([[last], frames])
     back = np.flatnonzero(np.diff(given) <= 0)
     if len(back):

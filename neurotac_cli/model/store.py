@@ -85,8 +85,8 @@ def _whole(value, least: int = 1) -> bool:
 
 def _check_parts(path: str, header: dict):
     """Refuse a header whose parts are not what `train` writes (a file edited by hand, or damaged):
-    they failed deep in numpy or torch with a traceback, or ran with a nonsense constant (a force
-    scale of 0 or NaN estimated 0 or NaN N on every frame, exit 0)."""
+    such parts fail deep in numpy or torch, or run with a nonsense constant (a force scale of 0 or
+    NaN would estimate 0 or NaN N on every frame)."""
     def bad(what: str, should: str):
         return ModelError(f"{path}: the model header's {what} is not {should} (file edited or damaged?); train the model again")
 

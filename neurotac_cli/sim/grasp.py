@@ -79,10 +79,10 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
     queue = []  # round-robin over groups so a small --trials still covers every group
     remaining = [g[2] for g in groups]
     total = sum(remaining)
-    if trials is not None and trials > total:  # fewer trials than asked for, without a word, were written before
+    if trials is not None and trials > total:  # writing fewer than asked for would pass unnoticed in a batch script
         raise UsageError(f"--trials {trials} is more than the {total} grasps of the preset's groups (or --objects); "
                          f"give --trials {total} or fewer, or more grasps per group with --objects")
-    wanted = total if trials is None else trials  # the queue stops there: a group of 10^12 with --trials 1 ran out of memory
+    wanted = total if trials is None else trials  # the queue holds only what is written: a huge group with --trials 1 stays small
     while len(queue) < wanted:
         for index, group in enumerate(groups):
             if remaining[index] and len(queue) < wanted:
