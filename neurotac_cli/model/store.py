@@ -9,6 +9,7 @@ import os
 from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
+from neurotac_cli.units import is_whole
 
 HEADER_KEY = "neurotac"
 
@@ -79,8 +80,9 @@ def read_header(path: str) -> dict:
     return header
 
 
-def _whole(value, least: int = 1) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= least
+def _whole(value) -> bool:
+    """A whole number of 1 or more (a count, a size, a format number)."""
+    return is_whole(value) and value >= 1
 
 
 def _check_parts(path: str, header: dict):
