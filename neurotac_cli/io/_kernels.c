@@ -351,6 +351,7 @@ static PyObject *triggers(PyObject *self, PyObject *args) {
     PyObject *ow, *os, *ot, *ov, *oc;
     int word_bytes;
     if (!PyArg_ParseTuple(args, "OiOOOO", &ow, &word_bytes, &os, &ot, &ov, &oc)) return NULL;
+    if (word_bytes != 2 && word_bytes != 4 && word_bytes != 8) { PyErr_SetString(PyExc_ValueError, "triggers: words of 2, 4 or 8 bytes"); return NULL; }
     Buf b[5];
     memset(b, 0, sizeof b);
     if (take(ow, &b[0], 0, word_bytes, "words") || take(os, &b[1], 1, 8, "state") || take(ot, &b[2], 1, 8, "t") ||
@@ -396,6 +397,7 @@ static PyObject *count_kind(PyObject *self, PyObject *args) {
     int word_bytes, shift;
     long long kind;
     if (!PyArg_ParseTuple(args, "OiiL", &ow, &word_bytes, &shift, &kind)) return NULL;
+    if (word_bytes != 2 && word_bytes != 4 && word_bytes != 8) { PyErr_SetString(PyExc_ValueError, "count_kind: words of 2, 4 or 8 bytes"); return NULL; }
     Buf b[1];
     memset(b, 0, sizeof b);
     if (take(ow, &b[0], 0, word_bytes, "words")) { release(b, 1); return NULL; }
