@@ -56,9 +56,11 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
         raise NeurotacError(f"{path}: no such manifest")
     try:  # utf-8-sig: a spreadsheet's "CSV UTF-8" export starts with a byte-order mark, which is no part of a column name
         with open(path, encoding="utf-8-sig", newline="") as handle:
-            rows = list(csv.DictReader(handle))
+            reader = csv.DictReader(handle)
+            rows = list(reader)
     except (UnicodeDecodeError, csv.Error) as error:
         raise NeurotacError(f"{path}: not a CSV manifest ({error})") from None
+    _check_manifest(path, reader.fieldnames or [], rows)
     if not rows:
         raise NeurotacError(f"{path}: the manifest has no rows")
     missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]
@@ -81,6 +83,25 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
             labels=row_labels,
         )
 
+
+def _check_manifest(path: str, header: list, rows: list[dict]) -> None:
+    """Refuse what a dict of each row would lose without a word: a column named twice (one value
+    would win), a row with more or fewer cells than the header, one recording on two rows."""
+    named_twice = sorted({name for name in header if name and header.count(name) > 1})
+    if named_twice:
+        raise NeurotacError(f"{path}: column {', '.join(named_twice)} appears twice in the header; each column needs its own name")
+    seen = {}
+    for number, row in enumerate(rows, start=2):
+        if None in row or None in row.values():
+            cells = len(header) + len(row.get(None) or []) - sum(value is None for value in row.values())
+            raise NeurotacError(f"{path}: line {number} has {cells} cells, the header {len(header)}; "
+                                "quote a cell holding a comma, and give every row every column")
+        events = os.path.normpath(row.get("events") or "")
+        if events in seen and events != ".":
+            # the same recording twice would count as two trials (and could land in both train and test)
+            raise NeurotacError(f"{path}: line {number} names the events file {row['events']} again (line {seen[events]}); "
+                                "give each recording one row")
+        seen[events] = number
 
 def folder_as_manifest(events, manifest, force):
     """A folder given as EVENTS: (None, its manifest, a note for the user), the manifest written by

@@ -292,6 +292,21 @@ def test_a_manifest_and_force_logs_saved_by_a_spreadsheet_sync_as_plain_ones(sim
         read("marked.arrows").select(["trial", "t0", "material"]))
 
 
+@pytest.mark.parametrize("text,message", [
+    ("trial,events,force,material\na,g.aedat,f.csv,foam\nb,./g.aedat,h.csv,foam\n", "line 3 names the events file ./g.aedat again"),
+    ("trial,events,force,material,material\na,g.aedat,f.csv,foam,rubber\n", "column material appears twice"),
+    ("trial,events,force,material\na,g.aedat,f.csv\n", "line 2 has 3 cells, the header 4"),
+    ("trial,events,force,material\na,g.aedat,f.csv,foam,steel\n", "line 2 has 5 cells, the header 4"),
+])
+def test_a_manifest_that_would_lose_or_double_a_recording_is_refused(tmp_path, text, message):
+    """A dict per row keeps one of two same-named columns and drops a short or long row's cells; the
+    same recording on two rows would be two trials of one grasp."""
+    path = tmp_path / "manifest.csv"
+    path.write_text(text)
+    with pytest.raises(NeurotacError, match=message):
+        list(manifest.manifest_sources(str(path), manifest.ForceOptions()))
+
+
 def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
     path = tmp_path / "still.arrows"
     tables.write(str(path), synthetic_recording(8, led_off=None))
