@@ -57,10 +57,12 @@ def find_led_spikes(t, x, y, p, method, count: int, sensor=None) -> list[Instant
         # the pair starting at bin i holds the spike: its end is counted from the fuller bin
         end_us = origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us
         chosen.append(_spike_instant(times[c:d], z[i], coverage, end_us, method.latency_us))
-        if len(chosen) == count:
+        if len(chosen) > count:  # one more than wanted is enough to know the blinks and the log disagree
             break
     if len(chosen) < count:
         raise _no_spike(len(chosen), count, max(rejected, default=None), method)
+    if len(chosen) > count:
+        raise _extra_spike(chosen, count)
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
@@ -103,6 +105,17 @@ def _no_spike(found: int, count: int, best, method) -> SyncError:
         f"no LED-off spike stands out ({found_text}{detail}; a spike needs z >= {method.min_z:g} over "
         f">= {100 * method.min_coverage:g}% of the pixels); check the LED is in view, give --region, "
         "or use --method xcorr, trigger or offset"
+    )
+
+
+def _extra_spike(chosen: list[Instant], count: int) -> SyncError:
+    """The error when more spikes stand out than the force log has trials: taking the strongest
+    would put the trial's zero at whichever blink happened to be brighter."""
+    onsets = ", ".join(f"{instant.details['onset_us']} µs" for instant in sorted(chosen, key=lambda instant: instant.t0))
+    return SyncError(
+        f"more LED-off spikes stand out than the force log has trials ({count}): at least {len(chosen)}, at {onsets}; "
+        "which one starts a trial is not ours to guess: give --region, cut the recording to one blink per trial "
+        "(neurotac select --where \"t BETWEEN a AND b\"), or give the force log of every blink"
     )
 
 

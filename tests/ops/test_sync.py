@@ -163,6 +163,17 @@ def test_a_session_with_fewer_blinks_than_force_trials_fails():
         sy.sync_source(manifest.Source("s", table, [force_log(), force_log()]), sy.SyncMethod())
 
 
+def test_a_recording_with_more_blinks_than_force_trials_fails_rather_than_pick_the_brighter():
+    """Two blinks and one force trial: the stronger of the two was taken, which put the trial's
+    zero at the second blink and dropped everything before it as the blink's burst."""
+    first, second = synthetic_recording(3, led_off=3_050_000), synthetic_recording(4, led_off=3_050_000)
+    shifted = second.set_column(0, "t", pa.array(second.column("t").to_numpy() + 1_000_000))
+    session = pa.concat_tables([first, shifted])
+    with pytest.raises(SyncError, match="more LED-off spikes stand out than the force log has trials \\(1\\)") as caught:
+        sy.sync_source(manifest.Source("g", session, [force_log()]), sy.SyncMethod())
+    assert "\n" not in str(caught.value) and "--region" in str(caught.value)
+
+
 # ---------------------------------------------------------------- trigger, offset
 
 
