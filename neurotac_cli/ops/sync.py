@@ -139,8 +139,8 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
     kinds = sorted({str(item.get("type")) for item in triggers})
     ids = sorted({int(item["id"]) for item in triggers if item.get("id") is not None})
     has = f"the file has {', '.join(kinds)}" + (f" on inputs {', '.join(map(str, ids))}" if ids else "")
-    chosen = [item for item in triggers if method.trigger_type in (None, item.get("type"))
-              and (method.trigger_id is None or item.get("id") == method.trigger_id)]
+    chosen = sorted((item for item in triggers if method.trigger_type in (None, item.get("type"))
+                     and (method.trigger_id is None or item.get("id") == method.trigger_id)), key=lambda item: int(item["t"]))
     if not chosen:
         wanted = " ".join(filter(None, [f"of type {method.trigger_type!r}" if method.trigger_type is not None else "",
                                         f"on input {method.trigger_id}" if method.trigger_id is not None else ""]))
@@ -150,9 +150,11 @@ def find_triggers(schema: pa.Schema, method: SyncMethod, count: int) -> list[Ins
         listed = ", ".join(f"{kind}" + (f" on input {input_id}" if input_id is not None else "") for kind, input_id in kinds_chosen)
         raise SyncError(f"the recording has triggers of several kinds ({listed}); choose the one that marks the grasp with "
                         "--trigger-type and, where inputs differ, --trigger-id")
-    if count > 1 and len(chosen) != count:
+    if len(chosen) != count:  # one trial and several triggers too: the first is no likelier the grasp's than the last
+        at = ", ".join(f"{int(item['t'])} µs" for item in chosen[:5]) + (", ..." if len(chosen) > 5 else "")
         raise SyncError(
-            f"{len(chosen)} triggers but {count} trials in the force log; pick triggers with --trigger-type or --trigger-id ({has})"
+            f"{len(chosen)} triggers (at {at}) but {count} trial(s) in the force log; pick triggers with --trigger-type or "
+            f"--trigger-id ({has}), or cut the recording to one trigger per trial"
         )
     details = lambda item: {"type": item.get("type"), "triggers": len(chosen), **({"id": item["id"]} if "id" in item else {})}  # noqa: E731
     return [Instant(t0=int(item["t"]), details=details(item)) for item in chosen[:count]]

@@ -206,6 +206,20 @@ def test_triggers_of_one_input_are_chosen_by_id():
         sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger"))
 
 
+def test_several_triggers_of_the_chosen_kind_for_one_trial_are_refused_not_the_first_taken():
+    """The first trigger in the file's order was taken: a second pulse (or triggers written out of
+    time order) put the trial's zero at an arbitrary one."""
+    table = synthetic_recording(6, led_off=None)
+    triggers = [{"t": 3_300_000, "type": "rising"}, {"t": 3_010_000, "type": "rising"}]
+    table = table.replace_schema_metadata({**table.schema.metadata, b"neurotac:triggers": json.dumps(triggers).encode()})
+    with pytest.raises(SyncError, match=r"2 triggers \(at 3010000 µs, 3300000 µs\) but 1 trial\(s\)"):
+        sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(method="trigger"))
+    logs = [force_log(), force_log()]
+    logs[0].trial, logs[1].trial = "a", "b"
+    trials, _ = sy.sync_source(manifest.Source("s", table, logs), sy.SyncMethod(method="trigger"))
+    assert [trial["t0"] for trial in trials] == [3_010_000, 3_300_000]  # in time order, as the trials are cut
+
+
 # ---------------------------------------------------------------- simulated grasps
 
 
