@@ -41,7 +41,7 @@ def _check_samples(log: ForceLog, where: str) -> None:
 
 
 def plausibility_warnings(log: ForceLog, where: str) -> list[str]:
-    """A log that reads negative through most of the grasp, or beyond any sensor's range."""
+    """A log that reads negative through most of the grasp, one value throughout, or beyond any sensor's range."""
     values = np.asarray(log.value, dtype=np.float64)
     warnings = []
     negative = float(np.mean(values < NEGATIVE_N))
@@ -49,6 +49,11 @@ def plausibility_warnings(log: ForceLog, where: str) -> list[str]:
         warnings.append(
             f"{where}: the force reads below {NEGATIVE_N:g} N on {100 * negative:.0f}% of the samples "
             f"(median {np.median(values):.3g} N); a squeeze is positive: check the sensor's sign and tare"
+        )
+    elif np.ptp(values) == 0:  # even a sensor at rest reads noise: one value throughout is no reading (a negative one is told above)
+        warnings.append(
+            f"{where}: the force is {values[0]:g} N in every one of the {len(values)} samples; every frame would be "
+            "labelled with it: check the sensor was connected and the force column (--force-column)"
         )
     peak = float(np.max(np.abs(values)))
     if peak > RANGE_N:

@@ -63,6 +63,15 @@ def test_a_log_negative_throughout_and_one_in_the_wrong_unit_are_warned_about():
     assert "reaches 3000 N" in warning and "unit" in warning
 
 
+@pytest.mark.parametrize("value", [0.0, 1.5])
+def test_a_log_of_one_value_throughout_is_warned_about(value):
+    """An unplugged sensor or the wrong column reads one value: every frame would be labelled with it, silently."""
+    log = force_log()
+    log.value = np.full(len(log.t), value)
+    (warning,) = sync(log)[1]["g"]["warnings"]
+    assert f"the force is {value:g} N in every one of the {len(log.t)} samples" in warning and "--force-column" in warning
+
+
 def test_rest_noise_around_zero_is_not_negative():
     log = force_log()
     log.value = np.random.default_rng(0).normal(0, 0.02, len(log.t))
