@@ -57,5 +57,7 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
                  flush_each=is_live)
     echo_lines("import", stream.notes, prefix="warning: ")
     if not stream.rows:
-        click.echo(f"neurotac import: warning: {', '.join(paths)}: no events in the file (an empty table was written)", err=True)
+        # stopped before the first event was passed on, the file need not be empty
+        why = "stopped before any event was passed on" if stop() else "no events in the file"
+        click.echo(f"neurotac import: warning: {', '.join(paths)}: {why} (an empty table was written)", err=True)
 

@@ -359,6 +359,18 @@ def test_realtime_replays_at_the_recorded_pace(tmp_path):
     assert events(read([str(tmp_path / "r.arrows")])).equals(events(read_events_table(source)))
 
 
+def test_a_replay_stopped_before_its_first_event_does_not_call_the_file_empty(tmp_path):
+    source = real_file("davis240c_rotdisk.aedat")
+    process = subprocess.Popen(["neurotac", "import", "--realtime", "--speed", "0.000001", str(source), "-o", str(tmp_path / "r.arrows")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    time.sleep(1.5)  # started and waiting for the first millisecond, due in 1000 s
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=20)
+    assert process.returncode == 0, stderr
+    assert stderr.decode().count("\n") == 1 and "stopped before any event was passed on" in stderr.decode(), stderr
+    assert b"no events in the file" not in stderr
+
+
 @pytest.mark.parametrize("args", [["--speed", "2"], ["--realtime", "--speed", "0"], ["--realtime", "--speed", "nan"], ["--realtime", "--speed", "inf"], ["--follow", "a", "b"], ["--follow", "--idle-timeout", "0s"]])
 def test_live_usage_errors_exit_2(args, tmp_path):
     done = subprocess.run(["neurotac", "import", *args, str(tmp_path / "x.raw")], capture_output=True)
