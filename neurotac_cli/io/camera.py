@@ -131,6 +131,27 @@ def detect_format(path, head: bytes) -> str:
     )
 
 
+# formats whose files one decoder of the family could hold; --format may choose within a family
+# (a Prophesee header that names the wrong EVT, text with or without commas), not across them
+FAMILIES = {"evt2": "prophesee", "evt21": "prophesee", "evt3": "prophesee", "dat": "prophesee", "csv": "text", "text": "text"}
+
+
+def chosen_format(name, head: bytes, fmt: str | None) -> str:
+    """The format to decode a file as: `fmt` (--format) unless the first bytes say the file is of
+    another family (every decoder turns any bytes into events: an AEDAT file read as EVT 3.0 gives
+    hundreds of thousands of made-up events), else the one told from them."""
+    if fmt is None:
+        return detect_format(name, head)
+    try:
+        found = detect_format(name, head)
+    except FormatError:  # nothing the first bytes say: --format is what it is there for
+        return fmt
+    if FAMILIES.get(found, found) != FAMILIES.get(fmt, fmt):
+        raise FormatError(f"{os.path.basename(str(name))}: --format {fmt} reads it as {FORMAT_NAMES.get(fmt, fmt)}, "
+                          f"but its first bytes are those of {FORMAT_NAMES[found]}; leave --format out")
+    return fmt
+
+
 def _percent_header(head: bytes) -> dict:
     """Prophesee `% key value` header lines as a dict (keys lowercased)."""
     header = {}
@@ -195,7 +216,7 @@ def read_local(local: str, name: str, sensor=None, fmt: str | None = None, clean
             raise InputError(f"{name} is empty (0 bytes); is it the right file?")
         with open(local, "rb") as handle:
             head = handle.read(1 << 16)
-        fmt = fmt or detect_format(name, head)
+        fmt = chosen_format(name, head, fmt)
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))
         decoded = _guarded_call(name, fmt, lambda: _decoder(fmt)(local, head, sensor))

@@ -144,7 +144,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         if not buffer:
             waited = f" after waiting {idle_timeout:g} s" if follow else ""
             raise InputError(f"{name} is empty (0 bytes){waited}; is it the right file, and is the camera writing it?")
-        fmt = fmt or camera.detect_format(name, bytes(buffer[:SNIFF_BYTES]))
+        fmt = camera.chosen_format(name, bytes(buffer[:SNIFF_BYTES]), fmt)
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))
         if fmt not in STREAMED:

@@ -118,6 +118,21 @@ def test_bad_inputs_give_one_line_and_exit_1(tmp_path, setup, expected):
     assert len(lines) == 1 and lines[0].startswith("neurotac import: error: ") and expected in lines[0], lines
 
 
+@pytest.mark.parametrize("how", ["file", "stdin"])
+def test_a_format_of_another_family_than_the_files_signature_is_refused(tmp_path, how):
+    """Every decoder turns any bytes into events: an AEDAT 2.0 file read as EVT 3.0 gave made-up
+    events on a 2728x2048 sensor with only a warning about its last byte."""
+    from neurotac_cli.io.writers import write_aedat2
+
+    path = tmp_path / "grasp.aedat"
+    write_aedat2(path, np.arange(0, 4000, 10), np.full(400, 5), np.full(400, 6), np.arange(400) % 2)
+    source, data = (str(path), None) if how == "file" else ("-", path.read_bytes())
+    result = run(["import", "--format", "evt3", source, "-o", str(tmp_path / "out.parquet")], input=data)
+    assert result.exit_code == 1 and result.output.count("\n") == 1, result.output
+    assert "--format evt3 reads it as Prophesee EVT 3.0 raw, but its first bytes are those of AEDAT 2.0 (jAER)" in result.output
+    assert run(["import", "--format", "aedat2", source, "-o", str(tmp_path / "out.parquet")], input=data).exit_code == 0
+
+
 def test_a_table_given_to_import_is_refused_with_a_hint(tmp_path):
     table = sch.events_table([1, 2], [0, 1], [0, 1], [1, 0], 4, 4)
     path = tmp_path / "t.parquet"
