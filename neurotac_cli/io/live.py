@@ -75,12 +75,14 @@ class Feed:
     `idle_timeout` seconds; or `stop()` turning true.
     """
 
-    def __init__(self, fd: int, follow: bool = False, idle_timeout: float = 2.0, stop: Callable[[], bool] = lambda: False):
-        self.fd, self.follow, self.idle_timeout, self.stop = fd, follow, idle_timeout, stop
+    def __init__(self, fd: int, follow: bool = False, idle_timeout: float = 2.0, stop: Callable[[], bool] = lambda: False,
+                 path=None):
+        self.fd, self.follow, self.idle_timeout, self.stop, self.path = fd, follow, idle_timeout, stop, path
         self.regular = stat.S_ISREG(os.fstat(fd).st_mode)
         self.last = time.monotonic()
         self.ended = False
         self.shrunk = None  # (bytes read, bytes left) where a followed file was cut shorter while read
+        self.replaced = False  # a followed file's name came to name another file (one renamed over it)
         # every read lands in this one buffer: os.read(fd, READ_BYTES) asks malloc for READ_BYTES each
         # time and shrinks it to the few kB that came; glibc carves those requests out of its heap, and
         # the holes they leave, each a little short of the next request, make a live import's memory
@@ -98,6 +100,9 @@ class Feed:
                 at, size = os.lseek(self.fd, 0, os.SEEK_CUR), os.fstat(self.fd).st_size
                 if size < at:
                     self.shrunk, self.ended = (at, size), True
+                    return None
+                if self._replaced():
+                    self.replaced, self.ended = True, True
                     return None
                 time.sleep(POLL_S if time.monotonic() - self.last < IDLE_AFTER_S else IDLE_POLL_S)
         else:
@@ -118,6 +123,17 @@ class Feed:
             return None
         return b""
 
+    def _replaced(self) -> bool:
+        """True when the followed name now names another file: the open one will never grow again,
+        and the new one's bytes would not be read. A name gone (renamed away, the camera still
+        writing through it) is followed on."""
+        try:
+            named = os.stat(self.path) if self.path not in (None, "-") else None
+        except OSError:
+            return False
+        mine = os.fstat(self.fd)
+        return named is not None and (named.st_ino, named.st_dev) != (mine.st_ino, mine.st_dev)
+
     def _read(self) -> bytes:
         count = os.readv(self.fd, [self.chunk])
         return bytes(memoryview(self.chunk)[:count])
@@ -137,7 +153,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         _wait_for(path, idle_timeout, stop)
     fd = _open_fd(path)
     try:
-        feed = Feed(fd, follow, idle_timeout, stop)
+        feed = Feed(fd, follow, idle_timeout, stop, path)
         buffer = _read_until(feed, bytearray(), lambda data, end: _sniffed(data, end))
         if stop() and not _sniffed(buffer, False):
             raise InputError(f"{name}: stopped before the camera header had arrived (no table to write)")
@@ -324,6 +340,9 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
             notes.append(f"{name}: the file shrank from {feed.shrunk[0]:,} to {feed.shrunk[1]:,} bytes while it was followed "
                          "(rewritten or truncated by another program); the events read before were kept and the rest "
                          "left out: import the new file on its own")
+        if feed.replaced:
+            notes.append(f"{name}: another file was renamed over it while it was followed; the events of the file first "
+                         "opened were kept and the new file's left out: import the new file on its own")
         if decoder.triggers:
             notes.append(f"{name}: {decoder.triggers} external trigger events were not kept (a stream's metadata goes out "
                          "before they arrive); import the finished file for `sync --method trigger`")

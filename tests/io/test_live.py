@@ -64,6 +64,7 @@ class Reads:
     """A feed that gives these reads, then ends."""
 
     shrunk = None
+    replaced = False
 
     def __init__(self, *reads):
         self.reads = list(reads)
@@ -155,6 +156,31 @@ def test_a_followed_file_cut_shorter_while_read_ends_with_a_note(tmp_path):
     assert time.monotonic() - start < 4  # ended when seen, not after the idle timeout
     assert first.num_rows + sum(b.num_rows for b in rest) > 0
     assert any("shrank from 400,002 to 1,000 bytes while it was followed" in note for note in stream.notes), stream.notes
+
+
+def test_a_followed_file_replaced_by_another_ends_with_a_note_and_one_renamed_away_is_followed_on(tmp_path):
+    """A recorder that renames a new file over the old name: the open file never grows again and the
+    new one was never read, waited out in silence; a file renamed away is still the camera's."""
+    data = real_file("prophesee_vga_faery.evt2.raw").read_bytes()
+    path = tmp_path / "cam.raw"
+    path.write_bytes(data[:400_002])
+    stream = live.open_stream(str(path), follow=True, idle_timeout=5)
+    batches = iter(stream.batches)
+    first = next(batches)
+    (tmp_path / "new.raw").write_bytes(data)
+    os.replace(tmp_path / "new.raw", path)
+    start = time.monotonic()
+    rest = list(batches)
+    assert time.monotonic() - start < 4  # ended when seen, not after the idle timeout
+    assert first.num_rows + sum(b.num_rows for b in rest) > 0
+    assert any("another file was renamed over it while it was followed" in note for note in stream.notes), stream.notes
+    path.write_bytes(data[:400_002])
+    stream = live.open_stream(str(path), follow=True, idle_timeout=0.5)
+    os.replace(path, tmp_path / "moved.raw")
+    with open(tmp_path / "moved.raw", "ab") as handle:
+        handle.write(data[400_002:])
+    whole = read_events_table(real_file("prophesee_vga_faery.evt2.raw"))
+    assert sum(batch.num_rows for batch in stream.batches) == whole.num_rows and not stream.notes
 
 
 @pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
