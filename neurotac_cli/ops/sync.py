@@ -121,6 +121,9 @@ def condition_force(log: ForceLog, median_us: int) -> np.ndarray:
     size = max(1, size if size % 2 else size + 1)
     if size <= 1:
         return values
+    if size > len(values) // 2:  # the median of most of the log is its rest value: the grasp would be flattened away
+        raise SyncError(f"the force median filter ({median_us / 1000:g} ms, {size} samples) is longer than half the force log "
+                        f"({len(values)} samples, {(log.t[-1] - log.t[0]) / 1000:g} ms); give a shorter --median (0us = none)")
     from scipy.ndimage import median_filter
 
     return median_filter(values, size=size, mode="nearest")

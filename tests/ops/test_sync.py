@@ -462,6 +462,15 @@ def test_sensor_lag_and_saturation_are_validated():
         sy.SyncMethod(method="xcorr", saturation=-0.5)
 
 
+def test_a_median_window_longer_than_half_the_force_log_is_refused():
+    """A window of an hour turned the force into its rest value throughout, silently."""
+    table = synthetic_recording(7, led_off=3_050_000)
+    with pytest.raises(SyncError, match=r"force median filter \(3\.6e\+06 ms.*longer than half the force log \(151 samples"):
+        sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(median_us=3_600_000_000))
+    trials, _ = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(median_us=100_000))
+    assert trials[0]["force"][1].max() == pytest.approx(3.0)
+
+
 def test_method_offset_without_offset_is_a_usage_error():
     with pytest.raises(UsageError, match="--method offset needs --offset"):
         sy.SyncMethod(method="offset")
