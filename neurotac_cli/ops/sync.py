@@ -69,6 +69,10 @@ class SyncMethod:
             raise NeurotacError(f"the sensor lag is RISE[,FALL], two durations >= 0, got {self.sensor_lag_us!r}")
         if self.saturation < 0:
             raise NeurotacError("the membrane saturation share cannot be negative (0 = a linear membrane)")
+        if not all(np.isfinite([self.saturation, self.min_z, self.min_coverage])):  # NaN passes every comparison
+            raise NeurotacError("the saturation share, the spike's z-score and its coverage must be finite numbers")
+        if self.min_coverage > 1:
+            raise UsageError(f"--min-coverage is a share of the pixels, at most 1, got {self.min_coverage:g} (0.05 = 5%)")
 
     def args(self) -> dict:
         out = {"method": self.method, "median_us": self.median_us}

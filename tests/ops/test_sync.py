@@ -462,6 +462,19 @@ def test_sensor_lag_and_saturation_are_validated():
         sy.SyncMethod(method="xcorr", saturation=-0.5)
 
 
+@pytest.mark.parametrize("option,value", [("--min-score", "nan"), ("--min-coverage", "nan"), ("--saturation", "nan"),
+                                          ("--saturation", "inf"), ("--min-coverage", "1.5")])
+def test_led_and_xcorr_settings_beyond_their_range_are_usage_errors(tmp_path, option, value):
+    """NaN passed every comparison: --saturation nan synced with weights of NaN, --min-score nan
+    refused every spike with `z >= nan`; no spike covers more than all the pixels."""
+    (tmp_path / "f.csv").write_text("t_ms,force_N\n" + "".join(f"{i * 2},1\n" for i in range(20)))
+    done = run(["sync", "g.arrows", "--force", "f.csv", option, value], cwd=tmp_path)
+    assert done.returncode == 2 and done.stderr.decode().count("\n") == 1, done.stderr
+    assert option in done.stderr.decode()
+    with pytest.raises(NeurotacError, match="finite"):
+        sy.SyncMethod(method="xcorr", saturation=float("nan"))
+
+
 def test_a_median_window_longer_than_half_the_force_log_is_refused():
     """A window of an hour turned the force into its rest value throughout, silently."""
     table = synthetic_recording(7, led_off=3_050_000)
