@@ -103,4 +103,17 @@ def folder_manifest(folder: str) -> tuple[str, str]:
         writer = csv.writer(handle)
         writer.writerow(["trial", "events", "force"])
         writer.writerows(rows)
-    return path, f"wrote {path} pairing {len(rows)} camera files with their force logs (add label columns to it, then sync again)"
+    note = f"wrote {path} pairing {len(rows)} camera files with their force logs (add label columns to it, then sync again)"
+    return path, note + _unpaired_force_logs(folder, {force for _, _, force in rows})
+
+
+def _unpaired_force_logs(folder: str, paired: set) -> str:
+    """The note's tail naming force logs no camera file is named after: a grasp left out of the
+    manifest must not go unsaid (a camera file without its log is refused above)."""
+    patterns = [name.format(stem="") for name in FORCE_NAMES]
+    unpaired = [name for name in sorted(os.listdir(folder))
+                if name not in paired and any(name.endswith(end) and len(name) > len(end) for end in patterns)]
+    if not unpaired:
+        return ""
+    listed = ", ".join(unpaired[:3]) + (", ..." if len(unpaired) > 3 else "")
+    return f"; {len(unpaired)} force log(s) have no camera file of their name and were left out ({listed})"

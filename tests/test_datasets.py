@@ -85,6 +85,11 @@ def test_a_folder_of_camera_files_and_force_logs_syncs_in_one_command(tmp_path):
     assert again.exit_code == 0 and "using" in again.output
     assert set(tables.read([str(tmp_path / "r2.arrows")]).column("material").to_pylist()) == {"steel"}
     (folder / "manifest.csv").unlink()
+    shutil.copy(next(folder.glob("*_force.csv")), folder / "spare-01_force.csv")  # a grasp whose camera file is missing
+    paired = run("sync", str(folder), "-o", str(tmp_path / "r4.arrows"))
+    assert paired.exit_code == 0 and "1 force log(s) have no camera file of their name and were left out (spare-01_force.csv)" in paired.output
+    (folder / "manifest.csv").unlink()
+    (folder / "spare-01_force.csv").unlink()
     next(folder.glob("*_force.csv")).unlink()
     refused = run("sync", str(folder), "-o", str(tmp_path / "r3.arrows"))
     assert refused.exit_code == 1 and "no force log for 1 camera file(s)" in refused.output
