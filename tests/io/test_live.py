@@ -141,39 +141,41 @@ def test_a_file_that_stops_growing_ends_after_the_idle_timeout(tmp_path):
     assert events(table).equals(events(read_events_table(source)).slice(0, table.num_rows))
 
 
-def test_a_followed_file_cut_shorter_while_read_ends_with_a_note(tmp_path):
-    """A recorder that rewrites its file from the start never grows it past what was read: said, not
-    waited out in silence with the new recording left out."""
+def _followed_then(tmp_path, change):
+    """Follow a file of 400,002 bytes of the real EVT 2.0 recording, read its first batch, then
+    `change(path, data)`: (the stream, the rows read in all, seconds from the change to the end)."""
     data = real_file("prophesee_vga_faery.evt2.raw").read_bytes()
     path = tmp_path / "cam.raw"
     path.write_bytes(data[:400_002])
     stream = live.open_stream(str(path), follow=True, idle_timeout=5)
     batches = iter(stream.batches)
     first = next(batches)
-    path.write_bytes(data[:1_000])  # truncated, and a new recording begun
+    change(path, data)
     start = time.monotonic()
-    rest = list(batches)
-    assert time.monotonic() - start < 4  # ended when seen, not after the idle timeout
-    assert first.num_rows + sum(b.num_rows for b in rest) > 0
+    rows = first.num_rows + sum(b.num_rows for b in batches)
+    return stream, rows, time.monotonic() - start
+
+
+def test_a_followed_file_cut_shorter_while_read_ends_with_a_note(tmp_path):
+    """A recorder that rewrites its file from the start never grows it past what was read: said, not
+    waited out in silence with the new recording left out."""
+    stream, rows, waited = _followed_then(tmp_path, lambda path, data: path.write_bytes(data[:1_000]))  # a new recording begun
+    assert waited < 4 and rows > 0  # ended when seen, not after the idle timeout
     assert any("shrank from 400,002 to 1,000 bytes while it was followed" in note for note in stream.notes), stream.notes
 
 
 def test_a_followed_file_replaced_by_another_ends_with_a_note_and_one_renamed_away_is_followed_on(tmp_path):
     """A recorder that renames a new file over the old name: the open file never grows again and the
-    new one was never read, waited out in silence; a file renamed away is still the camera's."""
+    new one is never read, so waiting would end in silence; a file renamed away is still the camera's."""
+    def replace(path, data):
+        (tmp_path / "new.raw").write_bytes(data)
+        os.replace(tmp_path / "new.raw", path)
+
+    stream, rows, waited = _followed_then(tmp_path, replace)
+    assert waited < 4 and rows > 0  # ended when seen, not after the idle timeout
+    assert any("another file was renamed over it while it was followed" in note for note in stream.notes), stream.notes
     data = real_file("prophesee_vga_faery.evt2.raw").read_bytes()
     path = tmp_path / "cam.raw"
-    path.write_bytes(data[:400_002])
-    stream = live.open_stream(str(path), follow=True, idle_timeout=5)
-    batches = iter(stream.batches)
-    first = next(batches)
-    (tmp_path / "new.raw").write_bytes(data)
-    os.replace(tmp_path / "new.raw", path)
-    start = time.monotonic()
-    rest = list(batches)
-    assert time.monotonic() - start < 4  # ended when seen, not after the idle timeout
-    assert first.num_rows + sum(b.num_rows for b in rest) > 0
-    assert any("another file was renamed over it while it was followed" in note for note in stream.notes), stream.notes
     path.write_bytes(data[:400_002])
     stream = live.open_stream(str(path), follow=True, idle_timeout=0.5)
     os.replace(path, tmp_path / "moved.raw")
