@@ -97,14 +97,16 @@ class Feed:
             if not data and self.follow:
                 # a file cut shorter than what was read (rewritten, or truncated to start afresh) would
                 # never grow past the offset again: its new bytes must not be waited for in silence
-                at, size = os.lseek(self.fd, 0, os.SEEK_CUR), os.fstat(self.fd).st_size
-                if size < at:
-                    self.shrunk, self.ended = (at, size), True
+                mine = os.fstat(self.fd)
+                at = os.lseek(self.fd, 0, os.SEEK_CUR)
+                if mine.st_size < at:
+                    self.shrunk, self.ended = (at, mine.st_size), True
                     return None
-                if self._replaced():
+                idle = time.monotonic() - self.last >= IDLE_AFTER_S
+                if idle and self._replaced(mine):  # a file renamed over this one stops it growing: looked for once idle
                     self.replaced, self.ended = True, True
                     return None
-                time.sleep(POLL_S if time.monotonic() - self.last < IDLE_AFTER_S else IDLE_POLL_S)
+                time.sleep(IDLE_POLL_S if idle else POLL_S)
         else:
             ready, _, _ = select.select([self.fd], [], [], WAKE_S)
             data = self._read() if ready else b""
@@ -123,16 +125,17 @@ class Feed:
             return None
         return b""
 
-    def _replaced(self) -> bool:
-        """True when the followed name now names another file: the open one will never grow again,
-        and the new one's bytes would not be read. A name gone (renamed away, the camera still
-        writing through it) is followed on."""
+    def _replaced(self, mine: os.stat_result) -> bool:
+        """True when the followed name now names another file than `mine` (the open one's stat): the
+        open one will never grow again, and the new one's bytes would not be read. A name gone
+        (renamed away, the camera still writing through it) is followed on."""
+        if self.path in (None, "-"):
+            return False
         try:
-            named = os.stat(self.path) if self.path not in (None, "-") else None
+            named = os.stat(self.path)
         except OSError:
             return False
-        mine = os.fstat(self.fd)
-        return named is not None and (named.st_ino, named.st_dev) != (mine.st_ino, mine.st_dev)
+        return (named.st_ino, named.st_dev) != (mine.st_ino, mine.st_dev)
 
     def _read(self) -> bytes:
         count = os.readv(self.fd, [self.chunk])

@@ -103,6 +103,7 @@ def _check_manifest(path: str, header: list, rows: list[dict]) -> None:
                                 "give each recording one row")
         seen[events] = number
 
+
 def folder_as_manifest(events, manifest, force):
     """A folder given as EVENTS: (None, its manifest, a note for the user), the manifest written by
     pairing camera files with force logs by name when the folder has none; anything else as given."""
