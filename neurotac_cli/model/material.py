@@ -71,15 +71,13 @@ def _trial_features(counts: np.ndarray, force: np.ndarray, config: Config) -> np
     if config.inputs == "force":
         return resample(np.nan_to_num(force.astype(np.float64)), points)
     sums = counts.reshape(len(counts), 2, -1).sum(axis=2).astype(np.float64)
+    if config.inputs in ("timing", "rises"):
+        return dynamics(sums)[: RISES if config.inputs == "rises" else DYNAMICS]
     acc = np.cumsum(sums, axis=0) if config.accumulate else sums
     if config.inputs == "events":
         return resample(acc, points).T.reshape(-1)
     totals = acc[-1] if len(acc) else np.zeros(2)
     shape = acc / np.maximum(totals, 1.0)
-    if config.inputs == "timing":
-        return dynamics(sums)
-    if config.inputs == "rises":
-        return dynamics(sums)[:RISES]
     return np.concatenate([np.log1p(resample(acc, points)).T.reshape(-1), resample(shape, points).T.reshape(-1)])
 
 
