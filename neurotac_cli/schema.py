@@ -116,7 +116,7 @@ def check_header(schema: pa.Schema) -> None:
         raise SchemaError(f"the table has {len(repeated)} column name(s) twice ({', '.join(map(repr, repeated))}); rename or drop one of each")
     kind_of(schema)
     sensor = get_meta(schema, SENSOR)
-    if sensor is not None and not (isinstance(sensor, dict) and all(_positive_int(sensor.get(k)) for k in ("width", "height"))):
+    if sensor is not None and not is_sensor(sensor):
         raise SchemaError(f"metadata {SENSOR} is {sensor!r}, not {{\"width\": W, \"height\": H}} in pixels; re-import the recording")
     window = get_meta(schema, WINDOW)
     if window is not None and not _positive_int(window):
@@ -124,6 +124,11 @@ def check_header(schema: pa.Schema) -> None:
     history = get_meta(schema, HISTORY)
     if history is not None and not (isinstance(history, list) and all(isinstance(step, dict) for step in history)):
         raise SchemaError(f"metadata {HISTORY} is not a list of steps; was the file written by another tool?")
+
+
+def is_sensor(value) -> bool:
+    """A sensor as metadata and model headers hold it: {"width": W, "height": H} in whole pixels."""
+    return isinstance(value, dict) and all(_positive_int(value.get(k)) for k in ("width", "height"))
 
 
 def _positive_int(value) -> bool:

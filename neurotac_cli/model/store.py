@@ -7,6 +7,7 @@ import math
 import os
 
 from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.schema import is_sensor
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
 from neurotac_cli.units import is_whole
@@ -118,7 +119,7 @@ def _check_parts(path: str, header: dict):
             and all(isinstance(c, str) and c for c in classes) and len(set(classes)) == len(classes)):
         raise bad("class list", "two or more distinct class names")
     sensor = spec.get("sensor")
-    if sensor is not None and not (isinstance(sensor, dict) and _whole(sensor.get("width")) and _whole(sensor.get("height"))):
+    if sensor is not None and not is_sensor(sensor):
         raise bad("input sensor", "a width and a height in pixels")
     _check_training(bad, training or {})
 
