@@ -395,10 +395,8 @@ class _Cache:
         try:
             with open(self.path(key), "rb") as handle:
                 data = handle.read()
-        except FileNotFoundError:
-            return False, None
         except OSError:
-            return False, None  # unreadable entry: run the task again
+            return False, None  # no entry, or an unreadable one: run the task
         digest, payload = data[: self.DIGEST], data[self.DIGEST :]
         if len(data) <= self.DIGEST or hashlib.sha256(payload).digest() != digest:
             return False, None
