@@ -64,7 +64,8 @@ def es_pending(state: np.ndarray) -> int:
     return int(state[1])
 
 
-def _events(count: int):
+def event_arrays(count: int):
+    """(t, x, y, p) arrays for `count` events, not yet filled, in the dtypes every decoder returns."""
     return np.empty(count, np.int64), np.empty(count, np.uint16), np.empty(count, np.uint16), np.empty(count, np.uint8)
 
 
@@ -112,14 +113,14 @@ def time_order(t, latest: int, slack: int, floor: int | None = None) -> tuple[in
 def decode_evt3(words: np.ndarray, state: np.ndarray):
     """EVT 3.0 16-bit words -> (t, x, y, p) following OpenEB: TIME_HIGH resets the low part, a
     backward TIME_LOW is kept as written, events before the first TIME_HIGH are skipped."""
-    t, x, y, p = _events(_c.evt3_count(words))
+    t, x, y, p = event_arrays(_c.evt3_count(words))
     k = _c.evt3_decode(words, state, t, x, y, p)
     return t[:k], x[:k], y[:k], p[:k]
 
 
 def decode_evt2(words: np.ndarray, state: np.ndarray):
     """EVT 2.0 32-bit words -> (t, x, y, p): CD_OFF/CD_ON words timed by the last TIME_HIGH."""
-    t, x, y, p = _events(_c.evt2_count(words))
+    t, x, y, p = event_arrays(_c.evt2_count(words))
     k = _c.evt2_decode(words, state, t, x, y, p)
     return t[:k], x[:k], y[:k], p[:k]
 
@@ -129,7 +130,7 @@ def decode_evt21(words: np.ndarray, state: np.ndarray):
     vector of up to 32 pixels from its base x (emitted from the lowest bit up), timed by the last
     TIME_HIGH (x 64 µs, plus 2^34 µs per wrap) plus its own 6-bit low part; words before the first
     TIME_HIGH have no time base and are skipped. `state` (`evt21_state`) carries the time base and the order."""
-    t, x, y, p = _events(_c.evt21_count(words, bool(state[E21_LEGACY])))
+    t, x, y, p = event_arrays(_c.evt21_count(words, bool(state[E21_LEGACY])))
     k = _c.evt21_decode(words, state, t, x, y, p)
     return t[:k], x[:k], y[:k], p[:k]
 
@@ -139,7 +140,7 @@ def decode_davis(data: np.ndarray, height: int):
     events; APS/IMU (bit 31) and special (bit 10) words skipped; y flipped; timestamps unsigned.
     `largest` is the largest jAER y seen (-1 for none), so the caller can report a row outside the sensor."""
     data = data[: len(data) - len(data) % 8]
-    t, x, y, p = _events(_c.davis_count(data))
+    t, x, y, p = event_arrays(_c.davis_count(data))
     k, largest = _c.davis_decode(data, int(height), t, x, y, p)
     return t[:k], x[:k], y[:k], p[:k], largest
 
@@ -152,7 +153,7 @@ def decode_es(data: np.ndarray, width: int, height: int, atis: bool, state: np.n
     polarity = bit 1, threshold crossing = bit 0); only change detections are kept, exposure
     measurements (threshold crossings) are skipped. `outside`: some coordinate lies beyond the
     declared size."""
-    t, x, y, p = _events(len(data) // 5 + 1)
+    t, x, y, p = event_arrays(len(data) // 5 + 1)
     k, outside = _c.es_decode(data, int(width), int(height), bool(atis), state, t, x, y, p)
     return t[:k], x[:k], y[:k], p[:k], outside
 
@@ -202,6 +203,6 @@ def parse_text(data: np.ndarray, roles: np.ndarray, comma: bool, time_digits: in
     where (the start of its line). One pass over the bytes: a small state machine per field.
     """
     newlines = int(np.count_nonzero(data == 10))
-    t, x, y, p = _events(newlines + 1)
+    t, x, y, p = event_arrays(newlines + 1)
     rows, status, offset = _c.parse_text(data, np.ascontiguousarray(roles, dtype=np.int64), bool(comma), int(time_digits), t, x, y, p)
     return t[:rows], x[:rows], y[:rows], p[:rows], rows, status, offset, newlines

@@ -67,13 +67,12 @@ class Evt21(Words):
             prophesee.note_evt21_order(self.meta, self.legacy)
 
     def decode(self, block: bytes):
-        from neurotac_cli.io import prophesee
+        from neurotac_cli.io import kernels, prophesee
 
         if self.legacy is None:
             self.legacy = prophesee.evt21_order_of_words(np.frombuffer(block, dtype="<u4").reshape(-1, 2))
-            if self.legacy is None:
-                empty = np.zeros(0, np.uint16)
-                return np.zeros(0, np.int64), empty, empty, np.zeros(0, np.uint8)
+            if self.legacy is None:  # no TIME_HIGH yet: nothing before one has a time base
+                return kernels.event_arrays(0)
             fresh = prophesee.word_kernels(8, self.legacy)[2]
             self.state, self.trigger_state = fresh(), fresh()
         return super().decode(block)
