@@ -35,8 +35,8 @@ DEVICE_VARIABLE = "NEUROTAC_DEVICE"  # where force networks train (`--device`); 
 
 # Bumped when the cache file layout or a task's result changes, so old entries are never misread
 # (2: a cross-validation fold returns its validation figures beside its predictions; 3: each entry
-# starts with its payload's SHA-256).
-CACHE_FORMAT = 3
+# starts with its payload's SHA-256; 4: arrays and tables are stored as .npy and Arrow IPC bytes).
+CACHE_FORMAT = 4
 # How long to wait for a Dask scheduler to answer before saying it cannot be reached.
 CONNECT_TIMEOUT = "20s"
 
@@ -372,9 +372,102 @@ def _arrow_digest(value) -> str:
     raise TypeError(f"cannot hash a {type(value).__name__} for the study cache")
 
 
+# --------------------------------------------------------------------------------------------------
+# Results as pickles that cannot run code when read
+#
+# A pickle names the callables that rebuild its objects, and loading one calls them: a crafted cache
+# entry (its checksum made to match) could run anything. So a result is pickled with its arrays,
+# numpy scalars and Arrow tables taken out as .npy and Arrow IPC bytes (formats that hold data only),
+# leaving a pickle of builtin containers and numbers; the reader rebuilds those two kinds itself and
+# refuses every class a pickle names but `complex`.
+
+_SAFE_GLOBALS = {("builtins", "complex")}
+
+
+class _ResultPickler(pickle.Pickler):
+    def persistent_id(self, value):
+        kind = type(value).__module__.split(".")[0]
+        if kind == "numpy":
+            import numpy as np
+
+            if isinstance(value, np.ndarray):
+                return ("npy", _npy_bytes(value))
+            if isinstance(value, np.generic):
+                return ("npy scalar", _npy_bytes(value))
+        elif kind == "pyarrow":
+            import pyarrow as pa
+
+            if isinstance(value, pa.Table):
+                return ("arrow", _arrow_bytes(value))
+        return None
+
+    def reducer_override(self, value):
+        # Called only for values of non-builtin types: everything the reader would refuse stops here.
+        if type(value) is complex or value is complex:
+            return NotImplemented
+        raise TypeError(
+            f"a task result holding a {type(value).__module__}.{type(value).__qualname__} cannot be kept in the "
+            "study cache; return builtin containers, numbers, strings, numpy arrays or Arrow tables"
+        )
+
+
+def _npy_bytes(value) -> bytes:
+    import numpy as np
+
+    sink = io.BytesIO()
+    try:
+        np.save(sink, np.asarray(value), allow_pickle=False)
+    except ValueError:
+        raise TypeError(f"a task result holds a numpy {value.dtype} array, which the study cache cannot keep "
+                        "(object arrays need pickle); return arrays of numbers or strings") from None
+    return sink.getvalue()
+
+
+def _arrow_bytes(value) -> bytes:
+    import pyarrow as pa
+
+    sink = io.BytesIO()
+    with pa.ipc.new_stream(sink, value.schema) as writer:
+        writer.write(value)
+    return sink.getvalue()
+
+
+def _dump_result(value) -> bytes:
+    sink = io.BytesIO()
+    _ResultPickler(sink, protocol=pickle.HIGHEST_PROTOCOL).dump(value)
+    return sink.getvalue()
+
+
+class _ResultUnpickler(pickle.Unpickler):
+    def find_class(self, module, name):
+        if (module, name) in _SAFE_GLOBALS:
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"the study cache does not read {module}.{name}")
+
+    def persistent_load(self, pid):
+        if not (isinstance(pid, tuple) and len(pid) == 2 and isinstance(pid[1], bytes)):
+            raise pickle.UnpicklingError("a malformed array or table in a study cache entry")
+        kind, data = pid
+        if kind in ("npy", "npy scalar"):
+            import numpy as np
+
+            array = np.load(io.BytesIO(data), allow_pickle=False)
+            return array[()] if kind == "npy scalar" else array
+        if kind == "arrow":
+            import pyarrow as pa
+
+            try:
+                table = pa.ipc.open_stream(data).read_all()
+                table.validate(full=True)
+            except (pa.ArrowException, OSError) as error:
+                raise pickle.UnpicklingError(f"a damaged table in a study cache entry ({error})") from None
+            return table
+        raise pickle.UnpicklingError(f"the study cache does not read {kind!r} values")
+
+
 class _Cache:
-    """One pickle per finished task, written to a temporary name and renamed into place, so an
-    interruption leaves either the whole result or nothing."""
+    """One pickle per finished task (see `_dump_result`: reading one never runs code), written to a
+    temporary name and renamed into place, so an interruption leaves either the whole result or nothing."""
 
     def __init__(self, folder):
         self.folder = pathlib.Path(folder)
@@ -401,16 +494,16 @@ class _Cache:
         if len(data) <= self.DIGEST or hashlib.sha256(payload).digest() != digest:
             return False, None
         try:
-            return True, pickle.loads(payload)
+            return True, _ResultUnpickler(io.BytesIO(payload)).load()
         except (EOFError, ValueError, TypeError, pickle.UnpicklingError, AttributeError, ImportError):
-            return False, None  # written by another version of its classes: run the task again
+            return False, None  # not a result this version writes (or a crafted one): run the task again
 
     def put(self, key: str, value) -> None:
         from neurotac_cli.tables import atomic_file
 
         target = self.path(key)
         target.parent.mkdir(parents=True, exist_ok=True)
-        payload = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        payload = _dump_result(value)
         with atomic_file(str(target)) as temporary, open(temporary, "wb") as handle:
             handle.write(hashlib.sha256(payload).digest() + payload)
             handle.flush()

@@ -206,6 +206,61 @@ def test_a_damaged_cache_entry_is_run_again_not_read(tmp_path, damage):
     assert calls_per_task(tmp_path / "calls") == {3: 2}
 
 
+class _Touch:
+    """Pickles as a call of `Path.touch`: what a crafted entry could make a reader run."""
+
+    def __init__(self, marker):
+        self.marker = pathlib.Path(marker)
+
+    def __reduce__(self):
+        return pathlib.Path.touch, (self.marker,)
+
+
+@pytest.mark.parametrize("where", ["whole", "inside"])
+def test_a_crafted_cache_entry_with_a_right_checksum_runs_no_code_and_its_task_runs_again(tmp_path, where):
+    import hashlib
+    import pickle
+
+    tasks = [{"x": 3, "calls": str(tmp_path / "calls")}]
+    (tmp_path / "calls").mkdir()
+    run_tasks(square, tasks, cache_dir=tmp_path / "c")
+    (entry,) = (tmp_path / "c").glob("*/*.pkl")
+    marker = tmp_path / "code-ran"
+    crafted = _Touch(marker) if where == "whole" else {"result": [9, _Touch(marker)]}
+    payload = pickle.dumps(crafted, protocol=pickle.HIGHEST_PROTOCOL)
+    entry.write_bytes(hashlib.sha256(payload).digest() + payload)
+    assert run_tasks(square, tasks, cache_dir=tmp_path / "c") == [9]
+    assert not marker.exists()
+    assert calls_per_task(tmp_path / "calls") == {3: 2}
+
+
+def pair_of_tables_and_figures(n: int):
+    """What a cross-validation fold returns: a predictions table and a dict of figures."""
+    import pyarrow as pa
+
+    table = pa.table({"trial": ["a"] * n, "force_pred": np.arange(n, dtype=np.float32)})
+    figures = {"val_mse": float("nan"), "epochs": np.float64(n), "curve": np.linspace(0, 1, n), "z": 1 + 2j}
+    return table.replace_schema_metadata({"neurotac:kind": '"predictions"'}), figures
+
+
+def test_tables_arrays_and_numbers_come_back_from_the_cache_as_they_went_in(tmp_path):
+    tasks = [{"n": 4}]
+    (table, figures), = run_tasks(pair_of_tables_and_figures, tasks, cache_dir=tmp_path)
+    (cached_table, cached_figures), = run_tasks(pair_of_tables_and_figures, tasks, cache_dir=tmp_path)
+    assert cached_table.equals(table, check_metadata=True)
+    assert np.array_equal(cached_figures.pop("curve"), figures.pop("curve"))
+    assert repr(cached_figures) == repr(figures)
+
+
+def test_a_result_the_cache_could_not_read_back_safely_is_refused_when_written(tmp_path):
+    with pytest.raises(TypeError, match="cannot be kept in the study cache"):
+        run_tasks(_a_function_object, [{"x": 1}], cache_dir=tmp_path)
+
+
+def _a_function_object(x):
+    return {"x": x, "f": os.system}
+
+
 def test_identical_tasks_run_once(tmp_path):
     tasks = [{"x": 2, "calls": str(tmp_path)}] * 3
     assert run_tasks(square, tasks) == [4, 4, 4]
