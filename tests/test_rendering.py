@@ -162,3 +162,22 @@ def test_tiles_a_png_cannot_hold_are_counted_not_dropped_silently(tmp_path, monk
     monkeypatch.setattr(rendering, "MAX_TILES", 4)
     assert render(frames_table(), str(tmp_path / "m.png"), RenderSpec(trial="a"))["left_out"] == 2
     assert render(frames_table(), str(tmp_path / "m.gif"), RenderSpec(trial="a", fps=50))["left_out"] == 0
+
+
+def test_an_animation_shows_its_progress_on_stderr(tmp_path):
+    path = write_input(tmp_path, events_table())
+    result = CliRunner().invoke(cli, ["render", path, "--slices", "7", "-o", str(tmp_path / "e.gif")],
+                                env={"NEUROTAC_PROGRESS": "1"})
+    assert result.exit_code == 0, result.output
+    assert "gif pictures: 7/7 done" in result.output
+
+
+def test_an_animation_is_laid_out_once_not_once_a_picture(tmp_path, monkeypatch):
+    """Laying the figure out again for every picture made a thousand slices take minutes."""
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    layouts = []
+    execute = ConstrainedLayoutEngine.execute
+    monkeypatch.setattr(ConstrainedLayoutEngine, "execute", lambda self, figure: layouts.append(1) or execute(self, figure))
+    done = render(events_table(), str(tmp_path / "e.mp4"), RenderSpec(slices=20))
+    assert (done["pictures"], len(layouts)) == (20, 1)

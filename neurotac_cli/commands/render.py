@@ -29,7 +29,8 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
 
     ON counts are red and OFF counts blue on white, on a square-root scale with a colour bar per
     channel (events per pixel); the force strip is in newtons over ms from the trial's zero, the
-    phases shaded. A one-line summary goes to stderr.
+    phases shaded. A one-line summary goes to stderr; a GIF or MP4 shows its progress there too, on a
+    terminal or with NEUROTAC_PROGRESS=1 set.
 
     \b
         neurotac import rec.aedat | neurotac render --slices 12 -o slices.png
