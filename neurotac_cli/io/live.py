@@ -175,10 +175,11 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         if declared is None:
             decoder.close()
             return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
+        del buffer[:length]
+        _settle(name, fmt, feed, buffer, decoder)
     except BaseException:
         _close(fd, path)
         raise
-    del buffer[:length]
     schema = sch.events_schema(*declared)
     source = "option" if sensor else "file"
     entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoder.meta.pop("source", {})}}
@@ -186,6 +187,20 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     stream = Stream(schema, iter(()))
     stream.batches = _batches(name, fmt, feed, buffer, decoder, declared, schema, stream.notes, lambda: _close(fd, path))
     return stream
+
+
+def _settle(name, fmt, feed: Feed, pending: bytearray, decoder):
+    """Read on until the decoder's metadata is complete, so that it goes out with the schema. Only an
+    EVT 2.1 stream whose header does not give its word order waits here, for its first TIME_HIGH word:
+    no event before that word can be decoded, so no event is held back by the wait."""
+    from neurotac_cli.io import camera
+
+    while not camera._guarded_call(name, fmt, lambda: decoder.settled(pending, False)):
+        data = feed.read()
+        if data is None:
+            camera._guarded_call(name, fmt, lambda: decoder.settled(pending, True))
+            return
+        pending += data
 
 
 def _wait_for(path, idle_timeout: float, stop: Callable[[], bool]):

@@ -4,7 +4,9 @@ Each is built from the format's complete header and the --sensor option, and has
 by the header, or None), `meta` (as the file reader gives it), `complete(pending)` (how many leading
 bytes of what has arrived are whole records), `decode(block)` (whole records -> t, x, y, p),
 `finished` (the data is over: AEDAT 4.0's index table has begun), `triggers` (external trigger events
-seen, which a stream cannot keep) and `close()`. The decoding itself is the file readers'.
+seen, which a stream cannot keep), `settled(pending, at_end)` (whether `meta` is complete, or the
+decoder needs more of the data first: it goes out with the stream's schema) and `close()`. The
+decoding itself is the file readers'.
 """
 
 import os
@@ -31,6 +33,9 @@ class _Records:
     def held(self) -> int:
         """Bytes of a record begun and kept in the decoder's own state, not in the pending bytes."""
         return 0
+
+    def settled(self, pending: bytearray, at_end: bool) -> bool:
+        return True
 
     def close(self):
         pass
@@ -63,19 +68,46 @@ class Evt21(Words):
         _, fields = prophesee.header_of(None, header)
         self.legacy = prophesee.evt21_order_of_header(fields)
         super().__init__(header, sensor, 8, self.legacy)
-        if self.legacy is not None:  # an order found in the words comes after the stream's metadata has gone out
+        if self.legacy is not None:
             prophesee.note_evt21_order(self.meta, self.legacy)
 
-    def decode(self, block: bytes):
-        from neurotac_cli.io import kernels, prophesee
-
+    def settled(self, pending: bytearray, at_end: bool) -> bool:
+        """Settled once the word order is known, so that `evt21_order` goes out in the stream's
+        metadata as in a file's. Whole words that come before any TIME_HIGH decode to nothing, and are
+        dropped from `pending` as they arrive; a stream that ends before one has OpenEB's default
+        order (little), as a file has."""
         if self.legacy is None:
-            self.legacy = prophesee.evt21_order_of_words(np.frombuffer(block, dtype="<u4").reshape(-1, 2))
-            if self.legacy is None:  # no TIME_HIGH yet: nothing before one has a time base
-                return kernels.event_arrays(0)
-            fresh = prophesee.word_kernels(8, self.legacy)[2]
-            self.state, self.trigger_state = fresh(), fresh()
+            whole = len(pending) - len(pending) % self.record
+            if not self._order_from(bytes(pending[:whole])):
+                if not at_end:
+                    del pending[:whole]
+                    return False
+                self._set_order(False)
+        return True
+
+    def decode(self, block: bytes):
+        from neurotac_cli.io import kernels
+
+        if self.legacy is None and not self._order_from(block):
+            return kernels.event_arrays(0)  # no TIME_HIGH yet: nothing before one has a time base
         return super().decode(block)
+
+    def _order_from(self, block: bytes) -> bool:
+        """Whether `block`'s words tell the order (they hold a TIME_HIGH); if so, it is taken."""
+        from neurotac_cli.io import prophesee
+
+        legacy = prophesee.evt21_order_of_words(np.frombuffer(block, dtype="<u4").reshape(-1, 2))
+        if legacy is not None:
+            self._set_order(legacy)
+        return legacy is not None
+
+    def _set_order(self, legacy: bool):
+        from neurotac_cli.io import prophesee
+
+        self.legacy = legacy
+        fresh = prophesee.word_kernels(8, legacy)[2]
+        self.state, self.trigger_state = fresh(), fresh()
+        prophesee.note_evt21_order(self.meta, legacy)
 
 
 class Davis(_Records):
@@ -214,6 +246,9 @@ class Aedat4:
 
     def held(self) -> int:
         return 0  # a packet is decoded whole or left pending
+
+    def settled(self, pending: bytearray, at_end: bool) -> bool:
+        return True
 
     def decode(self, block: bytes):
         from neurotac_cli.io import aedat4

@@ -117,8 +117,52 @@ def test_a_followed_file_written_mid_word_gives_the_files_events(real, tmp_path,
     table, batches = collect(live.open_stream(str(path), follow=True, idle_timeout=0.5))
     writer.join()
     assert batches > 1 and same(table, t, x, y, p)
-    # the order a header says is in the stream's metadata, as a file's; one found in the words comes too late for it
-    assert sch.get_meta(table.schema, "neurotac:source").get("evt21_order") == ("legacy" if b"format" in header else None)
+    # the order is in the stream's metadata, as a file's: from the header, or found in the words
+    assert sch.get_meta(table.schema, "neurotac:source").get("evt21_order") == "legacy"
+
+
+UNSAID = b"% evt 2.1\n% geometry 1280x720\n% end\n"
+
+
+def joined_before_a_time_high(t, x, y, p, legacy: bool) -> bytes:
+    """EVT 2.1 words of a stream joined mid-recording: CD words with no time base come first."""
+    data = encode(t, x, y, p, legacy=legacy, start_high=int(t[0]) >> 6)
+    words = np.frombuffer(data, dtype="<u4").reshape(-1, 2)
+    kinds = words[:, 0 if legacy else 1] >> 28
+    return np.ascontiguousarray(words[kinds != 0x8][:300]).tobytes() + data
+
+
+@pytest.mark.parametrize("order", ["little", "legacy"])
+def test_a_piped_stream_whose_order_is_told_from_its_words_writes_that_order_in_its_metadata(real, tmp_path, order):
+    import subprocess
+
+    import pyarrow as pa
+
+    from tests.io.test_live import fifo_of
+
+    t, x, y, p = (v[:20000] for v in real)
+    data = UNSAID + joined_before_a_time_high(t, x, y, p, legacy=order == "legacy")
+    (tmp_path / "cam.raw").write_bytes(data)
+    whole = read_events_table(tmp_path / "cam.raw")
+    done = subprocess.run(["neurotac", "import", fifo_of(tmp_path, data)], capture_output=True)
+    assert done.returncode == 0, done.stderr
+    piped = pa.ipc.open_stream(done.stdout).read_all()  # the Arrow IPC stream `import` writes on a pipe
+    assert same(piped, t, x, y, p) and same(whole, t, x, y, p)
+    for table in (piped, whole):
+        assert sch.get_meta(table.schema, "neurotac:source")["evt21_order"] == order
+
+
+def test_a_stream_that_ends_before_any_time_high_has_the_files_default_order(real, tmp_path):
+    from neurotac_cli.io import live
+
+    t, x, y, p = (v[:200] for v in real)
+    data = UNSAID + joined_before_a_time_high(t, x, y, p, legacy=True)[: 8 * 5]
+    (tmp_path / "cam.raw").write_bytes(data)
+    whole = read_events_table(tmp_path / "cam.raw")
+    stream = live.open_stream(str(tmp_path / "cam.raw"), follow=True, idle_timeout=0.2)
+    assert not sum(batch.num_rows for batch in stream.batches)
+    assert sch.get_meta(stream.schema, "neurotac:source")["evt21_order"] == "little"
+    assert sch.get_meta(whole.schema, "neurotac:source")["evt21_order"] == "little"
 
 
 def test_a_wrap_across_a_missing_time_high_is_still_a_wrap(tmp_path):
