@@ -290,6 +290,7 @@ HYPERPARAMETERS = [
     ("--dropout", "dropout", float, "Dropout rate: cnnlstm, convlstm after the first three layers (thesis 0.4); deform-gru, material-curves."),
     ("--dense", "dense", int, "convlstm: hidden units of the dense head (0: one linear layer; default 0)."),
     ("--hidden", "hidden", int, "deform-gru: GRU units (default 32)."),
+    ("--members", "members", int, "deform-gru: GRUs on the same features, each trained with its own draw of validation trials (with --val-fraction), their estimates averaged (default 3; 1: one GRU)."),
     ("--memory-frames", "memory_frames", int, "deform-gru: time constant in frames of its deformation map and counts (default 0 = sums since the trial start; --contacts sets 3000)."),
     ("--layout-grid", "layout_grid", int, "deform-gru: side of an optional coarse spatial layout grid of its features (default 0 = none; 4 fits seen sizes better, unseen sizes worse)."),
     ("--restarts", "restarts", int, "gp: random restarts of the marginal-likelihood optimiser (default 3)."),

@@ -467,3 +467,18 @@ def test_the_material_domains_script_scores_sizes_and_sensors_both_ways_and_a_qu
     (family,) = [line for line in out.splitlines() if line.startswith("| membrane |")]
     assert all(0 <= float(cell) <= 100 for cell in family.split(" | ")[1:3])
     assert (tmp_path / "material_domains.md").exists() and not published
+
+
+def test_a_quick_members_run_tables_one_member_against_three_and_leaves_docs_alone(tmp_path, monkeypatch):
+    members = load("members")
+    monkeypatch.setattr(members, "frames", lambda work, name, pipeline, simulate: tmp_path / f"{name}.arrows")
+    figures = {("ch4", 1): (5.0, 0.5), ("ch4", 3): (4.0, 0.25), ("ch4-rig101", 1): (10.0, 2.0), ("ch4-rig101", 3): (11.0, 1.0)}
+    monkeypatch.setattr(members, "scores", lambda work, data, tag, count, seeds: figures[(tag, count)])
+    published = []
+    monkeypatch.setattr(members, "publish", published.append)
+    members.main(["--quick", "--work", str(tmp_path)])
+    text = (tmp_path / "members.md").read_text()
+    assert "| default physics | 5.00 ± 0.50 | 4.00 ± 0.25 | 0.80 |  |" in text
+    assert "| rig 101 | 10.00 ± 2.00 | 11.00 ± 1.00 | 1.10 | ON/OFF thresholds" in text
+    assert "Three members read lower than one on 1 of 2 physics; on average 0.95 times one member's error." in text
+    assert not published

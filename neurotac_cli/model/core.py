@@ -81,7 +81,7 @@ def _typed(key: str, value, default):
 SETTING_RANGES = {
     "layers": (0, None, False), "units": (1, None, False), "delays": (0, None, False), "filters": (1, None, False),
     "kernel": (1, None, False), "dropout": (0.0, 1.0, True), "dense": (0, None, False), "hidden": (1, None, False),
-    "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, None, False),
+    "members": (1, 64, False), "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, None, False),
     "max_points": (1, None, False), "points": (2, None, False), "lr": (0.0, None, False), "beta1": (0.0, 1.0, True),
     "beta2": (0.0, 1.0, True), "batch_size": (1, None, False), "epochs": (1, None, False), "patience": (1, None, False),
     "weight_decay": (0.0, None, False),
@@ -287,7 +287,12 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
     in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
-    train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
+    # Each further member of an ensemble validates on a draw of its own, so that together they learn
+    # from every trial and stop at epochs of their own (docs/design.md)
+    splits = [in_val, *(choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
+                        for _ in range(getattr(config, "members", 1) - 1))]
+    trained = ~np.logical_and.reduce(splits)
+    train_set, val_set = data.subset(np.flatnonzero(trained)), data.subset(np.flatnonzero(in_val))
     accumulated = already_accumulated(table.schema)
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
@@ -305,14 +310,15 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
         "spec": spec,
         "fit": dataclasses.asdict(fit_config),
         "seed": seed,
-        "trials": {"train": train_set.trials, "validation": val_set.trials},
+        "trials": {"train": train_set.trials, "validation": val_set.trials,
+                   **({"member_validation": [[data.trials[i] for i in np.flatnonzero(m)] for m in splits[1:]]} if len(splits) > 1 else {})},
         "data_history": sch.get_meta(table.schema, sch.HISTORY, []),
     }
     if hasattr(config, "accumulate") and accumulated:
         config = dataclasses.replace(config, accumulate=False)
     if name in MATERIAL_MODELS:
         return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
-    return _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress, largest)
+    return _train_force(name, config, fit_config, data, splits, train_set, input_spec, training, generator, rng, progress, largest)
 
 
 MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
@@ -357,7 +363,7 @@ def _seconds(data):
     return [t / 1e6 for t in data.t]
 
 
-def _train_force(name, config, fit_config, train_set, val_set, input_spec, training, generator, rng, progress, largest):
+def _train_force(name, config, fit_config, data, splits, train_set, input_spec, training, generator, rng, progress, largest):
     force_scale = max(largest, 1e-6)
     # kept so that `predict` can name frames busier than any it learnt from (model.predict.Outside)
     training["events_per_frame_max"] = float(max(c.reshape(len(c), -1).sum(axis=1, dtype=np.float64).max(initial=0.0)
@@ -367,47 +373,64 @@ def _train_force(name, config, fit_config, train_set, val_set, input_spec, train
     if not getattr(net, "trained_by_gradient", True):
         curve = net.fit(train_set.counts, _seconds(train_set), [f / force_scale for f in train_set.force], rng, progress)
     else:
-        tensors = _force_tensors(train_set, force_scale)
-        val_tensors = _force_tensors(val_set, force_scale) if len(val_set) else None
-        encoded = hasattr(net, "encode")
-        if encoded:  # fixed features: computed once, not once per epoch
-            for group in (tensors, val_tensors):
-                if group is not None:
-                    group["features"] = net.encode(group.pop("counts"), group["t"])
+        # fixed features (deform-gru) are computed once for every trial, not once per epoch and member
+        features = net.encode(torch.as_tensor(padded(data.counts)), None) if hasattr(net, "encode") else None
         device = training_device()
         if device.type != "cpu":  # a GPU: the network and every tensor it trains on move there, and back after
             net.to(device)
-            for group in (tensors, val_tensors):
-                if group is not None:
-                    group.update({key: value.to(device) for key, value in group.items()})
             training["device"] = str(device)
-
-        def run(group, indices=slice(None)):
-            if encoded:
-                return net.forward_encoded(group["features"][indices])
-            return net(group["counts"][indices], group["t"][indices])[0]
-
-        def batch_loss(indices):
-            return _masked_mse(run(tensors, indices), tensors["force"][indices], tensors["mask"][indices])
-
-        def val_loss():
-            if val_tensors is None:
-                return None
-            return float(_masked_mse(run(val_tensors), val_tensors["force"], val_tensors["mask"]))
-
-        curve = fit(net, batch_loss, len(train_set), val_loss, fit_config, generator, progress, label=name)
+        curves = [_fit_member(net, i, len(splits), data, in_val, features, force_scale, fit_config, generator, progress, name, device)
+                  for i, in_val in enumerate(splits)]
+        curve = curves[0]
+        if len(curves) > 1:
+            training["member_best_epochs"] = [min(c, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"]
+                                                  else row["train_loss"])["epoch"] for c in curves]
         net.to("cpu")
     input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))
     training["curve"] = curve
     return Model(name, config, net, input_spec, None, training)
 
 
-def _force_tensors(data, force_scale):
+def _fit_member(net, member, members, data, in_val, features, force_scale, fit_config, generator, progress, name, device):
+    """Train one member of `net` (the whole network where it has one) on the trials outside `in_val`,
+    stopping early on those inside it; returns its training curve."""
+    groups = []
+    for indices in (np.flatnonzero(~in_val), np.flatnonzero(in_val)):
+        if not len(indices):
+            groups.append(None)
+            continue
+        part = data.subset(indices)
+        group = _force_tensors(part, force_scale, counts=features is None)
+        if features is not None:
+            group["features"] = features[indices, : part.max_length()]
+        groups.append({key: value.to(device) for key, value in group.items()})
+    tensors, val_tensors = groups
+    chosen = member if members > 1 else None
+
+    def run(group, indices=slice(None)):
+        if features is not None:
+            return net.forward_encoded(group["features"][indices], member=chosen)
+        return net(group["counts"][indices], group["t"][indices])[0]
+
+    def batch_loss(indices):
+        return _masked_mse(run(tensors, indices), tensors["force"][indices], tensors["mask"][indices])
+
+    def val_loss():
+        if val_tensors is None:
+            return None
+        return float(_masked_mse(run(val_tensors), val_tensors["force"], val_tensors["mask"]))
+
+    module = net.member(member) if members > 1 else net
+    label = f"{name} member {member + 1}/{members}" if members > 1 else name
+    return fit(module, batch_loss, len(tensors["force"]), val_loss, fit_config, generator, progress, label=label)
+
+
+def _force_tensors(data, force_scale, counts: bool = True):
     length = data.max_length()
     force = padded(data.force, length, fill=np.nan)
     mask = ~np.isnan(force)
     return {
-        "counts": torch.as_tensor(padded(data.counts, length)),
+        **({"counts": torch.as_tensor(padded(data.counts, length))} if counts else {}),
         "t": torch.as_tensor(padded(_seconds(data), length, dtype=np.float64)),
         "force": torch.as_tensor(np.nan_to_num(force) / force_scale, dtype=torch.float32),
         "mask": torch.as_tensor(mask, dtype=torch.float32),

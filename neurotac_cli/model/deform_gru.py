@@ -51,13 +51,14 @@ class Config:
     dropout: float = 0.0
     memory_frames: int = 0  # time constant of the deformation map and counts, in frames (0: sums since the start)
     excess: bool = True  # the map's mass above each depth level
+    members: int = 3  # GRUs (and heads) on the same features, each validated on its own draw, their estimates averaged
 
 
 # Values of the per-level depth maps made at once (64 MB of float32; `Net.features`).
 FEATURE_VALUES = 1 << 24
 
 # What a setting missing from an older model file's header meant when that file was written.
-ABSENT_MEANS = {"excess": False}
+ABSENT_MEANS = {"excess": False, "members": 1}
 
 
 class Net(ForceNet):
@@ -76,18 +77,34 @@ class Net(ForceNet):
         self.distance_log = None  # a list to which each forward appends its frames' distances (model.predict.Outside)
         self.register_buffer("x_coord", torch.arange(width, dtype=torch.float32).view(1, 1, 1, width) / max(width, 1))
         self.register_buffer("y_coord", torch.arange(height, dtype=torch.float32).view(1, 1, height, 1) / max(height, 1))
-        self.gru = nn.GRU(width_features, config.hidden, num_layers=config.layers, batch_first=True,
-                          dropout=config.dropout if config.layers > 1 else 0.0)
-        for name, weight in self.gru.named_parameters():
+        self.gru, self.head = self._recurrent(width_features), nn.Linear(config.hidden, 1)
+        # Members after the first: the file keeps the first under the names a one-GRU model has, so
+        # both read each other's files
+        self.more = nn.ModuleList(nn.ModuleDict({"gru": self._recurrent(width_features), "head": nn.Linear(config.hidden, 1)})
+                                  for _ in range(config.members - 1))
+
+    def _recurrent(self, width_features):
+        gru = nn.GRU(width_features, self.config.hidden, num_layers=self.config.layers, batch_first=True,
+                     dropout=self.config.dropout if self.config.layers > 1 else 0.0)
+        for name, weight in gru.named_parameters():
             if name.startswith("weight_hh"):
                 nn.init.orthogonal_(weight)
-        self.head = nn.Linear(config.hidden, 1)
+        return gru
+
+    def members(self):
+        """(GRU, head) of each member."""
+        return [(self.gru, self.head), *((member["gru"], member["head"]) for member in self.more)]
+
+    def member(self, i: int) -> nn.Module:
+        """Member i's parameters as a module of their own, for training it alone."""
+        gru, head = self.members()[i]
+        return nn.ModuleDict({"gru": gru, "head": head})
 
     def init_state(self, batch: int):
         return {
             "deformation": self.zeros(batch, *self.shape),
             "acc": self.zeros(batch, 2),
-            "h": self.zeros(self.config.layers, batch, self.config.hidden),
+            "h": self.zeros(self.config.layers * self.config.members, batch, self.config.hidden),
         }
 
     def features(self, counts, state):
@@ -149,11 +166,25 @@ class Net(ForceNet):
                      for i in range(0, counts.shape[0], chunk)]
         return torch.cat(parts) if parts else torch.zeros(0)
 
-    def forward_encoded(self, features):
-        """forward() from features made by encode(), for whole sequences from their start."""
+    def forward_encoded(self, features, member: int | None = None):
+        """forward() from features made by encode(), for whole sequences from their start: the
+        members' mean, or one member's estimate (training fits each on its own)."""
         x = (features - self.feature_mean) / self.feature_std
-        out, _ = self.gru(x, self.init_state(features.shape[0])["h"])
-        return self.head(out).squeeze(-1)
+        h = self.init_state(features.shape[0])["h"]
+        if member is None:
+            return self._run(x, h)[0]
+        layers = self.config.layers
+        gru, head = self.members()[member]
+        return head(gru(x, h[member * layers : (member + 1) * layers])[0]).squeeze(-1)
+
+    def _run(self, x, h):
+        """The members' mean estimate (B, T) from standardised features, and their states after."""
+        layers, outs, states = self.config.layers, [], []
+        for i, (gru, head) in enumerate(self.members()):
+            out, state = gru(x, h[i * layers : (i + 1) * layers])
+            outs.append(head(out).squeeze(-1))
+            states.append(state)
+        return torch.stack(outs).mean(dim=0), torch.cat(states)
 
     def forward(self, counts, t_s, state=None):
         batch = counts.shape[0]
@@ -162,9 +193,8 @@ class Net(ForceNet):
         x = (features - self.feature_mean) / self.feature_std
         if self.distance_log is not None:
             self.distance_log.append(self.distance(x).numpy())
-        out, h = self.gru(x, state["h"])
-        new["h"] = h
-        return self.head(out).squeeze(-1), new
+        out, new["h"] = self._run(x, state["h"])
+        return out, new
 
     def distance(self, x):
         """Each frame's Mahalanobis distance from the training frames, from its standardised

@@ -51,6 +51,9 @@ def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trial
                    f"validation {best['val_loss']:.4g})")
     elif best:  # no validation trials (a NaN validation loss): the epoch was chosen by its training loss
         summary = f"{name}: {len(curve)} epochs, best epoch {best['epoch']} by its training loss {best['train_loss']:.4g} (no validation trials)"
+    if "member_best_epochs" in model.training:  # the curve is the first member's
+        epochs = ", ".join(map(str, model.training["member_best_epochs"]))
+        summary += f"; {len(model.training['member_best_epochs'])} members, best epochs {epochs} (the curve is the first's)"
     rows = [(f"epoch:{row['epoch']}", key, row[key]) for row in curve for key in ("train_loss", "val_loss")]
     loss = "cross-entropy" if model.task == "material" else "MSE of force / training max (dimensionless)"
     return Trained(model, summary, metrics_table(rows, name), loss)

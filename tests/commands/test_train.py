@@ -25,10 +25,11 @@ def test_split_that_separates_a_trial_from_its_augmented_copy_is_refused():
 def test_fraction_split_keeps_copies_together():
     frames = tiny_frames(trials=6, augmented_copies=1)
     model = models.train(frames, models.make_spec("deform-gru", epochs=1), val_fraction=0.3, seed=0)
-    val = set(model.training["trials"]["validation"])
-    train = set(model.training["trials"]["train"])
+    every = set(frames.column("trial").to_pylist())
     sources = lambda names: {n.split("~")[0] for n in names}  # noqa: E731
-    assert val and not (sources(val) & sources(train))
+    # each member's validation draw holds whole source groups, and the member trains on the rest
+    for val in [model.training["trials"]["validation"], *model.training["trials"]["member_validation"]]:
+        assert val and not (sources(val) & sources(every - set(val)))
 
 
 def test_val_where_picks_a_label_value():

@@ -83,3 +83,51 @@ def test_long_runs_of_large_frames_are_featured_in_pieces_of_time_with_the_same_
     monkeypatch.setattr(deform_gru, "FEATURE_VALUES", 30 * 40 * 8 * 3 * 7)  # 7 frames a piece
     pieces, after_pieces = net.features(counts, net.init_state(3))
     assert torch.allclose(whole, pieces, atol=1e-5) and torch.allclose(after["deformation"], after_pieces["deformation"])
+
+
+def test_members_validate_on_draws_of_their_own_and_together_train_on_every_trial():
+    import numpy as np
+
+    from neurotac_cli.model.data import padded, sequences
+
+    frames = tiny_frames(trials=12)
+    model = models.train(frames, models.make_spec("deform-gru", members=3, epochs=3), val_fraction=0.2, seed=0)
+    trials = model.training["trials"]
+    draws = [trials["validation"], *trials["member_validation"]]
+    assert len(draws) == 3 and len({tuple(sorted(d)) for d in draws}) > 1
+    assert sorted(trials["train"]) == sorted({f"t{i}" for i in range(12)} - set.intersection(*map(set, draws)))
+    assert len(model.training["member_best_epochs"]) == 3
+    # the estimate is the members' mean, and each member was trained (no two alike)
+    net = model.net
+    features = net.encode(torch.as_tensor(padded(sequences(frames).counts)), None)
+    each = torch.stack([net.forward_encoded(features, member=i) for i in range(3)])
+    assert torch.allclose(net.forward_encoded(features), each.mean(dim=0), atol=1e-6)
+    assert not torch.allclose(each[0], each[1]) and np.isfinite(each.detach().numpy()).all()
+
+
+def test_a_members_model_streams_frame_by_frame_as_it_reads_whole_trials(tmp_path):
+    import numpy as np
+
+    from neurotac_cli.model.data import sequences
+
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("deform-gru", members=2, epochs=2), seed=1)
+    models.save(model, str(tmp_path / "m.model"))
+    loaded = models.load(str(tmp_path / "m.model"))
+    assert loaded.config.members == 2
+    whole = models.predict_table(loaded, frames).column("force_pred").to_numpy()
+    counts = torch.as_tensor(sequences(frames).counts[0][None]).float()
+    state, steps = None, []
+    with torch.no_grad():
+        for k in range(counts.shape[1]):
+            out, state = loaded.net(counts[:, k : k + 1], None, state)
+            steps.append(float(out[0, 0]) * loaded.force_scale)
+    first = frames.column("trial").to_numpy(zero_copy_only=False) == "t0"
+    assert abs(np.array(steps) - whole[first]).max() < 1e-4 * max(1.0, abs(whole).max())
+
+
+def test_a_file_without_members_is_one_gru():
+    from neurotac_cli.model import deform_gru
+
+    assert deform_gru.ABSENT_MEANS["members"] == 1
+    assert len(deform_gru.Net(deform_gru.Config(members=1), (2, 5, 5)).members()) == 1
