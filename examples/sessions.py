@@ -238,7 +238,8 @@ def main(argv=None):
 def publishes(args) -> bool:
     """Only a run at the goals' size goes on the published page; a quick or resized run stays in OUT."""
     resized = args.epochs or any(getattr(args, key) is not None for key in ("train_sessions", "train_grasps", "test_sessions"))
-    return not args.quick and not resized
+    fewer = args.models != ",".join(MODELS) or args.randomised_models != RANDOMISED_MODELS  # a table without some rows
+    return not args.quick and not resized and not fewer
 
 
 def publish(text: str, page=RESULTS_PAGE):

@@ -317,11 +317,15 @@ def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
     sessions = load("sessions")
     parse = lambda *words: sessions.argparse.Namespace(  # noqa: E731
         quick="--quick" in words, epochs="convlstm=2" if "--epochs" in words else None,
-        train_sessions=1 if "--train-sessions" in words else None, train_grasps=None, test_sessions=None)
+        train_sessions=1 if "--train-sessions" in words else None, train_grasps=None, test_sessions=None,
+        models="deform-gru" if "--models" in words else ",".join(sessions.MODELS),
+        randomised_models="" if "--randomised-models" in words else sessions.RANDOMISED_MODELS)
     assert sessions.publishes(parse())
     assert not sessions.publishes(parse("--quick"))
     assert not sessions.publishes(parse("--epochs"))
     assert not sessions.publishes(parse("--train-sessions"))
+    assert not sessions.publishes(parse("--models"))  # the table would lose the other models' rows
+    assert not sessions.publishes(parse("--randomised-models"))
     page = tmp_path / "results.md"
     page.write_text("# Reproduced results\n\n## Chapter 3\n\nkept\n")
     sessions.publish("| model | RMSE |\n|---|---|\n| deform-gru | 0.5 |\n", str(page))
