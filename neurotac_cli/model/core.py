@@ -134,6 +134,17 @@ class Model:
         self.task = net.task
         net.eval()
 
+    def members(self) -> list:
+        """(the model of one member alone, the validation trials its early stopping watched) for each
+        member of a network trained as several (deform-gru's --members), else [(self, its validation trials)]."""
+        trials = self.training.get("trials", {})
+        draws = [trials.get("validation") or [], *trials.get("member_validation", [])]
+        if len(draws) == 1:
+            return [(self, draws[0])]
+        single = dataclasses.replace(self.config, members=1)
+        return [(Model(self.name, single, self.net.alone(i), self.input_spec, self.classes, self.training), draw)
+                for i, draw in enumerate(draws)]
+
     @property
     def force_scale(self) -> float:
         return float(self.input_spec["normalisation"]["force_scale"])

@@ -97,7 +97,8 @@ def run_fold(frames: pa.Table, spec: dict, test_trials: list, seed: int, val_fra
 def validation_figures(model, train_table: pa.Table) -> dict:
     """The fold's validation score: its early-stopping trials predicted by the trained model, i.e. at
     the restored best epoch. Force models: `val_mse` (N², every frame with a measured force, as the
-    early stopping watched it); classifiers: `val_accuracy`; NaN without validation trials. Also
+    early stopping watched it: with deform-gru's members, each member's own estimate on its own draw,
+    pooled); classifiers: `val_accuracy`; NaN without validation trials. Also
     `epochs` trained and `best_epoch`, from the training curve (the GP's one-row curve: 1 and 0).
     Thesis Tables 3.1 and 3.3, Fig. 4.4(a)."""
     from neurotac_cli import metrics
@@ -113,15 +114,22 @@ def validation_figures(model, train_table: pa.Table) -> dict:
     name = "val_accuracy" if model.task == "material" else "val_mse"
     if not trials:
         return {name: float("nan"), **figures}
-    held = train_table.filter(pc.is_in(train_table.column("trial"), value_set=pa.array(trials, pa.string())))
+
+    def held(draw):
+        return train_table.filter(pc.is_in(train_table.column("trial"), value_set=pa.array(draw, pa.string())))
+
     if model.task == "material":
-        predicted = models.classify_table(model, held)
+        predicted = models.classify_table(model, held(trials))
         label = model.training.get("label", "material")
         true, guess = predicted.column(label).to_pylist(), predicted.column(f"{label}_pred").to_pylist()
         return {name: float(np.mean([a == b for a, b in zip(true, guess)])), **figures}
-    predicted = models.predict_table(model, held)
-    scores = metrics.regression(predicted.column("force").to_numpy(zero_copy_only=False),
-                                predicted.column("force_pred").to_numpy(zero_copy_only=False))
+    # each member of a model of several alone on its own draw: the others trained on those trials
+    truth, estimate = [], []
+    for member, draw in model.members():
+        predicted = models.predict_table(member, held(draw))
+        truth.append(predicted.column("force").to_numpy(zero_copy_only=False))
+        estimate.append(predicted.column("force_pred").to_numpy(zero_copy_only=False))
+    scores = metrics.regression(np.concatenate(truth), np.concatenate(estimate))
     return {name: scores.get("mse", float("nan")), **figures}
 
 

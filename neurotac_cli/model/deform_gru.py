@@ -27,6 +27,7 @@ units and a linear head give the force. State per trial: the deformation map, th
 counts and the GRU state, so streaming costs O(H x W) per frame plus a tiny GRU step.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +100,15 @@ class Net(ForceNet):
         """Member i's parameters as a module of their own, for training it alone."""
         gru, head = self.members()[i]
         return nn.ModuleDict({"gru": gru, "head": head})
+
+    def alone(self, i: int) -> "Net":
+        """Member i as a one-GRU network, its weights shared: the others trained on the trials its own
+        early stopping watched, so its validation error is its estimate's, not the mean's."""
+        single = Net(dataclasses.replace(self.config, members=1), (2, *self.shape))
+        for name, buffer in self.named_buffers(recurse=False):
+            getattr(single, name).copy_(buffer)
+        single.gru, single.head = self.members()[i]
+        return single
 
     def init_state(self, batch: int):
         return {

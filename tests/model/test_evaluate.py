@@ -94,3 +94,25 @@ def test_eval_grid_misuse_says_what_to_do(frames_file, args, code, words):
     done = _run(["eval", *args, frames_file])
     assert done.exit_code == code
     assert words in done.output + done.stderr
+
+
+def test_a_members_validation_error_scores_each_member_alone_on_the_trials_it_validated_on():
+    from neurotac_cli.model.cv import validation_figures
+    from neurotac_cli.model.data import padded, sequences
+
+    frames = tiny_frames(trials=16)
+    model = models.train(frames, models.make_spec("deform-gru", members=3, epochs=30, lr=0.02), val_fraction=0.25, seed=3)
+    trials = model.training["trials"]
+    draws = [trials["validation"], *trials["member_validation"]]
+    # the other members trained on a member's validation trials, so the mean's error there would flatter it
+    data = sequences(frames)
+    features = model.net.encode(torch.as_tensor(padded(data.counts)), None)
+    force = torch.as_tensor(padded(data.force, fill=np.nan))
+    errors = []
+    with torch.no_grad():
+        for i, draw in enumerate(draws):
+            rows = [data.trials.index(t) for t in draw]
+            estimate = model.net.forward_encoded(features[rows], member=i) * model.force_scale
+            known = ~torch.isnan(force[rows])
+            errors.append(((estimate - force[rows])[known] ** 2).numpy())
+    assert validation_figures(model, frames)["val_mse"] == pytest.approx(float(np.concatenate(errors).mean()), rel=1e-4)
