@@ -1,4 +1,4 @@
-"""Our force model: size-robust event statistics per frame into a small GRU.
+"""Our force model: size-robust event statistics per frame into small GRUs.
 
 Why: the ConvLSTM learns pixel patterns of the object sizes it saw, so an unseen size is a new
 image; and it costs four 3x3 convolutions over the full frame per layer and frame. The contact
@@ -22,9 +22,10 @@ force is better described by a few physical quantities that change smoothly with
 With `memory_frames` the deformation map and counts leak (a time constant in frames), so a stream
 that never rests keeps them bounded; the default (0) sums since the trial start, as the thesis does.
 
-The features are standardised with constants fitted on training trials, then a GRU of `hidden`
-units and a linear head give the force. State per trial: the deformation map, the accumulated
-counts and the GRU state, so streaming costs O(H x W) per frame plus a tiny GRU step.
+The features are standardised with constants fitted on training trials, then `members` GRUs of
+`hidden` units, each with a linear head and trained with a validation draw of its own, give the
+force as the mean of their estimates. State per trial: the deformation map, the accumulated counts
+and the GRUs' states, so streaming costs O(H x W) per frame plus a tiny GRU step per member.
 """
 
 import dataclasses
