@@ -46,7 +46,9 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     Validation trials (for early stopping) are chosen by id, by label value, or as a fraction per
     object; a trial and its augmented copies always stay on one side (a split that separates them is
-    refused). Normalisation is fitted on the training trials only.
+    refused). Normalisation is fitted on the training trials only. Each further member of a
+    deform-gru (--members) draws validation trials of its own and trains on the rest; its
+    normalisation is the first member's.
 
     Defaults: "(thesis X)" is the thesis's setting and the default; "(default X)" is ours where the
     thesis gives none.

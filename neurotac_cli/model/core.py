@@ -11,6 +11,7 @@ import torch
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError, ModelError, UsageError
 from neurotac_cli.ops.forcelog import RANGE_N
+from neurotac_cli.model.curve import best_epoch
 from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
@@ -302,8 +303,8 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     # from every trial and stop at epochs of their own (docs/design.md)
     splits = [in_val, *(choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
                         for _ in range(getattr(config, "members", 1) - 1))]
-    trained = ~np.logical_and.reduce(splits)
-    train_set, val_set = data.subset(np.flatnonzero(trained)), data.subset(np.flatnonzero(in_val))
+    # normalisation and the checks see the first member's training trials, as a one-GRU model's do
+    train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
     accumulated = already_accumulated(table.schema)
     input_spec = input_spec_of(table.schema, accumulated)
     torch.manual_seed(seed)
@@ -394,8 +395,7 @@ def _train_force(name, config, fit_config, data, splits, train_set, input_spec, 
                   for i, in_val in enumerate(splits)]
         curve = curves[0]
         if len(curves) > 1:
-            training["member_best_epochs"] = [min(c, key=lambda row: row["val_loss"] if row["val_loss"] == row["val_loss"]
-                                                  else row["train_loss"])["epoch"] for c in curves]
+            training["member_best_epochs"] = [best_epoch(c)["epoch"] for c in curves]
         net.to("cpu")
     input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))
     training["curve"] = curve
