@@ -789,6 +789,14 @@ TITLES = {
 RESULTS_PAGE = pathlib.Path(__file__).resolve().parent.parent / "docs" / "results.md"
 
 
+def keep_section(path: pathlib.Path, title: str, body: str, publish, full: bool):
+    """A script's section written to `path` in its work folder, and through `publish` (onto
+    docs/results.md) only by a full run: a quick or resized run's stays in its folder."""
+    path.write_text(f"## {title}\n\n{body}\n")
+    if full:
+        publish(body)
+
+
 def publish_section(section: str, body: str, title: str, page=RESULTS_PAGE):
     """`body` into the page between its `results:SECTION` markers (appended under `title` when missing)."""
     page = pathlib.Path(page)

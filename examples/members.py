@@ -18,7 +18,7 @@ docs/results.md, and WORK/members.md (a quick or resized run only the latter).
 import argparse
 import pathlib
 
-from chapters import md_table, publish_section  # beside this script
+from chapters import keep_section, md_table, publish_section  # beside this script
 from results import FORCE_SCORING, HELD_OUT, evaluate, fmt, frames, neurotac, rig
 
 SECTION, TITLE = "members", "deform-gru's members"
@@ -70,9 +70,7 @@ def main(argv=None):
         f"Three members read lower than one on {better} of {len(gains)} physics; on average "
         f"{fmt(sum(gains) / len(gains), 2)} times one member's error.",
     ])
-    (work / "members.md").write_text(f"## {TITLE}\n\n{body}\n")
-    if not args.quick and seeds == SEEDS:
-        publish(body)
+    keep_section(work / "members.md", TITLE, body, publish, not args.quick and seeds == SEEDS)
     print(body)
 
 

@@ -20,7 +20,7 @@ import argparse
 import concurrent.futures
 import pathlib
 
-from chapters import md_table, publish_section  # beside this script
+from chapters import keep_section, md_table, publish_section  # beside this script
 from results import FORCE_MODELS, HELD_OUT, PHYSICS, constant_pct, frames, mean_sd, neurotac, sh, unseen_scores
 
 SECTION, TITLE = "physics-grasps", "Physics training never saw, with more grasps"
@@ -82,9 +82,7 @@ def main(argv=None):
         "",
         f"Lowest error on the unseen physics: {best}, {mean_sd(scores[best]['unseen'])}% against the constant's {constant:.1f}%.",
     ])
-    (work / "physics_grasps.md").write_text(f"## {TITLE}\n\n{body}\n")
-    if not args.quick and (sets, seeds) == (SETS, SEEDS):
-        publish(body)
+    keep_section(work / "physics_grasps.md", TITLE, body, publish, not args.quick and (sets, seeds) == (SETS, SEEDS))
     print(body)
 
 

@@ -20,7 +20,7 @@ import concurrent.futures
 import pathlib
 import statistics
 
-from chapters import md_table, publish_section  # beside this script
+from chapters import keep_section, md_table, publish_section  # beside this script
 from results import MATERIAL_PIPELINE, fmt, frames, material_rows, neurotac, recalls, rig
 
 SECTION, TITLE = "rig-materials", "Materials on rigs of other physics"
@@ -77,9 +77,7 @@ def main(argv=None):
         f"at least {100 * GOAL:.0f}% on {met} of {len(ours)}.",
     ])
     work.mkdir(parents=True, exist_ok=True)
-    (work / "rig_materials.md").write_text(f"## {TITLE}\n\n{body}\n")
-    if not args.quick and repeats == REPEATS:
-        publish(body)
+    keep_section(work / "rig_materials.md", TITLE, body, publish, not args.quick and repeats == REPEATS)
 
 
 def publish(body: str):
