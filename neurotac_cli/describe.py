@@ -534,7 +534,8 @@ def describe_model(path: str) -> dict:
                      "seed": training.get("seed"), "fit": training.get("fit"), "epochs_run": len(curve),
                      "best_epoch": best.get("epoch") if best else None,
                      "best_val_loss": best.get("val_loss") if validated else None,
-                     "best_train_loss": None if validated or best is None else best.get("train_loss")},
+                     "best_train_loss": None if validated or best is None else best.get("train_loss"),
+                     "member_best_epochs": training.get("member_best_epochs")},
         "contacts": training.get("contacts"), "slip": spec.get("slip"),
         "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
         "history": training.get("data_history") or [],
@@ -563,6 +564,10 @@ def _model_lines(info: dict) -> list:
         if trained["best_epoch"] is not None:
             text += (f", best {trained['best_epoch']} (validation loss {trained['best_val_loss']:.4g})" if trained["best_val_loss"] is not None
                      else f", best {trained['best_epoch']} by its training loss {trained['best_train_loss']:.4g} (no validation trials)")
+    members = trained.get("member_best_epochs")
+    if isinstance(members, list) and members:  # the curve above is the first member's
+        text += (f"; {len(members)} members, each validating on a draw of its own, best epochs "
+                 f"{', '.join(map(str, members))}")
     pairs.append(("training", text))
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))

@@ -135,3 +135,13 @@ def test_a_file_without_members_is_one_gru():
 
     assert deform_gru.ABSENT_MEANS["members"] == 1
     assert len(deform_gru.Net(deform_gru.Config(members=1), (2, 5, 5)).members()) == 1
+
+
+def test_info_names_the_members_and_their_best_epochs(tmp_path):
+    from neurotac_cli.describe import _model_lines, describe_model
+
+    model = models.train(tiny_frames(trials=6), models.make_spec("deform-gru", members=2, epochs=2), val_fraction=0.3, seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    training = dict(pair for pair in _model_lines(describe_model(str(tmp_path / "m.model"))) if isinstance(pair, tuple))["training"]
+    epochs = ", ".join(map(str, model.training["member_best_epochs"]))
+    assert training.endswith(f"; 2 members, each validating on a draw of its own, best epochs {epochs}")
