@@ -80,8 +80,8 @@ class Net(ForceNet):
         self.register_buffer("x_coord", torch.arange(width, dtype=torch.float32).view(1, 1, 1, width) / max(width, 1))
         self.register_buffer("y_coord", torch.arange(height, dtype=torch.float32).view(1, 1, height, 1) / max(height, 1))
         self.gru, self.head = self._recurrent(width_features), nn.Linear(config.hidden, 1)
-        # Members after the first: the file keeps the first under the names a one-GRU model has, so
-        # both read each other's files
+        # Members after the first; the first keeps the names of a one-GRU model's weights, so a file
+        # of one GRU loads as a model of one member
         self.more = nn.ModuleList(nn.ModuleDict({"gru": self._recurrent(width_features), "head": nn.Linear(config.hidden, 1)})
                                   for _ in range(config.members - 1))
 
