@@ -154,7 +154,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     name = "stdin" if path in (None, "-") else os.path.basename(str(path))
     if follow and path not in (None, "-"):
         _wait_for(path, idle_timeout, stop)
-    fd = _open_fd(path)
+    fd, decoder = _open_fd(path), None
     try:
         feed = Feed(fd, follow, idle_timeout, stop, path)
         buffer = _read_until(feed, bytearray(), lambda data, end: _sniffed(data, end))
@@ -174,10 +174,13 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         declared = sensor or camera._guarded_call(name, fmt, lambda: check_sensor(decoder.sensor))
         if declared is None:
             decoder.close()
+            decoder = None
             return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
         del buffer[:length]
         _settle(name, fmt, feed, buffer, decoder)
     except BaseException:
+        if decoder is not None:  # AEDAT 4.0's keeps a temporary file
+            decoder.close()
         _close(fd, path)
         raise
     schema = sch.events_schema(*declared)

@@ -39,12 +39,15 @@ def write_in_pieces(data: bytes, path, pieces: int = 9, pause: float = 0.02, sto
     stop = stop or threading.Event()
 
     def run():
-        with open(path, "wb", buffering=0) as sink:
-            for start in range(0, len(data), step):
-                if stop.is_set():
-                    return
-                sink.write(data[start : start + step])
-                time.sleep(pause)
+        try:
+            with open(path, "wb", buffering=0) as sink:
+                for start in range(0, len(data), step):
+                    if stop.is_set():
+                        return
+                    sink.write(data[start : start + step])
+                    time.sleep(pause)
+        except BrokenPipeError:
+            return  # the reader refused the stream and closed its end, as a test may expect
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
@@ -403,3 +406,20 @@ def test_a_replay_stopped_before_its_first_event_does_not_call_the_file_empty(tm
 def test_live_usage_errors_exit_2(args, tmp_path):
     done = subprocess.run(["neurotac", "import", *args, str(tmp_path / "x.raw")], capture_output=True)
     assert done.returncode == 2, done.stderr
+
+
+def test_a_stream_refused_after_its_decoder_is_built_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """AEDAT 4.0's live decoder keeps a temporary file; a refusal after it is built removes it."""
+    import tempfile
+
+    from neurotac_cli.errors import FormatError
+
+    def refuse(size):
+        raise FormatError("a sensor this test refuses")
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(live, "check_sensor", refuse)
+    (tmp_path / "fifo").mkdir()
+    with pytest.raises(FormatError, match="refuses"):
+        read_events_table(fifo_of(tmp_path / "fifo", real_file("davis346_aestream.aedat4").read_bytes()))
+    assert not list(tmp_path.glob(".neurotac-aedat4-*"))
