@@ -119,7 +119,7 @@ def check_header(schema: pa.Schema) -> None:
     if sensor is not None and not is_sensor(sensor):
         raise SchemaError(f"metadata {SENSOR} is {sensor!r}, not {{\"width\": W, \"height\": H}} in pixels; re-import the recording")
     window = get_meta(schema, WINDOW)
-    if window is not None and not _positive_int(window):
+    if window is not None and not is_positive_count(window):
         raise SchemaError(f"metadata {WINDOW} is {window!r}, not a positive number of µs; frame the events again")
     history = get_meta(schema, HISTORY)
     if history is not None and not (isinstance(history, list) and all(isinstance(step, dict) for step in history)):
@@ -128,10 +128,11 @@ def check_header(schema: pa.Schema) -> None:
 
 def is_sensor(value) -> bool:
     """A sensor as metadata and model headers hold it: {"width": W, "height": H} in whole pixels."""
-    return isinstance(value, dict) and all(_positive_int(value.get(k)) for k in ("width", "height"))
+    return isinstance(value, dict) and all(is_positive_count(value.get(k)) for k in ("width", "height"))
 
 
-def _positive_int(value) -> bool:
+def is_positive_count(value) -> bool:
+    """A whole number from 1 to 2^31 - 1 (a size, a window, a format number), not a bool."""
     return isinstance(value, int) and not isinstance(value, bool) and 0 < value < 2**31
 
 

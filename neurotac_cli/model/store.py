@@ -7,10 +7,9 @@ import math
 import os
 
 from neurotac_cli.errors import ModelError, UsageError
-from neurotac_cli.schema import is_sensor
+from neurotac_cli.schema import is_positive_count, is_sensor
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
-from neurotac_cli.units import is_whole
 
 HEADER_KEY = "neurotac"
 
@@ -71,7 +70,7 @@ def read_header(path: str) -> dict:
     if missing:
         raise ModelError(f"{path}: the model header lacks {', '.join(missing)} (file damaged?); train the model again")
     version = header.get("format_version", 1)
-    if not _whole(version):
+    if not is_positive_count(version):
         raise ModelError(f"{path}: the model header's format_version {version!r} is not a format number (file edited or "
                          "damaged?); train the model again")
     if version > FORMAT_VERSION:
@@ -79,11 +78,6 @@ def read_header(path: str) -> dict:
                          "upgrade neurotac to run it")
     _check_parts(path, header)
     return header
-
-
-def _whole(value) -> bool:
-    """A whole number of 1 or more (a count, a size, a format number)."""
-    return is_whole(value) and value >= 1
 
 
 def _check_parts(path: str, header: dict):
@@ -101,9 +95,9 @@ def _check_parts(path: str, header: dict):
     if task not in ("force", "material"):
         raise bad(f"task {task!r}", "force or material")
     for key in ("width", "height"):
-        if not _whole(spec.get(key)):
+        if not is_positive_count(spec.get(key)):
             raise bad(f"input {key}", "a whole number of pixels, 1 or more")
-    if spec.get("window_us") is not None and not _whole(spec["window_us"]):
+    if spec.get("window_us") is not None and not is_positive_count(spec["window_us"]):
         raise bad("input window_us", "a whole number of µs, 1 or more")
     if not isinstance(spec.get("accumulated", False), bool):
         raise bad("input accumulated", "true or false")
