@@ -363,10 +363,7 @@ def _arrow_digest(value) -> str:
     if isinstance(value, pa.RecordBatch):
         value = pa.Table.from_batches([value])
     if isinstance(value, pa.Table):
-        sink = io.BytesIO()
-        with pa.ipc.new_stream(sink, value.schema) as writer:
-            writer.write_table(value.combine_chunks())
-        return hashlib.sha256(sink.getvalue()).hexdigest()
+        return hashlib.sha256(_arrow_bytes(value.combine_chunks())).hexdigest()
     if isinstance(value, pa.Schema):
         return hashlib.sha256(value.serialize().to_pybytes()).hexdigest()
     raise TypeError(f"cannot hash a {type(value).__name__} for the study cache")
