@@ -461,8 +461,8 @@ def _write(figure, pictures, fmt: str, path: str, fps: float) -> tuple[int, int]
         if fmt == "gif":
             from PIL import Image
 
-            # one picture drawn at a time as Pillow asks for it: a thousand RGB pictures held at once
-            # would take gigabytes
+            # one picture drawn at a time as Pillow asks for it; Pillow keeps each at one byte a pixel
+            # until it writes, a third of holding a thousand RGB pictures
             images = (Image.fromarray(picture) for picture in pictures)
             first = next(images)
             first.save(temporary, format="GIF", save_all=True, append_images=images, duration=round(1000 / fps), loop=0)
