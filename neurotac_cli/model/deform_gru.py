@@ -181,17 +181,14 @@ class Net(ForceNet):
         """forward() from features made by encode(), for whole sequences from their start: the
         members' mean, or one member's estimate (training fits each on its own)."""
         x = (features - self.feature_mean) / self.feature_std
-        h = self.init_state(features.shape[0])["h"]
-        if member is None:
-            return self._run(x, h)[0]
-        layers = self.config.layers
-        gru, head = self.members()[member]
-        return head(gru(x, h[member * layers : (member + 1) * layers])[0]).squeeze(-1)
+        return self._run(x, self.init_state(features.shape[0])["h"], None if member is None else [member])[0]
 
-    def _run(self, x, h):
-        """The members' mean estimate (B, T) from standardised features, and their states after."""
-        layers, outs, states = self.config.layers, [], []
-        for i, (gru, head) in enumerate(self.members()):
+    def _run(self, x, h, chosen=None):
+        """The mean estimate (B, T) of the `chosen` members (default all) from standardised features,
+        and their states after."""
+        layers, members, outs, states = self.config.layers, self.members(), [], []
+        for i in range(len(members)) if chosen is None else chosen:
+            gru, head = members[i]
             out, state = gru(x, h[i * layers : (i + 1) * layers])
             outs.append(head(out).squeeze(-1))
             states.append(state)
