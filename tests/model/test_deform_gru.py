@@ -31,8 +31,9 @@ def test_the_spec_field_is_layout_grid():
         models.make_spec("deform-gru", grid=4)
 
 
-def test_a_file_from_before_the_excess_masses_loads_as_it_was_trained(tmp_path):
-    """A header without `excess` means the feature set of its time (no excess masses), not today's default."""
+def _without_setting(model, path, key: str):
+    """`model` saved to `path` with `key` left out of its header's architecture, as a file written
+    before that setting existed; loaded back."""
     import json
 
     from safetensors import safe_open
@@ -40,16 +41,20 @@ def test_a_file_from_before_the_excess_masses_loads_as_it_was_trained(tmp_path):
 
     from neurotac_cli.model.store import HEADER_KEY
 
-    frames = tiny_frames(trials=4)
-    model = models.train(frames, models.make_spec("deform-gru", excess=False, epochs=1), seed=0)
-    path = tmp_path / "old.model"
     models.save(model, str(path))
     with safe_open(str(path), framework="pt") as handle:
         header = json.loads(handle.metadata()[HEADER_KEY])
         tensors = {key: handle.get_tensor(key) for key in handle.keys()}
-    del header["architecture"]["excess"]
+    del header["architecture"][key]
     save_file(tensors, str(path), metadata={HEADER_KEY: json.dumps(header)})
-    loaded = models.load(str(path))
+    return models.load(str(path))
+
+
+def test_a_file_from_before_the_excess_masses_loads_as_it_was_trained(tmp_path):
+    """A header without `excess` means the feature set of its time (no excess masses), not today's default."""
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("deform-gru", excess=False, epochs=1), seed=0)
+    loaded = _without_setting(model, tmp_path / "old.model", "excess")
     assert loaded.config.excess is False
     expected = models.predict_table(model, frames).column("force_pred").to_numpy()
     assert (models.predict_table(loaded, frames).column("force_pred").to_numpy() == expected).all()
@@ -130,11 +135,18 @@ def test_a_members_model_streams_frame_by_frame_as_it_reads_whole_trials(tmp_pat
     assert abs(np.array(steps) - whole[first]).max() < 1e-4 * max(1.0, abs(whole).max())
 
 
-def test_a_file_without_members_is_one_gru():
+def test_a_file_without_members_is_one_gru(tmp_path):
+    """A header without `members` is a file of one GRU, loaded and read as it was trained."""
     from neurotac_cli.model import deform_gru
 
     assert deform_gru.ABSENT_MEANS["members"] == 1
     assert len(deform_gru.Net(deform_gru.Config(members=1), (2, 5, 5)).members()) == 1
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("deform-gru", members=1, epochs=1), seed=0)
+    loaded = _without_setting(model, tmp_path / "one.model", "members")
+    assert loaded.config.members == 1
+    expected = models.predict_table(model, frames).column("force_pred").to_numpy()
+    assert (models.predict_table(loaded, frames).column("force_pred").to_numpy() == expected).all()
 
 
 def test_info_names_the_members_and_their_best_epochs(tmp_path):
