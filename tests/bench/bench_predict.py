@@ -35,11 +35,12 @@ def _frames(n=400, seed=0):
          sch.counts_array(counts), pa.array(np.zeros(n, np.float32)), pa.array(["holding"] * n)], schema=schema)
 
 
-def _model(module, name):
-    net = module.Net(module.Config(), (2, SIZE, SIZE))
+def _model(module, name, config=None):
+    config = config or module.Config()
+    net = module.Net(config, (2, SIZE, SIZE))
     spec = {"window_us": 10000, "height": SIZE, "width": SIZE, "sensor": None, "channels": ["off", "on"],
             "accumulated": False, "normalisation": {"force_scale": 1.0}}
-    return Model(name, module.Config(), net, spec)
+    return Model(name, config, net, spec)
 
 
 def _latencies(model, frames):
@@ -60,11 +61,14 @@ def test_streaming_latency_per_frame_one_thread():
     torch.set_num_threads(1)
     frames = _frames()
     results = {}
-    for module, name in [(convlstm, "convlstm"), (deform_gru, "deform-gru")]:
-        latency = _latencies(_model(module, name), frames)
+    # deform-gru as trained by default (three members) and with one, whose steps the members add to
+    for module, name, config in [(convlstm, "convlstm", None), (deform_gru, "deform-gru", None),
+                                 (deform_gru, "deform-gru, one member", deform_gru.Config(members=1))]:
+        latency = _latencies(_model(module, "deform-gru" if module is deform_gru else name, config), frames)
         results[name] = (np.percentile(latency, 50), np.percentile(latency, 99))
-        print(f"\n{name:9s} per-frame latency at {SIZE}x{SIZE}, 1 thread: p50 {results[name][0]:.3f} ms, p99 {results[name][1]:.3f} ms")
+        print(f"\n{name:22s} per-frame latency at {SIZE}x{SIZE}, 1 thread: p50 {results[name][0]:.3f} ms, p99 {results[name][1]:.3f} ms")
     print(f"convlstm / ours: p50 x{results['convlstm'][0] / results['deform-gru'][0]:.1f}, p99 x{results['convlstm'][1] / results['deform-gru'][1]:.1f}")
+    print(f"three members / one: p50 x{results['deform-gru'][0] / results['deform-gru, one member'][0]:.2f}")
     assert results["deform-gru"][0] < results["convlstm"][0]
 
 
