@@ -35,8 +35,8 @@ def _model_file(path: str) -> str:
               "reading zero between contacts; the detector keeps its durations and event rates at the frames' window "
               "(docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
-@click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file.")
-@click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG.")
+@click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file; a model of several members writes each one's, named in the model column.")
+@click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG (every member's, the first drawn full).")
 @threads_option(2)
 @device_option
 @seed_option
@@ -59,6 +59,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     """
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model.curve import member_curves
     from neurotac_cli.model.plots import curve_figure
 
     if contacts and model_name in MATERIAL_MODELS:
@@ -81,4 +82,4 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     if curve:
         tables.write(curve, trained.curve, step=history())
     if plot:
-        curve_figure(trained.model.training.get("curve", []), plot, title=f"{model_name} training curve", loss=trained.loss)
+        curve_figure(member_curves(trained.model.training), plot, title=f"{model_name} training curve", loss=trained.loss)

@@ -394,8 +394,9 @@ def _train_force(name, config, fit_config, data, splits, train_set, input_spec, 
         curves = [_fit_member(net, i, len(splits), data, in_val, features, force_scale, fit_config, generator, progress, name, device)
                   for i, in_val in enumerate(splits)]
         curve = curves[0]
-        if len(curves) > 1:
+        if len(curves) > 1:  # "curve" stays the first member's, as files of one-member models hold it
             training["member_best_epochs"] = [best_epoch(c)["epoch"] for c in curves]
+            training["member_curves"] = curves
         net.to("cpu")
     input_spec = dict(input_spec, normalisation=dict(_small_buffers(net), force_scale=force_scale))
     training["curve"] = curve

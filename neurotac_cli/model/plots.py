@@ -156,32 +156,52 @@ def evaluation_figure(predictions, path: str, *, name: str, label: str = "materi
     confusion_figure(matrix, classes, path, title=f"{name}: accuracy {100 * np.trace(matrix) / max(matrix.sum(), 1):.1f}%")
 
 
-def curve_figure(curve: list, path: str, title: str = "", loss: str = "loss"):
+def curve_figure(curves, path: str, title: str = "", loss: str = "loss"):
+    """Training and validation loss by epoch, and the epoch whose weights were kept. `curves`: one
+    curve, or {member label: curve} for a model of several members (each drawn, the title the first's)."""
     plt = _pyplot()
-    epochs = [row["epoch"] for row in curve]
-    train = [row["train_loss"] for row in curve]
-    val = [row["val_loss"] for row in curve]
-    kept = restored_epoch(curve)
+    curves = curves if isinstance(curves, dict) else {"": curves}
+    first = next(iter(curves.values()), [])
+    kept = restored_epoch(first)
+    many = len(curves) > 1
     with plt.rc_context(STYLE):
         fig, axis = plt.subplots(figsize=(5.8, 3.8))
-        axis.plot(epochs, train, label="training")
-        if np.isfinite(val).any():
-            axis.plot(epochs, val, label="validation")
+        values = []
+        for i, (member, curve) in enumerate(curves.items()):
+            epochs = [row["epoch"] for row in curve]
+            train = [row["train_loss"] for row in curve]
+            val = [row["val_loss"] for row in curve]
+            values += train + val
+            style = dict(alpha=1.0 if i == 0 else 0.55, lw=1.5 if i == 0 else 1.0)
+            # with several members: the first drawn full and named, the others dashed under one name
+            suffix = "" if not many else ", member 1" if i == 0 else f", members 2-{len(curves)}" if len(curves) > 2 else ", member 2"
+            named = i < 2
+            style.update(ls="-" if i == 0 else "--")
+            axis.plot(epochs, train, color="C0", label=f"training{suffix}" if named else None, **style)
+            if np.isfinite(val).any():
+                axis.plot(epochs, val, color="C1", label=f"validation{suffix}" if named else None, **style)
+            member_kept = restored_epoch(curve)
+            if member_kept is not None and i > 0:
+                watched = member_kept["val_loss"] if np.isfinite(member_kept["val_loss"]) else member_kept["train_loss"]
+                axis.plot([member_kept["epoch"]], [watched], "o", color="0.4", ms=3)
         axis.set_yscale("log")
-        log_ticks(axis, train + val)
+        log_ticks(axis, values)
         if kept is not None:
             watched = kept["val_loss"] if np.isfinite(kept["val_loss"]) else kept["train_loss"]
-            axis.axvline(kept["epoch"], color="black", lw=0.8, ls="--", label=f"restored: epoch {kept['epoch']}")
+            axis.axvline(kept["epoch"], color="black", lw=0.8, ls="--", label=f"restored: epoch {kept['epoch']}" + (" (member 1)" if many else ""))
             axis.plot([kept["epoch"]], [watched], "ko", ms=4)
         axis.set_xlabel("epoch")
         axis.xaxis.set_major_locator(plt.MaxNLocator(integer=True))  # no epoch 2.5
         axis.set_ylabel(loss)
-        axis.legend()
+        axis.legend(fontsize="small")
         how = ""
         if kept is not None:
             which = "validation" if np.isfinite(kept["val_loss"]) else "training"
-            how = f"best {which} loss {(kept['val_loss'] if which == 'validation' else kept['train_loss']):.4g} at epoch {kept['epoch']} of {len(curve)}"
-        axis.set_title(f"{title}: {how}" if title and how else title or how)
+            how = f"best {which} loss {(kept['val_loss'] if which == 'validation' else kept['train_loss']):.4g} at epoch {kept['epoch']} of {len(first)}"
+        if many:  # grey dots: the epochs the other members kept
+            axis.set_title(f"{title or 'training curve'}, {len(curves)} members\nmember 1: {how}", fontsize="medium")
+        else:
+            axis.set_title(f"{title}: {how}" if title and how else title or how)
         fig.tight_layout()
         _save(fig, path)
         plt.close(fig)

@@ -131,7 +131,12 @@ def _check_training(bad, training: dict):
             raise bad(f"training {key}", f"a {'list of JSON objects' if item else 'JSON object' if kind is dict else 'string'}")
     if not all(isinstance(step.get("args", {}), dict) for step in training.get("data_history") or []):
         raise bad("training data_history", "a list of steps with their arguments as JSON objects")
-    if not all(_number(row.get("train_loss")) and _number(row.get("val_loss")) for row in training.get("curve") or []):
+    curves = [training.get("curve") or []]
+    members = training.get("member_curves")
+    if members is not None and not (isinstance(members, list) and all(isinstance(c, list) for c in members)):
+        raise bad("training member_curves", "a list of training curves")
+    curves += members or []
+    if not all(isinstance(row, dict) and _number(row.get("train_loss")) and _number(row.get("val_loss")) for c in curves for row in c):
         raise bad("training curve", "a list of epochs with their train_loss and val_loss")
     if not all(isinstance(value, list) for value in (training.get("trials") or {}).values()):
         raise bad("training trials", "lists of trial names")

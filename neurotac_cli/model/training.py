@@ -7,7 +7,7 @@ import pyarrow as pa
 from neurotac_cli.errors import UsageError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import Model, make_spec, train
-from neurotac_cli.model.curve import best_epoch
+from neurotac_cli.model.curve import best_epoch, member_curves
 from neurotac_cli.model.names import MATERIAL_MODELS
 
 DEFAULT_VAL_FRACTION = 0.1  # validation share when the command is given no other choice
@@ -51,9 +51,17 @@ def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trial
                    f"validation {best['val_loss']:.4g})")
     elif best:  # no validation trials (a NaN validation loss): the epoch was chosen by its training loss
         summary = f"{name}: {len(curve)} epochs, best epoch {best['epoch']} by its training loss {best['train_loss']:.4g} (no validation trials)"
-    if "member_best_epochs" in model.training:  # the curve is the first member's
+    if "member_best_epochs" in model.training:  # the summary's epochs are the first member's
         epochs = ", ".join(map(str, model.training["member_best_epochs"]))
-        summary += f"; {len(model.training['member_best_epochs'])} members, best epochs {epochs} (the curve is the first's)"
-    rows = [(f"epoch:{row['epoch']}", key, row[key]) for row in curve for key in ("train_loss", "val_loss")]
+        summary += f"; {len(model.training['member_best_epochs'])} members, best epochs {epochs} (the epochs above are the first's)"
     loss = "cross-entropy" if model.task == "material" else "MSE of force / training max (dimensionless)"
-    return Trained(model, summary, metrics_table(rows, name), loss)
+    return Trained(model, summary, curve_table(model.training, name), loss)
+
+
+def curve_table(training: dict, name: str) -> pa.Table:
+    """The training curve as a metrics table: scope epoch:N; with several members, one block of rows
+    per member, named in the model column ("deform-gru member 2/3")."""
+    tables = [metrics_table([(f"epoch:{row['epoch']}", key, row[key]) for row in curve for key in ("train_loss", "val_loss")],
+                            f"{name} {member}".strip())
+              for member, curve in member_curves(training).items()]
+    return pa.concat_tables(tables)

@@ -157,3 +157,34 @@ def test_info_names_the_members_and_their_best_epochs(tmp_path):
     training = dict(pair for pair in _model_lines(describe_model(str(tmp_path / "m.model"))) if isinstance(pair, tuple))["training"]
     epochs = ", ".join(map(str, model.training["member_best_epochs"]))
     assert training.endswith(f"; 2 members, each validating on a draw of its own, best epochs {epochs}")
+
+
+def test_every_members_curve_is_kept_tabled_and_drawn(tmp_path):
+    from PIL import Image
+
+    from neurotac_cli.model.curve import best_epoch, member_curves
+    from neurotac_cli.model.plots import curve_figure
+    from neurotac_cli.model.training import train_model
+
+    trained = train_model(tiny_frames(trials=6), "deform-gru", {"members": 3, "epochs": 3}, val_fraction=0.3, seed=0)
+    curves = trained.model.training["member_curves"]
+    assert len(curves) == 3 and curves[0] == trained.model.training["curve"]
+    assert [best_epoch(c)["epoch"] for c in curves] == trained.model.training["member_best_epochs"]
+    models.save(trained.model, str(tmp_path / "m.model"))
+    assert models.load(str(tmp_path / "m.model")).training["member_curves"] == curves
+    table = trained.curve.to_pydict()
+    for i, curve in enumerate(curves):
+        mine = [value for model, value in zip(table["model"], table["value"]) if model == f"deform-gru member {i + 1}/3"]
+        assert mine == [row[key] for row in curve for key in ("train_loss", "val_loss")]
+    assert list(member_curves(trained.model.training)) == ["member 1/3", "member 2/3", "member 3/3"]
+    curve_figure(member_curves(trained.model.training), str(tmp_path / "c.png"), title="deform-gru training curve")
+    with Image.open(tmp_path / "c.png") as image:
+        assert image.format == "PNG"
+
+
+def test_a_one_network_curve_table_names_the_model_alone():
+    from neurotac_cli.model.training import train_model
+
+    trained = train_model(tiny_frames(trials=4), "deform-gru", {"members": 1, "epochs": 2}, seed=0)
+    assert "member_curves" not in trained.model.training
+    assert set(trained.curve.column("model").to_pylist()) == {"deform-gru"}
