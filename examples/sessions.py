@@ -16,6 +16,8 @@ is kept beside it in NAME.seconds), so a run cut off, or one adding a model, tra
 
     python examples/sessions.py --quick            # seconds to a minute: tiny sessions, few epochs
     python examples/sessions.py --out out/sessions # the goals' size: 50-grasp sessions of >= 5 min
+    python examples/sessions.py --models deform-gru --randomised-models deform-gru --replace-rows
+                                                   # deform-gru's rows re-made, the other models' kept
 
 The full mode took about 40 minutes on the 2-core machine (25 Nov 2026, its models split over two
 processes; the ConvLSTM's 10 epochs over 200 contacts were 21 minutes of it); on a machine shared
@@ -182,6 +184,9 @@ def main(argv=None):
     parser.add_argument("--randomised-models", default=RANDOMISED_MODELS,
                         help=f"comma-separated models also trained on domain-randomised sessions (default {RANDOMISED_MODELS}; '' for none)")
     parser.add_argument("--epochs", default=None, metavar="MODEL=N,...", help="override the most epochs per model, e.g. convlstm=2")
+    parser.add_argument("--replace-rows", action="store_true",
+                        help="publish a run of fewer models by replacing their rows in the published tables, keeping the other "
+                             "models' rows (the same sessions and seeds: for re-making one model's rows after it changed)")
     args = parser.parse_args(argv)
     size = dict(QUICK if args.quick else FULL)
     for key in ("train_sessions", "train_grasps", "test_sessions"):
@@ -233,18 +238,55 @@ def main(argv=None):
         sink.write(text)
     if publishes(args):
         publish(text)
+    elif args.replace_rows and publishes(args, fewer_allowed=True):
+        publish(merged_rows(published(), text, [*results, *(name for name in on_unseen if name not in results)]))
 
 
-def publishes(args) -> bool:
-    """Only a run at the goals' size goes on the published page; a quick or resized run stays in OUT."""
+def publishes(args, fewer_allowed=False) -> bool:
+    """Only a run at the goals' size goes on the published page; a quick or resized run stays in OUT.
+    A run of fewer models only with `fewer_allowed` (its rows merged into the published tables)."""
     resized = args.epochs or any(getattr(args, key) is not None for key in ("train_sessions", "train_grasps", "test_sessions"))
     fewer = args.models != ",".join(MODELS) or args.randomised_models != RANDOMISED_MODELS  # a table without some rows
-    return not args.quick and not resized and not fewer
+    return not args.quick and not resized and (fewer_allowed or not fewer)
+
+
+PUBLISHED_HEAD = "Made by `make -C examples sessions` (`examples/sessions.py`)."
 
 
 def publish(text: str, page=RESULTS_PAGE):
     """The table into `page` (docs/results.md), between its `results:sessions` markers."""
-    publish_section("sessions", f"Made by `make -C examples sessions` (`examples/sessions.py`).\n\n{text}", "Sessions of many grasps", page)
+    publish_section("sessions", f"{PUBLISHED_HEAD}\n\n{text}", "Sessions of many grasps", page)
+
+
+def published(page=RESULTS_PAGE) -> str:
+    """The tables now between the page's `results:sessions` markers, without the line naming the script."""
+    text = open(page, encoding="utf-8").read()
+    start, end = "<!-- results:sessions:start -->", "<!-- results:sessions:end -->"
+    if start not in text or end not in text:
+        raise SystemExit(f"{page} has no published sessions tables whose rows could be replaced")
+    return text.split(start, 1)[1].split(end, 1)[0].strip().removeprefix(PUBLISHED_HEAD).strip() + "\n"
+
+
+def merged_rows(old: str, new: str, names) -> str:
+    """`old` tables with the rows of the models `names` taken from `new` (a run of those models alone on
+    the same sessions). Every line that is not a model's row must read the same in both, or the
+    sessions differ and nothing is merged."""
+    def rows(text):  # each line with (its table's number, its model) for a model's row, None for any other line
+        table, out = 0, []
+        for line in text.splitlines():
+            table += line.startswith("| model |")
+            is_row = line.startswith("| ") and not line.startswith("| model |")
+            out.append((line, (table, line.split("|")[1].strip()) if is_row else None))
+        return out
+
+    old_rows, new_rows = rows(old), rows(new)
+    if [line for line, key in old_rows if key is None] != [line for line, key in new_rows if key is None]:
+        raise SystemExit("the published sessions tables were made on other sessions or sizes: run every model (no --replace-rows)")
+    fresh = {key: line for line, key in new_rows if key is not None and key[1] in names}
+    missing = {name for _, name in fresh} - {key[1] for _, key in old_rows if key is not None}
+    if missing or not fresh:
+        raise SystemExit(f"the published sessions tables have no row for {', '.join(sorted(missing or names))}: run every model")
+    return "\n".join(fresh.get(key, line) for line, key in old_rows) + "\n"
 
 
 if __name__ == "__main__":

@@ -333,6 +333,23 @@ def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
     text = page.read_text()
     assert "kept" in text and text.count("## Sessions of many grasps") == 1
     assert "| deform-gru | 0.4 |" in text and "0.5" not in text
+    assert sessions.publishes(parse("--models"), fewer_allowed=True)
+    assert not sessions.publishes(parse("--models", "--quick"), fewer_allowed=True)
+    assert sessions.published(str(page)) == "| model | RMSE |\n|---|---|\n| deform-gru | 0.4 |\n"
+
+
+def test_a_sessions_run_of_fewer_models_replaces_only_their_rows():
+    sessions = load("sessions")
+    old = "Test: 2 sessions.\n\n| model | RMSE |\n|---|---|\n| deform-gru | 0.5 |\n| lstm | 0.6 |\n\nUnseen.\n\n" \
+          "| model | % |\n|---|---|\n| deform-gru | 40 |\n| lstm, randomised | 19 |\n"
+    new = "Test: 2 sessions.\n\n| model | RMSE |\n|---|---|\n| deform-gru | 0.4 |\n\nUnseen.\n\n" \
+          "| model | % |\n|---|---|\n| deform-gru | 39 |\n"
+    merged = sessions.merged_rows(old, new, ["deform-gru"])
+    assert merged == old.replace("| deform-gru | 0.5 |", "| deform-gru | 0.4 |").replace("| deform-gru | 40 |", "| deform-gru | 39 |")
+    with pytest.raises(SystemExit, match="other sessions"):
+        sessions.merged_rows(old, new.replace("2 sessions", "1 session"), ["deform-gru"])
+    with pytest.raises(SystemExit, match="no row for convlstm"):
+        sessions.merged_rows(old, new.replace("| deform-gru | 39 |", "| deform-gru | 39 |\n| convlstm | 21 |"), ["deform-gru", "convlstm"])
 
 
 def test_a_quick_rig_sessions_run_prints_its_tables_and_leaves_docs_alone(tmp_path, monkeypatch):
