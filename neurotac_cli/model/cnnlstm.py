@@ -4,7 +4,6 @@ zero padding, dropout 0.4 after the first three."""
 
 from dataclasses import dataclass
 
-import torch
 from torch import nn
 
 from neurotac_cli.model.base import CountScaledNet, orthogonal_recurrent

@@ -3,7 +3,6 @@
 
 from dataclasses import dataclass
 
-import torch
 from torch import nn
 
 from neurotac_cli.model.base import CountScaledNet, orthogonal_recurrent

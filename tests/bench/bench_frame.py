@@ -19,7 +19,6 @@ batch, so the input itself holds no memory), comparing their peak RSS.
 """
 
 import os
-import resource
 import subprocess
 import sys
 import time

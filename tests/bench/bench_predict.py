@@ -15,7 +15,6 @@ import time
 
 import numpy as np
 import pyarrow as pa
-import pytest
 import torch
 
 from neurotac_cli import model as models
