@@ -353,8 +353,10 @@ def test_frames_too_large_for_one_table_cell_are_refused(tmp_path):
     assert one_line(stderr, code, 1) and "too large for one table cell" in stderr
 
 
-@pytest.mark.parametrize("name, cut", [("davis240c_rotdisk.aedat", 100), ("atis_ncars_loris.dat", 10)])
+@pytest.mark.parametrize("name, cut", [("davis240c_rotdisk.aedat", 100), ("atis_ncars_loris.dat", 10),
+                                       ("prophesee_hd_expelliarmus.evt3.raw", 100)])
 def test_a_camera_file_cut_inside_its_header_is_refused(tmp_path, name, cut):
+    """An EVT file cut mid-header read as a header without events: an empty table, exit 0."""
     from tests.conftest import real_file
 
     (tmp_path / name).write_bytes(real_file(name).read_bytes()[:cut])

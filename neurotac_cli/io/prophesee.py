@@ -42,8 +42,9 @@ def header_of(path: str, head: bytes) -> tuple[int, dict]:
             with open(path, "rb") as handle:
                 data = handle.read()
             end = data.find(b"\n", offset)
-            if end < 0:
-                return len(data), fields
+            if end < 0:  # read as a header without events, it was an empty table and exit 0
+                raise FormatError(f"the Prophesee header is cut short: the file ends mid-line after {len(data)} bytes "
+                                  "(is it the whole file?)")
         text = data[offset + 1 : end].decode("latin-1").strip()
         key, _, value = text.partition(" ")
         fields.setdefault(key.lower(), value.strip())
