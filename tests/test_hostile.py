@@ -711,7 +711,8 @@ def _set(path: str, value):
     ("training.trials", {"train": 5}, "training trials is not"), ("training.fit", [1], "training fit is not"),
     ("training.events_per_frame_max", "x", "events_per_frame_max is not"),
     ("training.member_curves", [5], "training member_curves is not"),
-    ("training.member_curves", [[{"epoch": 0}]], "training curve is not")])
+    ("training.member_curves", [[{"epoch": 0}]], "training curve is not"),
+    ("training.member_best_epochs", [None, "x"], "member_best_epochs is not"), ("training.member_best_epochs", 5, "member_best_epochs is not")])
 def test_a_force_model_header_edited_to_nonsense_is_one_line(files, tmp_path, path, value, said):  # noqa: F811
     """A force scale of 0 or NaN once estimated 0 or NaN N on every frame with exit 0; wrong types were tracebacks."""
     _edit_model(f"{files}/m.model", str(tmp_path / "x.model"), header=_set(path, value))

@@ -136,6 +136,10 @@ def _check_training(bad, training: dict):
     if members is not None and not (isinstance(members, list) and all(isinstance(c, list) for c in members)):
         raise bad("training member_curves", "a list of training curves")
     curves += members or []
+    best = training.get("member_best_epochs")
+    if best is not None and not (isinstance(best, list) and all(isinstance(e, int) and not isinstance(e, bool) and e >= 0 for e in best)
+                                 and (members is None or len(best) == len(members))):
+        raise bad("training member_best_epochs", "a list of epoch numbers, one per member curve")
     if not all(isinstance(row, dict) and _number(row.get("train_loss")) and _number(row.get("val_loss")) for c in curves for row in c):
         raise bad("training curve", "a list of epochs with their train_loss and val_loss")
     if not all(isinstance(value, list) for value in (training.get("trials") or {}).values()):
