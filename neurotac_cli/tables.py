@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 
 from neurotac_cli import __version__, bridges, schema as sch
-from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, cannot_open
+from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, UsageError, cannot_open
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -381,8 +381,16 @@ def output_format(path: str) -> str:
 
 
 def check_folder(*paths) -> None:
-    """One clear error if the folder of any of `paths` does not exist (a command that runs for
-    minutes checks its outputs first, so its work is not lost at the end)."""
+    """One clear error if the folder of any of `paths` does not exist, or if two of them name one
+    file, where the last written would silently replace the other (a command that runs for minutes
+    checks its outputs first, so its work is not lost at the end)."""
+    seen = {}
+    for path in paths:
+        real = os.path.realpath(path)
+        if real in seen:
+            raise UsageError(f"two outputs name one file ({seen[real]} and {path}): the second would replace the first; "
+                             "give each its own path")
+        seen[real] = path
     for path in paths:
         directory = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(directory):

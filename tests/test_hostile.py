@@ -769,3 +769,14 @@ def test_a_header_architecture_past_trains_bounds_is_one_line(files, tmp_path, k
     for args in (["predict", "--model"], ["eval", "--model"]):
         code, stderr, _ = invoke(args + [str(tmp_path / "x.model"), f"{files}/f.arrows"])
         assert one_line(stderr, code, 1) and "architecture is out of bounds" in stderr and f"--{key}" in stderr, stderr
+
+
+@pytest.mark.parametrize("args", [["train", "--model", "tdnn", "--epochs", "1", "-o", "{t}/m.png", "--plot", "{t}/./m.png"],
+                                  ["eval", "--model", "{d}/m.model", "-o", "{t}/e.parquet", "--metrics", "{t}/e.parquet"],
+                                  ["split", "--fraction", "0.5", "--train", "{t}/s.arrows", "--test", "{t}/../{n}/s.arrows"]])
+def test_two_outputs_naming_one_file_are_refused(files, tmp_path, args):  # noqa: F811
+    """The model file was overwritten by its own training plot, the metrics by the predictions, exit 0."""
+    args = [a.format(t=tmp_path, d=files, n=tmp_path.name) for a in args] + [f"{files}/f.arrows"]
+    code, stderr, _ = invoke(args)
+    assert one_line(stderr, code, 2) and "two outputs name one file" in stderr, stderr
+    assert not list(tmp_path.iterdir())
