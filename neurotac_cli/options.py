@@ -36,6 +36,19 @@ class Duration(ParamType):
         return us
 
 
+class FiniteRange(click.FloatRange):
+    """click's FloatRange, refusing NaN: NaN passes both of a range's comparisons, so it reached the
+    code behind the option (a traceback, or a check that then never held)."""
+
+    def convert(self, value, param, ctx):
+        import math
+
+        number = super().convert(value, param, ctx)
+        if math.isnan(number):
+            self.fail(f"{value!r} is not a number in the range {self._describe_range()}", param, ctx)
+        return number
+
+
 class Finite(ParamType):
     """A finite number (NaN and inf refused: they pass every range check), above `above` when given."""
 
@@ -339,7 +352,7 @@ def validation_options(function):
                             "(the thesis: one per size) for force models, the class label for classifiers].")(function)
     function = click.option("--val-where", default=None, metavar="LABEL=VALUE",
                             help="Validate on the trials with this label value, e.g. object=bolt15.")(function)
-    function = click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=None,
+    function = click.option("--val-fraction", type=FiniteRange(0, 1, max_open=True), default=None,
                             help="Validate on this fraction of source trials, drawn per --val-per value (default 0.1 when no other choice is given).")(function)
     function = click.option("--val-trials", default=None, metavar="ID,ID,...",
                             help="Validate on these trials (comma-separated ids).")(function)
@@ -357,7 +370,7 @@ def fold_options(prefix: str = ""):
         for option in reversed([
             click.option("--repeats", type=click.IntRange(min=1), default=1, show_default=True,
                          help=text("train every fold with this many seeds (thesis 10).")),
-            click.option("--val-fraction", type=click.FloatRange(0, 1, max_open=True), default=0.1, show_default=True,
+            click.option("--val-fraction", type=FiniteRange(0, 1, max_open=True), default=0.1, show_default=True,
                          help=text("validation share of each fold's training trials, drawn per --val-per value "
                                    "(thesis: one per size).")),
             click.option("--val-per", default=None, metavar="LABEL",

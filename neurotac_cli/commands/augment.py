@@ -2,7 +2,7 @@
 
 import click
 
-from neurotac_cli.options import Finite, KeyValue, echo_lines, history, input_paths, output_option, seed_option
+from neurotac_cli.options import Finite, FiniteRange, KeyValue, echo_lines, history, input_paths, output_option, seed_option
 
 
 @click.command()
@@ -22,7 +22,7 @@ from neurotac_cli.options import Finite, KeyValue, echo_lines, history, input_pa
                    "like the input; a random stretch of it per copy.")
 @click.option("--fs", "fs", type=int, default=None, metavar="J",
               help="Frame shifting: move frames J later (J<0: earlier), zero fill; labels stay (thesis best: -1).")
-@click.option("--tes", "tes", type=(int, click.FloatRange(0, 1)), default=None, metavar="J ZETA",
+@click.option("--tes", "tes", type=(int, FiniteRange(0, 1)), default=None, metavar="J ZETA",
               help="Temporal event shifting: move round(ZETA*n) random events of each frame and channel J frames "
                    "(thesis best: -2 0.5).")
 @click.option("--combine", type=click.Choice(["independent", "hybrid"]), default="independent", show_default=True,

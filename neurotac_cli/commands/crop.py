@@ -1,13 +1,13 @@
 import click
 
-from neurotac_cli.options import Size, crop_box_options, echo_lines, history, input_paths, output_option
+from neurotac_cli.options import FiniteRange, Size, crop_box_options, echo_lines, history, input_paths, output_option
 
 
 @click.command()
 @input_paths
 @output_option
 @crop_box_options
-@click.option("--warn-above", type=click.FloatRange(0, 1), default=0.9, show_default=True,
+@click.option("--warn-above", type=FiniteRange(0, 1), default=0.9, show_default=True,
               help="Warn on stderr when the crop cuts away more than this share of the events or counts (a crop to the "
               "contact area normally cuts the background and the LED flash at t0, often over half).")
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH, for events or recordings tables that do not carry it.")

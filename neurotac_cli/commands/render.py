@@ -2,7 +2,7 @@
 
 import click
 
-from neurotac_cli.options import Duration, IntTuple, Size, input_paths
+from neurotac_cli.options import Duration, FiniteRange, IntTuple, Size, input_paths
 
 
 @click.command()
@@ -15,10 +15,10 @@ from neurotac_cli.options import Duration, IntTuple, Size, input_paths
 @click.option("--trial", default=None, help="The trial to draw (default: the first; for --view augmented a copy or its source).")
 @click.option("--slices", type=click.IntRange(1, 1000), default=8, show_default=True,
               help="Events and recordings: cut the trial into this many equal time slices.")
-@click.option("--slice", "slice_us", type=Duration(), default=None, help="Events and recordings: slices of this length instead (e.g. 50ms).")
+@click.option("--slice", "slice_us", type=Duration(positive=True), default=None, help="Events and recordings: slices of this length instead (e.g. 50ms).")
 @click.option("--columns", type=click.IntRange(1, 60), default=8, show_default=True, help="Tiles per row of a PNG montage.")
 @click.option("--every", type=click.IntRange(1), default=1, show_default=True, help="Draw every n-th frame or slice.")
-@click.option("--fps", type=click.FloatRange(0.1, 120), default=10.0, show_default=True, help="Pictures per second of a GIF or MP4.")
+@click.option("--fps", type=FiniteRange(0.1, 120), default=10.0, show_default=True, help="Pictures per second of a GIF or MP4.")
 @click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="--view crop: the box, as `neurotac crop --box`.")
 @click.option("--size", type=Size(), default=None, help="--view crop: a WxH box centred at --center, as `neurotac crop --size`.")
 @click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,

@@ -2,7 +2,7 @@
 
 import click
 
-from neurotac_cli.options import input_paths, seed_option
+from neurotac_cli.options import FiniteRange, input_paths, seed_option
 
 
 @click.command()
@@ -11,7 +11,7 @@ from neurotac_cli.options import input_paths, seed_option
               help="Where the training trials go (a file by suffix, or - for stdout).")
 @click.option("--test", "test_path", type=click.Path(dir_okay=False, allow_dash=True), required=True,
               help="Where the test trials go (a file by suffix, or - for stdout).")
-@click.option("--fraction", type=click.FloatRange(0, 1, min_open=True, max_open=True), default=None, help="This share of the trials (drawn with --seed) goes to test.")
+@click.option("--fraction", type=FiniteRange(0, 1, min_open=True, max_open=True), default=None, help="This share of the trials (drawn with --seed) goes to test.")
 @click.option("--per", "per", metavar="LABEL", default=None, help="With --fraction: draw that share within each value of this label.")
 @click.option("--where", "expression", metavar="SQL", default=None,
               help="The trials with a row for which this SQL condition holds go to test (e.g. object = 'bolt12').")
