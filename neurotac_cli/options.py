@@ -403,9 +403,14 @@ def use_device(device: str):
     training_device()
 
 
+MOST_THREADS = 1024
+
+
 def threads_option(default: int, text: str = "CPU threads for torch."):
-    """`--threads`: how many CPU threads torch uses (parameter `threads`)."""
-    return click.option("--threads", type=click.IntRange(min=1), default=default, show_default=True, help=text)
+    """`--threads`: how many CPU threads torch uses (parameter `threads`). Bounded: OpenMP aborts the
+    process, or it dies of a segmentation fault, when it cannot start the threads asked for (measured
+    from about 20000 on a machine that allows 96000 processes)."""
+    return click.option("--threads", type=click.IntRange(1, MOST_THREADS), default=default, show_default=True, help=text)
 
 
 def progress_printer(every: int = 25, quiet_s: float = 30.0):

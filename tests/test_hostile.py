@@ -793,3 +793,12 @@ def test_a_value_outside_an_options_range_is_a_usage_error(files, tmp_path, args
     that could no longer warn, exit 0; a negative --slice was exit 1 where 0 was exit 2."""
     code, stderr, _ = invoke([a.format(t=tmp_path) for a in args] + [f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and said in stderr, stderr
+
+
+def test_more_torch_threads_than_can_be_started_is_a_usage_error(files):  # noqa: F811
+    """OpenMP could not start 100000 threads: the process died of a segmentation fault."""
+    import subprocess
+
+    done = subprocess.run(["neurotac", "predict", "--model", f"{files}/m.model", "--threads", "100000", f"{files}/f.arrows"],
+                          capture_output=True, text=True, timeout=120)
+    assert one_line(done.stderr, done.returncode, 2) and "--threads" in done.stderr, done.stderr
