@@ -499,12 +499,16 @@ class _Cache:
         from neurotac_cli.tables import atomic_file
 
         target = self.path(key)
-        target.parent.mkdir(parents=True, exist_ok=True)
         payload = _dump_result(value)
-        with atomic_file(str(target)) as temporary, open(temporary, "wb") as handle:
-            handle.write(hashlib.sha256(payload).digest() + payload)
-            handle.flush()
-            os.fsync(handle.fileno())
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_file(str(target)) as temporary, open(temporary, "wb") as handle:
+                handle.write(hashlib.sha256(payload).digest() + payload)
+                handle.flush()
+                os.fsync(handle.fileno())
+        except OSError as error:  # something else in the cache folder where an entry goes: a file, a folder
+            raise StudyError(f"cannot write the study cache entry {target} ({error.strerror}: "
+                             f"{error.filename2 or error.filename}); remove what is there, or pick another --cache") from None
 
     def found(self, keys) -> dict:
         """{key: result} of the keys that have a readable entry."""
