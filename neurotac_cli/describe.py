@@ -535,12 +535,22 @@ def describe_model(path: str) -> dict:
                      "best_epoch": best.get("epoch") if best else None,
                      "best_val_loss": best.get("val_loss") if validated else None,
                      "best_train_loss": None if validated or best is None else best.get("train_loss"),
-                     "member_best_epochs": training.get("member_best_epochs")},
+                     "member_best_epochs": training.get("member_best_epochs"),
+                     "member_draws": _distinct_draws(trials)},
         "contacts": training.get("contacts"), "slip": spec.get("slip"),
         "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
         "history": training.get("data_history") or [],
     }
     return info
+
+
+def _distinct_draws(trials: dict) -> int | None:
+    """How many different validation draws a model's members had (None for a model of one network)."""
+    others = trials.get("member_validation")
+    if not isinstance(others, list):
+        return None
+    draws = [trials.get("validation") or [], *others]
+    return len({tuple(sorted(map(str, draw))) for draw in draws if isinstance(draw, list)})
 
 
 def _model_lines(info: dict) -> list:
@@ -566,8 +576,10 @@ def _model_lines(info: dict) -> list:
                      else f", best {trained['best_epoch']} by its training loss {trained['best_train_loss']:.4g} (no validation trials)")
     members = trained.get("member_best_epochs")
     if isinstance(members, list) and members:  # the curve above is the first member's
-        text += (f"; {len(members)} members, each validating on a draw of its own, best epochs "
-                 f"{', '.join(map(str, members))}")
+        draws = trained.get("member_draws")
+        # too few trials to draw from give the members the same validation trials: said, not hidden
+        how = "each validating on a draw of its own" if draws in (None, len(members)) else f"validating on {draws} distinct draw(s)"
+        text += f"; {len(members)} members, {how}, best epochs {', '.join(map(str, members))}"
     pairs.append(("training", text))
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))

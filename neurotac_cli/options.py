@@ -21,8 +21,9 @@ class Duration(ParamType):
 
     name = "DURATION"
 
-    def __init__(self, positive: bool = False, longest_us: int = 2**62):
+    def __init__(self, positive: bool = False, longest_us: int = 2**62, at_least_zero: bool = False):
         self.positive, self.longest_us = positive, longest_us  # times are int64 µs: room left to add them
+        self.at_least_zero = at_least_zero
 
     def convert(self, value, param, ctx):
         try:
@@ -31,21 +32,23 @@ class Duration(ParamType):
             self.fail(str(error), param, ctx)
         if self.positive and us <= 0:
             self.fail(f"expected a positive duration, got {value!r}", param, ctx)
+        if self.at_least_zero and us < 0:
+            self.fail(f"expected a duration of 0 or more, got {value!r}", param, ctx)
         if abs(us) > self.longest_us:
             self.fail(f"{value!r} is longer than the longest duration taken here, {self.longest_us} µs", param, ctx)
         return us
 
 
 class FiniteRange(click.FloatRange):
-    """click's FloatRange, refusing NaN: NaN passes both of a range's comparisons, so it reached the
-    code behind the option (a traceback, or a check that then never held)."""
+    """click's FloatRange, refusing NaN and infinities: NaN passes both of a range's comparisons, so it
+    reached the code behind the option (a traceback, or a check that then never held)."""
 
     def convert(self, value, param, ctx):
         import math
 
         number = super().convert(value, param, ctx)
-        if math.isnan(number):
-            self.fail(f"{value!r} is not a number in the range {self._describe_range()}", param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number in the range {self._describe_range()}", param, ctx)
         return number
 
 

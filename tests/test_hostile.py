@@ -783,14 +783,17 @@ def test_two_outputs_naming_one_file_are_refused(files, tmp_path, args):  # noqa
 
 
 @pytest.mark.parametrize("args, said", [
-    (["render", "--fps", "nan", "-o", "{t}/r.gif"], "'nan' is not a number in the range"),
-    (["train", "--model", "tdnn", "--val-fraction", "nan", "-o", "{t}/m.model"], "'nan' is not a number in the range"),
-    (["eval", "--cv", "kfold:2", "--model-spec", "tdnn", "--val-fraction", "nan"], "'nan' is not a number in the range"),
-    (["crop", "--pool", "all", "--warn-above", "nan"], "'nan' is not a number in the range"),
-    (["render", "--slice", "-5ms", "-o", "{t}/r.gif"], "expected a positive duration")])
+    (["render", "--fps", "nan", "-o", "{t}/r.gif"], "'nan' is not a finite number in the range"),
+    (["train", "--model", "tdnn", "--val-fraction", "nan", "-o", "{t}/m.model"], "'nan' is not a finite number in the range"),
+    (["eval", "--cv", "kfold:2", "--model-spec", "tdnn", "--val-fraction", "nan"], "'nan' is not a finite number in the range"),
+    (["crop", "--pool", "all", "--warn-above", "nan"], "'nan' is not a finite number in the range"),
+    (["render", "--slice", "-5ms", "-o", "{t}/r.gif"], "expected a positive duration"),
+    (["sync", "--min-coverage", "-1"], "--min-coverage"), (["sync", "--min-score", "-1"], "--min-score"),
+    (["sync", "--saturation", "inf"], "'inf' is not a finite number"), (["sync", "--median", "-5ms"], "a duration of 0 or more")])
 def test_a_value_outside_an_options_range_is_a_usage_error(files, tmp_path, args, said):  # noqa: F811
     """NaN passed click's range checks: a traceback (render, train), or an eval that ran and a crop
-    that could no longer warn, exit 0; a negative --slice was exit 1 where 0 was exit 2."""
+    that could no longer warn, exit 0; a negative --slice was exit 1 where 0 was exit 2; a negative
+    LED coverage failed later with a message about spikes."""
     code, stderr, _ = invoke([a.format(t=tmp_path) for a in args] + [f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and said in stderr, stderr
 

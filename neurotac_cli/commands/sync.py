@@ -1,6 +1,6 @@
 import click
 
-from neurotac_cli.options import Duration, Finite, KeyValue, ParamType, Size, distinct_names, echo_lines, history, output_option
+from neurotac_cli.options import Duration, FiniteRange, KeyValue, ParamType, Size, distinct_names, echo_lines, history, output_option
 
 
 class Region(ParamType):
@@ -59,16 +59,16 @@ class SensorLag(ParamType):
               "(e.g. 1ms for a strain-gauge cell, 25ms,75ms for a covered FlexiForce) [default: estimated with the offset]. "
               "Give it for a sensor slower than ~2 ms that does not unload slowly: there the estimate is 0 ms and the instant "
               "comes about half the time constant early.")
-@click.option("--saturation", type=Finite(), default=0.5, show_default=True,
+@click.option("--saturation", type=FiniteRange(0), default=0.5, show_default=True,
               help="xcorr: the force, as a share of the trial's peak, at which the membrane's response to force has halved "
               "(|dF/dt| is weighted by 1/(1 + F/(share*peak)); 0 = a linear membrane).")
-@click.option("--min-score", type=Finite(), default=10.0, show_default=True, help="LED method: the z-score a spike needs over its surroundings.")
-@click.option("--min-coverage", type=Finite(), default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
+@click.option("--min-score", type=FiniteRange(0), default=10.0, show_default=True, help="LED method: the z-score a spike needs over its surroundings.")
+@click.option("--min-coverage", type=FiniteRange(0, 1), default=0.05, show_default=True, help="LED method: the share of pixels (of the region) the spike must cover.")
 @click.option("--keep-led", is_flag=True, help="LED method: keep the blink's switch-off burst in each trial (by default its events are left out and counted in the sync metadata: they mark the instant, they are not touch).")
 @click.option("--trigger-type", default=None, help="Trigger method: only triggers of this type (rising, falling, pulse, ...); default any.")
 @click.option("--trigger-id", type=click.IntRange(min=0), default=None,
               help="Trigger method: only triggers of this input (AEDAT 3.1) or channel (EVT 2.0/2.1/3.0); default any.")
-@click.option("--median", "median_window", type=Duration(), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
+@click.option("--median", "median_window", type=Duration(at_least_zero=True), default="10ms", show_default=True, help="Median filter window of the force (0us = none).")
 @click.option("--force-time-column", default=None, help="Force log: the time column (name or 0-based index) [default: first].")
 @click.option("--force-column", default=None, help="Force log: the force column (name or index) [default: second].")
 @click.option("--force-time-unit", type=click.Choice(["ns", "us", "ms", "s", "min"]), default=None, help="Force log: time unit, overriding the header's suffix.")

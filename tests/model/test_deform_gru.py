@@ -188,3 +188,13 @@ def test_a_one_network_curve_table_names_the_model_alone():
     trained = train_model(tiny_frames(trials=4), "deform-gru", {"members": 1, "epochs": 2}, seed=0)
     assert "member_curves" not in trained.model.training
     assert set(trained.curve.column("model").to_pylist()) == {"deform-gru"}
+
+
+def test_info_says_when_members_shared_one_validation_draw(tmp_path):
+    from neurotac_cli.describe import _model_lines, describe_model
+
+    model = models.train(tiny_frames(trials=6), models.make_spec("deform-gru", members=3, epochs=1), val_trials=["t0"], seed=0)
+    assert model.training["trials"]["member_validation"] == [["t0"], ["t0"]]
+    models.save(model, str(tmp_path / "m.model"))
+    training = dict(pair for pair in _model_lines(describe_model(str(tmp_path / "m.model"))) if isinstance(pair, tuple))["training"]
+    assert "3 members, validating on 1 distinct draw(s), best epochs" in training
