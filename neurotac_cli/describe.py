@@ -545,12 +545,13 @@ def describe_model(path: str) -> dict:
 
 
 def _distinct_draws(trials: dict) -> int | None:
-    """How many different validation draws a model's members had (None for a model of one network)."""
+    """How many different validation draws a model's members had (None for a model of one network;
+    0 when none had validation trials, whose early stopping followed the training loss)."""
     others = trials.get("member_validation")
     if not isinstance(others, list):
         return None
     draws = [trials.get("validation") or [], *others]
-    return len({tuple(sorted(map(str, draw))) for draw in draws if isinstance(draw, list)})
+    return len({tuple(sorted(map(str, draw))) for draw in draws if isinstance(draw, list) and draw})
 
 
 def _model_lines(info: dict) -> list:
@@ -578,8 +579,9 @@ def _model_lines(info: dict) -> list:
     if isinstance(members, list) and members:  # the curve above is the first member's
         draws = trained.get("member_draws")
         # too few trials to draw from give the members the same validation trials: said, not hidden
-        how = "each validating on a draw of its own" if draws in (None, len(members)) else f"validating on {draws} distinct draw(s)"
-        text += f"; {len(members)} members, {how}, best epochs {', '.join(map(str, members))}"
+        how = ("" if draws == 0 else ", each validating on a draw of its own" if draws in (None, len(members))
+               else f", validating on {draws} distinct draw(s)")
+        text += f"; {len(members)} members{how}, best epochs {', '.join(map(str, members))}"
     pairs.append(("training", text))
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))

@@ -386,7 +386,10 @@ def check_folder(*paths) -> None:
     checks its outputs first, so its work is not lost at the end)."""
     seen = {}
     for path in paths:
-        real = os.path.realpath(path)
+        if path == "-":  # stdout, not a file in the working folder
+            continue
+        # the folder resolved, the name not: a write renames over a link named here, not its target
+        real = os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(path))), os.path.basename(path))
         if real in seen:
             raise UsageError(f"two outputs name one file ({seen[real]} and {path}): the second would replace the first; "
                              "give each its own path")

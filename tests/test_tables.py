@@ -222,3 +222,21 @@ def test_batches_flow_through_a_pipe_before_the_input_ends(tmp_path):
     writer.kill()
     assert done.returncode == 0, done.stderr
     assert float(done.stdout) < 4.0
+
+
+def test_outputs_that_name_one_file_are_told_from_stdout_and_from_a_link(tmp_path):
+    """`-` is stdout, not a file named `-`; a link named as one output is replaced by the write, its
+    target (the other output) kept."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.tables import check_folder
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "to-sub").symlink_to(tmp_path / "sub")
+    (tmp_path / "e.parquet").touch()
+    (tmp_path / "m.parquet").symlink_to(tmp_path / "e.parquet")
+    check_folder(str(tmp_path / "-"), "-")
+    check_folder(str(tmp_path / "e.parquet"), str(tmp_path / "m.parquet"))
+    for twice in ([str(tmp_path / "sub" / "a.arrows"), str(tmp_path / "to-sub" / "a.arrows")],
+                  [str(tmp_path / "a.png"), str(tmp_path / "sub" / ".." / "a.png")]):
+        with pytest.raises(UsageError, match="two outputs name one file"):
+            check_folder(*twice)

@@ -198,3 +198,13 @@ def test_info_says_when_members_shared_one_validation_draw(tmp_path):
     models.save(model, str(tmp_path / "m.model"))
     training = dict(pair for pair in _model_lines(describe_model(str(tmp_path / "m.model"))) if isinstance(pair, tuple))["training"]
     assert "3 members, validating on 1 distinct draw(s), best epochs" in training
+
+
+def test_info_claims_no_validation_draw_for_members_that_had_none(tmp_path):
+    from neurotac_cli.describe import _model_lines, describe_model
+
+    model = models.train(tiny_frames(trials=6), models.make_spec("deform-gru", members=3, epochs=1), val_fraction=0, seed=0)
+    assert model.training["trials"]["validation"] == [] and model.training["trials"]["member_validation"] == [[], []]
+    models.save(model, str(tmp_path / "m.model"))
+    training = dict(pair for pair in _model_lines(describe_model(str(tmp_path / "m.model"))) if isinstance(pair, tuple))["training"]
+    assert "(no validation trials); 3 members, best epochs" in training and "validating on" not in training
