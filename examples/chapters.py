@@ -804,6 +804,14 @@ def publish_section(section: str, body: str, title: str, page=RESULTS_PAGE):
     print(f"wrote {page}", file=sys.stderr)
 
 
+def section_body(text: str, chapter: str) -> str | None:
+    """What the page holds between its `results:CHAPTER` markers (stripped), None without them."""
+    start, end = f"<!-- results:{chapter}:start -->", f"<!-- results:{chapter}:end -->"
+    if start not in text or end not in text:
+        return None
+    return text.split(start, 1)[1].split(end, 1)[0].strip()
+
+
 def replace_section(text: str, chapter: str, body: str, title: str | None = None) -> str:
     start, end = f"<!-- results:{chapter}:start -->", f"<!-- results:{chapter}:end -->"
     block = f"{start}\n{body.strip()}\n{end}"

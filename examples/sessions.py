@@ -39,7 +39,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import tables
-from chapters import RESULTS_PAGE, publish_section  # beside this script
+from chapters import RESULTS_PAGE, publish_section, section_body  # beside this script
 from neurotac_cli import model as models
 from neurotac_cli.model import evaluate, session
 
@@ -219,6 +219,18 @@ def main(argv=None):
         for name in randomised:
             model, seconds = train_one(name, train_randomised, size, out, tag="-randomised")
             on_unseen[f"{name}, randomised"] = (score(model, unseen), score(model, test), seconds)
+    text = report(size, test, cut, unseen, force_range, results, on_unseen)
+    print(text)
+    with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:
+        sink.write(text)
+    if publishes(args):
+        publish(text)
+    elif args.replace_rows and publishes(args, fewer_allowed=True):
+        publish(merged_rows(published(), text, [*results, *(name for name in on_unseen if name not in results)]))
+
+
+def report(size, test, cut, unseen, force_range, results, on_unseen) -> str:
+    """The run's two tables in markdown, each under a line saying what it measured."""
     minutes = test.num_rows * WINDOW_MS / 60000
     grasps = len(set(cut.column("trial").to_pylist()))
     lines = [f"Test: {size['test_sessions']} session(s), {grasps} grasps, {minutes:.1f} min (seed {TEST_SEED}); "
@@ -232,14 +244,7 @@ def main(argv=None):
               f"{size['train_sessions']} session(s) of {size['train_grasps']} grasps with every family drawn from its ranges "
               f"and the membrane from their lower two thirds (`{' '.join(RANDOMISED)}`, seed {RANDOMISED_SEED}).", ""]
     lines += unseen_rows(on_unseen, span(unseen), force_range)
-    text = "\n".join(lines) + "\n"
-    print(text)
-    with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:
-        sink.write(text)
-    if publishes(args):
-        publish(text)
-    elif args.replace_rows and publishes(args, fewer_allowed=True):
-        publish(merged_rows(published(), text, [*results, *(name for name in on_unseen if name not in results)]))
+    return "\n".join(lines) + "\n"
 
 
 def publishes(args, fewer_allowed=False) -> bool:
@@ -260,11 +265,10 @@ def publish(text: str, page=RESULTS_PAGE):
 
 def published(page=RESULTS_PAGE) -> str:
     """The tables now between the page's `results:sessions` markers, without the line naming the script."""
-    text = open(page, encoding="utf-8").read()
-    start, end = "<!-- results:sessions:start -->", "<!-- results:sessions:end -->"
-    if start not in text or end not in text:
+    body = section_body(open(page, encoding="utf-8").read(), "sessions")
+    if body is None:
         raise SystemExit(f"{page} has no published sessions tables whose rows could be replaced")
-    return text.split(start, 1)[1].split(end, 1)[0].strip().removeprefix(PUBLISHED_HEAD).strip() + "\n"
+    return body.removeprefix(PUBLISHED_HEAD).strip() + "\n"
 
 
 def merged_rows(old: str, new: str, names) -> str:
@@ -272,11 +276,15 @@ def merged_rows(old: str, new: str, names) -> str:
     the same sessions). Every line that is not a model's row must read the same in both, or the
     sessions differ and nothing is merged."""
     def rows(text):  # each line with (its table's number, its model) for a model's row, None for any other line
-        table, out = 0, []
-        for line in text.splitlines():
-            table += line.startswith("| model |")
-            is_row = line.startswith("| ") and not line.startswith("| model |")
+        lines, table, out = text.splitlines(), 0, []
+        for i, line in enumerate(lines):
+            header = line.startswith("|") and i + 1 < len(lines) and lines[i + 1].startswith("|---")
+            table += header
+            is_row = line.startswith("|") and not header and not line.startswith("|---")
             out.append((line, (table, line.split("|")[1].strip()) if is_row else None))
+        keys = [key for _, key in out if key is not None]
+        if len(keys) != len(set(keys)):
+            raise SystemExit("a sessions table names one model in two rows: run every model (no --replace-rows)")
         return out
 
     old_rows, new_rows = rows(old), rows(new)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import hashlib
 import io
 import itertools
@@ -506,9 +507,16 @@ class _Cache:
                 handle.write(hashlib.sha256(payload).digest() + payload)
                 handle.flush()
                 os.fsync(handle.fileno())
-        except OSError as error:  # something else in the cache folder where an entry goes: a file, a folder
-            raise StudyError(f"cannot write the study cache entry {target} ({error.strerror}: "
-                             f"{error.filename2 or error.filename}); remove what is there, or pick another --cache") from None
+        except OSError as error:
+            from neurotac_cli.errors import OutputError
+
+            # something else where an entry goes (a file, a folder) has its own advice; the rest, a full
+            # disk or a read-only folder, the advice every output gets
+            blocked = error.errno in (errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
+            why, what_to_do = (error.strerror, "remove what is there") if blocked else OutputError.WHY.get(
+                error.errno, (error.strerror or str(error), "write elsewhere"))
+            raise StudyError(f"cannot write the study cache entry {target} ({why}: {error.filename2 or error.filename}); "
+                             f"{what_to_do}, or pick another --cache") from None
 
     def found(self, keys) -> dict:
         """{key: result} of the keys that have a readable entry."""

@@ -348,6 +348,8 @@ def test_a_sessions_run_of_fewer_models_replaces_only_their_rows():
     assert merged == old.replace("| deform-gru | 0.5 |", "| deform-gru | 0.4 |").replace("| deform-gru | 40 |", "| deform-gru | 39 |")
     with pytest.raises(SystemExit, match="other sessions"):
         sessions.merged_rows(old, new.replace("2 sessions", "1 session"), ["deform-gru"])
+    with pytest.raises(SystemExit, match="one model in two rows"):
+        sessions.merged_rows(old.replace("| lstm | 0.6 |", "| deform-gru | 0.6 |"), new, ["deform-gru"])
     with pytest.raises(SystemExit, match="no row for convlstm"):
         sessions.merged_rows(old, new.replace("| deform-gru | 39 |", "| deform-gru | 39 |\n| convlstm | 21 |"), ["deform-gru", "convlstm"])
 

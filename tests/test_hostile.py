@@ -807,18 +807,23 @@ def test_more_torch_threads_than_can_be_started_is_a_usage_error(files):  # noqa
     assert one_line(done.stderr, done.returncode, 2) and "--threads" in done.stderr, done.stderr
 
 
-def test_a_study_cache_entry_blocked_by_a_file_or_a_folder_is_one_line(files, tmp_path):  # noqa: F811
+@pytest.mark.parametrize("blocker", ["file", "folder"])
+def test_a_study_cache_entry_blocked_by_a_file_or_a_folder_is_one_line(files, tmp_path, blocker):  # noqa: F811
     """The folder an entry goes in being a file, or the entry a folder, was a traceback after the training."""
     args = ["eval", "--cv", "kfold:2", "--model-spec", "tdnn", "--epochs", "1", "--cache", str(tmp_path / "c"), f"{files}/f.arrows"]
     code, stderr, _ = invoke(args)
     assert code == 0, stderr
-    first, second = sorted((tmp_path / "c").glob("*/*.pkl"))
-    for entry in (first, second):
+    entries = sorted((tmp_path / "c").glob("*/*.pkl"))
+    for entry in entries:
         entry.unlink()
-    first.parent.rmdir()
-    first.parent.write_bytes(b"")
-    second.mkdir()
+    if blocker == "file":  # every entry's folder a file
+        for folder in {entry.parent for entry in entries}:
+            folder.rmdir()
+            folder.write_bytes(b"")
+    else:  # every entry a folder
+        for entry in entries:
+            entry.mkdir()
     code, stderr, _ = invoke(args)
     *progress, error = stderr.strip().splitlines()  # after the study's one line of what it runs
     assert code == 1 and "Traceback" not in stderr and len(progress) == 1, stderr
-    assert error.startswith("neurotac eval: error: cannot write the study cache entry"), stderr
+    assert error.startswith("neurotac eval: error: cannot write the study cache entry") and "remove what is there" in error, stderr
