@@ -19,6 +19,8 @@ class InputError(NeurotacError):
 
 def cannot_open(path, error: OSError) -> InputError:
     """The one-line error for an input path that cannot be opened for reading."""
+    if path == "":  # a shell variable left unset: say so, not ": no such file"
+        return InputError("an empty path was given (an unset shell variable?)")
     if isinstance(error, FileNotFoundError):
         return InputError(f"{path}: no such file")
     if isinstance(error, PermissionError):

@@ -386,6 +386,8 @@ def check_folder(*paths) -> None:
     checks its outputs first, so its work is not lost at the end)."""
     seen = {}
     for path in paths:
+        if path == "":  # an unset shell variable: found now, not after the work, when the write fails
+            raise UsageError("an empty output path was given (an unset shell variable?)")
         if path == "-":  # stdout, not a file in the working folder
             continue
         # the folder resolved, the name not: a write renames over a link named here, not its target

@@ -827,3 +827,12 @@ def test_a_study_cache_entry_blocked_by_a_file_or_a_folder_is_one_line(files, tm
     *progress, error = stderr.strip().splitlines()  # after the study's one line of what it runs
     assert code == 1 and "Traceback" not in stderr and len(progress) == 1, stderr
     assert error.startswith("neurotac eval: error: cannot write the study cache entry") and "remove what is there" in error, stderr
+
+
+@pytest.mark.parametrize("args, code", [
+    (["info", ""], 1), (["import", ""], 1), (["predict", "--model", ""], 1), (["eval", "--model", "", "{f}"], 1),
+    (["train", "--model", "tdnn", "-o", "", "{f}"], 2), (["split", "--train", "", "--test", "{t}/b.arrows", "--fraction", "0.5", "{f}"], 2)])
+def test_an_empty_path_says_so(files, tmp_path, args, code):  # noqa: F811
+    """An unset shell variable read ": no such file"; `train -o ""` trained, then died of a traceback."""
+    status, stderr, _ = invoke([a.format(f=f"{files}/f.arrows", t=tmp_path) for a in args])
+    assert one_line(stderr, status, code) and "an empty" in stderr and "epoch" not in stderr, stderr

@@ -65,7 +65,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     if contacts and model_name in MATERIAL_MODELS:
         raise UsageError("--contacts trains force models; a material classifier takes whole trials")
     refuse_label_for_force(model_name)
-    tables.check_folder(*(path for path in (output, curve, plot) if path))
+    tables.check_folder(*(path for path in (output, curve, plot) if path is not None))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
 

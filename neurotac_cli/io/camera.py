@@ -17,7 +17,7 @@ from typing import Callable, Iterator
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError
+from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError, cannot_open
 from neurotac_cli.io import reader
 from neurotac_cli.io.hdf5 import SIGNATURE as HDF5_SIGNATURE, is_hdf5
 from neurotac_cli.io.reader import Decoded
@@ -196,7 +196,7 @@ def local_path(path) -> tuple[str, Callable[[], None]]:
         if os.path.isdir(path):
             raise InputError(f"{path} is a directory, not a file (give the camera files inside it)")
         if not os.path.exists(path):
-            raise InputError(f"{path}: no such file")
+            raise cannot_open(path, FileNotFoundError())
         if not os.access(path, os.R_OK):
             raise InputError(f"{path}: permission denied")
         return str(path), lambda: None
