@@ -836,3 +836,24 @@ def test_an_empty_path_says_so(files, tmp_path, args, code):  # noqa: F811
     """An unset shell variable read ": no such file"; `train -o ""` trained, then died of a traceback."""
     status, stderr, _ = invoke([a.format(f=f"{files}/f.arrows", t=tmp_path) for a in args])
     assert one_line(stderr, status, code) and "an empty" in stderr and "epoch" not in stderr, stderr
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--objects", "steel:bolt8:-1,steel:hex:2"], "trial count -1 in 'steel:bolt8:-1' is negative"),
+    (["--objects", "steel:boltnan:1"], "unknown object 'boltnan'"),
+    (["--objects", "steel:hexinf:1"], "unknown object 'hexinf'"),
+    (["--objects", "steel:hex:1:a=1:a=2"], "label 'a' given twice"),
+    (["--vary", "all,pixels"], "all names every family, so it stands alone"),
+    (["--unseen", "all"], "--unseen takes one family, not all"),
+    (["--session", "--grasps", "2", "--objects", "steel:bolt8:0"], "every group of --objects has a count of 0"),
+    (["--session", "--grasps", "1", "--set", "session_speed=1e-9..1"], "session_speed must start at 0.01"),
+])
+def test_simulator_groups_and_families_that_simulated_wrong_or_crashed_are_refused(tmp_path, args, said):
+    """A group of -1 grasps simulated one of its objects in place of the others' grasps; an object of NaN
+    or infinite size and a session whose groups all have 0 grasps were tracebacks; a label given twice
+    kept its last value; a session speed of 1e-9 filled the memory."""
+    if "--session" not in args:
+        args = ["--trials", "1", *args]
+    code, stderr, _ = invoke(["simulate", *args, "--out", str(tmp_path / "s")])
+    assert one_line(stderr, code, 2) and said in stderr, stderr
+    assert "--session" not in args or not (tmp_path / "s").exists()

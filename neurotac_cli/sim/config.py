@@ -52,7 +52,7 @@ def parse_object(text: str) -> ObjectShape:
             size = float(text.split(":", 1)[1]) if ":" in text else 6.5
         except ValueError:
             size = -1.0
-        if size > 0:
+        if 0 < size < math.inf:
             return ObjectShape("hex", "hex", size, 35.5, "7.5x6.5x35.5" if ":" not in text else f"{size:g}")
     for prefix, face, length in (("bolt", "hex", 30.0), ("sphere", "sphere", 0.0), ("hex", "hex", 35.5)):
         if text.startswith(prefix):
@@ -60,7 +60,7 @@ def parse_object(text: str) -> ObjectShape:
                 size = float(text[len(prefix):])
             except ValueError:
                 break
-            if size <= 0:
+            if not 0 < size < math.inf:  # NaN and infinity pass `size <= 0` and fail deep in the contact model
                 break
             return ObjectShape(text, face, size, length or size, f"{size:g}")
     raise UsageError(f"unknown object {text!r} (use hex, hexSIZE_MM, boltSIZE_MM such as bolt12, or sphereDIAMETER_MM)")
@@ -251,6 +251,7 @@ def _scalar(name, text, default, parse_duration_us):
     return int(value) if isinstance(default, int) and value.is_integer() else value
 
 
+SESSION_SPEED_FLOOR = 0.01  # a hundred times slower than the gripper's speed: loading takes seconds
 SESSION_REST_FLOOR_US = 50_000  # sim.session: LEAD_US + SETTLE_US + 10 ms between two grasps
 
 # Each number's bounds: (lowest, highest, lowest excluded, highest excluded). Past them a simulation
@@ -293,8 +294,11 @@ def validate(config: SimConfig):
     problems += [_out_of_bounds(name, getattr(config, name), *bounds) for name, bounds in BOUNDS.items()]
     for name in RANGES:
         low, high = getattr(config, name)
-        if not 0 <= low <= high or (name == "session_speed" and low <= 0):
-            problems.append(f"{name} must be a range LOW..HIGH with 0 {'<' if name == 'session_speed' else '<='} LOW <= HIGH")
+        if not 0 <= low <= high:
+            problems.append(f"{name} must be a range LOW..HIGH with 0 <= LOW <= HIGH")
+        elif name == "session_speed" and low < SESSION_SPEED_FLOOR:  # a grasp's loading takes travel / speed
+            problems.append(f"session_speed must start at {SESSION_SPEED_FLOOR:g} or more (slower, one grasp's loading "
+                            f"lasts minutes to years and its signals fill the memory), got {low:g}")
     if config.session_rest_us[0] < SESSION_REST_FLOOR_US:
         problems.append(f"session_rest_us must start at {SESSION_REST_FLOOR_US // 1000} ms or more (a grasp's approach "
                         "and the settling of the one before take that long)")

@@ -57,11 +57,15 @@ def parse_groups(groups) -> list[tuple]:
             count = int(count)
         except ValueError:
             raise UsageError(f"trial count {count!r} in {text!r} is not a whole number") from None
+        if count < 0:
+            raise UsageError(f"trial count {count} in {text!r} is negative (give 0 or more grasps)")
         labels = {}
         for item in rest:
             name, sep, value = item.partition("=")
             if not sep:
                 raise UsageError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
+            if name in labels:  # one value would be dropped without a word
+                raise UsageError(f"label {name!r} given twice in {text!r} (give each label once)")
             labels[name] = value
         reserved = [name for name in labels if name in ("material", "object", "size_mm")]
         if reserved:

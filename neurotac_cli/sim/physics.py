@@ -129,7 +129,11 @@ def parse_variation(families: str | None, held_out: str | None = None, unseen: s
                          f"{', '.join(FAMILIES)}, or all)")
     if names == ["all"]:
         names = list(FAMILIES)
+    elif "all" in names:
+        raise UsageError(f"--vary {families!r}: all names every family, so it stands alone (give all, or families)")
     family = held_out or unseen
+    if family == "all":
+        raise UsageError(f"--{'hold-out' if held_out else 'unseen'} takes one family, not all (choose from {', '.join(FAMILIES)})")
     unknown = [name for name in (*names, family) if name is not None and name not in FAMILIES]
     if unknown:
         raise UsageError(f"unknown parameter family {unknown[0]!r} (choose from {', '.join(FAMILIES)}, or all)")

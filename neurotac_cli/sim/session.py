@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from neurotac_cli.errors import UsageError
 from neurotac_cli.sim import dvs, force_sensor
 from neurotac_cli.sim.config import SimConfig
 from neurotac_cli.sim.grasp import Grasp, loading_us, parse_groups, rigid_motion_px
@@ -452,6 +453,9 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
     from neurotac_cli.sim.run import FORCE_HEADER, force_lines, prepare_folder, write_csv
     from neurotac_cli.tables import atomic_file
 
+    if n_grasps and not object_pool(config):  # before the folder is made, not after
+        raise UsageError(f"--grasps {n_grasps}: every group of --objects has a count of 0, so a session has no object to "
+                         "grasp (give a group a count of 1 or more, or --grasps 0 for a session at rest)")
     prepare_folder(folder)
     width, height = config.sensor_width, config.sensor_height
     header = len(aedat2_bytes([], [], [], [], width, height))  # chunks after the first are written without it
