@@ -375,10 +375,14 @@ def session_rows(predictions: pa.Table) -> list:
 def summary_lines(figures: dict) -> list[str]:
     """`eval`'s stderr lines for the session figures (scope `all` of `metrics.session_rows`)."""
     get = lambda name: figures.get(name, float("nan"))  # noqa: E731
-    contact = (f"RMSE in contact {get('contact_rmse'):.3g} N, per grasp {get('grasp_rmse_mean'):.3g} N (mean over "
-               f"{int(figures.get('grasps', 0))})" if "contact_rmse" in figures else "no frame in contact")
-    lines = [f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max {get('rest_max_abs'):.3g} N, "
-             f"drift {get('drift_n_per_min'):.3g} N/min; {contact}"]
+    # A figure without frames to measure it is left out of the line, not printed as nan.
+    per_grasp = (f", per grasp {get('grasp_rmse_mean'):.3g} N (mean over {int(figures.get('grasps', 0))})"
+                 if np.isfinite(get("grasp_rmse_mean")) else "")
+    contact = f"RMSE in contact {get('contact_rmse'):.3g} N{per_grasp}" if "contact_rmse" in figures else "no frame in contact"
+    drift = f", drift {get('drift_n_per_min'):.3g} N/min" if np.isfinite(get("drift_n_per_min")) else ""
+    rest = (f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max "
+            f"{get('rest_max_abs'):.3g} N{drift}" if get("rest_frames") > 0 else "no frame at rest")
+    lines = [f"{rest}; {contact}"]
     if get("rest_loaded_frames") > 0:
         lines.append(f"warning: {int(get('rest_loaded_frames'))} frames at rest by their phase carry a true force of up to "
                      f"{get('rest_loaded_max'):.3g} N, so the figures at rest include contacts: frame sessions with "
@@ -386,14 +390,16 @@ def summary_lines(figures: dict) -> list[str]:
     if "contact_f1" in figures and not get("contact_true"):  # a session without a grasp: nothing to find
         lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")
     elif "contact_f1" in figures:
+        onset = (f"onset {get('contact_onset_frames_mean'):.2g} frames late on average, {100 * get('contact_within_2'):.0f}% "
+                 "within 2 frames; " if get("contact_hits") > 0 else "")
         lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
-                     f"{int(get('contact_found'))} detected), onset {get('contact_onset_frames_mean'):.2g} frames late on average, "
-                     f"{100 * get('contact_within_2'):.0f}% within 2 frames; per frame F1 {get('contact_frame_f1'):.3f}")
+                     f"{int(get('contact_found'))} detected), {onset}per frame F1 {get('contact_frame_f1'):.3f}")
     if "slip_f1" in figures and not get("slip_true"):
         lines.append(f"slips: none in the frames, {counted(int(get('slip_found')), 'slip')} flagged")
     elif "slip_f1" in figures:
+        within = f", {100 * get('slip_within_20'):.0f}% within 20 ms" if get("slip_hits") > 0 else ""
         lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
-                     f"{int(get('slip_found'))} flagged), {100 * get('slip_within_20'):.0f}% within 20 ms")
+                     f"{int(get('slip_found'))} flagged){within}")
     elif "contact_f1" in figures:
         lines.append("slips: not scored (the frames have no `slip` truth column: `neurotac frame --slips CSV` adds one)")
     return lines

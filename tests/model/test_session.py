@@ -638,3 +638,14 @@ def test_training_on_frames_of_another_window_stores_settings_of_the_same_durati
     model = session.train(coarse, models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
     assert session.contact_config(model).low_frames == contact.ContactConfig.low_frames // 2
     assert model.config.memory_frames == session.DEFAULT_MEMORY_FRAMES // 2
+
+
+@pytest.mark.parametrize("figures", [
+    {"rest_frames": 1, "rest_mean_abs": 0.0, "rest_max_abs": 0.0, "contact_f1": float("nan"), "contact_true": 0, "contact_found": 0},
+    {"rest_frames": 0, "contact_rmse": 1.9, "grasps": 0, "contact_f1": 0.0, "contact_true": 1, "contact_found": 0,
+     "contact_hits": 0, "contact_frame_f1": 0.0, "slip_f1": 0.0, "slip_true": 1, "slip_found": 0, "slip_hits": 0},
+])
+def test_the_session_summary_leaves_out_figures_that_had_no_frames_rather_than_printing_nan(figures):
+    """One frame (no drift), no frame at rest, no `grasp` column, no contact or slip found: each read `nan`."""
+    lines = "\n".join(session.summary_lines(figures))
+    assert "nan" not in lines, lines
