@@ -857,3 +857,11 @@ def test_simulator_groups_and_families_that_simulated_wrong_or_crashed_are_refus
     code, stderr, _ = invoke(["simulate", *args, "--out", str(tmp_path / "s")])
     assert one_line(stderr, code, 2) and said in stderr, stderr
     assert "--session" not in args or not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("text", ["", "\n\n"])
+def test_an_empty_manifest_is_one_line(tmp_path, text):
+    """The CSV reader read its header after the file was closed: a traceback."""
+    (tmp_path / "manifest.csv").write_text(text)
+    code, stderr, _ = invoke(["sync", "--manifest", str(tmp_path / "manifest.csv"), "-o", str(tmp_path / "r.arrows")])
+    assert one_line(stderr, code, 1) and "the manifest is empty" in stderr, stderr

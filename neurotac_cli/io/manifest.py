@@ -57,10 +57,13 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
     try:  # utf-8-sig: a spreadsheet's "CSV UTF-8" export starts with a byte-order mark, which is no part of a column name
         with open(path, encoding="utf-8-sig", newline="") as handle:
             reader = csv.DictReader(handle)
+            names = reader.fieldnames or []  # read while the file is open: the reader reads its header lazily
             rows = list(reader)
     except (UnicodeDecodeError, csv.Error) as error:
         raise NeurotacError(f"{path}: not a CSV manifest ({error})") from None
-    _check_manifest(path, reader.fieldnames or [], rows)
+    if not names:
+        raise NeurotacError(f"{path}: the manifest is empty; expected a header trial,events,force,<labels>... and a row per recording")
+    _check_manifest(path, names, rows)
     if not rows:
         raise NeurotacError(f"{path}: the manifest has no rows")
     missing = [name for name in MANIFEST_REQUIRED if name not in rows[0]]
