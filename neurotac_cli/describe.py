@@ -476,12 +476,13 @@ def describe_csv(path: str) -> dict | None:
 
     with open(path, "rb") as handle:
         head = handle.read(1 << 16)
-    try:
-        if camera.detect_format(path, head) != "csv":
+    first = camera.first_data_line(head.removeprefix(camera.BOM))
+    try:  # semicolons: a spreadsheet's CSV where the comma is the decimal mark, as `sync` reads force logs; never events
+        if camera.detect_format(path, head) != "csv" and ";" not in first:
             return None
     except NeurotacError:
         return None
-    names, _ = text.column_names(next(csv.reader([camera.first_data_line(head.removeprefix(camera.BOM))]), []))
+    names, _ = text.column_names(next(csv.reader([first]), []))
     if text.names_events(names):
         return None
     table = read_table(path)

@@ -865,3 +865,15 @@ def test_an_empty_manifest_is_one_line(tmp_path, text):
     (tmp_path / "manifest.csv").write_text(text)
     code, stderr, _ = invoke(["sync", "--manifest", str(tmp_path / "manifest.csv"), "-o", str(tmp_path / "r.arrows")])
     assert one_line(stderr, code, 1) and "the manifest is empty" in stderr, stderr
+
+
+def test_info_describes_a_csv_with_labels_beyond_ascii_and_a_force_log_with_semicolons(tmp_path):
+    """A table neurotac wrote as CSV with a label such as 'Stoßdämpfer' was 'an unknown camera format',
+    and a force log with semicolons, which `sync --force` reads, was refused as events without x, y, p."""
+    path = str(tmp_path / "pred.csv")
+    tables.write(path, pa.table({"trial": ["a", "b"], "frame": [0, 0], "object": ["Stoßdämpfer", 'say "hi",\nthen']}))
+    code, stderr, out = invoke(["info", path])
+    assert code == 0 and "rows          2" in out and "object: string" in out, stderr
+    (tmp_path / "force.csv").write_text("t_ms;force_N\n" + "".join(f"{2 * i};{i / 10}\n" for i in range(11)))
+    code, stderr, out = invoke(["info", str(tmp_path / "force.csv")])
+    assert code == 0 and "11 samples in 1 trial" in out, stderr

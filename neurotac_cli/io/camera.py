@@ -7,6 +7,7 @@ into Arrow batches with the `events` schema, checks coordinates against the sens
 low-level decoding failure into one `FormatError` line.
 """
 
+import codecs
 import ctypes
 import os
 import shutil
@@ -169,8 +170,8 @@ def _looks_like_text(head: bytes) -> bool:
     if not head:
         return False
     sample = head[:4096]
-    try:
-        text = sample.decode("ascii")
+    try:  # UTF-8, not ASCII: a table written as CSV may hold labels such as "Stoßdämpfer"; a character cut at the end is left out
+        text = codecs.getincrementaldecoder("utf-8")().decode(sample)
     except UnicodeDecodeError:
         return False
     return all(c.isprintable() or c in "\r\n\t" for c in text)
