@@ -877,3 +877,11 @@ def test_info_describes_a_csv_with_labels_beyond_ascii_and_a_force_log_with_semi
     (tmp_path / "force.csv").write_text("t_ms;force_N\n" + "".join(f"{2 * i};{i / 10}\n" for i in range(11)))
     code, stderr, out = invoke(["info", str(tmp_path / "force.csv")])
     assert code == 0 and "11 samples in 1 trial" in out, stderr
+
+
+def test_a_force_log_with_a_repeated_time_names_the_time_and_what_to_do(tmp_path):
+    rows = [f"{2 * i},{i / 10}" for i in range(12)]
+    (tmp_path / "force.csv").write_text("\n".join(["t_ms,force_N", *rows[:4], rows[3], *rows[4:]]) + "\n")
+    tables.write(str(tmp_path / "cam.arrows"), events([1, 2], [1, 2], [0, 1], 32, 32))
+    code, stderr, _ = invoke(["sync", str(tmp_path / "cam.arrows"), "--force", str(tmp_path / "force.csv")])
+    assert code == 1 and "force time repeats 6 ms at sample 5 of trial 1" in stderr and "drop repeated rows" in stderr, stderr

@@ -167,7 +167,10 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
         t = t_us[rows]
         if len(t) > 1 and np.diff(t).min() <= 0:
             bad = int(np.argmax(np.diff(t) <= 0)) + 1
-            raise FormatError(f"{path}: force time does not increase at sample {bad} of trial {name or len(logs) + 1}")
+            what = (f"repeats {t[bad] / 1000:g} ms" if t[bad] == t[bad - 1] else
+                    f"goes back from {t[bad - 1] / 1000:g} ms to {t[bad] / 1000:g} ms")
+            raise FormatError(f"{path}: force time {what} at sample {bad + 1} of trial {name or len(logs) + 1}; give every "
+                              "sample its own time, in order (drop repeated rows, sort the log)")
         logs.append(ForceLog(t=t, value=newtons[rows], trial=name, notes=list(notes)))
     if not logs or not len(logs[0].t):
         raise FormatError(f"{path}: the force log has no samples")
