@@ -112,6 +112,20 @@ def _column(table: pa.Table, chosen, default_index: int, what: str, path: str) -
     raise InputError(f"{path}: no {what} column {chosen!r} (columns: {', '.join(names)})")
 
 
+def _trial_rows(table: pa.Table, t_us: np.ndarray, path: str) -> list[tuple]:
+    """(trial name or None, its rows) of a force log: by its `trial` column, else cut where the clock
+    restarts (a log of several trials restarts its clock once per trial)."""
+    if "trial" in table.column_names:
+        names = np.asarray([str(v) for v in table.column("trial").to_pylist()], dtype=object)
+        return [(name, np.flatnonzero(names == name)) for name in dict.fromkeys(names)]
+    cuts = np.flatnonzero(np.diff(t_us) < 0) + 1
+    if len(cuts) and len(cuts) >= len(t_us) // 2:  # not trials whose clocks restart: a log out of order
+        raise FormatError(f"{path}: force time runs backwards at {len(cuts):,} of {len(t_us):,} samples; sort the log by "
+                          "time (a log of several trials restarts its clock once per trial)")
+    bounds = np.concatenate([[0], cuts, [len(t_us)]])
+    return [(None, np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
 def read_force_log(path: str, time_column=None, force_column=None, time_unit=None, force_unit=None) -> list[ForceLog]:
     """Read a force log into one ForceLog per trial (see the module doc for columns and units)."""
     table = read_table(path)
@@ -149,21 +163,8 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
                           "146,000 years); check the time column and its unit (--force-time-unit)")
     t_us = np.round(times * TIME_UNITS_US[unit]).astype(np.int64)
     newtons = values * FORCE_UNITS_N[funit]
-    if "trial" in table.column_names:
-        names = [str(v) for v in table.column("trial").to_pylist()]
-        groups = []
-        for name in dict.fromkeys(names):
-            rows = np.flatnonzero(np.asarray(names, dtype=object) == name)
-            groups.append((name, rows))
-    else:
-        cuts = np.flatnonzero(np.diff(t_us) < 0) + 1
-        if len(cuts) and len(cuts) >= len(t_us) // 2:  # not trials whose clocks restart: a log out of order
-            raise FormatError(f"{path}: force time runs backwards at {len(cuts):,} of {len(t_us):,} samples; sort the log by "
-                              "time (a log of several trials restarts its clock once per trial)")
-        bounds = np.concatenate([[0], cuts, [len(t_us)]])
-        groups = [(None, np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
     logs = []
-    for name, rows in groups:
+    for name, rows in _trial_rows(table, t_us, path):
         t = t_us[rows]
         if len(t) > 1 and np.diff(t).min() <= 0:
             bad = int(np.argmax(np.diff(t) <= 0)) + 1
