@@ -172,11 +172,10 @@ def curve_figure(curves, path: str, title: str = "", loss: str = "loss"):
             train = [row["train_loss"] for row in curve]
             val = [row["val_loss"] for row in curve]
             values += train + val
-            style = dict(alpha=1.0 if i == 0 else 0.55, lw=1.5 if i == 0 else 1.0)
             # with several members: the first drawn full and named, the others dashed under one name
+            style = dict(alpha=1.0, lw=1.5, ls="-") if i == 0 else dict(alpha=0.55, lw=1.0, ls="--")
             suffix = "" if not many else ", member 1" if i == 0 else f", members 2-{len(curves)}" if len(curves) > 2 else ", member 2"
             named = i < 2
-            style.update(ls="-" if i == 0 else "--")
             axis.plot(epochs, train, color="C0", label=f"training{suffix}" if named else None, **style)
             if np.isfinite(val).any():
                 axis.plot(epochs, val, color="C1", label=f"validation{suffix}" if named else None, **style)
