@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import torch
 
 from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.model.curve import IMPROVEMENT
 from neurotac_cli.study import DEVICE_VARIABLE  # the cache keys read it too
 
 
@@ -53,7 +54,7 @@ def fit(net, batch_loss, n_train: int, val_loss, config: FitConfig, generator: t
             val = val_loss()
         watched = train if val is None else val
         curve.append({"epoch": epoch, "train_loss": train, "val_loss": math.nan if val is None else float(val)})
-        if watched < best - 1e-9:
+        if watched < best - IMPROVEMENT:
             best, best_state, since = watched, copy.deepcopy(net.state_dict()), 0
         else:
             since += 1

@@ -8,6 +8,7 @@ line its meaning in the legend.
 
 import numpy as np
 
+from neurotac_cli.model.curve import best_epoch, watched
 from neurotac_cli.units import counted
 
 PHASE_COLOURS = {"grasping": "tab:blue", "holding": "tab:red", "releasing": "tab:green"}
@@ -118,17 +119,6 @@ def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
         plt.close(fig)
 
 
-def restored_epoch(curve: list) -> dict | None:
-    """The epoch whose weights training kept: the first lowest validation loss (training loss without
-    validation), by the same rule as model.fit."""
-    best, kept = np.inf, None
-    for row in curve:
-        watched = row["val_loss"] if np.isfinite(row["val_loss"]) else row["train_loss"]
-        if watched < best - 1e-9:
-            best, kept = watched, row
-    return kept
-
-
 def log_ticks(axis, values) -> None:
     """Log-scale ticks that read: 1, 2, 5 per decade over a few decades, every digit within one."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
@@ -162,33 +152,32 @@ def curve_figure(curves, path: str, title: str = "", loss: str = "loss"):
     plt = _pyplot()
     curves = curves if isinstance(curves, dict) else {"": curves}
     first = next(iter(curves.values()), [])
-    kept = restored_epoch(first)
+    kept = best_epoch(first)
     many = len(curves) > 1
     with plt.rc_context(STYLE):
         fig, axis = plt.subplots(figsize=(5.8, 3.8))
         values = []
-        for i, (member, curve) in enumerate(curves.items()):
+        # with several members: the first drawn full and named, the others dashed under one name
+        others = f", members 2-{len(curves)}" if len(curves) > 2 else ", member 2"
+        for i, curve in enumerate(curves.values()):
             epochs = [row["epoch"] for row in curve]
             train = [row["train_loss"] for row in curve]
             val = [row["val_loss"] for row in curve]
             values += train + val
-            # with several members: the first drawn full and named, the others dashed under one name
             style = dict(alpha=1.0, lw=1.5, ls="-") if i == 0 else dict(alpha=0.55, lw=1.0, ls="--")
-            suffix = "" if not many else ", member 1" if i == 0 else f", members 2-{len(curves)}" if len(curves) > 2 else ", member 2"
+            suffix = "" if not many else ", member 1" if i == 0 else others
             named = i < 2
             axis.plot(epochs, train, color="C0", label=f"training{suffix}" if named else None, **style)
             if np.isfinite(val).any():
                 axis.plot(epochs, val, color="C1", label=f"validation{suffix}" if named else None, **style)
-            member_kept = restored_epoch(curve)
+            member_kept = best_epoch(curve)
             if member_kept is not None and i > 0:
-                watched = member_kept["val_loss"] if np.isfinite(member_kept["val_loss"]) else member_kept["train_loss"]
-                axis.plot([member_kept["epoch"]], [watched], "o", color="0.4", ms=3)
+                axis.plot([member_kept["epoch"]], [watched(member_kept)], "o", color="0.4", ms=3)
         axis.set_yscale("log")
         log_ticks(axis, values)
         if kept is not None:
-            watched = kept["val_loss"] if np.isfinite(kept["val_loss"]) else kept["train_loss"]
             axis.axvline(kept["epoch"], color="black", lw=0.8, ls="--", label=f"restored: epoch {kept['epoch']}" + (" (member 1)" if many else ""))
-            axis.plot([kept["epoch"]], [watched], "ko", ms=4)
+            axis.plot([kept["epoch"]], [watched(kept)], "ko", ms=4)
         axis.set_xlabel("epoch")
         axis.xaxis.set_major_locator(plt.MaxNLocator(integer=True))  # no epoch 2.5
         axis.set_ylabel(loss)
@@ -196,7 +185,7 @@ def curve_figure(curves, path: str, title: str = "", loss: str = "loss"):
         how = ""
         if kept is not None:
             which = "validation" if np.isfinite(kept["val_loss"]) else "training"
-            how = f"best {which} loss {(kept['val_loss'] if which == 'validation' else kept['train_loss']):.4g} at epoch {kept['epoch']} of {len(first)}"
+            how = f"best {which} loss {watched(kept):.4g} at epoch {kept['epoch']} of {len(first)}"
         if many:  # grey dots: the epochs the other members kept
             axis.set_title(f"{title or 'training curve'}, {len(curves)} members\nmember 1: {how}", fontsize="medium")
         else:

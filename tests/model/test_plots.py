@@ -7,13 +7,14 @@ import pyarrow as pa
 from PIL import Image
 
 from neurotac_cli.model import plots
+from neurotac_cli.model.curve import best_epoch
 
 
 def test_restored_epoch_is_the_first_lowest_validation_loss():
     curve = [{"epoch": e, "train_loss": 1.0 / e, "val_loss": v} for e, v in enumerate([0.5, 0.3, 0.3, 0.4], start=1)]
-    assert plots.restored_epoch(curve)["epoch"] == 2
+    assert best_epoch(curve)["epoch"] == 2
     no_validation = [{"epoch": e, "train_loss": t, "val_loss": math.nan} for e, t in enumerate([3.0, 1.0, 2.0], start=1)]
-    assert plots.restored_epoch(no_validation)["epoch"] == 2
+    assert best_epoch(no_validation)["epoch"] == 2
 
 
 def test_a_log_axis_within_one_decade_has_several_labelled_ticks(tmp_path):
