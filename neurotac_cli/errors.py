@@ -64,7 +64,12 @@ class OutputError(NeurotacError):
     ONLY_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}  # errors that reading never gives
 
     @classmethod
+    def why(cls, error: OSError) -> tuple[str, str]:
+        """(what went wrong, what to do) for an error writing a file."""
+        return cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
+
+    @classmethod
     def from_os(cls, target: str, error: OSError, kept: bool = False) -> "OutputError":
-        why, what_to_do = cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
+        why, what_to_do = cls.why(error)
         previous = "; the previous file is kept" if kept else ""
         return cls(f"cannot write {target} ({why}; {what_to_do}{previous})")

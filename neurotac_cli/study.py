@@ -513,8 +513,7 @@ class _Cache:
             # something else where an entry goes (a file, a folder) has its own advice; the rest, a full
             # disk or a read-only folder, the advice every output gets
             blocked = error.errno in (errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
-            why, what_to_do = (error.strerror, "remove what is there") if blocked else OutputError.WHY.get(
-                error.errno, (error.strerror or str(error), "write elsewhere"))
+            why, what_to_do = (error.strerror, "remove what is there") if blocked else OutputError.why(error)
             raise StudyError(f"cannot write the study cache entry {target} ({why}: {error.filename2 or error.filename}); "
                              f"{what_to_do}, or pick another --cache") from None
 
