@@ -133,10 +133,8 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     elif synced:
         tables.check_folder(output)
 
-    from neurotac_cli.sim.grasp import parse_groups
     from neurotac_cli.sim.run import prepare_folder, recordings, simulate, write_dataset
 
-    parse_groups(config.groups)  # a malformed --objects is refused before the folder is made
     if out_dir:
         prepare_folder(out_dir)
     simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer(), variation=variation, rigs=rigs or 0)

@@ -287,6 +287,9 @@ def validate(config: SimConfig):
                 problems.append(f"{item.name} must be a finite number, got {value}")
     if problems:
         raise UsageError("bad simulator parameters: " + "; ".join(problems))
+    from neurotac_cli.sim.grasp import parse_groups  # it reads this module's materials and objects
+
+    parse_groups(config.groups)  # a malformed --objects is refused before any folder is made or grasp simulated
     if config.gripper not in ("position", "force"):
         problems.append(f"gripper={config.gripper!r} (use position or force)")
     if config.force_sensor not in ("nano17", "flexiforce"):
