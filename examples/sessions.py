@@ -226,7 +226,7 @@ def main(argv=None):
     if publishes(args):
         publish(text)
     elif args.replace_rows and publishes(args, fewer_allowed=True):
-        publish(merged_rows(published(), text, [*results, *(name for name in on_unseen if name not in results)]))
+        publish(merged_rows(published(), text))
 
 
 def report(size, test, cut, unseen, force_range, results, on_unseen) -> str:
@@ -271,9 +271,9 @@ def published(page=RESULTS_PAGE) -> str:
     return body.removeprefix(PUBLISHED_HEAD).strip() + "\n"
 
 
-def merged_rows(old: str, new: str, names) -> str:
-    """`old` tables with the rows of the models `names` taken from `new` (a run of those models alone on
-    the same sessions). Every line that is not a model's row must read the same in both, or the
+def merged_rows(old: str, new: str) -> str:
+    """`old` tables with the rows `new` holds (a run of fewer models on the same sessions) in place of
+    those models' rows. Every line that is not a model's row must read the same in both, or the
     sessions differ and nothing is merged."""
     def rows(text):  # each line with (its table's number, its model) for a model's row, None for any other line
         lines, table, out = text.splitlines(), 0, []
@@ -290,10 +290,10 @@ def merged_rows(old: str, new: str, names) -> str:
     old_rows, new_rows = rows(old), rows(new)
     if [line for line, key in old_rows if key is None] != [line for line, key in new_rows if key is None]:
         raise SystemExit("the published sessions tables were made on other sessions or sizes: run every model (no --replace-rows)")
-    fresh = {key: line for line, key in new_rows if key is not None and key[1] in names}
+    fresh = {key: line for line, key in new_rows if key is not None}
     missing = {name for _, name in fresh} - {key[1] for _, key in old_rows if key is not None}
     if missing or not fresh:
-        raise SystemExit(f"the published sessions tables have no row for {', '.join(sorted(missing or names))}: run every model")
+        raise SystemExit(f"the published sessions tables have no row for {', '.join(sorted(missing)) or 'this run'}: run every model")
     return "\n".join(fresh.get(key, line) for line, key in old_rows) + "\n"
 
 

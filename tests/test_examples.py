@@ -344,14 +344,14 @@ def test_a_sessions_run_of_fewer_models_replaces_only_their_rows():
           "| model | % |\n|---|---|\n| deform-gru | 40 |\n| lstm, randomised | 19 |\n"
     new = "Test: 2 sessions.\n\n| model | RMSE |\n|---|---|\n| deform-gru | 0.4 |\n\nUnseen.\n\n" \
           "| model | % |\n|---|---|\n| deform-gru | 39 |\n"
-    merged = sessions.merged_rows(old, new, ["deform-gru"])
+    merged = sessions.merged_rows(old, new)
     assert merged == old.replace("| deform-gru | 0.5 |", "| deform-gru | 0.4 |").replace("| deform-gru | 40 |", "| deform-gru | 39 |")
     with pytest.raises(SystemExit, match="other sessions"):
-        sessions.merged_rows(old, new.replace("2 sessions", "1 session"), ["deform-gru"])
+        sessions.merged_rows(old, new.replace("2 sessions", "1 session"))
     with pytest.raises(SystemExit, match="one model in two rows"):
-        sessions.merged_rows(old.replace("| lstm | 0.6 |", "| deform-gru | 0.6 |"), new, ["deform-gru"])
+        sessions.merged_rows(old.replace("| lstm | 0.6 |", "| deform-gru | 0.6 |"), new)
     with pytest.raises(SystemExit, match="no row for convlstm"):
-        sessions.merged_rows(old, new.replace("| deform-gru | 39 |", "| deform-gru | 39 |\n| convlstm | 21 |"), ["deform-gru", "convlstm"])
+        sessions.merged_rows(old, new.replace("| deform-gru | 39 |", "| deform-gru | 39 |\n| convlstm | 21 |"))
 
 
 def test_a_quick_rig_sessions_run_prints_its_tables_and_leaves_docs_alone(tmp_path, monkeypatch):
