@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass
 
 from neurotac_cli.errors import NeurotacError, UsageError
+from neurotac_cli.schema import check_label_names
 
 
 @dataclass(frozen=True)
@@ -278,6 +279,40 @@ RANGES = ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_
           "contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us")
 
 
+def parse_groups(groups) -> list[tuple]:
+    """"material:object:count[:label=value...]" -> (material, ObjectShape, count, labels)."""
+    parsed = []
+    for text in groups:
+        parts = str(text).split(":")
+        if len(parts) < 3:
+            raise UsageError(f"cannot read trial group {text!r} (write MATERIAL:OBJECT:COUNT, e.g. steel:bolt12:10)")
+        material, obj, count, *rest = parts
+        if material not in MATERIALS:
+            raise UsageError(f"unknown material {material!r} in {text!r} (use {', '.join(MATERIALS)})")
+        try:
+            count = int(count)
+        except ValueError:
+            raise UsageError(f"trial count {count!r} in {text!r} is not a whole number") from None
+        if count < 0:
+            raise UsageError(f"trial count {count} in {text!r} is negative (give 0 or more grasps)")
+        labels = {}
+        for item in rest:
+            name, sep, value = item.partition("=")
+            if not sep:
+                raise UsageError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
+            if name in labels:  # one value would be dropped without a word
+                raise UsageError(f"label {name!r} given twice in {text!r} (give each label once)")
+            labels[name] = value
+        reserved = [name for name in labels if name in ("material", "object", "size_mm")]
+        if reserved:
+            raise UsageError(f"label {reserved[0]!r} in {text!r} is set by the simulator from the group itself")
+        check_label_names(labels)
+        parsed.append((material, parse_object(obj), count, labels))
+    if not parsed:
+        raise UsageError("no trials to simulate (give --objects/--materials or a preset)")
+    return parsed
+
+
 def validate(config: SimConfig):
     problems = []
     for item in dataclasses.fields(config):  # NaN passes every comparison below unnoticed
@@ -287,8 +322,6 @@ def validate(config: SimConfig):
                 problems.append(f"{item.name} must be a finite number, got {value}")
     if problems:
         raise UsageError("bad simulator parameters: " + "; ".join(problems))
-    from neurotac_cli.sim.grasp import parse_groups  # it reads this module's materials and objects
-
     parse_groups(config.groups)  # a malformed --objects is refused before any folder is made or grasp simulated
     if config.gripper not in ("position", "force"):
         problems.append(f"gripper={config.gripper!r} (use position or force)")

@@ -8,8 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from neurotac_cli.errors import UsageError
-from neurotac_cli.schema import check_label_names
-from neurotac_cli.sim.config import GRIPPER_FORCE_BANDS, MATERIALS, ObjectShape, SimConfig, parse_object
+from neurotac_cli.sim.config import GRIPPER_FORCE_BANDS, MATERIALS, ObjectShape, SimConfig, parse_groups
 
 
 @dataclass
@@ -41,40 +40,6 @@ class Grasp:
     def led_off_camera_us(self) -> int:
         """The true LED-off instant on the camera's clock (the manifest's true_t0_us)."""
         return self.camera_start_us + self.preroll_us + self.led_on_us
-
-
-def parse_groups(groups) -> list[tuple]:
-    """"material:object:count[:label=value...]" -> (material, ObjectShape, count, labels)."""
-    parsed = []
-    for text in groups:
-        parts = str(text).split(":")
-        if len(parts) < 3:
-            raise UsageError(f"cannot read trial group {text!r} (write MATERIAL:OBJECT:COUNT, e.g. steel:bolt12:10)")
-        material, obj, count, *rest = parts
-        if material not in MATERIALS:
-            raise UsageError(f"unknown material {material!r} in {text!r} (use {', '.join(MATERIALS)})")
-        try:
-            count = int(count)
-        except ValueError:
-            raise UsageError(f"trial count {count!r} in {text!r} is not a whole number") from None
-        if count < 0:
-            raise UsageError(f"trial count {count} in {text!r} is negative (give 0 or more grasps)")
-        labels = {}
-        for item in rest:
-            name, sep, value = item.partition("=")
-            if not sep:
-                raise UsageError(f"cannot read label {item!r} in {text!r} (write NAME=VALUE)")
-            if name in labels:  # one value would be dropped without a word
-                raise UsageError(f"label {name!r} given twice in {text!r} (give each label once)")
-            labels[name] = value
-        reserved = [name for name in labels if name in ("material", "object", "size_mm")]
-        if reserved:
-            raise UsageError(f"label {reserved[0]!r} in {text!r} is set by the simulator from the group itself")
-        check_label_names(labels)
-        parsed.append((material, parse_object(obj), count, labels))
-    if not parsed:
-        raise UsageError("no trials to simulate (give --objects/--materials or a preset)")
-    return parsed
 
 
 def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None = None) -> list[Grasp]:

@@ -31,8 +31,8 @@ import numpy as np
 
 from neurotac_cli.errors import UsageError
 from neurotac_cli.sim import dvs, force_sensor
-from neurotac_cli.sim.config import SimConfig
-from neurotac_cli.sim.grasp import Grasp, loading_us, parse_groups, rigid_motion_px
+from neurotac_cli.sim.config import SimConfig, parse_groups
+from neurotac_cli.sim.grasp import Grasp, loading_us, rigid_motion_px
 
 LEAD_US = 10_000  # a grasp's local clock starts this long before its first touch
 SETTLE_US = 30_000  # and its pixels are stepped this long after contact is lost
