@@ -39,6 +39,10 @@ fi
 SEED=${SEED:-1}
 PYTHON=${PYTHON:-python}
 export NEUROTAC_CACHE=${NEUROTAC_CACHE:-$OUT/cache}
+# Whether the cache held trainings before this invocation (a resumed or repeated run): a study that
+# takes tasks from it may then report fewer seconds than its trainings cost (`once`). Within one run
+# from an empty cache, studies that share trainings count them once, in the study that ran them.
+CACHE_HELD=$(find "$NEUROTAC_CACHE" -name '*.pkl' -print -quit 2>/dev/null || true)
 # Each task trains on one thread (so results do not depend on where it ran): a standard or full run uses every
 # core through a process pool unless a Dask scheduler is given. Quick runs stay in-process, where
 # starting worker processes would cost more than their few small trainings.
@@ -60,15 +64,29 @@ once() {
     return
   fi
   say "$name: neurotac $verb $*"
-  local started=$SECONDS
-  neurotac "$verb" "$@" --seed "$SEED" --metrics "$metrics" > /dev/null
-  # The study's wall time, kept beside it so a resumed run still reports what the whole chapter cost
-  # (a study resumed from the cache reports only its last part).
-  echo $((SECONDS - started)) > "$DIR/$name.seconds"
+  local started=$SECONDS log="$DIR/$name.log"
+  # stderr to the terminal and to the log (pipefail keeps neurotac's exit status), stdout dropped
+  neurotac "$verb" "$@" --seed "$SEED" --metrics "$metrics" 2>&1 > /dev/null | tee "$log" >&2
+  # The study's wall time, kept beside it so a resumed run still reports what the whole chapter cost.
+  # Seconds that leave out tasks an earlier run trained (neurotac names tasks taken from the cache)
+  # are marked "cached".
+  local seconds=$((SECONDS - started))
+  if [[ -n $CACHE_HELD ]] && grep -q "tasks from the cache" "$log"; then seconds="$seconds cached"; fi
+  echo "$seconds" > "$DIR/$name.seconds"
 }
 
-# wall_time: the seconds the chapter's finished studies took, summed over every invocation.
-wall_time() { cat "$DIR"/*.seconds 2>/dev/null | awk '{s += $1} END {print s + 0}'; }
+# wall_time: the seconds the chapter's finished studies took, summed over every invocation, and how
+# many of those studies took tasks from the cache (their seconds leave those tasks out).
+wall_time() {
+  local sum cached
+  sum=$(cat "$DIR"/*.seconds 2>/dev/null | awk '{s += $1} END {print s + 0}')
+  cached=$(cat "$DIR"/*.seconds 2>/dev/null | grep -c cached || true)
+  if ((cached)); then
+    echo "$sum s on $(machine), summed over the chapter's studies ($cached of them took tasks from the cache of an earlier run, whose time this leaves out)"
+  else
+    echo "$sum s on $(machine), summed over the chapter's studies"
+  fi
+}
 
 # study NAME ARGS...: one `neurotac eval` cross-validation; grid NAME ARGS...: one `neurotac study`
 # grid (one table, one column per grid parameter).
@@ -89,7 +107,7 @@ join() { local IFS=,; echo "$*"; }
 # line (where the run departs from the thesis, its seeds, the chapter's wall time) goes under every
 # table.
 publish() {
-  local run=$2 protocol="$3 Wall time $(wall_time) s on $(machine), summed over the chapter's studies."
+  local run=$2 protocol="$3 Wall time $(wall_time)."
   if [[ $MODE == quick || $MODE == tiny ]]; then
     run="**Reduced run** (\`make reproduce-quick\`): it checks the whole pipeline in minutes; its figures are not the thesis's protocol and say little about the sensor. $run"
     protocol="Reduced run, not the thesis's protocol. $protocol"

@@ -227,6 +227,14 @@ def test_the_chapter_3_script_runs_end_to_end_at_a_tiny_size(tmp_path):
         assert (tmp_path / "figures" / figure).stat().st_size > 0
     for study in ("tdnn", "gp", "material-dnn", "material-force"):
         assert (tmp_path / "ch3" / f"{study}.metrics.parquet").stat().st_size > 0
+    assert "from the cache" not in page
+
+    # A study run again over the cache: its seconds leave the cached tasks out, and the page says so.
+    (tmp_path / "ch3" / "material-force.metrics.parquet").unlink()
+    done = subprocess.run(["bash", str(EXAMPLES / "ch3.sh")], capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "cached" in (tmp_path / "ch3" / "material-force.seconds").read_text()
+    assert "(1 of them took tasks from the cache of an earlier run" in (tmp_path / "results.md").read_text()
 
 
 def test_a_grid_held_in_one_table_is_read_by_its_parameter_columns(tmp_path):

@@ -419,6 +419,7 @@ def test_eval_cv_rerun_with_a_cache_trains_nothing(tiny_frames_file, tmp_path):
     again = _eval([*study, "--metrics", str(tmp_path / "again.parquet")], env={"NEUROTAC_PROGRESS": "1"})
     assert "5/5 done, " in first.stderr
     assert "5/5 done (5 cached)" in again.stderr
+    assert "from the cache" not in first.stderr and "tdnn folds: 5 of 5 tasks from the cache" in again.stderr
     assert _metrics(tmp_path / "first.parquet") == _metrics(tmp_path / "again.parquet")
 
 
@@ -488,3 +489,16 @@ def test_a_bad_grid_is_a_usage_error_before_any_input_is_read(verb):
 
     result = CliRunner().invoke(cli, [*verb, "--model-spec", "tdnn", "--grid", "layers=1..x"], input=b"")
     assert result.exit_code == 2 and "--grid layers=1..x" in result.output and "--layers" not in result.output
+
+
+def test_a_study_that_takes_tasks_from_the_cache_says_so_once(tiny_frames_file, tmp_path):
+    from neurotac_cli.cli import cli
+
+    grid = ["study", "--model-spec", "tdnn", "--grid", "layers=1..2", "--units", "3", "--epochs", "2", "--cv", "loo",
+            "--cache", str(tmp_path / "cache"), tiny_frames_file, "-o", str(tmp_path / "oof.arrows")]
+    first = CliRunner().invoke(cli, grid)
+    again = CliRunner().invoke(cli, grid)
+    assert first.exit_code == 0 and again.exit_code == 0, first.output + again.output
+    assert "from the cache" not in first.stderr
+    assert again.stderr.count("from the cache") == 1
+    assert "tdnn grid: 10 of 10 tasks from the cache" in again.stderr

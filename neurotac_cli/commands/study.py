@@ -6,7 +6,7 @@ import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 from neurotac_cli.options import (GRID_HELP, checked_grid, refuse_label_for_force, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
-                                  output_option, seed_option, study_options, use_device)
+                                  output_option, progress_printer, seed_option, study_options, use_device)
 
 
 @click.command()
@@ -55,7 +55,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     result = evaluate.study(
         table, model, grid, hyperparameters(options),
         evaluate.Folds(cv, repeats, seed, val_fraction, val_per, label), nonzero=nonzero, per_trial=per_trial,
-        runner=evaluate.Runner(jobs, scheduler, cache))
+        runner=evaluate.Runner(jobs, scheduler, cache), progress=progress_printer())
     click.echo(result.summary, err=True)
     step = history()
     if metrics_path:

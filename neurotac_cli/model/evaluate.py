@@ -57,7 +57,8 @@ def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparamet
     """Score the model file `model_path` on `frames`, or cross-validate `model_spec` with `folds`
     (at every point of `grid` when one is given: see `study`)."""
     if grid:
-        return study(frames, model_spec, grid, hyperparameters, folds, nonzero=nonzero, per_trial=per_trial, runner=runner)
+        return study(frames, model_spec, grid, hyperparameters, folds, nonzero=nonzero, per_trial=per_trial, runner=runner,
+                     progress=progress)
     if folds is not None:
         spec = make_spec(model_spec, **(hyperparameters or {}))
         predictions, rows = cross_validate(
@@ -78,7 +79,7 @@ def evaluate(frames: pa.Table, *, model_path=None, model_spec=None, hyperparamet
 
 
 def study(frames: pa.Table, model_spec: str, grid, fixed: dict | None, folds: Folds, *, nonzero=False, per_trial=True,
-          runner=Runner()) -> Evaluation:
+          runner=Runner(), progress=None) -> Evaluation:
     """Cross-validate `model_spec` at every point of the `--grid` specs `grid` (each with the `fixed`
     hyperparameters): out-of-fold predictions and metrics with one column per grid parameter, and
     one summary line per point."""
@@ -86,7 +87,7 @@ def study(frames: pa.Table, model_spec: str, grid, fixed: dict | None, folds: Fo
     predictions, rows = cross_validate_grid(
         frames, model_spec, folds.cv, points, repeats=folds.repeats, seed=folds.seed, val_fraction=folds.val_fraction,
         per=folds.per, label=folds.label, nonzero=nonzero, per_trial=per_trial, jobs=runner.jobs,
-        scheduler=runner.scheduler, cache_dir=runner.cache)
+        scheduler=runner.scheduler, cache_dir=runner.cache, note=progress)
     lines = "\n".join(grid_lines(rows, model_spec))
     return Evaluation(model_spec, predictions, grid_metrics_table(rows, model_spec), lines)
 
@@ -125,5 +126,5 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
     if progress:
         progress(f"cross-validation {cv}: {len(groups)} folds x {repeats} repeats = {len(tasks)} trainings of {spec['model']}")
     results = run_tasks(run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
-                        label=f"{spec['model']} folds", shared={"frames": table})
+                        label=f"{spec['model']} folds", shared={"frames": table}, note=progress)
     return score_folds(results, len(groups), nonzero=nonzero, per_trial=per_trial, label=label)

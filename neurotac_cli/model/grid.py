@@ -15,7 +15,7 @@ from neurotac_cli.study import run_tasks
 
 def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repeats=1, seed=0, val_fraction=0.1,
                         per=None, label="material", nonzero=False, per_trial=True, jobs=1, scheduler=None,
-                        cache_dir=None, progress=None):
+                        cache_dir=None, progress=None, note=None):
     """Cross-validate `model` at every grid point: (predictions, metric rows) with one column per grid
     parameter added to both, in grid order.
 
@@ -28,7 +28,7 @@ def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repe
     plans = [fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label) for spec in specs]
     results = run_tasks(run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
                         scheduler=scheduler, cache_dir=cache_dir, label=f"{model} grid", shared={"frames": frames},
-                        progress=progress)
+                        progress=progress, note=note)
     parts, rows, start = [], [], 0
     for point, (groups, tasks) in zip(points, plans):
         predictions, point_rows = score_folds(results[start : start + len(tasks)], len(groups),
