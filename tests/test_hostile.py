@@ -421,6 +421,20 @@ def test_eval_refuses_an_infinite_true_force(files, tmp_path):  # noqa: F811
     assert one_line(stderr, code, 1) and "NaN or infinite" in stderr
 
 
+@pytest.mark.parametrize("verb", [["eval", "--model", "{d}/m.model"], ["predict", "--model", "{d}/m.model"],
+                                  ["train", "--model", "tdnn", "--epochs", "1", "-o", "{t}/m.model"]])
+def test_frames_whose_time_runs_back_within_a_trial_are_refused(files, tmp_path, verb):  # noqa: F811
+    """eval scored them: the models read each frame's time from t, so time running back turned their
+    trends round without a word."""
+    table = frames_table()
+    t = table.column("t").to_numpy().copy()
+    t[5:8] = t[5:8][::-1]  # trial b: 0, 30, 20, 10 ms at frames 0..3
+    path = str(tmp_path / "back.arrows")
+    tables.write(path, table.set_column(table.schema.get_field_index("t"), "t", pa.array(t)))
+    code, stderr, _ = invoke([arg.format(d=files, t=tmp_path) for arg in verb] + [path])
+    assert one_line(stderr, code, 1) and "trial 'b': t goes back from 30000 µs at frame 1 to 20000 µs at frame 2" in stderr, stderr
+
+
 @pytest.mark.parametrize("args, code_expected, said", [
     (["--duration", "0s"], 2, "positive"),
     (["--set", "session_rest_us=1ms..2ms"], 2, "session_rest_us must start at 50 ms"),

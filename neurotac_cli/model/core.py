@@ -12,7 +12,8 @@ from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError, ModelError, UsageError
 from neurotac_cli.ops.forcelog import RANGE_N
 from neurotac_cli.model.curve import best_epoch
-from neurotac_cli.model.data import Sequences, already_accumulated, choose_validation, padded, parse_where, sequences
+from neurotac_cli.model.data import (Sequences, already_accumulated, check_time_forward, choose_validation, padded, parse_where,
+                                     sequences)
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
 from neurotac_cli.units import counted
@@ -581,7 +582,7 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
             for begin, end in zip(edges[:-1], edges[1:]):
                 trial = trials[begin]
-                last[trial] = _in_order(trial, last.get(trial), numbers[begin:end])
+                last[trial] = _in_order(trial, last.get(trial), numbers[begin:end], t[begin:end])
                 force, states[trial] = model.step(counts[None, begin:end], t[None, begin:end], states.get(trial))
                 prediction[begin:end] = force[0]
             columns = {
@@ -596,18 +597,20 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
     return out_schema, run()
 
 
-def _in_order(trial: str, last: int | None, frames: np.ndarray) -> int:
-    """The last of a trial's frames, refusing frames that come before one already read: a stream
-    carries each trial's state from one frame to the next, so frames out of order would give other
-    estimates than `eval` (which sorts each trial's frames)."""
-    given = frames if last is None else np.concatenate([[last], frames])
+def _in_order(trial: str, last: tuple | None, frames: np.ndarray, t: np.ndarray) -> tuple:
+    """The (frame, t) of the last of a trial's frames, refusing frames that come before one already
+    read: a stream carries each trial's state from one frame to the next, so frames out of order would
+    give other estimates than `eval` (which sorts each trial's frames). Time is checked as `eval` checks it."""
+    given = frames if last is None else np.concatenate([[last[0]], frames])
+    times = t if last is None else np.concatenate([[last[1]], t])
     back = np.flatnonzero(np.diff(given) <= 0)
     if len(back):
         k = int(back[0])
         raise InputError(f"trial {trial!r}: frame {int(given[k + 1])} comes after frame {int(given[k])}; a stream reads each "
                          "trial's frames in the order `frame` writes them (sort the frames by trial and frame, or score the "
                          "table with `neurotac eval`, which sorts them)")
-    return int(given[-1])
+    check_time_forward(np.zeros(len(given), np.int64), [trial], given, times)
+    return int(given[-1]), int(times[-1])
 
 
 def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> pa.Table:

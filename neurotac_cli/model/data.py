@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.errors import ModelError, SchemaError, UsageError
 
 
 @dataclass
@@ -63,6 +63,7 @@ def sequences(table: pa.Table) -> Sequences:
     starts = np.concatenate([[0], bounds])
     counts = sch.counts_numpy(table.column("counts"))[order]
     t = table.column("t").to_numpy().astype(np.int64)[order]
+    check_time_forward(codes, names, frame[order], t)
     force_column = table.column("force").cast(pa.float32())
     sch.check_force(pc.drop_null(force_column).to_numpy(), "the frames' force column")  # null = unknown; NaN is an error
     force = force_column.fill_null(np.nan).to_numpy(zero_copy_only=False)[order]
@@ -88,6 +89,19 @@ def sequences(table: pa.Table) -> Sequences:
         trials=trials, counts=split(counts), t=split(t), frame=split(frames), force=split(force),
         phase=split(phase), labels=labels, source=source, augmented=augmented,
     )
+
+
+def check_time_forward(codes: np.ndarray, names, frame: np.ndarray, t: np.ndarray) -> None:
+    """Refuse a trial whose window start `t` falls from one frame to the next (rows grouped by trial
+    code, each trial in frame order): the models read each frame's time from `t` (the GP's time input,
+    the gap between recurrent steps) and the scores time their drift by it, so time running back
+    would turn their trends round without a word."""
+    back = np.flatnonzero((t[1:] < t[:-1]) & (codes[1:] == codes[:-1]))
+    if len(back):
+        k = int(back[0])
+        raise SchemaError(f"trial {names[codes[k]]!r}: t goes back from {int(t[k])} µs at frame {int(frame[k])} to "
+                          f"{int(t[k + 1])} µs at frame {int(frame[k + 1])}; each frame's window starts after the one "
+                          "before it (make the frames again with `neurotac frame`, or correct t)")
 
 
 def _check_one_value_per_trial(column, order, codes, names, label: str):
