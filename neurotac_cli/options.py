@@ -224,6 +224,15 @@ def replay_speed(realtime: bool, speed: float | None) -> float | None:
     return (speed or 1.0) if realtime else None
 
 
+def idle_timeout_needs_follow(follow: bool) -> None:
+    """--idle-timeout ends a followed file (or pipe): without --follow nothing waits, so a value the
+    user gave would change nothing. Its default is no choice of the user's, hence the parameter's
+    source and not its value."""
+    given = click.get_current_context().get_parameter_source("idle_timeout") != click.core.ParameterSource.DEFAULT
+    if given and not follow:
+        raise click.UsageError("--idle-timeout ends a followed file once it stops growing: give it with --follow, or leave it out")
+
+
 def seed_option(function):
     return click.option(
         "--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,

@@ -2,7 +2,8 @@
 
 import click
 
-from neurotac_cli.options import Size, camera_input_options, echo_lines, history, output_option, replay_speed
+from neurotac_cli.options import (Size, camera_input_options, echo_lines, history, idle_timeout_needs_follow, output_option,
+                                  replay_speed)
 
 
 @click.command("import")
@@ -42,6 +43,7 @@ def command(paths, output, sensor, fmt, follow, idle_timeout, realtime, speed, o
     from neurotac_cli.io import events, live
 
     pace = replay_speed(realtime, speed)
+    idle_timeout_needs_follow(follow)
     files = datasets.expand(paths)
     if len(files) > 1 and not one_stream and not (follow or realtime):
         recordings = datasets.recordings_per_file(files, sensor, fmt)

@@ -3,7 +3,7 @@
 import click
 
 from neurotac_cli.options import (Duration, Size, camera_input_options, crop_box_options, echo_lines, history,
-                                  output_option, replay_speed, threads_option)
+                                  idle_timeout_needs_follow, output_option, replay_speed, threads_option)
 
 
 @click.command()
@@ -49,6 +49,7 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     from neurotac_cli.ops.frame import Framing
 
     pace = replay_speed(realtime, speed)
+    idle_timeout_needs_follow(follow)
     if size is not None and center is None:  # the crop's own advice offers `auto`, which a stream cannot take
         raise click.UsageError("--size needs --center X,Y (sense streams, so the centre cannot be found from the whole input)")
     read_header(model_path)  # a wrong model file fails at once

@@ -133,6 +133,17 @@ def test_a_format_of_another_family_than_the_files_signature_is_refused(tmp_path
     assert run(["import", "--format", "aedat2", source, "-o", str(tmp_path / "out.parquet")], input=data).exit_code == 0
 
 
+def test_an_idle_timeout_without_follow_is_a_usage_error_and_its_default_is_not(tmp_path):
+    """It was ignored without a word: nothing waits for a file that is not followed. Given at its
+    default value it is refused all the same: the user chose it."""
+    path = make(tmp_path / "e.csv", b"t,x,y,p\n1,2,3,1\n2,2,3,0\n")
+    for args in (["--idle-timeout", "2s"], ["--idle-timeout", "5s", "--one-stream", path]):
+        result = run(["import", *args, path, "-o", str(tmp_path / "o.parquet")])
+        assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+        assert "--idle-timeout ends a followed file once it stops growing: give it with --follow" in result.output
+    assert run(["import", path, "-o", str(tmp_path / "o.parquet")]).exit_code == 0
+
+
 def test_a_table_given_to_import_is_refused_with_a_hint(tmp_path):
     table = sch.events_table([1, 2], [0, 1], [0, 1], [1, 0], 4, 4)
     path = tmp_path / "t.parquet"

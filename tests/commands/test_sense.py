@@ -70,6 +70,13 @@ def test_sense_refuses_what_cannot_stream_in_one_line(rig, args, words):
     assert done.returncode == 2 and words in done.stderr and "Traceback" not in done.stderr
 
 
+def test_sense_refuses_an_idle_timeout_without_follow(tmp_path):
+    """It was ignored without a word: only a followed camera file is waited for."""
+    done = neurotac("sense", str(tmp_path / "cam.raw"), "--model", str(tmp_path / "m.model"), "--idle-timeout", "2s")
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "--idle-timeout ends a followed file once it stops growing: give it with --follow" in done.stderr
+
+
 def test_sense_refuses_a_missing_model_in_one_line(rig, tmp_path):
     _, camera = rig
     done = neurotac("sense", str(camera), "--model", str(tmp_path / "none.model"), *BOX)
