@@ -30,6 +30,12 @@ SESSION_OBJECTS = ("foam:hex:1", "silicone:hex:1", "rubber:hex:1", "steel:hex:1"
 
 SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # options that apply with --session alone
 
+# A session is one AEDAT 2.0 file, whose 32-bit µs clock (io.writers.AEDAT2_LAST_US) runs 71.6 min, and
+# each grasp rests at least 50 ms before it (sim.config.SESSION_REST_FLOOR_US): no more grasps fit in one.
+# Written out, not imported, so that `simulate --help` loads neither numpy nor pyarrow.
+MAX_GRASPS = 0xFFFFFFFF // 50_000
+MAX_FORCE_N = 450  # sim.config.validate's bound on force_max_n: the largest range of the rig's force sensors
+
 
 @click.command()
 @click.option("--preset", type=click.Choice(["ch3", "ch4", "ch5"]), default=None,
@@ -40,8 +46,10 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Write sessions instead of trials: one camera file and force log per session, one LED blink at its "
                    "start, then --grasps grasps after rests, with re-grasps, force changes, partial releases and slips "
                    "(needs --out; manifest.csv has a row per session, grasps.csv every grasp's and slip's true times).")
-@click.option("--grasps", type=click.IntRange(min=0), default=50, show_default=True,
-              help="With --session: grasps per session, objects drawn from --objects (or the preset's groups), weighted by count.")
+@click.option("--grasps", type=click.IntRange(min=0, max=MAX_GRASPS), default=50, show_default=True,
+              help="With --session: grasps per session, objects drawn from --objects (or the preset's groups), weighted by count; "
+                   f"at most {MAX_GRASPS}, what one AEDAT 2.0 file's 71.6-minute clock holds at the shortest rests (a session "
+                   "planned to record longer is refused before it is simulated; about 800 grasps fit at the default rests and holds).")
 @click.option("--sessions", type=click.IntRange(min=1), default=1, show_default=True,
               help="With --session: how many sessions to write (session00, session01, ...), each its own seed stream.")
 @click.option("--duration", type=Duration(positive=True), default=None,
@@ -76,7 +84,8 @@ SESSION_ONLY = ("grasps", "sessions", "duration", "illumination_drift")  # optio
               help="Trial groups instead of the preset's, e.g. steel:bolt8:5,foam:hex:5,rubber:sphere10:3 "
                    "(objects: hex, hexSIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label).")
 @click.option("--force-range", default=None, metavar="LOW..HIGH",
-              help="Peak force of each grasp drawn uniformly in this range, in newtons, e.g. 0.5..3.7.")
+              help="Peak force of each grasp drawn uniformly in this range, in newtons, e.g. 0.5..3.7; HIGH at most "
+                   f"{MAX_FORCE_N} N, the largest range of the rig's force sensors (the presets go up to 25 N).")
 @click.option("--hold", type=Duration(), default=None, help="Holding phase length, with its unit: 700ms.")
 @click.option("--force-sensor", type=click.Choice(["nano17", "flexiforce"]), default=None,
               help="Force sensor model: fast F/T cell or slow, hysteretic piezoresistive sensor.")

@@ -17,6 +17,7 @@ HEADER = (
     "# created by neurotac\r\n"
 )
 DAVIS240C = "# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n"
+AEDAT2_LAST_US = 0xFFFFFFFF  # the last instant of AEDAT 2.0's 32-bit µs clock: 71.6 min from its zero
 
 
 def aedat2_bytes(t, x, y, p, width: int = 240, height: int = 180) -> bytes:
@@ -28,7 +29,7 @@ def aedat2_bytes(t, x, y, p, width: int = 240, height: int = 180) -> bytes:
     if not (t.shape == x.shape == y.shape == p.shape):
         raise ValueError("t, x, y and p must have the same length")
     if t.size:
-        if t.min() < 0 or t.max() > 0xFFFFFFFF:
+        if t.min() < 0 or t.max() > AEDAT2_LAST_US:
             raise NeurotacError("AEDAT 2.0 timestamps are 32-bit µs (0 .. 71 min); shift the events' times into that range")
         if x.min() < 0 or x.max() >= width or y.min() < 0 or y.max() >= height:
             raise NeurotacError(f"events outside the {width}x{height} sensor cannot be written to AEDAT 2.0")

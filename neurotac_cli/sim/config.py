@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass
 
 from neurotac_cli.errors import NeurotacError, UsageError
+from neurotac_cli.ops.forcelog import RANGE_N
 from neurotac_cli.schema import check_label_names
 
 
@@ -340,6 +341,9 @@ def validate(config: SimConfig):
                         "and the settling of the one before take that long)")
     if not 0 <= config.force_min_n <= config.force_max_n or config.force_max_n <= 0:
         problems.append("force range (need 0 <= force_min_n <= force_max_n, force_max_n > 0)")
+    elif config.force_max_n > RANGE_N:  # the logs would read to `sync` as written in another unit
+        problems.append(f"force_max_n must be at most {RANGE_N:g} N (the largest range of the rig's force sensors; the presets "
+                        f"go up to 25 N), got {config.force_max_n:g}")
     problems += _placement_problems(config)
     problems = [problem for problem in problems if problem]
     if problems:

@@ -393,13 +393,8 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
                      name: str = "session", variation=None, min_duration_us: int = 0, progress=None) -> SessionResult:
     """Generate one session chunk by chunk: each chunk, the rest before a grasp and the grasp, goes to
     `events_sink(t_camera_us, x, y, p)` and `force_sink(t_us, reading_n)` before the next is made."""
-    children = seq.spawn(5)
-    streams = [np.random.default_rng(s) for s in children[:4]]  # physics, camera, plan, LED and drift
-    physics = {}
-    if variation is not None:  # the sensor's physics once per session; the objects family per grasp (plan_session)
-        config, physics = variation.without("objects").draw(config, streams[0])
+    config, physics, children, streams, session = _drawn(config, seq, n_grasps, name, min_duration_us, variation)
     camera = dvs.make_camera(config, streams[1])
-    session = plan_session(config, streams[2], n_grasps, name, min_duration_us, variation)
     (led_t, led_x, led_y, led_p), residual = dvs.led_events(config, camera, -session.led_on_us, 0, streams[3])
     drift = _Drift(config, camera, residual, streams[3]) if config.illumination_drift > 0 else None
     chunk_seeds = children[4]  # spawned in turn, two per chunk: noise, force sensor
@@ -426,6 +421,31 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
     result.force_t_us = np.concatenate(result.force_t_us)
     result.true_force_n = np.concatenate(result.true_force_n)
     return result
+
+
+def _drawn(config: SimConfig, seq: np.random.SeedSequence, n_grasps: int, name: str, min_duration_us: int, variation):
+    """(config, physics drawn, child seeds, random streams, plan) of a session, drawn from `seq`."""
+    children = seq.spawn(5)
+    streams = [np.random.default_rng(s) for s in children[:4]]  # physics, camera, plan, LED and drift
+    physics = {}
+    if variation is not None:  # the sensor's physics once per session; the objects family per grasp (plan_session)
+        config, physics = variation.without("objects").draw(config, streams[0])
+    return config, physics, children, streams, plan_session(config, streams[2], n_grasps, name, min_duration_us, variation)
+
+
+def _refuse_sessions_past_the_clock(config: SimConfig, seed: int, n_grasps: int, sessions: int, variation, min_duration_us: int):
+    """Plan every session as `write_sessions` will draw it (plans are cheap beside events) and refuse
+    one that would record past the AEDAT 2.0 clock, before the folder is made: the writer would
+    otherwise find it after the minutes of simulating what fits."""
+    from neurotac_cli.io.writers import AEDAT2_LAST_US
+
+    for number, seq in enumerate(np.random.SeedSequence(seed).spawn(sessions)):
+        session = _drawn(config, seq, n_grasps, f"session{number:02d}", min_duration_us, variation)[-1]
+        if session.led_off_camera_us + session.duration_us > AEDAT2_LAST_US:
+            fit = sum(session.led_off_camera_us + g.offset_us + g.stop_us <= AEDAT2_LAST_US for g in session.grasps)
+            raise UsageError(f"{session.name} would record {session.duration_us / 60e6:.1f} min, past the "
+                             f"{AEDAT2_LAST_US / 60e6:.1f} min of an AEDAT 2.0 file's clock (its first {fit} grasps fit); give "
+                             "fewer --grasps and more --sessions, or a shorter --duration")
 
 
 CHUNK_US = 2_000_000  # rests are generated and written in pieces of at most this length
@@ -456,6 +476,7 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
     if n_grasps and not object_pool(config):  # before the folder is made, not after
         raise UsageError(f"--grasps {n_grasps}: every group of --objects has a count of 0, so a session has no object to "
                          "grasp (give a group a count of 1 or more, or --grasps 0 for a session at rest)")
+    _refuse_sessions_past_the_clock(config, seed, n_grasps, sessions, variation, min_duration_us)
     prepare_folder(folder)
     width, height = config.sensor_width, config.sensor_height
     header = len(aedat2_bytes([], [], [], [], width, height))  # chunks after the first are written without it

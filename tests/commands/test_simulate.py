@@ -151,6 +151,9 @@ def test_the_objects_option_and_labels(tmp_path):
         (["--synced", "--hold-out", "bogus"], "unknown parameter family 'bogus'"),
         (["--synced", "--sensor", "0x0"], "Invalid value for '--sensor': cannot read size '0x0'"),
         (["--synced", "--hold-out", "membrane", "--unseen", "membrane"], "not both"),
+        (["--synced", "--force-range", "1e9..1e10"], "force_max_n must be at most 450 N"),
+        (["--synced", "--set", "force_max_n=500"], "force_max_n must be at most 450 N"),
+        (["--session", "--grasps", "100000000", "--out", "x"], "100000000 is not in the range 0<=x<=85899"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(args, message, tmp_path):
@@ -158,3 +161,23 @@ def test_bad_options_are_one_line_and_exit_2(args, message, tmp_path):
     assert result.exit_code == 2, result.output
     assert message in result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("args", [["--grasps", "2000"], ["--grasps", "0", "--duration", "2h"]])
+def test_a_session_longer_than_its_file_s_clock_is_refused_before_it_is_simulated(args, tmp_path):
+    """It simulated the 71 minutes that fit an AEDAT 2.0 file's 32-bit µs clock, some 25 minutes of
+    work, and then failed on the first event past it."""
+    out = tmp_path / "s"
+    result = CliRunner().invoke(cli, ["simulate", "--session", *args, "--out", str(out)])
+    assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+    assert "session00 would record" in result.output and "past the 71.6 min of an AEDAT 2.0 file's clock" in result.output
+    assert not out.exists()
+
+
+def test_the_bounds_the_help_states_are_those_the_simulator_keeps():
+    from neurotac_cli.commands.simulate import MAX_FORCE_N, MAX_GRASPS
+    from neurotac_cli.io.writers import AEDAT2_LAST_US
+    from neurotac_cli.ops.forcelog import RANGE_N
+    from neurotac_cli.sim.config import SESSION_REST_FLOOR_US
+
+    assert (MAX_GRASPS, MAX_FORCE_N) == (AEDAT2_LAST_US // SESSION_REST_FLOOR_US, RANGE_N)
