@@ -12,7 +12,7 @@ import pyarrow.compute as pc
 from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.units import counted
 from neurotac_cli.model.data import Sequences
-from neurotac_cli.model.curve import best_epoch
+from neurotac_cli.model.curve import best_epoch, member_curves
 
 
 def _group(cv: str) -> tuple[str, str]:
@@ -99,16 +99,17 @@ def validation_figures(model, train_table: pa.Table) -> dict:
     the restored best epoch. Force models: `val_mse` (N², every frame with a measured force, as the
     early stopping watched it: with deform-gru's members, each member's own estimate on its own draw,
     pooled); classifiers: `val_accuracy`; NaN without validation trials. Also
-    `epochs` trained and `best_epoch`, from the training curve (the GP's one-row curve: 1 and 0).
+    `epochs` trained and `best_epoch`, from the training curve (the GP's one-row curve: 1 and 0);
+    with deform-gru's members, the mean over the members' curves, since each stopped on its own draw.
     Thesis Tables 3.1 and 3.3, Fig. 4.4(a)."""
     from neurotac_cli import metrics
     from neurotac_cli import model as models
 
-    curve = model.training.get("curve") or []
-    best = best_epoch(curve)
+    curves = [curve for curve in member_curves(model.training).values() if curve]
+    bests = [best["epoch"] for best in map(best_epoch, curves) if best]
     figures = {
-        "epochs": float(len(curve)) if curve else float("nan"),
-        "best_epoch": float(best["epoch"]) if best else float("nan"),
+        "epochs": float(np.mean([len(curve) for curve in curves])) if curves else float("nan"),
+        "best_epoch": float(np.mean(bests)) if bests else float("nan"),
     }
     trials = model.training.get("trials", {}).get("validation") or []
     name = "val_accuracy" if model.task == "material" else "val_mse"

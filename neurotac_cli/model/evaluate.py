@@ -117,10 +117,10 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
     out-of-fold predictions, per fold (scope `fold:R/F`), and mean / σ over folds.
 
     Each fold also reports its validation score (`cv.validation_figures`: `val_mse` in N² for force
-    models, `val_accuracy` for classifiers, `epochs`, `best_epoch`) in its `fold:R/F` scope; their
-    mean and σ over folds are `val_mse_fold_mean` / `val_mse_fold_sd` ... in scope `all` (the
-    thesis's model-selection tables 3.1 and 3.3 and Fig. 4.4(a)). There is no pooled validation
-    figure: the folds' validation trials overlap."""
+    models, `val_accuracy` for classifiers, `epochs`, `best_epoch`: the members' mean for a model of
+    several) in its `fold:R/F` scope; their mean and σ over folds are `val_mse_fold_mean` /
+    `val_mse_fold_sd` ... in scope `all` (the thesis's model-selection tables 3.1 and 3.3 and Fig.
+    4.4(a)). There is no pooled validation figure: the folds' validation trials overlap."""
     data = sequences(table)
     groups, tasks = fold_tasks(data, spec, cv, repeats, seed, val_fraction, per, label)
     if progress:

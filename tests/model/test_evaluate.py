@@ -51,6 +51,20 @@ def test_a_folds_validation_error_is_the_restored_best_epochs_mse_in_newtons_squ
     assert validation["best_epoch"] == min(curve, key=lambda row: row["val_loss"])["epoch"]
 
 
+def test_a_folds_epochs_and_best_epoch_are_the_means_over_the_models_members():
+    """They were the first member's alone, though each member of a deform-gru stops on its own draw."""
+    frames = tiny_frames(trials=12)
+    spec = models.make_spec("deform-gru", members=3, epochs=12, patience=2, lr=0.02)
+    _, validation = run_fold(frames, spec, ["t0"], seed=3, val_fraction=0.25, per=None)
+
+    train_table = frames.filter(np.asarray(frames.column("trial").to_pylist()) != "t0")
+    model = models.train(train_table, spec, val_fraction=0.25, seed=3)
+    lengths = [len(curve) for curve in model.training["member_curves"]]
+    assert len(set(lengths)) > 1  # members that stopped apart, or the first's figures would pass for the mean
+    assert validation["epochs"] == pytest.approx(np.mean(lengths))
+    assert validation["best_epoch"] == pytest.approx(np.mean(model.training["member_best_epochs"]))
+
+
 def test_eval_cv_metrics_hold_validation_error_per_fold_and_its_mean_and_sd(frames_file, tmp_path):
     done = _run(["eval", "--cv", "loo", "--model-spec", "tdnn", "--layers", "1", "--units", "3", "--epochs", "3",
                  "--seed", "1", frames_file, "--metrics", str(tmp_path / "m.parquet"), "-o", str(tmp_path / "p.arrows")])
