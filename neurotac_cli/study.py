@@ -77,10 +77,7 @@ def run_tasks(
     `shared`: keyword arguments common to every task (the frames table of a whole study), sent once
     to each worker rather than once per task, and hashed once into every task's cache key:
     `run_tasks(fit_fold, [{"fold": 0, "seed": 1}, ...], shared={"frames": frames})` calls
-    `fit_fold(frames=frames, fold=0, seed=1)`.
-
-    `note`, when given, is told in one line how many tasks came from the cache: their time is not in
-    this run's, so a wall time measured around a resumed study counts only what ran now.
+    `fit_fold(frames=frames, fold=0, seed=1)`. `note(line)` hears how many came from the cache.
     """
     tasks = list(tasks)
     if scheduler and jobs not in (None, 0, 1):
@@ -98,9 +95,8 @@ def run_tasks(
     pending = {key: task for key, task in zip(keys, tasks) if key not in results}
 
     meter = Progress(len(dict.fromkeys(keys)), cached=len(results), label=label, enabled=progress)
-    if results and note is not None:
-        note(f"{label}: {len(results)} of {len(dict.fromkeys(keys))} tasks from the cache {cache_dir} "
-             "(finished before: this run's time leaves them out)")
+    if results and note is not None:  # a wall time measured around a resumed study counts only what runs now
+        note(f"{label}: {len(results)} of {meter.total} tasks from the cache {cache_dir} (finished before: this run's time leaves them out)")
 
     def finished(key, value):
         results[key] = value
