@@ -96,8 +96,7 @@ def run_tasks(
 
     meter = Progress(len(dict.fromkeys(keys)), cached=len(results), label=label, enabled=progress)
     if results and note is not None:  # a wall time measured around a resumed study counts only what runs now
-        note(f"{label}: {len(results)} of {meter.total} tasks from the cache {cache_dir} "
-             "(finished before: this run's time leaves them out)")
+        note(f"{label}: {len(results)} of {meter.total} tasks from the cache {cache_dir} (finished before: not in this run's time)")
 
     def finished(key, value):
         results[key] = value
