@@ -39,10 +39,10 @@ fi
 SEED=${SEED:-1}
 PYTHON=${PYTHON:-python}
 export NEUROTAC_CACHE=${NEUROTAC_CACHE:-$OUT/cache}
-# Whether the cache held trainings before this invocation (a resumed or repeated run): a study that
-# takes tasks from it may then report fewer seconds than its trainings cost (`once`). Within one run
-# from an empty cache, studies that share trainings count them once, in the study that ran them.
-CACHE_HELD=$(find "$NEUROTAC_CACHE" -name '*.pkl' -print -quit 2>/dev/null || true)
+# When this invocation began: a study that takes tasks the cache held from before (an earlier,
+# resumed or repeated run) reports fewer seconds than its trainings cost (`once`). Studies of one run
+# that share trainings count them once, in the study that ran them.
+STARTED_AT=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 # Each task trains on one thread (so results do not depend on where it ran): a standard or full run uses every
 # core through a process pool unless a Dask scheduler is given. Quick runs stay in-process, where
 # starting worker processes would cost more than their few small trainings.
@@ -68,10 +68,11 @@ once() {
   # stderr to the terminal and to the log (pipefail keeps neurotac's exit status), stdout dropped
   neurotac "$verb" "$@" --seed "$SEED" --metrics "$metrics" 2>&1 > /dev/null | tee "$log" >&2
   # The study's wall time, kept beside it so a resumed run still reports what the whole chapter cost.
-  # Seconds that leave out tasks an earlier run trained (neurotac names tasks taken from the cache)
-  # are marked "cached".
-  local seconds=$((SECONDS - started))
-  if [[ -n $CACHE_HELD ]] && grep -q "tasks from the cache" "$log"; then seconds="$seconds cached"; fi
+  # Seconds that leave out tasks an earlier run trained are marked "cached" (neurotac says when the
+  # oldest task it took from the cache finished).
+  local seconds=$((SECONDS - started)) oldest
+  oldest=$(sed -n 's/.* tasks from the cache .*, the oldest finished \([0-9TZ:-]*\) .*/\1/p' "$log" | sort | head -n 1)
+  if [[ -n $oldest && $oldest < $STARTED_AT ]]; then seconds="$seconds cached"; fi
   echo "$seconds" > "$DIR/$name.seconds"
 }
 

@@ -15,6 +15,7 @@ Core code: no click, nothing on stdout, no exits. Progress goes to stderr.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import dataclasses
 import errno
 import hashlib
@@ -96,7 +97,7 @@ def run_tasks(
 
     meter = Progress(len(dict.fromkeys(keys)), cached=len(results), label=label, enabled=progress)
     if results and note is not None:  # a wall time measured around a resumed study counts only what runs now
-        note(f"{label}: {len(results)} of {meter.total} tasks from the cache {cache_dir} (finished before: not in this run's time)")
+        note(cache.told(results, meter.total, label))
 
     def finished(key, value):
         results[key] = value
@@ -531,6 +532,14 @@ class _Cache:
 
     def keys(self) -> set[str]:
         return {path.stem for path in self.folder.glob("*/*.pkl")}
+
+    def told(self, keys, total: int, label: str) -> str:
+        """The line saying how many of a study's `total` tasks came from the cache, and when the oldest
+        of them finished (UTC, ISO 8601 to the second: a script compares it with its own start to tell
+        an earlier run's trainings from those its own studies shared)."""
+        written = min(self.path(key).stat().st_mtime for key in keys)
+        oldest = datetime.datetime.fromtimestamp(written, datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        return f"{label}: {len(keys)} of {total} tasks from the cache {self.folder}, the oldest finished {oldest} (not in this run's time)"
 
 
 def cached_keys(cache_dir) -> set[str]:

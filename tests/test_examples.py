@@ -209,6 +209,22 @@ def test_the_chapter_scripts_parse(script):
     assert done.returncode == 0, done.stderr
 
 
+@pytest.mark.parametrize("oldest, marked", [("2000-01-01T00:00:00Z", True), ("2999-01-01T00:00:00Z", False)])
+def test_a_study_s_seconds_are_marked_only_when_it_took_an_earlier_run_s_tasks_from_the_cache(tmp_path, oldest, marked):
+    # neurotac stands in as a shell function that says, as `eval --cv` does, when its oldest cached task finished
+    script = f'''
+        MODE=tiny OUT={tmp_path} source {EXAMPLES / "lib.sh"}
+        DIR={tmp_path}
+        neurotac() {{ echo "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished {oldest} (not in this run's time)" >&2; }}
+        study one --cv loo
+        wall_time
+    '''
+    done = subprocess.run(["bash", "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert ("cached" in (tmp_path / "one.seconds").read_text()) == marked
+    assert ("1 of them took tasks from the cache of an earlier run" in done.stdout) == marked
+
+
 @pytest.mark.slow
 def test_the_chapter_3_script_runs_end_to_end_at_a_tiny_size(tmp_path):
     """Simulate, sync, frame, crop, the TDNN and DNN grids, the GP, the figures and the results page:
