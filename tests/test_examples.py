@@ -529,3 +529,23 @@ def test_a_quick_members_run_tables_one_member_against_three_and_leaves_docs_alo
     assert "| rig 101 | 10.00 ± 2.00 | 11.00 ± 1.00 | 1.10 | ON/OFF thresholds" in text
     assert "Three members read lower than one on 1 of 2 physics; on average 0.95 times one member's error." in text
     assert not published
+
+
+def test_the_models_section_shows_a_lower_bound_where_a_study_took_an_earlier_run_s_tasks(tmp_path, monkeypatch):
+    results = load("results")
+    logs = {"fresh": "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished 2999-01-01T00:00:00Z (not in this run's time)\n",
+            "resumed": "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished 2000-01-01T00:00:00Z (not in this run's time)\n",
+            "none": ""}
+
+    def sh(command, log=None):  # stands in for `neurotac eval`: its metrics, its stderr and 42 s
+        pathlib.Path(command.split("--metrics ")[1].split()[0]).write_bytes(b"")
+        pathlib.Path(log).write_text(logs[log.name.split("-")[0]])
+        return 42.0
+
+    monkeypatch.setattr(results, "sh", sh)
+    monkeypatch.setattr(results, "metrics", lambda path: {})
+    timing = {}
+    for tag in logs:
+        results.evaluate(tmp_path, "data", tag, "--cv loo", timing)
+    assert timing == {"fresh": "42 s", "resumed": "≥ 42 s", "none": "42 s"}
+
