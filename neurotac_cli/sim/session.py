@@ -389,15 +389,37 @@ class SessionResult:
     true_force_n: list = field(default_factory=list)
 
 
-def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: int, events_sink, force_sink,
-                     name: str = "session", variation=None, min_duration_us: int = 0, progress=None) -> SessionResult:
-    """Generate one session chunk by chunk: each chunk, the rest before a grasp and the grasp, goes to
+@dataclass
+class SessionDraw:
+    """What a session's seed decides before any event: its physics (`config`, drawn once per session
+    with --vary), the plan of its grasps, and the random streams and seeds the simulation goes on with."""
+
+    config: SimConfig
+    physics: dict
+    session: Session
+    streams: list  # physics, camera, plan, LED and drift
+    chunk_seeds: np.random.SeedSequence
+
+
+def draw_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: int, name: str = "session",
+                 variation=None, min_duration_us: int = 0) -> SessionDraw:
+    children = seq.spawn(5)
+    streams = [np.random.default_rng(s) for s in children[:4]]
+    physics = {}
+    if variation is not None:  # the sensor's physics once per session; the objects family per grasp (plan_session)
+        config, physics = variation.without("objects").draw(config, streams[0])
+    session = plan_session(config, streams[2], n_grasps, name, min_duration_us, variation)
+    return SessionDraw(config, physics, session, streams, children[4])
+
+
+def simulate_session(draw: SessionDraw, events_sink, force_sink, progress=None) -> SessionResult:
+    """Generate one drawn session chunk by chunk: each chunk, the rest before a grasp and the grasp, goes to
     `events_sink(t_camera_us, x, y, p)` and `force_sink(t_us, reading_n)` before the next is made."""
-    config, physics, children, streams, session = _drawn(config, seq, n_grasps, name, min_duration_us, variation)
+    config, physics, session, streams = draw.config, draw.physics, draw.session, draw.streams
     camera = dvs.make_camera(config, streams[1])
     (led_t, led_x, led_y, led_p), residual = dvs.led_events(config, camera, -session.led_on_us, 0, streams[3])
     drift = _Drift(config, camera, residual, streams[3]) if config.illumination_drift > 0 else None
-    chunk_seeds = children[4]  # spawned in turn, two per chunk: noise, force sensor
+    chunk_seeds = draw.chunk_seeds  # spawned in turn, two per chunk: noise, force sensor
     clock = session.led_off_camera_us  # camera time of the session's 0
     result = SessionResult(session, physics)
     for start, end, planned in _chunks(session):
@@ -423,24 +445,12 @@ def simulate_session(config: SimConfig, seq: np.random.SeedSequence, n_grasps: i
     return result
 
 
-def _drawn(config: SimConfig, seq: np.random.SeedSequence, n_grasps: int, name: str, min_duration_us: int, variation):
-    """(config, physics drawn, child seeds, random streams, plan) of a session, drawn from `seq`."""
-    children = seq.spawn(5)
-    streams = [np.random.default_rng(s) for s in children[:4]]  # physics, camera, plan, LED and drift
-    physics = {}
-    if variation is not None:  # the sensor's physics once per session; the objects family per grasp (plan_session)
-        config, physics = variation.without("objects").draw(config, streams[0])
-    return config, physics, children, streams, plan_session(config, streams[2], n_grasps, name, min_duration_us, variation)
-
-
-def _refuse_sessions_past_the_clock(config: SimConfig, seed: int, n_grasps: int, sessions: int, variation, min_duration_us: int):
-    """Plan every session as `write_sessions` will draw it (plans are cheap beside events) and refuse
-    one that would record past the AEDAT 2.0 clock, before the folder is made: the writer would
-    otherwise find it after the minutes of simulating what fits."""
+def _refuse_sessions_past_the_clock(sessions: list):
+    """Refuse a planned session that would record past the AEDAT 2.0 clock, before the folder is made:
+    the writer would otherwise find it after the minutes of simulating what fits."""
     from neurotac_cli.io.writers import AEDAT2_LAST_US
 
-    for number, seq in enumerate(np.random.SeedSequence(seed).spawn(sessions)):
-        session = _drawn(config, seq, n_grasps, f"session{number:02d}", min_duration_us, variation)[-1]
+    for session in sessions:
         if session.led_off_camera_us + session.duration_us > AEDAT2_LAST_US:
             fit = sum(session.led_off_camera_us + g.offset_us + g.stop_us <= AEDAT2_LAST_US for g in session.grasps)
             raise UsageError(f"{session.name} would record {session.duration_us / 60e6:.1f} min, past the "
@@ -476,13 +486,16 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
     if n_grasps and not object_pool(config):  # before the folder is made, not after
         raise UsageError(f"--grasps {n_grasps}: every group of --objects has a count of 0, so a session has no object to "
                          "grasp (give a group a count of 1 or more, or --grasps 0 for a session at rest)")
-    _refuse_sessions_past_the_clock(config, seed, n_grasps, sessions, variation, min_duration_us)
+    # every session planned first (plans are cheap beside events), so a session too long is refused before any work
+    draws = [draw_session(config, seq, n_grasps, f"session{number:02d}", variation, min_duration_us)
+             for number, seq in enumerate(np.random.SeedSequence(seed).spawn(sessions))]
+    _refuse_sessions_past_the_clock([draw.session for draw in draws])
     prepare_folder(folder)
     width, height = config.sensor_width, config.sensor_height
     header = len(aedat2_bytes([], [], [], [], width, height))  # chunks after the first are written without it
     rows, grasp_rows, written = [], [], []
-    for number, seq in enumerate(np.random.SeedSequence(seed).spawn(sessions)):
-        name = f"session{number:02d}"
+    for draw in draws:
+        name = draw.session.name
         events_path = os.path.join(folder, f"{name}.aedat")
         force_path = os.path.join(folder, f"{name}_force.csv")
         with atomic_file(events_path) as events_tmp, open(events_tmp, "wb") as events, \
@@ -490,10 +503,10 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
             events.write(aedat2_bytes([], [], [], [], width, height))
             forces.write(FORCE_HEADER)
             result = simulate_session(
-                config, seq, n_grasps,
+                draw,
                 lambda t, x, y, p: events.write(aedat2_bytes(t, x, y, p, width, height)[header:]),
                 lambda t, v: forces.write(force_lines(t, v)),
-                name, variation, min_duration_us, progress,
+                progress,
             )
         rows.append(session_row(result))
         grasp_rows += [grasp_row(name, planned) for planned in result.session.grasps]
