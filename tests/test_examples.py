@@ -209,13 +209,31 @@ def test_the_chapter_scripts_parse(script):
     assert done.returncode == 0, done.stderr
 
 
-@pytest.mark.parametrize("oldest, marked", [("2000-01-01T00:00:00Z", True), ("2999-01-01T00:00:00Z", False)])
-def test_a_study_s_seconds_are_marked_only_when_it_took_an_earlier_run_s_tasks_from_the_cache(tmp_path, oldest, marked):
-    # neurotac stands in as a shell function that says, as `eval --cv` does, when its oldest cached task finished
+def cache_line(folder, finished: float) -> str:
+    """The line `eval --cv` prints on taking tasks from a study cache whose entries finished at `finished` (epoch s)."""
+    import os
+
+    from neurotac_cli.study import _Cache
+
+    cache, keys = _Cache(folder), ["a" * 32, "b" * 32]
+    for key in keys:
+        cache.path(key).parent.mkdir(parents=True, exist_ok=True)
+        cache.path(key).write_bytes(b"")
+        os.utime(cache.path(key), (finished, finished))
+    return cache.told(keys, 5, "tdnn folds")
+
+
+EARLIER, LATER = 946684800.0, 32503680000.0  # 2000 and 2999: before and after any run of these tests
+
+
+@pytest.mark.parametrize("finished, marked", [(EARLIER, True), (LATER, False)])
+def test_a_study_s_seconds_are_marked_only_when_it_took_an_earlier_run_s_tasks_from_the_cache(tmp_path, finished, marked):
+    # neurotac stands in as a shell function that prints, as `eval --cv` does, the line of the tasks it took from the cache
+    line = cache_line(tmp_path / "cache", finished)
     script = f'''
         MODE=tiny OUT={tmp_path} source {EXAMPLES / "lib.sh"}
         DIR={tmp_path}
-        neurotac() {{ echo "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished {oldest} (not in this run's time)" >&2; }}
+        neurotac() {{ echo "{line}" >&2; }}
         study one --cv loo
         wall_time
     '''
@@ -533,8 +551,7 @@ def test_a_quick_members_run_tables_one_member_against_three_and_leaves_docs_alo
 
 def test_the_models_section_shows_a_lower_bound_where_a_study_took_an_earlier_run_s_tasks(tmp_path, monkeypatch):
     results = load("results")
-    logs = {"fresh": "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished 2999-01-01T00:00:00Z (not in this run's time)\n",
-            "resumed": "tdnn folds: 2 of 5 tasks from the cache c, the oldest finished 2000-01-01T00:00:00Z (not in this run's time)\n",
+    logs = {"fresh": cache_line(tmp_path / "later", LATER) + "\n", "resumed": cache_line(tmp_path / "earlier", EARLIER) + "\n",
             "none": ""}
 
     def sh(command, log=None):  # stands in for `neurotac eval`: its metrics, its stderr and 42 s
@@ -548,4 +565,3 @@ def test_the_models_section_shows_a_lower_bound_where_a_study_took_an_earlier_ru
     for tag in logs:
         results.evaluate(tmp_path, "data", tag, "--cv loo", timing)
     assert timing == {"fresh": "42 s", "resumed": "≥ 42 s", "none": "42 s"}
-
