@@ -131,7 +131,8 @@ def input_paths(function):
 
 
 class TablePath(click.Path):
-    """A path to write a table to: its suffix names the format, so an unknown one is a usage error."""
+    """A path to write a table to: its suffix names the format, so an unknown one is a usage error,
+    but for a pipe or device (/dev/stdout, a shell's `>(...)`), which gets stdout's stream."""
 
     SUFFIXES = (".parquet", ".pq", ".arrow", ".feather", ".arrows", ".csv", ".json", ".ndjson")  # as tables.SUFFIXES
 
@@ -139,8 +140,10 @@ class TablePath(click.Path):
         super().__init__(dir_okay=False, writable=True, allow_dash=True)
 
     def convert(self, value, param, ctx):
+        from neurotac_cli.tables import is_special  # here: loading pyarrow for --help costs every command's start
+
         path = super().convert(value, param, ctx)
-        if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES:
+        if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES and not is_special(str(path)):
             self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)", param, ctx)
         return path
 
@@ -167,7 +170,7 @@ def output_option(function):
         type=TablePath(),
         default=None,
         help="Write to this file (.parquet, .arrow, .feather or .arrows by suffix; .csv, .json or .ndjson for "
-        "tables without tensors) instead of stdout.",
+        "tables without tensors) instead of stdout; a pipe or device (/dev/stdout, a shell's >(...)) gets stdout's stream.",
     )(function)
 
 

@@ -5,7 +5,7 @@ bytes: IPC stream (0xFFFFFFFF), Arrow file (ARROW1) or Parquet (PAR1). Concatena
 one source (`cat a.arrows b.arrows |`) read as one table.
 
 Writing: an IPC stream on stdout, or -o PATH by suffix, through a temporary file renamed when
-complete. Every write appends one entry to `neurotac:history`.
+complete; a pipe or device given as -o (/dev/stdout, a shell's `>(...)`) gets the stream straight through. Every write appends one entry to `neurotac:history`.
 """
 
 import errno
@@ -373,9 +373,22 @@ def refuse_terminal():
         )
 
 
+def is_special(path: str) -> bool:
+    """An existing path that is not a regular file or folder: a pipe (a shell's `>(...)`, a FIFO),
+    /dev/stdout or /dev/null. It is written straight through, with the stream stdout gets (CSV or
+    JSON where its suffix names them)."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
 def output_format(path: str) -> str:
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in SUFFIXES:
+        if is_special(path):
+            return "stream"
         raise NeurotacError(f"cannot tell the format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)")
     return SUFFIXES[suffix]
 
@@ -388,7 +401,7 @@ def check_folder(*paths) -> None:
     for path in paths:
         if path == "":  # an unset shell variable: found now, not after the work, when the write fails
             raise UsageError("an empty output path was given (an unset shell variable?)")
-        if path == "-":  # stdout, not a file in the working folder
+        if path == "-" or path == os.devnull:  # not files in a folder: /dev/null takes any number of outputs
             continue
         # the folder resolved, the name not: a write renames over a link named here, not its target
         real = os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(path))), os.path.basename(path))
@@ -407,9 +420,13 @@ def atomic_file(path: str):
     """A temporary file beside `path` to write into: it replaces `path` when the block ends without
     an error and is removed when it fails, so a failed run never leaves a half-written file that
     looks whole and an existing `path` is kept. It gets the permissions a file the shell creates
-    gets (mkstemp's are 0600). A missing, full, read-only or vanished folder is one clear error."""
+    gets (mkstemp's are 0600). A missing, full, read-only or vanished folder is one clear error.
+    A pipe or device (`is_special`: /dev/null, a shell's `>(...)`) is never renamed over: the
+    finished file's bytes are copied into it, and the temporary file sits in the temporary folder
+    (the device's folder, /dev, is not one to write in)."""
     check_folder(path)
-    folder = os.path.dirname(os.path.abspath(path))
+    special = is_special(path)
+    folder = tempfile.gettempdir() if special else os.path.dirname(os.path.abspath(path))
     try:
         handle, temporary = tempfile.mkstemp(prefix=".neurotac-", suffix=".part", dir=folder)
     except OSError as error:
@@ -420,8 +437,14 @@ def atomic_file(path: str):
     os.chmod(temporary, 0o666 & ~umask)
     try:
         yield temporary
-        os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
-        os.replace(temporary, path)
+        if special:
+            import shutil
+
+            with open(temporary, "rb") as finished, open(path, "wb") as sink:
+                shutil.copyfileobj(finished, sink)
+        else:
+            os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
+            os.replace(temporary, path)
     except OSError as error:
         # the block also pulls the input: only an error of writing here is ours to describe
         if error.errno not in OutputError.WHY or (error.errno == errno.ENOENT and os.path.isdir(folder)):
@@ -449,16 +472,19 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
     schema = with_step(schema, step)
     if output in (None, "-"):
         refuse_terminal()
-        sink = _WholeWrites(getattr(sys.stdout, "buffer", sys.stdout))
-        writer = ipc.new_stream(sink, schema)
-        for batch in batches:
-            writer.write_batch(_with_schema(batch, schema))
-            if flush_each:
-                sink.flush()
-        writer.close()
-        sink.flush()
+        _write_stream(getattr(sys.stdout, "buffer", sys.stdout), schema, batches, flush_each)
         return
     fmt = output_format(output)
+    if is_special(output) and fmt not in ("csv", "json", "ndjson"):
+        # a pipe cannot seek, which Parquet and the Arrow file need: it gets stdout's stream,
+        # which every neurotac command reads whatever the name says
+        try:
+            handle = open(output, "wb")
+        except OSError as error:
+            raise OutputError.from_os(output, error) from None
+        with handle:
+            _write_stream(handle, schema, batches, flush_each)
+        return
     with atomic_file(output) as temporary:
         if fmt in ("csv", "json", "ndjson"):
             from neurotac_cli.textout import write_text
@@ -477,6 +503,18 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
                 for batch in batches:
                     writer.write_batch(_with_schema(batch, schema))
                 writer.close()
+
+
+def _write_stream(raw, schema: pa.Schema, batches, flush_each: bool):
+    """The Arrow IPC stream, which needs no seeking, into a binary file object (stdout, a pipe)."""
+    sink = _WholeWrites(raw)
+    writer = ipc.new_stream(sink, schema)
+    for batch in batches:
+        writer.write_batch(_with_schema(batch, schema))
+        if flush_each:
+            sink.flush()
+    writer.close()
+    sink.flush()
 
 
 class _WholeWrites:

@@ -240,3 +240,59 @@ def test_outputs_that_name_one_file_are_told_from_stdout_and_from_a_link(tmp_pat
                   [str(tmp_path / "a.png"), str(tmp_path / "sub" / ".." / "a.png")]):
         with pytest.raises(UsageError, match="two outputs name one file"):
             check_folder(*twice)
+
+
+def _drain(path):
+    """Read a FIFO to its end in a thread (a writer blocks until a reader opens it)."""
+    import threading
+
+    got = {}
+    thread = threading.Thread(target=lambda: got.setdefault("bytes", open(path, "rb").read()), daemon=True)
+    thread.start()
+    return thread, got
+
+
+@pytest.mark.parametrize("name", ["pipe", "pipe.parquet", "pipe.arrow"])
+def test_a_pipe_given_as_output_gets_the_stream_and_stays_a_pipe(tmp_path, name):
+    """`-o >(...)` or a FIFO: a pipe cannot seek, so it gets the stream stdout gets, whatever its name
+    says, and is never renamed over."""
+    import stat
+
+    (tmp_path / "pipes").mkdir()
+    fifo = tmp_path / "pipes" / name
+    os.mkfifo(fifo)
+    thread, got = _drain(fifo)
+    tables.write(str(fifo), events(), step=("test", {}))
+    thread.join(10)
+    assert got["bytes"].startswith(tables.STREAM_MAGIC)
+    (tmp_path / "copy").write_bytes(got["bytes"])
+    assert tables.read([str(tmp_path / "copy")]).column("t").equals(events().column("t"))
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.listdir(tmp_path / "pipes") == [name]
+
+
+def test_every_other_output_into_a_pipe_is_copied_in_not_renamed_over(tmp_path):
+    """Model files, plots and CSV are finished in the temporary folder and copied into a pipe or
+    device: a rename over /dev/null would replace it for the whole machine."""
+    import stat
+
+    fifo = tmp_path / "model"
+    os.mkfifo(fifo)
+    thread, got = _drain(fifo)
+    with tables.atomic_file(str(fifo)) as temporary:
+        assert os.path.dirname(temporary) != str(tmp_path)
+        with open(temporary + ".next", "wb") as handle:  # a writer that replaces its file, as safetensors does
+            handle.write(b"finished")
+        os.replace(temporary + ".next", temporary)
+    thread.join(10)
+    assert got["bytes"] == b"finished"
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.listdir(tmp_path) == ["model"]
+
+
+def test_a_pipe_without_a_table_suffix_is_an_output_path(tmp_path):
+    from neurotac_cli.options import TablePath
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    assert TablePath().convert(str(fifo), None, None) == str(fifo)
+    with pytest.raises(Exception, match="suffix"):
+        TablePath().convert(str(tmp_path / "file"), None, None)
