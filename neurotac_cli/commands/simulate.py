@@ -82,7 +82,8 @@ MAX_FORCE_N = 450  # sim.config.validate's bound on force_max_n: the largest ran
 @seed_option
 @click.option("--objects", "groups", default=None, metavar="MAT:OBJ:N,...",
               help="Trial groups instead of the preset's, e.g. steel:bolt8:5,foam:hex:5,rubber:sphere10:3 "
-                   "(objects: hex, hexSIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label).")
+                   "(objects: hex, hexSIZE_MM, boltSIZE_MM, sphereDIAMETER_MM; add :NAME=VALUE for a label); "
+                   "at most 20000 trials in one run; with --session the counts weigh the draw.")
 @click.option("--force-range", default=None, metavar="LOW..HIGH",
               help="Peak force of each grasp drawn uniformly in this range, in newtons, e.g. 0.5..3.7; HIGH at most "
                    f"{MAX_FORCE_N} N, the largest range of the rig's force sensors (the presets go up to 25 N).")

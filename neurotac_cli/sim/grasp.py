@@ -42,6 +42,9 @@ class Grasp:
         return self.camera_start_us + self.preroll_us + self.led_on_us
 
 
+MAX_TRIALS = 20_000
+
+
 def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None = None) -> list[Grasp]:
     """Draw every trial's plan. `trials` keeps that many, spread over the groups in turn (a small data set)."""
     groups = parse_groups(config.groups)
@@ -52,6 +55,10 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
         raise UsageError(f"--trials {trials} is more than the {total} grasps of the preset's groups (or --objects); "
                          f"give --trials {total} or fewer, or more grasps per group with --objects")
     wanted = total if trials is None else trials  # the queue holds only what is written: a huge group with --trials 1 stays small
+    if wanted > MAX_TRIALS:  # found now, not hours later when memory or the disk runs out
+        raise UsageError(f"{wanted} trials is more than the {MAX_TRIALS} one run simulates (a --synced table holds every "
+                         "trial's events in memory, about 0.2 MB each): simulate fewer (--trials or smaller --objects counts), "
+                         "or several runs with their own --seed joined by `neurotac concat --rename`")
     while len(queue) < wanted:
         for index, group in enumerate(groups):
             if remaining[index] and len(queue) < wanted:

@@ -190,6 +190,12 @@ def test_trials_beyond_the_groups_are_refused_and_a_few_of_a_huge_group_are_plan
     assert len(plan_grasps(preset_config("ch4"), np.random.default_rng(0), 35)) == 35
     (grasp,) = plan_grasps(preset_config("ch4", groups=("steel:hex:1000000000000",)), np.random.default_rng(0), 1)
     assert grasp.material == "steel"
+    with pytest.raises(UsageError, match="100000000 trials is more than the 20000 one run simulates"):  # ran until memory ran out
+        plan_grasps(preset_config("ch4", groups=("steel:hex:100000000",)), np.random.default_rng(0))
+    from neurotac_cli.commands.simulate import command
+    from neurotac_cli.sim.grasp import MAX_TRIALS
+
+    assert f"at most {MAX_TRIALS} trials" in next(p.help for p in command.params if p.name == "groups")
 
 
 def test_presets_follow_the_thesis_designs():
