@@ -5,7 +5,8 @@ docs/results.md: tables in the shape of thesis Tables 4.3, 4.4, 4.5 (force, held
 3.4 (materials, also with peak force independent of material), then every model on physics training
 never saw and on rigs of other physics, each trained on its own grasps. Every figure is read from
 the metrics tables that `neurotac eval` writes in the same run; intermediate files go to --work and
-are reused when present, so an interrupted run resumes.
+are reused when present, and each study's trainings to its study cache (NEUROTAC_CACHE, by default
+WORK/cache), so an interrupted run resumes inside the study it was in.
 
     make -C examples models                                            # as in docs/results.md
     .venv/bin/python examples/results.py --work results-work --repeats 1 --kfold-repeats 1 --material-repeats 1 --physics-repeats 1
@@ -481,6 +482,8 @@ def main():
     args = parser.parse_args()
     work = pathlib.Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
+    # each training of a study kept as it finishes: a run cut off inside a study resumes there, not at its start
+    os.environ.setdefault("NEUROTAC_CACHE", str((work / "cache").resolve()))
     (ROOT / "docs" / "img").mkdir(parents=True, exist_ok=True)
     if shutil.which("nice") is None:
         raise SystemExit("needs `nice` (coreutils)")
