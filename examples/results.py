@@ -362,21 +362,31 @@ def constant_pct(train, test) -> float:
 RIGS = (101, 102, 103)  # seeds of the rigs: every physics family drawn once, over its whole range
 
 
-def rig(seed: int):
-    """The physics of one rig (a fixed sensor: one draw of every family) as simulate's --set options, and a short description."""
+def drawn(seed: int) -> dict:
+    """One rig's physics: every family drawn once over its whole range, parameter -> value."""
     import numpy as np
 
     from neurotac_cli.sim import physics
     from neurotac_cli.sim.config import preset_config
 
-    base = preset_config("ch4")
-    _, values = physics.Variation(tuple(physics.FAMILIES)).draw(base, np.random.default_rng(seed))
-    options = " ".join(f"--set {k}={round(v)}us" if k.endswith("_us") else f"--set {k}={v:.6g}" if isinstance(v, float) else f"--set {k}={v}"
-                       for k, v in values.items())
+    return physics.Variation(tuple(physics.FAMILIES)).draw(preset_config("ch4"), np.random.default_rng(seed))[1]
+
+
+def set_options(values: dict) -> str:
+    """Drawn values as simulate's --set options."""
+    return " ".join(f"--set {k}={round(v)}us" if k.endswith("_us") else f"--set {k}={v:.6g}" if isinstance(v, float) else f"--set {k}={v}"
+                    for k, v in values.items())
+
+
+def rig(seed: int):
+    """The physics of one rig (a fixed sensor: one draw of every family) as simulate's --set options, and a short description."""
+    from neurotac_cli.sim.config import preset_config
+
+    base, values = preset_config("ch4"), drawn(seed)
     about = (f"ON/OFF thresholds {values['on_threshold']:.2f}/{values['off_threshold']:.2f}, membrane x{values['membrane_youngs_pa'] / base.membrane_youngs_pa:.2f} "
              f"as stiff with creep {values['creep']:.2f}, saturation at {values['saturation_force_n']:.1f} N, face tilt s.d. {values['tilt_deg']:.2f}°, "
              f"{values['hot_pixels']} hot pixels")
-    return options, about
+    return set_options(values), about
 
 
 def rigs_section(work, repeats, timing, default: dict) -> list:

@@ -549,6 +549,28 @@ def test_a_quick_members_run_tables_one_member_against_three_and_leaves_docs_alo
     assert not published
 
 
+def test_a_quick_rig_families_run_puts_one_family_of_the_rig_on_the_default_physics_and_leaves_docs_alone(tmp_path, monkeypatch):
+    families = load("rig_families")
+    made = {}
+    monkeypatch.setattr(families, "frames", lambda work, name, pipeline, simulate: made.setdefault(name, simulate) and tmp_path / name)
+    figures = {"ch4": 4.0, "ch4-rig101-pixels": 5.0, "ch4-rig101-membrane": 3.0, "ch4-rig101": 9.0}
+    monkeypatch.setattr(families, "scores", lambda work, data, tag, count, seeds: (figures[tag], 0.1))
+    published = []
+    monkeypatch.setattr(families, "publish", published.append)
+    families.main(["--quick", "--work", str(tmp_path)])
+    text = (tmp_path / "rig-families.md").read_text()
+    values = families.drawn(101)
+    assert made["ch4"] == "--seed 1"
+    assert made["ch4-rig101-pixels"].startswith(f"--seed 1 --set on_threshold={values['on_threshold']:.6g} --set off_threshold=")
+    assert "membrane_youngs_pa" not in made["ch4-rig101-pixels"] and "on_threshold" not in made["ch4-rig101-membrane"]
+    assert made["ch4-rig101"] == "--seed 1 " + families.rig(101)[0]
+    assert "| pixels | 5.00 (1.25x) |" in text and "| membrane | 3.00 (0.75x) |" in text
+    assert "| every family (the rig) | 9.00 (2.25x) |" in text and "| product of the families' ratios | 0.94x |" in text
+    assert "The family that costs most alone: rig 101, pixels (1.25x)." in text
+    assert "No family alone reaches its rig's whole error on any of the 1 rigs" in text
+    assert not published
+
+
 def test_the_models_section_shows_a_lower_bound_where_a_study_took_an_earlier_run_s_tasks(tmp_path, monkeypatch):
     results = load("results")
     logs = {"fresh": cache_line(tmp_path / "later", LATER) + "\n", "resumed": cache_line(tmp_path / "earlier", EARLIER) + "\n",
