@@ -250,6 +250,21 @@ def test_a_write_a_signal_cuts_short_is_carried_to_its_last_byte():
     assert whole.write(b"abcdefgh") == 8 and sink.data == b"abcdefgh" and whole.tell() == 8
 
 
+@pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_ends_an_import_of_a_fifo_nobody_writes_to(tmp_path, number):
+    """Opening a FIFO waits for its writer; the stop request must still end that wait."""
+    os.mkfifo(tmp_path / "cam.fifo")
+    process = subprocess.Popen(["neurotac", "import", str(tmp_path / "cam.fifo")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(1.0)
+    process.send_signal(number)
+    try:
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    lines = stderr.decode().strip().splitlines()
+    assert process.returncode == 1 and len(lines) == 1 and "stopped before anything wrote" in lines[0], stderr
+
+
 def test_ctrl_c_before_the_header_is_one_line(tmp_path):
     (tmp_path / "cam.raw").write_bytes(b"")
     process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
