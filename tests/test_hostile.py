@@ -899,3 +899,19 @@ def test_a_force_log_with_a_repeated_time_names_the_time_and_what_to_do(tmp_path
     tables.write(str(tmp_path / "cam.arrows"), events([1, 2], [1, 2], [0, 1], 32, 32))
     code, stderr, _ = invoke(["sync", str(tmp_path / "cam.arrows"), "--force", str(tmp_path / "force.csv")])
     assert code == 1 and "force time repeats 6 ms at sample 5 of trial 1" in stderr and "drop repeated rows" in stderr, stderr
+
+
+@pytest.mark.parametrize("reader, what", [("neurotac_cli.io.force:read_force_log", "a force log"),
+                                          ("neurotac_cli.io.slips:read_slips", "a CSV of true slips")])
+def test_a_device_that_never_ends_is_refused_where_a_file_is_read_whole(reader, what):
+    """/dev/zero as `sync --force` or `frame --slips`: refused at once, not read until memory runs out
+    (in a process of bounded memory, so the test cannot take the machine's)."""
+    import subprocess
+    import sys
+
+    module, name = reader.split(":")
+    code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))\n"
+            f"from {module} import {name}\nfrom neurotac_cli.errors import NeurotacError\n"
+            f"try:\n    {name}('/dev/zero')\nexcept NeurotacError as error:\n    print(error)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.stdout.strip() == f"/dev/zero is a device, not {what} (read whole, it would never end); save it to a file and give that", done.stderr[-500:]

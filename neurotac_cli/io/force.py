@@ -17,6 +17,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli.errors import FormatError, InputError
+from neurotac_cli.io.reader import refuse_device
 
 TIME_UNITS_US = {"ns": 1e-3, "us": 1.0, "µs": 1.0, "ms": 1e3, "s": 1e6, "min": 6e7}
 FORCE_UNITS_N = {"n": 1.0, "mn": 1e-3, "kn": 1e3, "g": 9.80665e-3, "kg": 9.80665, "lbf": 4.4482216}
@@ -65,6 +66,7 @@ def read_table(path: str) -> pa.Table:
         raise InputError(f"{path}: is a folder, not a force log")
     if not os.path.exists(path):
         raise InputError(f"{path}: no such force log")
+    refuse_device(path, "a force log")
     try:
         with open(path, "rb") as handle:
             data = handle.read()

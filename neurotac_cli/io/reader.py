@@ -5,12 +5,13 @@ them by format name and `io.camera` turns their chunks into `events` batches.
 """
 
 import os
+import stat
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 import numpy as np
 
-from neurotac_cli.errors import FormatError
+from neurotac_cli.errors import FormatError, InputError
 from neurotac_cli.units import MAX_SIDE
 
 CHUNK_BYTES = 8 << 20  # bytes of camera data decoded at a time: memory does not grow with the file
@@ -24,6 +25,25 @@ class Decoded:
     chunks: Callable[[], Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]]
     meta: dict = field(default_factory=dict)
     cut_bytes: int = 0  # bytes after the last whole record (a file cut mid-record): not decoded
+
+
+def refuse_device(path: str, what: str) -> None:
+    """Refuse a device that gives bytes (/dev/zero, a serial port) as a file read whole into memory:
+    it never ends, and the read would take all memory. An empty one (/dev/null) is left to the
+    reader's own message for an empty file; a pipe or FIFO ends when its writer does."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return
+    if not (stat.S_ISCHR(mode) or stat.S_ISBLK(mode)):
+        return
+    try:
+        with open(path, "rb") as handle:
+            if not handle.read(1):
+                return
+    except OSError:
+        return
+    raise InputError(f"{path} is a device, not {what} (read whole, it would never end); save it to a file and give that")
 
 
 def check_sensor(sensor: tuple[int, int] | None) -> tuple[int, int] | None:

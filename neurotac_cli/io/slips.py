@@ -4,6 +4,7 @@ import csv
 import math
 
 from neurotac_cli.errors import NeurotacError
+from neurotac_cli.io.reader import refuse_device
 
 START, END = "slip_start_ms", "slip_end_ms"
 TRIAL_COLUMNS = ("trial", "session")  # `simulate --session` names a session's trial in `session`
@@ -14,6 +15,7 @@ def read_slips(path: str) -> dict[str, list[tuple[int, int]]]:
     slip_start_ms / slip_end_ms on the trial's synced clock. Rows with no slip start (grasps that
     did not slip, as in `simulate --session`'s grasps.csv) are skipped; every other row must hold a
     slip that ends after it starts."""
+    refuse_device(path, "a CSV of true slips")
     try:
         with open(path, encoding="utf-8-sig", newline="") as source:  # a spreadsheet's export may start with a byte-order mark
             reader = csv.DictReader(source)
