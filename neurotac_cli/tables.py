@@ -412,7 +412,20 @@ def check_folder(*paths) -> None:
     for path in paths:
         directory = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(directory):
+            above = next((folder for folder in _folders_up(directory) if os.path.exists(folder)), directory)
+            if not os.path.isdir(above):  # `file.txt/out.parquet`: saying the folder is missing would send one to make it
+                raise NeurotacError(f"cannot write {path}: {above} is a file, not a folder; give a path in a folder")
             raise NeurotacError(f"cannot write {path}: folder {directory} does not exist")
+
+
+def _folders_up(directory: str) -> Iterator[str]:
+    """`directory` and each folder above it, nearest first."""
+    while True:
+        yield directory
+        parent = os.path.dirname(directory)
+        if parent == directory:
+            return
+        directory = parent
 
 
 @contextmanager

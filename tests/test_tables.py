@@ -242,6 +242,16 @@ def test_outputs_that_name_one_file_are_told_from_stdout_and_from_a_link(tmp_pat
             check_folder(*twice)
 
 
+def test_an_output_under_a_regular_file_names_the_file_not_a_missing_folder(tmp_path):
+    """`file.txt/out.parquet`: "folder file.txt does not exist" would send one to make a folder that cannot be made."""
+    (tmp_path / "file.txt").write_text("hi")
+    for path in (tmp_path / "file.txt" / "out.parquet", tmp_path / "file.txt" / "a" / "out.parquet"):
+        with pytest.raises(NeurotacError, match=f"^cannot write {path}: {tmp_path / 'file.txt'} is a file, not a folder; give a path in a folder$"):
+            tables.check_folder(str(path))
+    with pytest.raises(NeurotacError, match="folder .* does not exist"):
+        tables.check_folder(str(tmp_path / "no" / "out.parquet"))
+
+
 def _drain(path):
     """Read a FIFO to its end in a thread (a writer blocks until a reader opens it)."""
     import threading
