@@ -915,3 +915,14 @@ def test_a_device_that_never_ends_is_refused_where_a_file_is_read_whole(reader, 
             f"try:\n    {name}('/dev/zero')\nexcept NeurotacError as error:\n    print(error)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.stdout.strip() == f"/dev/zero is a device, not {what} (read whole, it would never end); save it to a file and give that", done.stderr[-500:]
+
+
+@pytest.mark.parametrize("kind", ["device", "fifo"])
+def test_a_manifest_that_is_a_device_or_pipe_is_named_so_not_missing(tmp_path, kind):
+    import os
+
+    path = "/dev/null" if kind == "device" else str(tmp_path / "manifest.csv")
+    if kind == "fifo":
+        os.mkfifo(path)
+    code, stderr, _ = invoke(["sync", "--manifest", path])
+    assert one_line(stderr, code, 1) and f"{path} is a pipe or device, not a manifest file" in stderr, stderr

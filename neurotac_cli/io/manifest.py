@@ -52,8 +52,10 @@ def manifest_sources(path: str, force_options: ForceOptions, sensor=None, labels
     """Sources from a manifest CSV: one row per recording with columns trial, events, force (paths
     relative to the manifest's folder) and label columns. Columns named `true_*` (ground truth of
     simulated data) are neither used nor copied. Files are read one row at a time."""
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise NeurotacError(f"{path}: no such manifest")
+    if not os.path.isfile(path):  # its entries are paths relative to its folder, which a pipe or device has not
+        raise NeurotacError(f"{path} is a pipe or device, not a manifest file; give the path of the manifest CSV")
     try:  # utf-8-sig: a spreadsheet's "CSV UTF-8" export starts with a byte-order mark, which is no part of a column name
         with open(path, encoding="utf-8-sig", newline="") as handle:
             reader = csv.DictReader(handle)
