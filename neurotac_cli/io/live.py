@@ -155,6 +155,14 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     if follow and path not in (None, "-"):
         _wait_for(path, idle_timeout, stop)
     fd, decoder = _open_fd(path, stop, name), None
+    closed = []
+
+    def close():
+        """Once only: a second close of the number would close whatever file was opened on it since."""
+        if not closed:
+            closed.append(True)
+            _close(fd, path)
+
     try:
         feed = Feed(fd, follow, idle_timeout, stop, path)
         buffer = _read_until(feed, bytearray(), lambda data, end: _sniffed(data, end))
@@ -167,7 +175,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))
         if fmt not in STREAMED:
-            return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
+            return _whole(name, fmt, feed, buffer, sensor, follow, close)
         buffer = _read_until(feed, buffer, lambda data, end: header_length(fmt, data, end) is not None)
         length = camera._guarded_call(name, fmt, lambda: header_length(fmt, buffer, True))
         decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, bytes(buffer[:length]), sensor))
@@ -175,20 +183,20 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
         if declared is None:
             decoder.close()
             decoder = None
-            return _whole(name, fmt, feed, buffer, sensor, follow, lambda: _close(fd, path))
+            return _whole(name, fmt, feed, buffer, sensor, follow, close)
         del buffer[:length]
         _settle(name, fmt, feed, buffer, decoder)
     except BaseException:
         if decoder is not None:  # AEDAT 4.0's keeps a temporary file
             decoder.close()
-        _close(fd, path)
+        close()
         raise
     schema = sch.events_schema(*declared)
     source = "option" if sensor else "file"
     entries = {"source": {"format": fmt, "file": name, "sensor_from": source, **decoder.meta.pop("source", {})}}
     schema = sch.set_meta(schema, **entries, **decoder.meta)
     stream = Stream(schema, iter(()))
-    stream.batches = _batches(name, fmt, feed, buffer, decoder, declared, schema, stream.notes, lambda: _close(fd, path))
+    stream.batches = _batches(name, fmt, feed, buffer, decoder, declared, schema, stream.notes, close)
     return stream
 
 

@@ -265,6 +265,26 @@ def test_ctrl_c_ends_an_import_of_a_fifo_nobody_writes_to(tmp_path, number):
     assert process.returncode == 1 and len(lines) == 1 and "stopped before anything wrote" in lines[0], stderr
 
 
+def test_a_piped_file_read_whole_that_fails_closes_only_its_own_descriptor(tmp_path, monkeypatch):
+    """The pipe is closed once copied: the error's clean-up must not close its number again, by then
+    another file's (a chunk reader's, which the error left open, shown as a traceback at exit)."""
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.io import camera
+
+    held = []
+
+    def failing(local, name, sensor=None, fmt=None, cleanup=lambda: None):
+        held.append(open(local, "rb"))
+        cleanup()
+        raise FormatError("damaged")
+
+    monkeypatch.setattr(camera, "read_local", failing)
+    with pytest.raises(FormatError):
+        live.open_stream(fifo_of(tmp_path, b"t,x,y,p\n1,2,3,1\n"))
+    os.fstat(held[0].fileno())
+    held[0].close()
+
+
 def test_ctrl_c_before_the_header_is_one_line(tmp_path):
     (tmp_path / "cam.raw").write_bytes(b"")
     process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
