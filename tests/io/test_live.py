@@ -285,6 +285,31 @@ def test_a_piped_file_read_whole_that_fails_closes_only_its_own_descriptor(tmp_p
     held[0].close()
 
 
+@pytest.mark.parametrize("failure", [KeyboardInterrupt(), OSError(28, "No space left on device")])
+def test_a_piped_file_whose_copy_is_cut_short_leaves_no_temporary_copy(tmp_path, monkeypatch, failure):
+    """Text from a pipe is copied whole first: an endless one (/dev/zero) fills the disk, and the copy
+    a second Ctrl-C or the full disk cut short must be removed, not left to fill it."""
+    from neurotac_cli.errors import InputError
+
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
+    reads = []
+    real = live.Feed.read
+
+    def read(self):
+        reads.append(1)
+        if len(reads) > 2:
+            raise failure
+        return real(self)
+
+    monkeypatch.setattr(live.Feed, "read", read)
+    with pytest.raises(InputError if isinstance(failure, OSError) else KeyboardInterrupt) as raised:
+        live.open_stream(fifo_of(tmp_path, b"t,x,y,p\n" + b"1,2,3,1\n" * 100000))
+    assert os.listdir(tmp_path / "tmp") == []
+    if isinstance(failure, OSError):
+        assert "no space left on the device" in str(raised.value) and "TMPDIR" in str(raised.value)
+
+
 def test_ctrl_c_before_the_header_is_one_line(tmp_path):
     (tmp_path / "cam.raw").write_bytes(b"")
     process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
