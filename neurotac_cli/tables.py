@@ -384,6 +384,26 @@ def is_special(path: str) -> bool:
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
+def open_special(path: str):
+    """A pipe or device (`is_special`) opened for writing. A FIFO is opened once a reader has it open,
+    waited for here: a plain open waits in the kernel, where a Ctrl-C handler that lets the first
+    press pass (a verb reading a pipe, a live import) restarts it, so no Ctrl-C would ever end it."""
+    import time
+
+    if not stat.S_ISFIFO(os.stat(path).st_mode):
+        return open(path, "wb")
+    while True:
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+            break
+        except OSError as error:
+            if error.errno != errno.ENXIO:  # ENXIO: no reader yet
+                raise
+        time.sleep(0.05)
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "wb")
+
+
 def output_format(path: str) -> str:
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in SUFFIXES:
@@ -453,7 +473,7 @@ def atomic_file(path: str):
         if special:
             import shutil
 
-            with open(temporary, "rb") as finished, open(path, "wb") as sink:
+            with open(temporary, "rb") as finished, open_special(path) as sink:
                 shutil.copyfileobj(finished, sink)
         else:
             os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
@@ -492,7 +512,7 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
         # a pipe cannot seek, which Parquet and the Arrow file need: it gets stdout's stream,
         # which every neurotac command reads whatever the name says
         try:
-            handle = open(output, "wb")
+            handle = open_special(output)
         except OSError as error:
             raise OutputError.from_os(output, error) from None
         with handle:

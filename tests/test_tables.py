@@ -298,6 +298,33 @@ def test_every_other_output_into_a_pipe_is_copied_in_not_renamed_over(tmp_path):
     assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.listdir(tmp_path) == ["model"]
 
 
+def test_ctrl_c_ends_a_write_into_a_fifo_nobody_reads(tmp_path):
+    """A verb reading a pipe lets the first Ctrl-C pass (to read on to the end of its input); the
+    second must end it even while it waits for a reader of its -o FIFO."""
+    import signal
+    import stat
+    import time
+
+    tables.write(str(tmp_path / "e.arrows"), events(), step=("test", {}))
+    fifo = tmp_path / "out.arrows"
+    os.mkfifo(fifo)
+    process = subprocess.Popen(["neurotac", "select", "--where", "x >= 0", "-o", str(fifo)], stdin=subprocess.PIPE,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    process.stdin.write((tmp_path / "e.arrows").read_bytes())
+    process.stdin.close()
+    process.stdin = None
+    time.sleep(3.0)  # read, and waiting for a reader
+    for _ in range(2):
+        process.send_signal(signal.SIGINT)
+        time.sleep(0.5)
+    try:
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert process.returncode == 130 and stderr.decode().strip().count("\n") == 0, stderr
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
 def test_a_pipe_without_a_table_suffix_is_an_output_path(tmp_path):
     from neurotac_cli.options import TablePath
 
