@@ -142,8 +142,18 @@ def _fail(message: str, code: int = 1):
         sys.stdout.flush()
     except BrokenPipeError:
         _redirect_stdout_to_devnull()
-    click.echo(message, err=True)
+    click.echo(_one_line(message), err=True)
     sys.exit(code)
+
+
+def _one_line(message: str) -> str:
+    """The message as one printable line: a path may hold a newline, or bytes that are not UTF-8
+    (Python's surrogate escapes, shown as \\udcff), which are written as the escapes \\n and \\xff."""
+    try:
+        text = message.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a surrogate that no file name's byte gives
+        text = message.encode("utf-8", "backslashreplace").decode("utf-8")
+    return text.replace("\r", "\\r").replace("\n", "\\n")
 
 
 def _redirect_stdout_to_devnull():

@@ -68,3 +68,13 @@ def test_a_name_given_twice_to_a_repeatable_name_value_option_is_a_usage_error()
                  ["simulate", "--set", "on_threshold=0.3", "--set", "on_threshold=0.4"]):
         result = CliRunner().invoke(cli, args)
         assert result.exit_code == 2 and "given twice; give each NAME once" in result.output, result.output
+
+
+def test_an_error_naming_a_path_with_a_newline_or_bytes_not_utf8_is_one_line(tmp_path):
+    """A real shell, because CliRunner cannot show the bytes a terminal or a log gets."""
+    import os
+
+    for name, shown in ((b"no\nsuch.arrows", "no\\nsuch.arrows"), (b"no\xffsuch.arrows", "no\\xffsuch.arrows")):
+        done = subprocess.run([b"neurotac", b"info", os.fsencode(tmp_path) + b"/" + name], capture_output=True)
+        assert done.returncode == 1 and done.stderr.count(b"\n") == 1, done.stderr
+        assert done.stderr.decode() == f"neurotac info: error: {tmp_path}/{shown}: no such file\n"
