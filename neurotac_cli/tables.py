@@ -189,7 +189,9 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
             data = pa.BufferReader(head + source.read()) if path in (None, "-") else None
             if fmt == "file":
                 try:
-                    reader = ipc.open_file(data if data is not None else pa.memory_map(path))
+                    # read, not memory-mapped: a mapped file that another program truncates while it is
+                    # read kills the process with SIGBUS, without a word
+                    reader = ipc.open_file(data if data is not None else pa.OSFile(path))
                 except pa.ArrowInvalid:  # it starts as an Arrow file (sniffed), so its end is what is missing
                     raise InputError(f"{name}: Arrow file is cut short or damaged (its footer is missing)") from None
                 yield reader.schema, _guard((reader.get_batch(i) for i in range(reader.num_record_batches)), name)
@@ -217,7 +219,7 @@ def _whole(reader, stream: _Prepend, name: str) -> Iterator[pa.RecordBatch]:
 
 def _describe(error: Exception) -> str:
     text = str(error).splitlines()[0] if str(error) else type(error).__name__
-    if "Expected to" in text or "end of stream" in text.lower() or "truncated" in text.lower() or "EOF" in text:
+    if "Expected to" in text or "end of stream" in text.lower() or "truncated" in text.lower() or "EOF" in text or "too short" in text:
         return TRUNCATED
     if "Parquet magic bytes not found" in text or "footer" in text.lower():
         return "Parquet file is cut short or damaged (its footer is missing)"

@@ -252,6 +252,20 @@ def test_an_output_under_a_regular_file_names_the_file_not_a_missing_folder(tmp_
         tables.check_folder(str(tmp_path / "no" / "out.parquet"))
 
 
+def test_an_arrow_file_truncated_while_it_is_read_is_one_error_not_a_bus_error(tmp_path):
+    """Another program truncating an Arrow file mid-read: a memory-mapped file would kill the process
+    with SIGBUS; in a child process, so that this test's process survives it."""
+    path = tmp_path / "e.arrow"
+    with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, events().schema) as writer:
+        for _ in range(8):
+            writer.write_table(pa.concat_tables([events(20000)] * 10))
+    code = ("import os\nfrom neurotac_cli import tables\nfrom neurotac_cli.errors import NeurotacError\n"
+            f"opened = tables.open_input([{str(path)!r}])\nnext(opened.batches)\nos.truncate({str(path)!r}, 1000)\n"
+            "try:\n    list(opened.batches)\nexcept NeurotacError as error:\n    print(error)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stdout.strip()) == (0, f"{path}: {tables.TRUNCATED}"), done.stderr[-300:]
+
+
 def _drain(path):
     """Read a FIFO to its end in a thread (a writer blocks until a reader opens it)."""
     import threading
