@@ -438,6 +438,10 @@ def check_folder(*paths) -> None:
             if not os.path.isdir(above):  # `file.txt/out.parquet`: saying the folder is missing would send one to make it
                 raise NeurotacError(f"cannot write {path}: {above} is a file, not a folder; give a path in a folder")
             raise NeurotacError(f"cannot write {path}: folder {directory} does not exist")
+        # a pipe or device is written where it is (a shell's >(...) lies in /proc, in no folder one writes in)
+        if not is_special(path) and not os.access(directory, os.W_OK | os.X_OK):
+            read_only = os.statvfs(directory).f_flag & os.ST_RDONLY
+            raise OutputError.from_os(path, OSError(errno.EROFS if read_only else errno.EACCES, "cannot write"))
 
 
 def _folders_up(directory: str) -> Iterator[str]:

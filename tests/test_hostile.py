@@ -926,3 +926,36 @@ def test_a_manifest_that_is_a_device_or_pipe_is_named_so_not_missing(tmp_path, k
         os.mkfifo(path)
     code, stderr, _ = invoke(["sync", "--manifest", path])
     assert one_line(stderr, code, 1) and f"{path} is a pipe or device, not a manifest file" in stderr, stderr
+
+
+@pytest.fixture
+def read_only_folder(tmp_path):
+    """A folder no write goes into: without write permission, or for root (whom permissions do not
+    stop) a read-only bind mount of it, where this machine allows one."""
+    import os
+    import subprocess
+
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        yield folder
+        folder.chmod(0o755)
+        return
+    mounted = subprocess.run(["mount", "--bind", str(folder), str(folder)], capture_output=True).returncode == 0
+    if not mounted or subprocess.run(["mount", "-o", "remount,bind,ro", str(folder)], capture_output=True).returncode:
+        if mounted:
+            subprocess.run(["umount", str(folder)])
+        pytest.skip("no read-only bind mount here")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)])
+
+
+def test_an_output_in_a_read_only_folder_is_refused_before_any_training(files, read_only_folder):  # noqa: F811
+    import os
+
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(read_only_folder / "m.model"), str(files / "f.arrows")])
+    said = "(read-only file system; write elsewhere)" if os.geteuid() == 0 else "(permission denied; write elsewhere"
+    assert one_line(stderr, code, 1) and f"cannot write {read_only_folder / 'm.model'} {said}" in stderr, stderr
