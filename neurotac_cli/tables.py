@@ -5,7 +5,8 @@ bytes: IPC stream (0xFFFFFFFF), Arrow file (ARROW1) or Parquet (PAR1). Concatena
 one source (`cat a.arrows b.arrows |`) read as one table.
 
 Writing: an IPC stream on stdout, or -o PATH by suffix, through a temporary file renamed when
-complete; a pipe or device given as -o (/dev/stdout, a shell's `>(...)`) gets the stream straight through. Every write appends one entry to `neurotac:history`.
+complete; a pipe or device given as -o (/dev/stdout, a shell's `>(...)`) gets the stream straight
+through. Every write appends one entry to `neurotac:history`.
 """
 
 import errno

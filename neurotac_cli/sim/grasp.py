@@ -42,7 +42,7 @@ class Grasp:
         return self.camera_start_us + self.preroll_us + self.led_on_us
 
 
-MAX_TRIALS = 20_000
+MAX_TRIALS = 20_000  # one run's trials: a --synced table holds all their events in memory
 
 
 def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None = None) -> list[Grasp]:
