@@ -205,9 +205,24 @@ def local_path(path) -> tuple[str, Callable[[], None]]:
     if source is None or is_terminal(source):
         raise InputError("no input: give a camera file, or pipe one into stdin")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
+    remove = removal(temporary)
     with os.fdopen(handle, "wb") as sink:
         shutil.copyfileobj(source, sink, reader.CHUNK_BYTES)
-    return temporary, lambda: os.path.exists(temporary) and os.unlink(temporary)
+    return temporary, remove
+
+
+def removal(temporary: str) -> Callable[[], None]:
+    """What removes a temporary copy of an input: called when its reading ends, and at exit as well,
+    since the events' generator holds that call in a `finally` that never runs if the generator never
+    starts (an output refused before the first batch)."""
+    import atexit
+
+    def remove():
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
+    atexit.register(remove)
+    return remove
 
 
 def read_local(local: str, name: str, sensor=None, fmt: str | None = None, cleanup=lambda: None):

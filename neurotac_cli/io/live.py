@@ -365,7 +365,7 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
                              "copied whole before it is read: set TMPDIR to a folder with room, or import a file") from None
         raise
     close()
-    schema, batches = camera.read_local(temporary, name, sensor, fmt, lambda: os.path.exists(temporary) and os.unlink(temporary))
+    schema, batches = camera.read_local(temporary, name, sensor, fmt, camera.removal(temporary))
     return Stream(schema, batches)
 
 

@@ -310,6 +310,20 @@ def test_a_piped_file_whose_copy_is_cut_short_leaves_no_temporary_copy(tmp_path,
         assert "no space left on the device" in str(raised.value) and "TMPDIR" in str(raised.value)
 
 
+@pytest.mark.parametrize("reader", ["live.open_stream('-').batches", "camera.read_local(*camera.local_path('-'))[1]"])
+def test_the_copy_of_a_piped_file_whose_events_are_never_read_is_removed_at_exit(tmp_path, reader):
+    """A generator that never starts runs no `finally`: an output refused before the first batch left
+    the piped file's copy in the temporary folder."""
+    (tmp_path / "tmp").mkdir()
+    code = (f"from neurotac_cli.io import camera, live\nevents = {reader}\n"
+            "import os\nprint(len(os.listdir(os.environ['TMPDIR'])))\n")
+    done = subprocess.run([sys.executable, "-c", code], input=b"t,x,y,p\n" + b"1,2,3,1\n" * 100, capture_output=True,
+                          env={**os.environ, "TMPDIR": str(tmp_path / "tmp")}, timeout=60)
+    assert done.returncode == 0, done.stderr.decode()
+    assert done.stdout.decode().strip() == "1"  # the copy, while the process runs
+    assert os.listdir(tmp_path / "tmp") == []
+
+
 def test_ctrl_c_before_the_header_is_one_line(tmp_path):
     (tmp_path / "cam.raw").write_bytes(b"")
     process = subprocess.Popen(["neurotac", "import", "--follow", str(tmp_path / "cam.raw")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
