@@ -12,7 +12,7 @@ are. Frames, IMU samples and the polarity events of a second source (another cam
 file) are skipped; the last is counted in `neurotac:source`.
 """
 
-import mmap
+import os
 import re
 import struct
 
@@ -134,41 +134,69 @@ def _polarity(events: np.ndarray, overflow: int):
 
 
 def open_aedat3(path: str, head: bytes, sensor) -> Decoded:
+    # read, not mapped: a mapped file that another program truncates while it is read kills the
+    # process with SIGBUS, without a word; packets are walked by their headers, and only the chunk
+    # being decoded is read
     with open(path, "rb") as handle:
-        # mapped, not read: packets are walked where they lie, and only the chunk being decoded is copied
-        data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
-    length = header_length(data)
-    if length is None:
-        raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
-    declared, camera, source = sensor_of_header(data[:length])
-    view = memoryview(data)[length:]
-    # One walk over the packet headers: where each whole packet ends (a last one cut short is left),
-    # the polarity events of each source, and the triggers, which go into the schema before the first
-    # batch (special packets are small); the events are decoded later in chunks.
-    packets, ends, valid_of = Packets(), [], {}
-    whole = 0
-    while whole + PACKET <= len(view):
-        kind, from_source, _, _, size, valid = packet_header(view, whole)
-        if whole + PACKET + size > len(view):
-            break
-        if kind == SPECIAL:
-            packets.decode(bytes(view[whole : whole + PACKET + size]))
-        elif kind == POLARITY:
-            valid_of[from_source] = valid_of.get(from_source, 0) + valid
-        whole += PACKET + size
-        ends.append(whole)
+        header = _header(handle, head)
+        length = header_length(header)
+        declared, camera, source = sensor_of_header(header[:length])
+        size_of = os.fstat(handle.fileno()).st_size - length
+        # One walk over the packet headers: where each whole packet ends (a last one cut short is
+        # left), the polarity events of each source, and the triggers, which go into the schema
+        # before the first batch (special packets are small); the events are decoded later in chunks.
+        packets, ends, valid_of = Packets(), [], {}
+        whole = 0
+        handle.seek(length)
+        while whole + PACKET <= size_of:
+            at = handle.read(PACKET)
+            if len(at) < PACKET:
+                break
+            kind, from_source, _, _, size, valid = packet_header(at)
+            if whole + PACKET + size > size_of:
+                break
+            if kind == SPECIAL:
+                packets.decode(at + _exactly(handle, size))
+            else:
+                handle.seek(size, os.SEEK_CUR)
+                if kind == POLARITY:
+                    valid_of[from_source] = valid_of.get(from_source, 0) + valid
+            whole += PACKET + size
+            ends.append(whole)
     if valid_of and source not in valid_of:  # the header names no source of these events: its camera is not theirs
         source, camera, declared = next(iter(valid_of)), None, None
     others = sum(valid_of.values()) - valid_of.get(source, 0)
 
     def chunks():
         reader, begin = Packets(source), 0
-        for end in ends:
-            if end - begin >= CHUNK_BYTES or end == whole:
-                yield reader.decode(bytes(view[begin:end]))
-                begin = end
+        with open(path, "rb") as events:
+            events.seek(length)
+            for end in ends:
+                if end - begin >= CHUNK_BYTES or end == whole:
+                    yield reader.decode(_exactly(events, end - begin))
+                    begin = end
 
     meta = {"source": {"camera": camera} if camera else {}, "triggers": packets.triggers}
     if others:
         meta["source"]["events_of_other_sources"] = others
-    return Decoded(sensor=declared, chunks=chunks, meta=meta, cut_bytes=len(view) - whole)
+    return Decoded(sensor=declared, chunks=chunks, meta=meta, cut_bytes=size_of - whole)
+
+
+def _header(handle, head: bytes) -> bytes:
+    """The file's bytes up to its `#!END-HEADER` line, read on past `head` where the header is longer."""
+    data = bytearray(head)
+    handle.seek(len(data))
+    while header_length(data) is None:
+        more = handle.read(1 << 16)
+        if not more:
+            raise FormatError("the AEDAT 3.1 header has no `#!END-HEADER` line (is it the whole file?)")
+        data += more
+    return bytes(data)
+
+
+def _exactly(handle, size: int) -> bytes:
+    """`size` bytes from the handle: fewer means the file shrank while it was read."""
+    data = handle.read(size)
+    if len(data) < size:
+        raise FormatError("the file was cut short while it was read (another program truncated it)")
+    return data

@@ -154,3 +154,19 @@ def test_a_bit_flipped_or_cut_file_is_a_table_or_one_error(flips, cut):
     for where, bit in flips:
         data[int(where * len(data))] ^= 1 << bit
     outcome(bytes(data[: int(len(data) * cut)]), ".aedat")
+
+
+def test_a_file_truncated_while_it_is_read_is_one_error_not_a_bus_error(tmp_path):
+    """Another program truncating the file between the packet walk and the events: a memory-mapped
+    file killed the process with SIGBUS; in a child process, so that this test's process survives it."""
+    import sys
+
+    data, *_ = recording(packets=50, per=2000)
+    path = tmp_path / "cut.aedat"
+    path.write_bytes(data)
+    code = ("import os\nfrom neurotac_cli.io.aedat3 import open_aedat3\nfrom neurotac_cli.errors import FormatError\n"
+            f"decoded = open_aedat3({str(path)!r}, open({str(path)!r}, 'rb').read(1 << 16), None)\n"
+            f"os.truncate({str(path)!r}, {len(data) // 3})\n"
+            "try:\n    [c for c in decoded.chunks()]\nexcept FormatError as error:\n    print(error)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stdout.strip()) == (0, "the file was cut short while it was read (another program truncated it)"), done.stderr[-300:]
