@@ -34,17 +34,27 @@ def scores(work, data, tag: str, members: int, seeds: int) -> tuple:
     return found[("all", "rmse_pct_range_fold_mean")], found[("all", "rmse_pct_range_fold_sd")]
 
 
+def work_folder(work: str | None, quick: bool) -> pathlib.Path:
+    """WORK, or examples/out-members (-quick): frames and metrics, shared with rig_families.py."""
+    folder = pathlib.Path(work or pathlib.Path(__file__).resolve().parent / ("out-members-quick" if quick else "out-members"))
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def ch4_pipeline() -> str:
+    """The models section's `ch4` frames: 10 ms, padded to the longest trial, cropped and pooled to 29x29."""
+    return f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the default physics and one rig, one seed (about a minute)")
     parser.add_argument("--seeds", type=int, default=SEEDS, help=f"trainings per physics and member count (default {SEEDS})")
     parser.add_argument("--work", default=None, help="folder for frames and metrics (default examples/out-members[-quick])")
     args = parser.parse_args(argv)
-    here = pathlib.Path(__file__).resolve().parent
-    work = pathlib.Path(args.work or here / ("out-members-quick" if args.quick else "out-members"))
-    work.mkdir(parents=True, exist_ok=True)
+    work = work_folder(args.work, args.quick)
     seeds, rigs = (1, RIG_SEEDS[:1]) if args.quick else (args.seeds, RIG_SEEDS)
-    pipeline = f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
+    pipeline = ch4_pipeline()
     physics = [("default physics", "ch4", "--seed 1", "")]
     for seed in rigs:
         options, about = rig(seed)

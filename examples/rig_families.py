@@ -17,11 +17,10 @@ of docs/results.md, and WORK/rig-families.md (a quick or resized run only the la
 
 import argparse
 import math
-import pathlib
 
 from chapters import keep_section, md_table, publish_section  # beside this script
-from members import SEEDS, scores
-from results import HELD_OUT, drawn, fmt, frames, neurotac, rig, set_options
+from members import SEEDS, ch4_pipeline, scores, work_folder
+from results import drawn, fmt, frames, rig, set_options
 
 SECTION, TITLE = "rig-families", "Which physics makes a rig hard"
 RIG_SEEDS = (101, 105, 108)  # three of the members table's six rigs beyond 1.5 times the default physics
@@ -40,12 +39,10 @@ def main(argv=None):
     parser.add_argument("--seeds", type=int, default=SEEDS, help=f"trainings per physics (default {SEEDS})")
     parser.add_argument("--work", default=None, help="folder for frames and metrics (default examples/out-members[-quick], shared with members.py)")
     args = parser.parse_args(argv)
-    here = pathlib.Path(__file__).resolve().parent
-    work = pathlib.Path(args.work or here / ("out-members-quick" if args.quick else "out-members"))
-    work.mkdir(parents=True, exist_ok=True)
+    work = work_folder(args.work, args.quick)
     seeds, rigs = (1, RIG_SEEDS[:1]) if args.quick else (args.seeds, RIG_SEEDS)
     groups = dict(list(families().items())[:2]) if args.quick else families()
-    pipeline = f"{neurotac()} frame --window 10ms --pad-to longest | {neurotac()} crop {HELD_OUT['ch4'][0]}"
+    pipeline = ch4_pipeline()
     default = scores(work, frames(work, "ch4", pipeline, "--seed 1"), "ch4", 3, seeds)[0]
     columns, product, whole = {}, {}, {}
     for seed in rigs:
