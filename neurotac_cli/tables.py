@@ -433,6 +433,8 @@ def check_folder(*paths) -> None:
                              "give each its own path")
         seen[real] = path
     for path in paths:
+        if path == "-":  # stdout: the working folder need not be writable
+            continue
         directory = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(directory):
             above = next((folder for folder in _folders_up(directory) if os.path.exists(folder)), directory)

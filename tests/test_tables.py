@@ -347,3 +347,12 @@ def test_a_pipe_without_a_table_suffix_is_an_output_path(tmp_path):
     assert TablePath().convert(str(fifo), None, None) == str(fifo)
     with pytest.raises(Exception, match="suffix"):
         TablePath().convert(str(tmp_path / "file"), None, None)
+
+
+def test_stdout_as_an_output_needs_no_writable_working_folder(tmp_path, monkeypatch):
+    """`-o -` is stdout: a read-only working folder is no reason to refuse it."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(os, "access", lambda path, mode: False)
+    tables.check_folder("-")
+    with pytest.raises(NeurotacError, match="cannot write"):
+        tables.check_folder(str(tmp_path / "out.arrows"))
