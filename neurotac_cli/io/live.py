@@ -351,6 +351,7 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
         raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.1/2.0, "
                          "AEDAT 2.0/3.1, Event Stream and DAT); import it without --follow once it is written")
     handle, temporary = tempfile.mkstemp(prefix=".neurotac-stream-")
+    remove = camera.removal(temporary)
     try:
         with os.fdopen(handle, "wb") as sink:
             sink.write(buffer)
@@ -358,14 +359,14 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
                 sink.write(data)
     except BaseException as error:
         # a copy cut short (a second Ctrl-C, a full disk: an endless pipe fills it) must not stay behind
-        os.unlink(temporary)
+        remove()
         if isinstance(error, OSError) and error.errno in OutputError.WHY:
             why, _ = OutputError.why(error)
             raise InputError(f"{name}: cannot copy it to {os.path.dirname(temporary)} ({why}); {label} from a pipe is "
                              "copied whole before it is read: set TMPDIR to a folder with room, or import a file") from None
         raise
     close()
-    schema, batches = camera.read_local(temporary, name, sensor, fmt, camera.removal(temporary))
+    schema, batches = camera.read_local(temporary, name, sensor, fmt, remove)
     return Stream(schema, batches)
 
 
