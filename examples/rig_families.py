@@ -20,17 +20,18 @@ import math
 
 from chapters import keep_section, md_table, publish_section  # beside this script
 from members import SEEDS, ch4_pipeline, scores, work_folder
-from results import drawn, fmt, frames, rig, set_options
+from results import drawn, fmt, frames, set_options
 
 SECTION, TITLE = "rig-families", "Which physics makes a rig hard"
 RIG_SEEDS = (101, 105, 108)  # three of the members table's six rigs beyond 1.5 times the default physics
+ON_ALONE = "ON threshold alone"  # a part of the pixels family: left out of the product and of the costliest family
 
 
 def families() -> dict:
     """Family name -> its parameters, and the ON threshold alone."""
     from neurotac_cli.sim import physics
 
-    return {**{name: tuple(params) for name, params in physics.FAMILIES.items()}, "ON threshold alone": ("on_threshold",)}
+    return {**{name: tuple(params) for name, params in physics.FAMILIES.items()}, ON_ALONE: ("on_threshold",)}
 
 
 def main(argv=None):
@@ -51,15 +52,14 @@ def main(argv=None):
             tag = f"ch4-rig{seed}-{name.split()[0].lower()}"
             data = frames(work, tag, pipeline, f"--seed 1 {set_options({k: v for k, v in values.items() if k in params})}")
             column[name] = scores(work, data, tag, 3, seeds)[0]
-        options, _ = rig(seed)
-        whole[seed] = scores(work, frames(work, f"ch4-rig{seed}", pipeline, f"--seed 1 {options}"), f"ch4-rig{seed}", 3, seeds)[0]
-        product[seed] = math.prod(column[name] / default for name in groups if name in families() and name != "ON threshold alone")
+        whole[seed] = scores(work, frames(work, f"ch4-rig{seed}", pipeline, f"--seed 1 {set_options(values)}"), f"ch4-rig{seed}", 3, seeds)[0]
+        product[seed] = math.prod(column[name] / default for name in groups if name != ON_ALONE)
         columns[seed] = column
     cell = lambda pct: f"{fmt(pct, 2)} ({fmt(pct / default, 2)}x)"  # noqa: E731
     rows = [[name, *(cell(columns[seed][name]) for seed in rigs)] for name in groups]
     rows.append(["every family (the rig)", *(cell(whole[seed]) for seed in rigs)])
     rows.append(["product of the families' ratios", *(f"{fmt(product[seed], 2)}x" for seed in rigs)])
-    worst = {seed: max((name for name in groups if name != "ON threshold alone"), key=columns[seed].get) for seed in rigs}
+    worst = {seed: max((name for name in groups if name != ON_ALONE), key=columns[seed].get) for seed in rigs}
     body = "\n".join([
         f"Made by `{'python examples/rig_families.py --quick' if args.quick else 'make -C examples rig-families'}`.",
         "",
