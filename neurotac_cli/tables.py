@@ -502,7 +502,8 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
 
     `step = (command, args)` is appended to the history. With an iterable, batches are written
     as they come, so memory does not grow with the input; `flush_each` hands each batch on stdout
-    to the reader at once (a live stream) rather than when the pipe's buffer fills.
+    or a pipe to the reader at once (a live stream) rather than when the pipe's buffer fills (a
+    file is written whole either way).
     """
     if isinstance(data, pa.Table):
         schema = data.schema

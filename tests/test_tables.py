@@ -358,3 +358,31 @@ def test_stdout_as_an_output_needs_no_writable_working_folder(tmp_path, monkeypa
     tables.check_folder("-")
     with pytest.raises(NeurotacError, match="cannot write"):
         tables.check_folder(str(tmp_path / "out.arrows"))
+
+
+def test_crop_into_a_pipe_hands_on_each_batch_as_it_comes(tmp_path):
+    """`crop -o >(...)` in a live pipe: its first frame reaches the reader while its input still runs,
+    as on stdout."""
+    frames = tmp_path / "f.arrows"
+    subprocess.run("neurotac simulate --preset ch4 --trials 1 --synced | neurotac frame --window 10ms > " + str(frames),
+                   shell=True, check=True, capture_output=True)
+    fifo = tmp_path / "out"
+    os.mkfifo(fifo)
+    feeder = ("import sys, time, pyarrow.ipc as ipc\n"
+              f"reader = ipc.open_stream(open({str(frames)!r}, 'rb'))\n"
+              "writer = ipc.new_stream(sys.stdout.buffer, reader.schema)\n"
+              "batch = reader.read_next_batch()\n"
+              "writer.write_batch(batch.slice(0, 1)); sys.stdout.buffer.flush(); time.sleep(8)\n"
+              "writer.write_batch(batch.slice(1, 1)); writer.close()\n")
+    source = subprocess.Popen([sys.executable, "-c", feeder], stdout=subprocess.PIPE)
+    crop = subprocess.Popen(["neurotac", "crop", "--box", "0,0,8,8", "-o", str(fifo)], stdin=source.stdout, stderr=subprocess.PIPE)
+    reader = ("import time, sys\nfrom neurotac_cli import tables\n"
+              f"start = time.time(); opened = tables.open_input([{str(fifo)!r}])\n"
+              "next(opened.batches); print(round(time.time() - start, 1)); list(opened.batches)\n")
+    try:
+        done = subprocess.run([sys.executable, "-c", reader], capture_output=True, text=True, timeout=60)
+    finally:
+        source.kill()
+        _, said = crop.communicate(timeout=30)
+    assert done.returncode == 0 and crop.returncode == 0, done.stderr + said.decode()
+    assert float(done.stdout) < 6.0

@@ -32,5 +32,5 @@ def command(paths, output, box, size, center, pool, warn_above, sensor):
     spec = crop.CropSpec(box=box, size=size, center=center, pool=pool)
     source = tables.open_input(paths, kind=("frames", "recordings", "events"))
     schema, cropped, report = crop.crop(source.schema, source.batches, spec, sensor=sensor)
-    tables.write(output, cropped, step=history(report=report.history()), schema=schema, flush_each=output in (None, "-"))
+    tables.write(output, cropped, step=history(report=report.history()), schema=schema, flush_each=True)
     echo_lines("crop", report.messages(warn_above))
