@@ -3,7 +3,7 @@
 Why: every force network here was trained on grasps that start from a membrane at rest and a state
 of zeros. On a session of many grasps its accumulators (deform-gru's deformation map and counts,
 the recurrent states) carry each grasp into the next and it drifts (docs/journal.md). The event-driven contact detector (`ops.contact`) finds when a contact
-begins; the force model runs only inside a contact, from a fresh state at its onset, and reads zero
+begins; the force model runs only inside a contact, from a fresh state (begun a few frames before its onset), and reads zero
 between contacts; the contact ends after a release burst once the model reads near zero (or the
 membrane has been quiet for a while). So the state is bounded by one contact, and between contacts
 it is the detector's handful of numbers.
@@ -76,6 +76,7 @@ class Stream:
         self.slip = slip_config(model)
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
+        self.lead = collections.deque(maxlen=int(self.config.lead_frames))  # the last frames and their times, read before an onset
         self.last_frame = None  # the frame number read last: a stream's frames come one window after another
 
     def check_order(self, trial: str, frames: np.ndarray):
@@ -113,6 +114,7 @@ class Stream:
                 self.inner = None
             if self.contact.onsets != before:
                 self.sums.clear()
+                self._lead_in()
             if phase != detector.NONE:
                 pending.append(k)
                 self.sums.append((off[k], on[k]))
@@ -124,6 +126,7 @@ class Stream:
                 materials[k] = self._material()
             phases[k] = phase
             slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
+            self.lead.append((counts[k], t_us[k]))
         self._run(pending, counts, t_us, force)
         return force, phases, slips, materials
 
@@ -156,6 +159,18 @@ class Stream:
                                  phase=[np.full(len(sums), None, dtype=object)])
         return self.material.classes[int(self.material.proba(data)[0].argmax())]
 
+    def _lead_in(self):
+        """Start the force model's state on the frames just before an onset, as its training contacts
+        start a few frames before the true one: the detector fires on the press's first large burst,
+        and the deformation map misses the events before it (two frames short, a hold read 0.1 N low).
+        Their estimates are not written: those frames were at rest when they were read."""
+        if self.lead:
+            counts, t_us = (np.stack(column)[None] for column in zip(*self.lead))
+            _, self.inner = self.model.step(counts, t_us, None)
+            log = getattr(self.model.net, "distance_log", None)
+            if log:
+                log.pop()
+
     def _run(self, pending: list, counts, t_us, force):
         """The force model on the pending frames (consecutive), carrying its state; empties `pending`."""
         if pending:
@@ -173,7 +188,7 @@ class Stream:
 # ---------------------------------------------------------------- training
 
 
-MARGIN_BEFORE, MARGIN_AFTER = 2, 30  # 10 ms frames of rest kept around each true contact for training
+MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for training
 
 
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
@@ -181,9 +196,10 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     {"sessions", "contacts", "frames", "frames_in_contacts", "from"}.
 
     Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
-    of frames whose phase is not none, with MARGIN_BEFORE frames of rest before it (the detector
-    finds onsets within a frame or two) and MARGIN_AFTER after it (the model learns to read zero
-    once released, which ends the contact at run time); without phases, the runs the detector finds."""
+    of frames whose phase is not none, with the detector's `lead_frames` of rest before it (the
+    frames the model reads before an onset at run time: the detector finds onsets within a frame or
+    two) and MARGIN_AFTER after it (the model learns to read zero once released, which ends the
+    contact at run time); without phases, the runs the detector finds, with the same lead."""
     sch.validate(table.schema, "frames")
     data = shaping.sequences(table)
     labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
@@ -196,7 +212,8 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
         else:
             touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
         streams.append((off, on, touching))
-        runs = _widened(touching, len(frames), sch.get_meta(table.schema, sch.WINDOW)) if labelled else touching
+        after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
+        runs = _widened(touching, len(frames), int(config.lead_frames), after)
         for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
@@ -212,10 +229,9 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     return found, summary
 
 
-def _widened(runs: list, length: int, window_us: int | None = None) -> list:
-    """Runs grown by the margins (their durations at 10 ms frames), clipped to the stream, overlapping ones merged."""
+def _widened(runs: list, length: int, before: int, after: int) -> list:
+    """Runs grown by `before` and `after` frames, clipped to the stream, overlapping ones merged."""
     out = []
-    before, after = detector.frames_at(MARGIN_BEFORE, window_us), detector.frames_at(MARGIN_AFTER, window_us)
     for begin, end in runs:
         begin, end = max(0, begin - before), min(length, end + after)
         if out and begin <= out[-1][1]:

@@ -70,6 +70,7 @@ class ContactConfig:
     background_off: float = 5.0  # starting background, events per frame (until the first frames replace it)
     background_on: float = 10.0
     warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them (0: none)
+    lead_frames: int = 2  # the force model reads this many frames before the onset it is started at (training keeps as many)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -81,7 +82,8 @@ class ContactConfig:
 # peaks are looked for (PRESS_FRAMES, RELEASE_FRAMES), which are long beside a press at any window
 # from a few ms to 20 ms.
 REFERENCE_WINDOW_US = 10_000
-FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames"),
+FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames",
+                                    "lead_frames"),
                   "SlipConfig": ("hold_frames", "settle_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 

@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -15,6 +16,7 @@ from neurotac_cli import model as models
 from neurotac_cli import schema as sch
 from neurotac_cli import tables
 from neurotac_cli.errors import ModelError
+from neurotac_cli.model import data as shaping
 from neurotac_cli.model import evaluate, session
 from neurotac_cli.ops import contact
 
@@ -251,7 +253,7 @@ def test_without_a_press_the_slip_bar_is_the_default(press):
 
 def test_a_bright_backgrounds_noise_is_not_a_slip_however_low_the_bar():
     """Both polarities 30 events above a background of 200 a frame (σ 14): noise there, a slip at a background of 5."""
-    config, slip = contact.ContactConfig(warmup_frames=0), contact.SlipConfig(min_events=10.0)
+    slip = contact.SlipConfig(min_events=10.0)
     for background, flagged in ((200.0, False), (5.0, True)):
         state = contact.ContactState(mean_off=background, mean_on=background, phase=contact.HOLDING, held=20, held_before=20)
         assert contact.slip_step(slip, state, background + 30, background + 30, 2.0) is flagged
@@ -405,6 +407,45 @@ def test_force_reads_zero_between_contacts_and_runs_inside_them(trained):
     assert pred[inside].max() > 0  # the model runs there (an undershoot below zero reads as none)
     assert np.all(pred >= 0)
     assert np.abs(pred - true)[rest].max() < 0.01
+
+
+class Recorder:
+    """A force model that reads zero and keeps the times and the state each call was given."""
+
+    def __init__(self, model):
+        self.input_spec, self.net, self.calls = model.input_spec, None, []
+
+    def step(self, counts, t_us, state):
+        self.calls.append((t_us[0].tolist(), state))
+        return np.zeros((1, counts.shape[1]), np.float32), {"call": len(self.calls)}
+
+
+@pytest.mark.parametrize("piece", [1, 1000])
+def test_the_force_model_starts_on_the_frames_before_the_onset(trained, piece):
+    """As its training contacts begin `lead_frames` before the true onset, the model is started on the
+    frames before the detected one, whether they came in the same batch or in earlier ones."""
+    table, _ = tiny_session(grasps=1, seed=3)
+    data = shaping.sequences(table)
+    counts, t_us = data.counts[0], data.t[0]
+    recorder = Recorder(trained)
+    stream = session.Stream(recorder)
+    phases = np.concatenate([stream.step(counts[k : k + piece], t_us[k : k + piece])[1] for k in range(0, len(counts), piece)])
+    onset = int(np.flatnonzero(phases != contact.NONE)[0])
+    lead = session.contact_config(trained).lead_frames
+    assert recorder.calls[0] == (t_us[onset - lead : onset].tolist(), None)
+    assert recorder.calls[1][0][0] == t_us[onset] and recorder.calls[1][1] == {"call": 1}
+
+
+def test_training_contacts_begin_as_many_frames_before_the_true_onset_as_the_model_reads(sessions):
+    config = contact.ContactConfig()
+    found, summary = session.contacts_table(sessions, config)
+    first = {}
+    for trial, frame in zip(found.column("trial").to_pylist(), found.column("frame").to_pylist()):
+        first.setdefault(trial, frame)
+    for name, frame in first.items():
+        stream, onset = name.split("@")
+        phases = sessions.filter(pc.equal(sessions.column("trial"), stream)).column("phase").to_pylist()
+        assert int(onset) == frame and phases[frame + config.lead_frames] != "none" and phases[frame + config.lead_frames - 1] == "none"
 
 
 @settings(max_examples=5, deadline=None)
