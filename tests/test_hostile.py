@@ -917,6 +917,28 @@ def test_a_device_that_never_ends_is_refused_where_a_file_is_read_whole(reader, 
     assert done.stdout.strip() == f"/dev/zero is a device, not {what} (read whole, it would never end); save it to a file and give that", done.stderr[-500:]
 
 
+@pytest.mark.parametrize("reader, what", [("neurotac_cli.io.force:read_force_log", "a force log"),
+                                          ("neurotac_cli.io.slips:read_slips", "a CSV of true slips")])
+def test_a_terminal_that_gives_nothing_is_refused_at_once_not_waited_on(reader, what):
+    """A silent terminal (a pseudo-terminal nobody types into) as a file read whole: refused at once,
+    where a blocking read of its first byte would wait for ever."""
+    import os
+    import subprocess
+    import sys
+
+    module, name = reader.split(":")
+    leader, follower = os.openpty()
+    try:
+        path = os.ttyname(follower)
+        code = (f"from {module} import {name}\nfrom neurotac_cli.errors import NeurotacError\n"
+                f"try:\n    {name}({path!r})\nexcept NeurotacError as error:\n    print(error)")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    finally:
+        os.close(leader)
+        os.close(follower)
+    assert done.stdout.strip() == f"{path} is a device, not {what} (read whole, it would never end); save it to a file and give that"
+
+
 @pytest.mark.parametrize("kind", ["device", "fifo"])
 def test_a_manifest_that_is_a_device_or_pipe_is_named_so_not_missing(tmp_path, kind):
     import os

@@ -28,9 +28,10 @@ class Decoded:
 
 
 def refuse_device(path: str, what: str) -> None:
-    """Refuse a device that gives bytes (/dev/zero, a serial port) as a file read whole into memory:
-    it never ends, and the read would take all memory. An empty one (/dev/null) is left to the
-    reader's own message for an empty file; a pipe or FIFO ends when its writer does."""
+    """Refuse a device that gives bytes (/dev/zero, a serial port) or waits for them (a terminal) as
+    a file read whole into memory: it never ends, and the read would take all memory or wait for
+    ever. An empty one (/dev/null) is left to the reader's own message for an empty file; a pipe or
+    FIFO ends when its writer does. The byte is asked for without waiting."""
     try:
         mode = os.stat(path).st_mode
     except (OSError, ValueError):
@@ -38,11 +39,18 @@ def refuse_device(path: str, what: str) -> None:
     if not (stat.S_ISCHR(mode) or stat.S_ISBLK(mode)):
         return
     try:
-        with open(path, "rb") as handle:
-            if not handle.read(1):
-                return
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
     except OSError:
         return
+    try:
+        if not os.read(handle, 1):
+            return
+    except BlockingIOError:
+        pass  # it has nothing yet and would wait
+    except OSError:
+        return
+    finally:
+        os.close(handle)
     raise InputError(f"{path} is a device, not {what} (read whole, it would never end); save it to a file and give that")
 
 
