@@ -18,7 +18,7 @@ from typing import Callable, Iterator
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import FormatError, InputError, NeurotacError, SchemaError, cannot_open
+from neurotac_cli.errors import FormatError, InputError, NeurotacError, OutputError, SchemaError, cannot_open
 from neurotac_cli.io import reader
 from neurotac_cli.io.hdf5 import SIGNATURE as HDF5_SIGNATURE, is_hdf5
 from neurotac_cli.io.reader import Decoded
@@ -204,10 +204,26 @@ def local_path(path) -> tuple[str, Callable[[], None]]:
     source = getattr(sys.stdin, "buffer", sys.stdin)
     if source is None or is_terminal(source):
         raise InputError("no input: give a camera file, or pipe one into stdin")
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-stdin-")
+    return temporary_copy(".neurotac-stdin-", "stdin", lambda sink: shutil.copyfileobj(source, sink, reader.CHUNK_BYTES),
+                          "a camera file on stdin is copied whole before it is read: set TMPDIR to a folder with room, "
+                          "or give the file's path")
+
+
+def temporary_copy(prefix: str, name: str, fill: Callable, advice: str) -> tuple[str, Callable[[], None]]:
+    """A temporary file that `fill(sink)` writes, and what removes it. A copy cut short (a second Ctrl-C,
+    a full disk: an endless pipe fills it) must not stay behind; a disk that refuses it is one line
+    naming the folder and `advice`."""
+    handle, temporary = tempfile.mkstemp(prefix=prefix)
     remove = removal(temporary)
-    with os.fdopen(handle, "wb") as sink:
-        shutil.copyfileobj(source, sink, reader.CHUNK_BYTES)
+    try:
+        with os.fdopen(handle, "wb") as sink:
+            fill(sink)
+    except BaseException as error:
+        remove()
+        if isinstance(error, OSError) and error.errno in OutputError.WHY:
+            why, _ = OutputError.why(error)
+            raise InputError(f"{name}: cannot copy it to {os.path.dirname(temporary)} ({why}); {advice}") from None
+        raise
     return temporary, remove
 
 

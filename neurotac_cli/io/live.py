@@ -19,7 +19,6 @@ import select
 import stat
 import struct
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
@@ -28,7 +27,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import FormatError, InputError, OutputError, cannot_open
+from neurotac_cli.errors import FormatError, InputError, cannot_open
 from neurotac_cli.io.reader import check_sensor
 
 STREAMED = ("aedat4", "evt3", "evt2", "evt21", "aedat2", "aedat3", "es", "dat")
@@ -350,21 +349,13 @@ def _whole(name, fmt, feed: Feed, buffer: bytearray, sensor, follow, close) -> S
                              "file to find; give --sensor WxH to follow it")
         raise InputError(f"{name}: {label} is read whole, not followed (--follow reads AEDAT 4.0, EVT 3.0/2.1/2.0, "
                          "AEDAT 2.0/3.1, Event Stream and DAT); import it without --follow once it is written")
-    handle, temporary = tempfile.mkstemp(prefix=".neurotac-stream-")
-    remove = camera.removal(temporary)
-    try:
-        with os.fdopen(handle, "wb") as sink:
-            sink.write(buffer)
-            while (data := feed.read()) is not None:
-                sink.write(data)
-    except BaseException as error:
-        # a copy cut short (a second Ctrl-C, a full disk: an endless pipe fills it) must not stay behind
-        remove()
-        if isinstance(error, OSError) and error.errno in OutputError.WHY:
-            why, _ = OutputError.why(error)
-            raise InputError(f"{name}: cannot copy it to {os.path.dirname(temporary)} ({why}); {label} from a pipe is "
-                             "copied whole before it is read: set TMPDIR to a folder with room, or import a file") from None
-        raise
+    def fill(sink):
+        sink.write(buffer)
+        while (data := feed.read()) is not None:
+            sink.write(data)
+
+    temporary, remove = camera.temporary_copy(".neurotac-stream-", name, fill, f"{label} from a pipe is copied whole before "
+                                              "it is read: set TMPDIR to a folder with room, or import a file")
     close()
     schema, batches = camera.read_local(temporary, name, sensor, fmt, remove)
     return Stream(schema, batches)

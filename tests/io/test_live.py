@@ -310,6 +310,28 @@ def test_a_piped_file_whose_copy_is_cut_short_leaves_no_temporary_copy(tmp_path,
         assert "no space left on the device" in str(raised.value) and "TMPDIR" in str(raised.value)
 
 
+def test_a_camera_file_on_stdin_that_fills_the_disk_is_one_line_with_advice_and_leaves_no_copy(tmp_path, monkeypatch):
+    """A regular file redirected to stdin is copied whole, like a pipe, and says the same on a full disk."""
+    import io
+
+    from neurotac_cli.errors import InputError
+    from neurotac_cli.io import camera
+
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(b"t,x,y,p\n1,2,3,1\n")))
+
+    def full(source, sink, size):
+        sink.write(b"t,x,y,p\n")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("shutil.copyfileobj", full)
+    with pytest.raises(InputError) as raised:
+        camera.local_path("-")
+    assert str(raised.value).startswith(f"stdin: cannot copy it to {tmp_path / 'tmp'} (no space left on the device)")
+    assert "TMPDIR" in str(raised.value) and os.listdir(tmp_path / "tmp") == []
+
+
 @pytest.mark.parametrize("reader", ["live.open_stream('-').batches", "camera.read_local(*camera.local_path('-'))[1]"])
 def test_the_copy_of_a_piped_file_whose_events_are_never_read_is_removed_at_exit(tmp_path, reader):
     """A generator that never starts runs no `finally`: an output refused before the first batch left
