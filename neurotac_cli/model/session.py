@@ -2,8 +2,9 @@
 
 Why: every force network here was trained on grasps that start from a membrane at rest and a state
 of zeros. On a session of many grasps its accumulators (deform-gru's deformation map and counts,
-the recurrent states) carry each grasp into the next and it drifts (docs/journal.md). The event-driven contact detector (`ops.contact`) finds when a contact
-begins; the force model runs only inside a contact, from a fresh state (begun a few frames before its onset), and reads zero
+the recurrent states) carry each grasp into the next and it drifts (docs/journal.md). The
+event-driven contact detector (`ops.contact`) finds when a contact begins; the force model runs only
+inside a contact, from a fresh state begun on the few frames before its onset, and reads zero
 between contacts; the contact ends after a release burst once the model reads near zero (or the
 membrane has been quiet for a while). So the state is bounded by one contact, and between contacts
 it is the detector's handful of numbers.
