@@ -49,7 +49,11 @@ def is_session_model(model) -> bool:
 
 
 def contact_config(model) -> detector.ContactConfig:
-    return _settings(model, detector.ContactConfig, CONTACT_KEY)
+    config = _settings(model, detector.ContactConfig, CONTACT_KEY)
+    if "lead_frames" not in model.input_spec.get(CONTACT_KEY, {}):
+        # a file written before the lead was a setting: its training contacts began as many 10 ms frames early
+        config = dataclasses.replace(config, lead_frames=detector.frames_at(config.lead_frames, model.input_spec.get("window_us")))
+    return config
 
 
 def slip_config(model) -> detector.SlipConfig:

@@ -436,6 +436,13 @@ def test_the_force_model_starts_on_the_frames_before_the_onset(trained, piece):
     assert recorder.calls[1][0][0] == t_us[onset] and recorder.calls[1][1] == {"call": 1}
 
 
+@pytest.mark.parametrize("window_us, lead", [(10_000, 2), (5_000, 4), (20_000, 1)])
+def test_a_model_file_without_a_lead_reads_as_many_frames_as_its_training_kept(trained, window_us, lead):
+    older = models.Model(trained.name, trained.config, trained.net, dict(trained.input_spec, window_us=window_us), None, trained.training)
+    older.input_spec["contact"] = {k: v for k, v in trained.input_spec["contact"].items() if k != "lead_frames"}
+    assert session.contact_config(older).lead_frames == lead
+
+
 def test_training_contacts_begin_as_many_frames_before_the_true_onset_as_the_model_reads(sessions):
     config = contact.ContactConfig()
     found, summary = session.contacts_table(sessions, config)
