@@ -171,23 +171,26 @@ class Stream:
         Their estimates are not written: those frames were at rest when they were read."""
         if self.lead:
             counts, t_us = (np.stack(column)[None] for column in zip(*self.lead))
-            _, self.inner = self.model.step(counts, t_us, None)
-            log = getattr(self.model.net, "distance_log", None)
-            if log:
-                log.pop()
+            self._step(counts, t_us, None)
 
     def _run(self, pending: list, counts, t_us, force):
         """The force model on the pending frames (consecutive), carrying its state; empties `pending`."""
         if pending:
             begin, end = pending[0], pending[-1] + 1
-            estimate, self.inner = self.model.step(counts[None, begin:end], t_us[None, begin:end], self.inner)
-            log = getattr(self.model.net, "distance_log", None)
-            if log:  # a watcher asked the network for this call's feature distances
-                self.distances[begin:end] = log.pop()[0]
+            estimate, distances = self._step(counts[None, begin:end], t_us[None, begin:end], self.inner)
+            if distances is not None:
+                self.distances[begin:end] = distances
             # a contact's normal force is never negative: a model's undershoot as a press begins or ends reads as none
             force[begin:end] = np.maximum(estimate[0], 0.0)
             self.contact.peak_force = max(self.contact.peak_force, float(estimate[0].max()))
             pending.clear()
+
+    def _step(self, counts, t_us, state):
+        """One call of the force model from `state`, which becomes the stream's: its estimate, and the
+        frames' feature distances where a watcher asked the network for them (None otherwise)."""
+        estimate, self.inner = self.model.step(counts, t_us, state)
+        log = getattr(self.model.net, "distance_log", None)
+        return estimate, (log.pop()[0] if log else None)
 
 
 # ---------------------------------------------------------------- training
