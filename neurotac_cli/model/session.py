@@ -49,11 +49,7 @@ def is_session_model(model) -> bool:
 
 
 def contact_config(model) -> detector.ContactConfig:
-    config = _settings(model, detector.ContactConfig, CONTACT_KEY)
-    if "lead_frames" not in model.input_spec.get(CONTACT_KEY, {}):
-        # a file written before the lead was a setting: its training contacts began as many 10 ms frames early
-        config = dataclasses.replace(config, lead_frames=detector.frames_at(config.lead_frames, model.input_spec.get("window_us")))
-    return config
+    return _settings(model, detector.ContactConfig, CONTACT_KEY)
 
 
 def slip_config(model) -> detector.SlipConfig:
@@ -61,13 +57,18 @@ def slip_config(model) -> detector.SlipConfig:
 
 
 def _settings(model, kind, key):
-    """The detector's settings kept in a model file; one this version does not know is refused, not dropped."""
+    """The detector's settings kept in a model file; one this version does not know is refused, not dropped.
+    A count of frames the file lacks (written before it was a setting) is its default's duration at the
+    file's window, as training would have scaled it (`detector.at_window`)."""
     given = model.input_spec.get(key, {})
     unknown = sorted(set(given) - {f.name for f in dataclasses.fields(kind)})
     if unknown:
         raise ModelError(f"model {model.name!r} carries detector settings this neurotac does not know ({', '.join(unknown)}): "
                          "it was written by a newer version; upgrade neurotac to run it")
-    return kind(**given)
+    window_us = model.input_spec.get("window_us")
+    missing = {name: detector.frames_at(getattr(kind, name), window_us)
+               for name in detector.FRAME_SETTINGS[kind.__name__] if name not in given}
+    return kind(**given, **missing)
 
 
 class Stream:

@@ -28,7 +28,10 @@ A slip is judged on the events of the contact's footprint (the cells the press d
 neighbours) above that footprint's own background, when the caller passes each frame's counts: a
 slip happens where the object touches, while the background noise is spread over the whole frame, so
 on a camera with a busy background (hundreds of events a frame) or a high ON threshold a slip's few
-ON events stand out of the footprint's few cells where they drown in the frame's sum. The slip bars
+ON events stand out of the footprint's few cells where they drown in the frame's sum. They are
+counted above the hold's own activity there (a running mean over the contact's hold frames), where
+that exceeds a tenth of the bars: a trembling object or a creeping membrane keeps making events of
+both polarities through a hold, which passed the bars frame after frame as one long slip. The slip bars
 follow the stream's own presses (`follow_gain`): a model carries the bars of the sensor it was trained
 on, and another camera or membrane makes slips of a few times more or fewer events, as it makes
 presses. The phases use
@@ -84,7 +87,7 @@ class ContactConfig:
 REFERENCE_WINDOW_US = 10_000
 FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames",
                                     "lead_frames"),
-                  "SlipConfig": ("hold_frames", "settle_frames")}
+                  "SlipConfig": ("hold_frames", "settle_frames", "level_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 
 
@@ -194,6 +197,7 @@ class ContactState:
     slipping: bool = False
     slip_quiet: int = 0  # frames since the last evidence of a slip
     last_excess: tuple = (0.0, 0.0)  # the previous frame's OFF and ON events above their background
+    hold_level: tuple = (0.0, 0.0)  # OFF and ON events above their background per frame of this contact's holds (`slip_step`)
     warmup: list | None = field(default_factory=list)  # (OFF, ON) of the stream's first frames; None once they set the background
     footprint: Footprint = field(default_factory=Footprint)
     local: tuple | None = None  # this frame's `Footprint.sums` inside a contact, for `slip_step` (None: the totals)
@@ -234,7 +238,7 @@ def _step(config, state, off, on, by_force) -> str:
         if _above(config, off, state.mean_off) and not _brightening(config, state, off, on):
             state.phase, state.onsets = GRASPING, state.onsets + 1
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
-            state.peak_force, state.press_after = 0.0, 0
+            state.peak_force, state.press_after, state.hold_level = 0.0, 0, (0.0, 0.0)
         else:
             _update_background(config, state, off, on)
         return state.phase
@@ -366,6 +370,8 @@ class SlipConfig:
     hold_frames: int = 3  # a slip ends after this many frames without evidence
     keep_share: float = 0.5  # a slip under way goes on while a frame, or two together on average, pass this share of the bars
     settle_frames: int = 5  # no slip in the first frames of a hold: the object settles (rigid motion, creep)
+    level_frames: int = 50  # time constant (frames) of the hold's own activity on the footprint, which a slip must rise above ...
+    level_floor: float = 0.1  # ... where it exceeds this share of the bars (a quiet hold's few creep events stay counted)
     follow_presses: int = 15  # the bars follow the median of the stream's last presses, up to this many (0: fixed)
     press_off: float | None = None  # the training contacts' median press peak and release peak that set the bars
     release_on: float | None = None  # (`slip_for`; None in files written before: read back from the bars)
@@ -499,10 +505,14 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
         off, on, *means = state.local
     else:
         means = (state.mean_off, state.mean_on)
-    excess = (off - means[0], on - means[1])
+    bars = (config.min_events, config.on_events)
+    raw = (off - means[0], on - means[1])
+    # a hold that keeps making events at the contact (a trembling object, creep, a busy membrane)
+    # would pass the bars frame after frame: a slip is what rises above the hold's own level
+    lifted = [max(level - config.level_floor * bar, 0.0) for level, bar in zip(state.hold_level, bars)]
+    excess = (raw[0] - lifted[0], raw[1] - lifted[1])
     pair = (excess[0] + state.last_excess[0], excess[1] + state.last_excess[1])
     state.last_excess = excess
-    bars = (config.min_events, config.on_events)
     if not touching or separation < config.separation_px:
         evidence = False
     elif state.slipping:  # hysteresis: a slip's events come unevenly, and one weak frame does not end it
@@ -515,6 +525,8 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     starts = evidence and settled
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
     state.slipping = touching and (starts or (state.slipping and (evidence or state.slip_quiet < config.hold_frames)))
+    if state.phase == HOLDING:
+        state.hold_level = tuple(level + (value - level) / config.level_frames for level, value in zip(state.hold_level, raw))
     return state.slipping
 
 

@@ -220,6 +220,17 @@ def test_a_slip_goes_on_through_frames_that_pass_half_its_bar_and_no_weaker_one_
     assert flags([(60, 60), (10, 10), (10, 10)]) == [True, True, False]  # neither the frame nor the pair: it ends
 
 
+def test_a_hold_that_keeps_trembling_is_no_slip_and_a_slip_rises_above_it():
+    """Both polarities 60 events above the background in every frame of a hold (a trembling object):
+    over the bars of 50, but steady, so once the hold's own level is learnt nothing is flagged; a
+    slip that doubles it is."""
+    slip = contact.SlipConfig(min_events=50.0, noise_sigma=0.0)
+    state = contact.ContactState(mean_off=5.0, mean_on=5.0, phase=contact.HOLDING, held=20, held_before=20)
+    trembling = [contact.slip_step(slip, state, 65.0, 65.0, 2.0) for _ in range(10 * slip.level_frames)]
+    assert not any(trembling[-slip.level_frames:])
+    assert contact.slip_step(slip, state, 5 + 120.0, 5 + 120.0, 2.0)
+
+
 def test_a_press_peak_is_taken_above_the_streams_own_background():
     off = np.array([40.0] * 10 + [40, 300, 900, 500, 60] + [40] * 20 + [40, 200, 100] + [40] * 10)
     assert contact.press_peaks(off, [(10, 15), (35, 38)]) == [860.0, 160.0]
@@ -436,11 +447,15 @@ def test_the_force_model_starts_on_the_frames_before_the_onset(trained, piece):
     assert recorder.calls[1][0][0] == t_us[onset] and recorder.calls[1][1] == {"call": 1}
 
 
-@pytest.mark.parametrize("window_us, lead", [(10_000, 2), (5_000, 4), (20_000, 1)])
-def test_a_model_file_without_a_lead_reads_as_many_frames_as_its_training_kept(trained, window_us, lead):
+@pytest.mark.parametrize("window_us, lead, level", [(10_000, 2, 50), (5_000, 4, 100), (20_000, 1, 25)])
+def test_a_model_file_without_a_later_setting_keeps_its_duration_at_the_files_window(trained, window_us, lead, level):
+    """A file written before the lead (or the hold's level) was a setting reads as many frames as its
+    training kept: the default's duration at its own window."""
     older = models.Model(trained.name, trained.config, trained.net, dict(trained.input_spec, window_us=window_us), None, trained.training)
     older.input_spec["contact"] = {k: v for k, v in trained.input_spec["contact"].items() if k != "lead_frames"}
+    older.input_spec["slip"] = {k: v for k, v in trained.input_spec["slip"].items() if k != "level_frames"}
     assert session.contact_config(older).lead_frames == lead
+    assert session.slip_config(older).level_frames == level
 
 
 def test_training_contacts_begin_as_many_frames_before_the_true_onset_as_the_model_reads(sessions):
