@@ -219,7 +219,7 @@ def main(argv=None):
         for name in randomised:
             model, seconds = train_one(name, train_randomised, size, out, tag="-randomised")
             on_unseen[f"{name}, randomised"] = (score(model, unseen), score(model, test), seconds)
-    text = report(size, test, cut, unseen, force_range, results, on_unseen)
+    text = report(size, test, cut, unseen, force_range, results, on_unseen, constant_rmse(train, unseen))
     print(text)
     with open(os.path.join(out, "sessions.md"), "w", encoding="utf-8") as sink:
         sink.write(text)
@@ -229,8 +229,20 @@ def main(argv=None):
         publish(merged_rows(published(), text))
 
 
-def report(size, test, cut, unseen, force_range, results, on_unseen) -> str:
-    """The run's two tables in markdown, each under a line saying what it measured."""
+def constant_rmse(train: pa.Table, table: pa.Table) -> tuple[float, float]:
+    """(the training contacts' mean force, the RMSE in `table`'s contacts of a constant at it): the error of a
+    sensor that reads every contact as the typical training grasp, which a model must beat to read force at all."""
+    def in_contact(t):
+        force = np.nan_to_num(t.column("force").to_numpy(zero_copy_only=False))
+        return force[np.asarray([p not in (None, "none") for p in t.column("phase").to_pylist()])]
+
+    mean = float(in_contact(train).mean())
+    return mean, float(np.sqrt(np.mean((in_contact(table) - mean) ** 2)))
+
+
+def report(size, test, cut, unseen, force_range, results, on_unseen, constant) -> str:
+    """The run's two tables in markdown, each under a line saying what it measured, and what a constant
+    reading (`constant_rmse`) scores on the unseen sessions."""
     minutes = test.num_rows * WINDOW_MS / 60000
     grasps = len(set(cut.column("trial").to_pylist()))
     lines = [f"Test: {size['test_sessions']} session(s), {grasps} grasps, {minutes:.1f} min (seed {TEST_SEED}); "
@@ -244,6 +256,9 @@ def report(size, test, cut, unseen, force_range, results, on_unseen) -> str:
               f"{size['train_sessions']} session(s) of {size['train_grasps']} grasps with every family drawn from its ranges "
               f"and the membrane from their lower two thirds (`{' '.join(RANDOMISED)}`, seed {RANDOMISED_SEED}).", ""]
     lines += unseen_rows(on_unseen, span(unseen), force_range)
+    lines += ["", f"A constant at the training contacts' mean force ({constant[0]:.2f} N) reads these sessions' contacts at "
+              f"RMSE {constant[1]:.3f} N ({100 * constant[1] / span(unseen):.1f}% of the range): a model at or above it "
+              "tells these grasps' forces apart no better than that constant does, whatever its rank."]
     return "\n".join(lines) + "\n"
 
 

@@ -380,6 +380,15 @@ def test_only_a_sessions_run_at_the_goals_size_is_published(tmp_path):
     assert sessions.published(str(page)) == "| model | RMSE |\n|---|---|\n| deform-gru | 0.4 |\n"
 
 
+def test_the_constant_reading_is_the_training_contacts_mean_and_ignores_rest():
+    sessions = load("sessions")
+    table = lambda force, phase: pa.table({"force": pa.array(force, pa.float64()), "phase": pa.array(phase, pa.string())})  # noqa: E731
+    train = table([0.0, 1.0, 3.0, None, 9.0], ["none", "grasping", "holding", "none", None])
+    test = table([1.0, 3.0, 5.0, 0.0], ["holding", "holding", "releasing", "none"])
+    mean, rmse = sessions.constant_rmse(train, test)
+    assert mean == 2.0 and rmse == pytest.approx(((1 + 1 + 9) / 3) ** 0.5)
+
+
 def test_a_sessions_run_of_fewer_models_replaces_only_their_rows():
     sessions = load("sessions")
     old = "Test: 2 sessions.\n\n| model | RMSE |\n|---|---|\n| deform-gru | 0.5 |\n| lstm | 0.6 |\n\nUnseen.\n\n" \
