@@ -61,6 +61,8 @@ def _settings(model, kind, key):
     A count of frames the file lacks (written before it was a setting) is its default's duration at the
     file's window, as training would have scaled it (`detector.at_window`)."""
     given = model.input_spec.get(key, {})
+    if not isinstance(given, dict):
+        raise ModelError(f"model {model.name!r}: its detector settings ({key}) are not a mapping of names to values; train the model again")
     unknown = sorted(set(given) - {f.name for f in dataclasses.fields(kind)})
     if unknown:
         raise ModelError(f"model {model.name!r} carries detector settings this neurotac does not know ({', '.join(unknown)}): "
@@ -68,7 +70,10 @@ def _settings(model, kind, key):
     window_us = model.input_spec.get("window_us")
     missing = {name: detector.frames_at(getattr(kind, name), window_us)
                for name in detector.FRAME_SETTINGS[kind.__name__] if name not in given}
-    return kind(**given, **missing)
+    try:
+        return detector.checked(kind(**given, **missing))
+    except ValueError as error:
+        raise ModelError(f"model {model.name!r}: its detector setting {error}; train the model again") from None
 
 
 class Stream:
@@ -82,7 +87,7 @@ class Stream:
         self.slip = slip_config(model)
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
-        self.lead = collections.deque(maxlen=int(self.config.lead_frames))  # the last frames and their times, read before an onset
+        self.lead = collections.deque(maxlen=self.config.lead_frames)  # the last frames and their times, read before an onset
         self.last_frame = None  # the frame number read last: a stream's frames come one window after another
 
     def check_order(self, trial: str, frames: np.ndarray):
@@ -222,7 +227,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
             touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
         streams.append((off, on, touching))
         after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
-        runs = _widened(touching, len(frames), int(config.lead_frames), after)
+        runs = _widened(touching, len(frames), config.lead_frames, after)
         for begin, end in runs:
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)

@@ -48,7 +48,8 @@ slow illumination changes and hot pixels move it. The OFF sum since the onset le
 """
 
 import collections
-from dataclasses import asdict, dataclass, field, replace
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
@@ -109,6 +110,32 @@ def at_window(config, window_us: int | None):
     scaled = EVENT_SETTINGS[kind] + (("min_events",) if kind == "SlipConfig" and config.press_off is None else ())
     events = {name: round(getattr(config, name) * ratio, 3) for name in scaled}
     return replace(config, **{name: type(getattr(config, name))(value) for name, value in {**frames, **events}.items()})
+
+
+MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
+MAY_BE_ZERO = ("lead_frames", "warmup_frames", "follow_presses")  # counts of frames or presses that may be 0
+
+
+def checked(config):
+    """A ContactConfig or SlipConfig read from a file, its whole-number settings as int; ValueError names
+    a setting that no training writes: not a finite number >= 0 (the training peaks and the ON bar may
+    be unknown), or a count of frames not whole, under 1 (the lead, the warm-up and the presses followed
+    may be 0) or past MAX_FRAMES. Such a value divided by zero, or ran without a word, deep in a stream."""
+    counts = set(FRAME_SETTINGS[type(config).__name__]) | {"follow_presses"}
+    whole = {}
+    for setting in fields(config):
+        value = getattr(config, setting.name)
+        if value is None and setting.default is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ValueError(f"{setting.name}={value!r} is not a finite number >= 0")
+        if setting.name in counts and not (0 if setting.name in MAY_BE_ZERO else 1) <= value <= MAX_FRAMES:
+            raise ValueError(f"{setting.name}={value!r} is outside {0 if setting.name in MAY_BE_ZERO else 1}..{MAX_FRAMES}")
+        if setting.type is int:
+            if value != int(value):
+                raise ValueError(f"{setting.name}={value!r} is not a whole number")
+            whole[setting.name] = int(value)
+    return replace(config, **whole)
 
 
 FOOTPRINT_SHARE = 0.2  # a footprint cell: its OFF events above the background over the presses reach this share of the largest

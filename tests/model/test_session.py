@@ -1,6 +1,7 @@
 """Sessions: the event-driven contact detector, force models run on unbounded streams, session scores."""
 
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -366,6 +367,33 @@ def test_a_model_with_detector_settings_from_a_newer_version_is_refused_in_one_l
             session.predict_table(newer, tiny_session(1)[0])
     finally:
         newer.input_spec = spec
+
+
+@pytest.mark.parametrize("key, setting, value, said", [
+    ("contact", "quiet_frames", 0, "quiet_frames=0 is outside 1.."), ("contact", "memory_frames", 0, "memory_frames=0 is outside"),
+    ("contact", "lead_frames", -1, "lead_frames=-1 is not a finite number"), ("contact", "onset_sigma", None, "onset_sigma=None"),
+    ("contact", "low_frames", "20", "low_frames='20'"), ("slip", "level_frames", 2.5, "level_frames=2.5 is not a whole number"),
+    ("slip", "min_events", float("nan"), "min_events=nan"), ("slip", "follow_presses", 1e12, "follow_presses=1000000000000.0 is outside 0.."),
+    ("slip", None, [1, 2], "are not a mapping")])
+def test_detector_settings_no_training_writes_are_refused_in_one_line(trained, key, setting, value, said):
+    """A hand-edited or damaged model file: a count of 0 frames divided by zero deep in a stream, a
+    string or None was a traceback, a negative lead a deque's error, others ran without a word."""
+    spec = dict(trained.input_spec)
+    trained.input_spec = dict(spec, **{key: value if setting is None else dict(spec[key], **{setting: value})})
+    try:
+        with pytest.raises(ModelError, match=re.escape(said)):
+            session.predict_table(trained, tiny_session(1)[0])
+    finally:
+        trained.input_spec = spec
+
+
+def test_whole_detector_settings_written_as_floats_read_as_counts(trained):
+    spec = dict(trained.input_spec)
+    trained.input_spec = dict(spec, contact=dict(spec["contact"], lead_frames=2.0))
+    try:
+        assert type(session.contact_config(trained).lead_frames) is int
+    finally:
+        trained.input_spec = spec
 
 
 def test_a_session_streamed_in_pieces_gives_the_forces_eval_gives(trained):
