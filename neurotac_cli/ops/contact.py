@@ -129,8 +129,9 @@ def checked(config):
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise ValueError(f"{setting.name}={value!r} is not a finite number >= 0")
-        if setting.name in counts and not (0 if setting.name in MAY_BE_ZERO else 1) <= value <= MAX_FRAMES:
-            raise ValueError(f"{setting.name}={value!r} is outside {0 if setting.name in MAY_BE_ZERO else 1}..{MAX_FRAMES}")
+        lowest = 0 if setting.name in MAY_BE_ZERO else 1
+        if setting.name in counts and not lowest <= value <= MAX_FRAMES:
+            raise ValueError(f"{setting.name}={value!r} is outside {lowest}..{MAX_FRAMES}")
         if setting.type is int:
             if value != int(value):
                 raise ValueError(f"{setting.name}={value!r} is not a whole number")
