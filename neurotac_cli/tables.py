@@ -548,6 +548,9 @@ def write(output: str | None, data, step=None, schema: pa.Schema | None = None, 
                 writer.close()
 
 
+STREAM_BUFFER = 1 << 16  # bytes: a frame of 115x115 counts with its columns fits, and leaves in one write
+
+
 def _write_stream(raw, schema: pa.Schema, batches, flush_each: bool):
     """The Arrow IPC stream, which needs no seeking, into a binary file object (stdout, a pipe)."""
     sink = _WholeWrites(raw)
@@ -564,10 +567,15 @@ class _WholeWrites:
     """stdout for Arrow's writer, each write carried to its last byte. A pipe's write that a signal
     interrupts (the Ctrl-C a live pipe ends on, whose handler only asks the stream to stop) returns
     the bytes it moved so far, and Arrow takes every write as whole: the rest of a batch was lost and
-    the stream ended mid-table."""
+    the stream ended mid-table.
+
+    An unbuffered stdout (PYTHONUNBUFFERED, which many containers set) is buffered here: Arrow writes
+    a batch in a score of pieces (its metadata, each buffer, the padding), and each was a system call
+    that woke the reader at the pipe's other end; now a batch leaves in one write when flushed."""
 
     def __init__(self, sink):
         self.sink, self.position = sink, 0
+        self.pending = bytearray() if isinstance(sink, io.RawIOBase) else None
 
     @property
     def closed(self) -> bool:
@@ -576,13 +584,28 @@ class _WholeWrites:
     def write(self, data) -> int:
         view = memoryview(data).cast("B")
         size = len(view)
-        while len(view):
-            moved = self.sink.write(view)
-            view = view[len(view) if moved is None else moved:]
+        if self.pending is None:
+            self._whole(view)
+        else:
+            self.pending += view
+            if len(self.pending) >= STREAM_BUFFER:
+                self._drain()
         self.position += size
         return size
 
+    def _whole(self, view):
+        while len(view):
+            moved = self.sink.write(view)
+            view = view[len(view) if moved is None else moved:]
+
+    def _drain(self):
+        if self.pending:
+            pending, self.pending = self.pending, bytearray()
+            self._whole(memoryview(pending))
+
     def flush(self):
+        if self.pending is not None:
+            self._drain()
         self.sink.flush()
 
     def tell(self) -> int:

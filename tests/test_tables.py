@@ -386,3 +386,28 @@ def test_crop_into_a_pipe_hands_on_each_batch_as_it_comes(tmp_path):
         _, said = crop.communicate(timeout=30)
     assert done.returncode == 0 and crop.returncode == 0, done.stderr + said.decode()
     assert float(done.stdout) < 6.0
+
+
+class _CountingRaw(io.RawIOBase):
+    """An unbuffered stdout (PYTHONUNBUFFERED) that counts its system calls."""
+
+    def __init__(self):
+        self.data, self.calls = bytearray(), 0
+
+    def writable(self):
+        return True
+
+    def write(self, chunk):
+        self.calls += 1
+        self.data += bytes(chunk)
+        return len(chunk)
+
+
+def test_a_streamed_batch_leaves_an_unbuffered_stdout_in_one_write():
+    """Arrow writes a batch in a score of pieces; each was a system call that woke the reader."""
+    raw = _CountingRaw()
+    table = pa.table({"frame": pa.array(range(50), pa.int64()), "force": pa.array(np.linspace(0, 1, 50))})
+    tables._write_stream(raw, table.schema, table.to_batches(max_chunksize=1), flush_each=True)
+    assert raw.calls <= 50 + 2  # one a batch, the schema and the end (the schema goes with the first batch)
+    assert not raw.closed
+    assert pa.ipc.open_stream(bytes(raw.data)).read_all().equals(table)
