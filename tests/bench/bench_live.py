@@ -216,7 +216,8 @@ def test_live_pipe_latency_and_memory(rig):
     reading = threading.Thread(target=_collect, args=(reader.stdout, ready, arrived), daemon=True)
     reading.start()
     # the camera starts once predict's schema has arrived (every process has started), or after
-    # STARTUP_S when a stage holds its output back
+    # STARTUP_S: Arrow's stream writer sends a schema with its first batch, so where a stage waits
+    # for its input's first batch (crop, predict) no schema comes through before the first frame
     started_early = not ready.wait(STARTUP_S)
     camera.start()
     sampler.start()
@@ -227,7 +228,7 @@ def test_live_pipe_latency_and_memory(rig):
         process.wait(timeout=60)
     assert all(p.returncode == 0 for p in processes + [reader]), [p.returncode for p in processes + [reader]]
     if started_early:
-        print(f"\nthe camera started after {STARTUP_S:g} s without predict's schema: a stage of the pipe holds its output back")
+        print(f"\nthe camera started after {STARTUP_S:g} s without predict's schema (a stage sends its schema with its first frame)")
     _report(camera, arrived, memory)
 
 
