@@ -58,8 +58,8 @@ def slip_config(model) -> detector.SlipConfig:
 
 def _settings(model, kind, key):
     """The detector's settings kept in a model file; one this version does not know is refused, not dropped.
-    A count of frames the file lacks (written before it was a setting) is its default's duration at the
-    file's window, as training would have scaled it (`detector.at_window`)."""
+    A count of frames the file lacks (written before it was a setting) is its default at the file's
+    window, as training would have scaled it (`detector.at_window`)."""
     given = model.input_spec.get(key, {})
     if not isinstance(given, dict):
         raise ModelError(f"model {model.name!r}: its detector settings ({key}) are not a mapping of names to values; train the model again")
@@ -67,9 +67,8 @@ def _settings(model, kind, key):
     if unknown:
         raise ModelError(f"model {model.name!r} carries detector settings this neurotac does not know ({', '.join(unknown)}): "
                          "it was written by a newer version; upgrade neurotac to run it")
-    window_us = model.input_spec.get("window_us")
-    missing = {name: detector.frames_at(getattr(kind, name), window_us)
-               for name in detector.FRAME_SETTINGS[kind.__name__] if name not in given}
+    defaults = detector.at_window(kind(), model.input_spec.get("window_us"))
+    missing = {name: getattr(defaults, name) for name in detector.FRAME_SETTINGS[kind.__name__] if name not in given}
     try:
         return detector.checked(kind(**given, **missing))
     except ValueError as error:
