@@ -13,6 +13,7 @@ WORK/cache), so an interrupted run resumes inside the study it was in.
 """
 
 import argparse
+import concurrent.futures
 import datetime
 import hashlib
 import os
@@ -376,6 +377,19 @@ def set_options(values: dict) -> str:
     """Drawn values as simulate's --set options."""
     return " ".join(f"--set {k}={round(v)}us" if k.endswith("_us") else f"--set {k}={v:.6g}" if isinstance(v, float) else f"--set {k}={v}"
                     for k, v in values.items())
+
+
+def add_jobs_option(parser):
+    parser.add_argument("--jobs", type=int, default=2, help="rigs at once, each in a process of its own (default 2; 1: in this process)")
+
+
+def each_rig(jobs: int, work, seeds, *shared) -> list:
+    """[work(seed, *shared) for seed in seeds], `jobs` rigs at once in processes of their own (1: in this one)."""
+    arguments = (seeds, *([value] * len(seeds) for value in shared))
+    if jobs <= 1:
+        return list(map(work, *arguments))
+    with concurrent.futures.ProcessPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(work, *arguments))
 
 
 def rig(seed: int):

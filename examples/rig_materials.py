@@ -16,12 +16,11 @@ of docs/results.md, and WORK/rig_materials.md (a quick or resized run only the l
 """
 
 import argparse
-import concurrent.futures
 import pathlib
 import statistics
 
 from chapters import keep_section, md_table, publish_section  # beside this script
-from results import MATERIAL_PIPELINE, fmt, frames, material_rows, neurotac, recalls, rig
+from results import MATERIAL_PIPELINE, add_jobs_option, each_rig, fmt, frames, material_rows, neurotac, recalls, rig
 
 SECTION, TITLE = "rig-materials", "Materials on rigs of other physics"
 RIGS = (101, 102, 103, *range(201, 217))
@@ -46,17 +45,13 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="two rigs, one seed (about a minute)")
     parser.add_argument("--repeats", type=int, default=REPEATS, help=f"seeds of each cross-validation (default {REPEATS}; another number is not published)")
-    parser.add_argument("--jobs", type=int, default=2, help="rigs at once, each in a process of its own (default 2; 1: in this process)")
+    add_jobs_option(parser)
     parser.add_argument("--work", default=None, help="folder for frames and metrics (default examples/out-rig-materials[-quick])")
     args = parser.parse_args(argv)
     here = pathlib.Path(__file__).resolve().parent
     work = pathlib.Path(args.work or here / ("out-rig-materials-quick" if args.quick else "out-rig-materials"))
     rigs, repeats = (RIGS[:2], 1) if args.quick else (RIGS, args.repeats)
-    if args.jobs > 1:
-        with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
-            results = list(pool.map(one_rig, rigs, [work] * len(rigs), [repeats] * len(rigs)))
-    else:
-        results = [one_rig(seed, work, repeats) for seed in rigs]
+    results = each_rig(args.jobs, one_rig, rigs, work, repeats)
     names = list(results[0][2])
     rows, ours = [], []
     for seed, about, scores in results:

@@ -25,7 +25,6 @@ sessions framed and models trained in OUT are reused.
 """
 
 import argparse
-import concurrent.futures
 import os
 
 import numpy as np
@@ -33,7 +32,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from chapters import RESULTS_PAGE, publish_section  # beside this script
-from results import rig
+from results import add_jobs_option, each_rig, rig
 from sessions import cut_into_trials, detection_cells, rest_cells, score, simulate, span
 from neurotac_cli import metrics
 from neurotac_cli import model as models
@@ -166,7 +165,7 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="two rigs of 4-grasp sessions, few epochs (about a minute)")
     parser.add_argument("--model", default=None, help="a force model to train on each rig's sessions (e.g. deform-gru)")
     parser.add_argument("--out", default=None, help="folder for sessions, models and rig_sessions.md (default examples/out-rigs[-quick])")
-    parser.add_argument("--jobs", type=int, default=2, help="rigs at once, each in a process of its own (default 2; 1: in this process)")
+    add_jobs_option(parser)
     args = parser.parse_args(argv)
     here = os.path.dirname(os.path.abspath(__file__))
     out = args.out or os.path.join(here, "out-rigs-quick" if args.quick else "out-rigs")
@@ -175,12 +174,7 @@ def main(argv=None):
         seeds, grasps, epochs = (CHOICE_RIGS[0], CHECK_RIGS[0]), 4, 3
     else:
         seeds, grasps, epochs = ((DEFAULT_RIG,) if args.model else ()) + CHOICE_RIGS + CHECK_RIGS, 20, EPOCHS
-    arguments = (seeds, *([value] * len(seeds) for value in (out, grasps, args.model, epochs)))
-    if args.jobs > 1:
-        with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            rows = list(pool.map(one_rig, *arguments))
-    else:
-        rows = list(map(one_rig, *arguments))
+    rows = each_rig(args.jobs, one_rig, seeds, out, grasps, args.model, epochs)
     lines = [f"Each rig: three sessions of {grasps} grasps with one draw of every physics family. Detection alone: the slip bars "
              "from the first two sessions' presses and releases, the third scored, the true force ending contacts. Fixed: 50 events of each "
              f"polarity above the background; scaled: {detector.SLIP_SHARE:g} of the rig's median press peak, at least "
