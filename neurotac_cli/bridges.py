@@ -126,6 +126,11 @@ def _frame_size(schema: pa.Schema, first: pa.RecordBatch | None) -> tuple[int, i
                       f"(its neurotac:sensor metadata was lost on the way); give it: neurotac --frame-size WxH ...")
 
 
+def _wrong_length(row: int, held: int, target: pa.FixedShapeTensorType) -> SchemaError:
+    return SchemaError(f"frames 'counts' of row {row} hold {held} values, expected {int(np.prod(target.shape))} "
+                       f"(2x{target.shape[1]}x{target.shape[2]}); give the frame size: neurotac --frame-size WxH ...")
+
+
 def _tensor(column: pa.Array, target: pa.FixedShapeTensorType) -> pa.ExtensionArray:
     """A list column of counts as `target`, every row checked to hold 2·H·W values."""
     size = int(np.prod(target.shape))
@@ -133,12 +138,14 @@ def _tensor(column: pa.Array, target: pa.FixedShapeTensorType) -> pa.ExtensionAr
     while not (pa.types.is_integer(values.type) or pa.types.is_floating(values.type)):
         if values.null_count:
             raise SchemaError("frames column 'counts' has empty (null) frames; drop those rows or fill them with zeros")
+        flat_fixed = values is column and pa.types.is_fixed_size_list(values.type) and not pa.types.is_nested(values.type.value_type)
+        if flat_fixed and values.type.list_size != size:  # one length for every row: a frame size that does not fit them
+            raise _wrong_length(0, values.type.list_size, target)
         if not pa.types.is_fixed_size_list(values.type):
             lengths = pc.list_value_length(values).to_numpy(zero_copy_only=False)
             if len(lengths) and (lengths.min() != lengths.max() or (values is column and lengths[0] != size)):
                 bad = int(np.flatnonzero(lengths != (size if values is column else lengths[0]))[0]) if len(lengths) else 0
-                raise SchemaError(f"frames 'counts' of row {bad} hold {lengths[bad]} values, expected {size} "
-                                  f"(2x{target.shape[1]}x{target.shape[2]}); give the frame size: neurotac --frame-size WxH ...")
+                raise _wrong_length(bad, lengths[bad], target)
         values = pc.list_flatten(values)
     try:
         values = values.cast(target.value_type, safe=True)

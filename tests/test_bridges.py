@@ -136,3 +136,14 @@ def test_faery_csv_with_its_sensor_in_the_header_and_crlf_lines(tmp_path):
     events = read_events_table(str(tmp_path / "faery.csv"))
     assert sch.sensor_of(events.schema) == (346, 260)
     assert [events.column(n).to_pylist() for n in "txyp"] == [[10, 20, 35], [1, 345, 3], [2, 259, 4], [1, 0, 1]]
+
+
+@pytest.mark.parametrize("size", ["10x10", "7x7"])
+def test_fixed_size_lists_of_another_frame_size_are_refused_in_one_line(tmp_path, monkeypatch, size):
+    frames = tiny_frames(trials=2, size=(8, 9))
+    flat = frames.set_column(frames.schema.get_field_index("counts"), "counts",
+                             pa.FixedSizeListArray.from_arrays(pa.array(counts_of(frames).ravel()), 2 * 8 * 9))
+    pq.write_table(flat.replace_schema_metadata(None), tmp_path / "f.parquet")
+    monkeypatch.setenv("NEUROTAC_FRAME_SIZE", "")
+    refused = CliRunner().invoke(cli, ["--frame-size", size, "info", str(tmp_path / "f.parquet")])
+    assert refused.exit_code == 1 and "row 0 hold 144 values" in refused.output and "Traceback" not in refused.output
