@@ -981,3 +981,11 @@ def test_an_output_in_a_read_only_folder_is_refused_before_any_training(files, r
     code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(read_only_folder / "m.model"), str(files / "f.arrows")])
     said = "(read-only file system; write elsewhere)" if os.geteuid() == 0 else "(permission denied; write elsewhere"
     assert one_line(stderr, code, 1) and f"cannot write {read_only_folder / 'm.model'} {said}" in stderr, stderr
+
+
+def test_plot_trials_the_input_lacks_are_named_and_without_a_plot_are_a_usage_error(files, tmp_path):  # noqa: F811
+    args = ["eval", "--model", f"{files}/m.model", f"{files}/f.arrows"]
+    code, stderr, _ = invoke([*args, "--plot", str(tmp_path / "p.png"), "--plot-trials", "nosuch"])
+    assert one_line(stderr, code, 1) and "no trial 'nosuch'" in stderr and not (tmp_path / "p.png").exists()
+    code, stderr, _ = invoke([*args, "--plot-trials", "nosuch"])
+    assert code == 2 and "give --plot" in stderr

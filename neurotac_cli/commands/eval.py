@@ -1,5 +1,6 @@
 import click
 
+from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_label_for_force, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, threads_option, use_device)
@@ -49,7 +50,10 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     chosen = hyperparameters(options)
     check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
+    if plot_trials and not plot:
+        raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
+    trials = _plotted_trials(table, plot_trials)
     if model_path:
         from neurotac_cli.model.core import unstated_window
         from neurotac_cli.model.store import read_header
@@ -78,15 +82,25 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     if metrics_path:
         tables.write(metrics_path, result.metrics, step=step)
     if plot:
-        trials = [t.strip() for t in plot_trials.split(",")] if plot_trials else None
         plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
     tables.write(output, result.predictions, step=step)
+
+
+def _plotted_trials(table, plot_trials: str | None) -> list | None:
+    """The trial ids of --plot-trials, each one the input holds (None: the plot's default)."""
+    if not plot_trials:
+        return None
+    from neurotac_cli.rendering import pick_trial
+
+    chosen = [name.strip() for name in plot_trials.split(",") if name.strip()]
+    if not chosen:
+        raise UsageError(f"--plot-trials {plot_trials!r} names no trial")
+    return [pick_trial(table, name) for name in chosen]
 
 
 def _model_label(header: dict, label: str) -> str:
     """The label a model file classifies by (its training's): a classifier predicts only that one, so
     a --label that differs would score it under another label's name; a force model has none."""
-    from neurotac_cli.errors import UsageError
 
     refuse_label_for_force(header["model"])
     if header["task"] != "material":
