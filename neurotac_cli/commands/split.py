@@ -2,14 +2,14 @@
 
 import click
 
-from neurotac_cli.options import FiniteRange, input_paths, seed_option
+from neurotac_cli.options import FiniteRange, TablePath, input_paths, seed_option
 
 
 @click.command()
 @input_paths
-@click.option("--train", "train_path", type=click.Path(dir_okay=False, allow_dash=True), required=True,
+@click.option("--train", "train_path", type=TablePath(), required=True,
               help="Where the training trials go (a file by suffix, or - for stdout).")
-@click.option("--test", "test_path", type=click.Path(dir_okay=False, allow_dash=True), required=True,
+@click.option("--test", "test_path", type=TablePath(), required=True,
               help="Where the test trials go (a file by suffix, or - for stdout).")
 @click.option("--fraction", type=FiniteRange(0, 1, min_open=True, max_open=True), default=None, help="This share of the trials (drawn with --seed) goes to test.")
 @click.option("--per", "per", metavar="LABEL", default=None, help="With --fraction: draw that share within each value of this label.")
@@ -35,7 +35,9 @@ def command(paths, train_path, test_path, fraction, per, expression, seed):
     table = tables.read(paths)
     train, test, report = split(table, fraction=fraction, where=expression, per=per, seed=seed)
     args = {"fraction": fraction, "per": per, "where": expression, "seed": seed, **report}
-    tables.write(train_path, train, step=("split", dict(args, part="train")))
-    tables.write(test_path, test, step=("split", dict(args, part="test")))
+    parts = [(train_path, train, "train"), (test_path, test, "test")]
+    # the file before stdout: a reader that stops early (`| head`) must not cost the other table
+    for path, part, name in sorted(parts, key=lambda item: item[0] == "-"):
+        tables.write(path, part, step=("split", dict(args, part=name)))
     click.echo(f"neurotac split: {report['train_trials']} trials ({report['train_rows']:,} rows) to {train_path}, "
                f"{report['test_trials']} ({report['test_rows']:,} rows) to {test_path}", err=True)

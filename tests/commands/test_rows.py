@@ -126,6 +126,22 @@ def test_split_command_writes_both_tables(tmp_path):
     assert a.num_rows == b.num_rows == 24 and sch.get_meta(b.schema, sch.HISTORY)[-1]["args"]["part"] == "test"
 
 
+def test_split_refuses_an_unknown_suffix_before_writing_either_table(tmp_path):
+    source = str(tmp_path / "f.arrows")
+    tables.write(source, tiny_frames(trials=4))
+    result = CliRunner().invoke(cli, ["split", source, "--fraction", "0.5", "--train", str(tmp_path / "a.arrows"),
+                                      "--test", str(tmp_path / "b.txt")])
+    assert result.exit_code == 2 and "--test" in result.output and not (tmp_path / "a.arrows").exists()
+
+
+def test_split_writes_its_file_before_a_stdout_that_closes_early(tmp_path):
+    source = str(tmp_path / "f.arrows")
+    tables.write(source, tiny_frames(trials=4, size=(120, 120)))  # more than a pipe holds
+    done = subprocess.run(f"neurotac split {source} --fraction 0.5 --train - --test {tmp_path}/b.arrows | head -c 100 > {tmp_path}/head.bin",
+                          shell=True, executable="/bin/bash", capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and tables.read([str(tmp_path / "b.arrows")]).num_rows == 24, done.stderr
+
+
 def test_a_new_users_workflow_by_shell_pipes(tmp_path):
     """A folder of simulated grasps to a drawn montage, a selection, a split, a model and CSV predictions."""
     script = f"""
