@@ -467,13 +467,16 @@ def pa_equal(column, value):
 
 @pytest.mark.parametrize("setting, value, words", [("layers", "abc", "whole number"), ("delays", 1.5, "whole number"),
                                                     ("lr", "abc", "takes a number")])
-def test_a_setting_of_the_wrong_type_is_refused_before_training(setting, value, words):
-    from neurotac_cli.errors import ModelError
+def test_a_setting_of_the_wrong_type_is_refused_before_training(setting, value, words, tiny_frames_file):
+    from neurotac_cli.cli import cli
+    from neurotac_cli.errors import UsageError
     from neurotac_cli.model.core import make_spec
 
-    with pytest.raises(ModelError, match=words):
+    with pytest.raises(UsageError, match=words):  # a usage error (exit 2), as a value outside its range is
         make_spec("tdnn", **{setting: value})
     assert make_spec("tdnn", layers=2.0)["layers"] == 2 and isinstance(make_spec("tdnn", layers=2.0)["layers"], int)
+    result = CliRunner().invoke(cli, ["study", "--model-spec", "tdnn", "--grid", f"{setting}={value}", tiny_frames_file])
+    assert result.exit_code == 2 and words in result.stderr
 
 
 @pytest.mark.parametrize("spec, words", [("lr=1e-3..1e-2", "give a step"), ("lr=0.5..2", "give a step"),

@@ -69,11 +69,11 @@ def _typed(key: str, value, default):
     if isinstance(default, int):
         if isinstance(value, int) or (isinstance(value, float) and value.is_integer()):
             return int(value)
-        raise ModelError(f"{option} takes a whole number, got {value!r}")
+        raise UsageError(f"{option} takes a whole number, got {value!r}")
     if isinstance(default, float):
         if isinstance(value, (int, float)):
             return float(value)
-        raise ModelError(f"{option} takes a number, got {value!r}")
+        raise UsageError(f"{option} takes a number, got {value!r}")
     return value
 
 
