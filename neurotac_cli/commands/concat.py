@@ -12,7 +12,8 @@ from neurotac_cli.options import output_option
               "instead of refusing it, with a warning.")
 def command(paths, output, rename):
     """Concatenate tables of one kind, sensor size and frame window, refusing a trial id that two
-    inputs share (it would be trained on twice) unless --rename is given.
+    inputs share (it would be trained on twice) unless --rename is given. Events tables are one
+    recording each, on one clock, and are not joined: recordings tables (one trial per file) are.
 
     \b
         neurotac concat steel.arrows foam.arrows -o both.parquet

@@ -172,3 +172,11 @@ def test_concat_names_the_column_that_differs():
     other = other.set_column(0, "trial", pa.array([f"x{t}" for t in other.column("trial").to_pylist()]))
     with pytest.raises(SchemaError, match="b has no object"):
         concat([("a", frames), ("b", other)])
+
+
+def test_concat_refuses_events_tables_whose_clocks_would_run_on_as_one(tmp_path):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, sch.events_table(np.arange(3), np.array([1, 2, 3]), np.array([1, 2, 3]), np.array([0, 1, 0]), 8, 8))
+    result = CliRunner().invoke(cli, ["concat", path, path, "-o", str(tmp_path / "both.arrows")])
+    assert result.exit_code == 1 and "one recording on one clock" in result.stderr and not (tmp_path / "both.arrows").exists()
+    assert CliRunner().invoke(cli, ["concat", path, "-o", str(tmp_path / "one.arrows")]).exit_code == 0
