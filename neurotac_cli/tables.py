@@ -416,6 +416,20 @@ def output_format(path: str) -> str:
     return SUFFIXES[suffix]
 
 
+def check_not_inputs(inputs, **outputs) -> None:
+    """A side output (`--metrics`, `--train`, a training's curve) that is one of the input files would
+    replace the data read with a table of another kind: refused before the work. (`-o` over its own
+    input is a command run in place, and allowed.) `outputs`: option name (underscores for dashes) -> path."""
+    files = [path for path in inputs if path not in (None, "-") and os.path.isfile(path)]
+    for option, path in outputs.items():
+        if path in (None, "-") or not os.path.isfile(path):
+            continue
+        for source in files:
+            if os.path.samefile(path, source):
+                raise UsageError(f"--{option.replace('_', '-')} {path} is also an input: writing it would replace the data "
+                                 "read; give it another path")
+
+
 def check_folder(*paths) -> None:
     """One clear error if the folder of any of `paths` does not exist, or if two of them name one
     file, where the last written would silently replace the other (a command that runs for minutes

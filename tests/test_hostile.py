@@ -989,3 +989,15 @@ def test_plot_trials_the_input_lacks_are_named_and_without_a_plot_are_a_usage_er
     assert one_line(stderr, code, 1) and "no trial 'nosuch'" in stderr and not (tmp_path / "p.png").exists()
     code, stderr, _ = invoke([*args, "--plot-trials", "nosuch"])
     assert code == 2 and "give --plot" in stderr
+
+
+@pytest.mark.parametrize("args", [["eval", "--model", "{d}/m.model", "--metrics", "{t}/x.arrows"],
+                                  ["study", "--model-spec", "tdnn", "--epochs", "1", "--cv", "kfold:2", "--metrics", "{t}/x.arrows"],
+                                  ["split", "--fraction", "0.5", "--train", "{t}/x.arrows", "--test", "{t}/y.arrows"],
+                                  ["train", "--model", "tdnn", "--epochs", "1", "-o", "{t}/m.model", "--curve", "{t}/x.arrows"]])
+def test_a_side_output_that_is_an_input_is_refused_and_the_input_kept(files, tmp_path, args):  # noqa: F811
+    source = tmp_path / "x.arrows"
+    source.write_bytes((files / "f.arrows").read_bytes())
+    code, stderr, _ = invoke([a.format(d=files, t=tmp_path) for a in args] + [str(source)])
+    assert one_line(stderr, code, 2) and "is also an input" in stderr
+    assert source.read_bytes() == (files / "f.arrows").read_bytes()

@@ -50,6 +50,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     chosen = hyperparameters(options)
     check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
+    tables.check_not_inputs(paths, metrics=metrics_path, plot=plot)
     if plot_trials and not plot:
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import

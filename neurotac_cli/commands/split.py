@@ -32,6 +32,7 @@ def command(paths, train_path, test_path, fraction, per, expression, seed):
     if train_path == test_path:
         raise UsageError("--train and --test must differ (give - to one of them for stdout)")
     tables.check_folder(*(path for path in (train_path, test_path) if path != "-"))
+    tables.check_not_inputs(paths, train=train_path, test=test_path)
     table = tables.read(paths)
     train, test, report = split(table, fraction=fraction, where=expression, per=per, seed=seed)
     args = {"fraction": fraction, "per": per, "where": expression, "seed": seed, **report}

@@ -50,6 +50,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
 
     refuse_label_for_force(model)
     tables.check_folder(*(path for path in (output, metrics_path) if path not in (None, "-")))  # before hours of training
+    tables.check_not_inputs(paths, metrics=metrics_path)
     table = tables.read(paths, kind="frames")
     use_device(device)
     result = evaluate.study(

@@ -66,6 +66,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
         raise UsageError("--contacts trains force models; a material classifier takes whole trials")
     refuse_label_for_force(model_name)
     tables.check_folder(*(path for path in (output, curve, plot) if path is not None))
+    tables.check_not_inputs(paths, output=output, curve=curve, plot=plot)
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
 
