@@ -1001,3 +1001,13 @@ def test_a_side_output_that_is_an_input_is_refused_and_the_input_kept(files, tmp
     code, stderr, _ = invoke([a.format(d=files, t=tmp_path) for a in args] + [str(source)])
     assert one_line(stderr, code, 2) and "is also an input" in stderr
     assert source.read_bytes() == (files / "f.arrows").read_bytes()
+
+
+def test_figures_undefined_on_a_flat_force_are_said_so_in_the_summary():
+    from neurotac_cli.model import scoring
+
+    rows = [("all", "rmse", 0.2), ("all", "r2", 0.5), ("all", "rmse_pct_range", 5.0),
+            ("trial:a", "rmse", 0.1), ("trial:a", "r2", float("nan")), ("trial:a", "rmse_pct_range", float("nan"))]
+    said = scoring.summary(rows)
+    assert "undefined where the measured force does not vary: 1 scope (trial:a)" in said
+    assert "undefined" not in scoring.summary(rows[:3])

@@ -109,6 +109,10 @@ def summary(rows: list, title: str = "") -> str:
         lines.append(f"{scope:<18}" + "".join(cells))
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
+    flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
+    if flat:
+        lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
+                     f"({', '.join(flat[:3])}{', ...' if len(flat) > 3 else ''}), '-' here and NaN in the metrics table")
     lines += _validation_lines(by_scope.get("all", {}))
     if "rest_frames" in by_scope.get("all", {}):  # a model run on streams (train --contacts)
         from neurotac_cli.model.session import summary_lines
