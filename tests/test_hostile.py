@@ -1011,3 +1011,13 @@ def test_figures_undefined_on_a_flat_force_are_said_so_in_the_summary():
     said = scoring.summary(rows)
     assert "undefined where the measured force does not vary: 1 scope (trial:a)" in said
     assert "undefined" not in scoring.summary(rows[:3])
+
+
+@pytest.mark.parametrize("suffix", [".json", ".ndjson"])
+@pytest.mark.parametrize("verb", ["info", "import"])
+def test_json_a_verb_wrote_for_other_tools_is_named_when_read_back(tmp_path, suffix, verb):
+    source, text = str(tmp_path / "e.arrows"), str(tmp_path / f"e{suffix}")
+    tables.write(source, events(np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), 8, 8))
+    assert invoke(["select", "--where", "t >= 0", source, "-o", text])[0] == 0
+    code, stderr, _ = invoke([verb, text])
+    assert one_line(stderr, code, 1) and "is JSON text" in stderr

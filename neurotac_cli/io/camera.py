@@ -125,6 +125,9 @@ def detect_format(path, head: bytes) -> str:
         raise FormatError(f"{name} is already a table, not a camera file (use it directly, or `neurotac info {name}`)")
     if _looks_like_text(head.removeprefix(BOM)):
         first = first_data_line(head.removeprefix(BOM))
+        if first.lstrip().startswith(("{", "[")):  # what `-o x.json`/`.ndjson` writes, for other tools to read
+            raise FormatError(f"{name} is JSON text, which neurotac writes for other tools but does not read; "
+                              "write the table with -o .parquet or .arrows (or .csv for events) to read it again")
         return "csv" if "," in first else "text"
     raise FormatError(
         f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/2.1/3.0 .raw and .dat, "
