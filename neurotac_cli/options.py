@@ -464,6 +464,13 @@ def echo_lines(command: str, lines, prefix: str = "") -> None:
         click.echo(f"neurotac {command}: {prefix}{line}", err=True)
 
 
+def typed_options(*names) -> list[str]:
+    """Those of `names` (parameter names) given on the running command's command line, as options
+    (`--val-fraction`): an environment variable set for a whole session is not the user's request."""
+    ctx = click.get_current_context()
+    return ["--" + name.replace("_", "-") for name in names if ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE]
+
+
 def label_given() -> bool:
     """Whether the user gave --label (not its default) to the running command."""
     return click.get_current_context().get_parameter_source("label") != click.core.ParameterSource.DEFAULT

@@ -1021,3 +1021,11 @@ def test_json_a_verb_wrote_for_other_tools_is_named_when_read_back(tmp_path, suf
     assert invoke(["select", "--where", "t >= 0", source, "-o", text])[0] == 0
     code, stderr, _ = invoke([verb, text])
     assert one_line(stderr, code, 1) and "is JSON text" in stderr
+
+
+def test_cross_validation_options_given_to_a_model_file_s_scoring_are_a_usage_error(files, monkeypatch):  # noqa: F811
+    args = ["eval", "--model", f"{files}/m.model", f"{files}/f.arrows"]
+    code, stderr, _ = invoke([*args, "--repeats", "3", "--seed", "5"])
+    assert code == 2 and "--repeats, --seed apply to --cv only" in stderr
+    monkeypatch.setenv("NEUROTAC_JOBS", "4")  # a session's environment is not a request
+    assert invoke(args)[0] == 0

@@ -3,7 +3,7 @@ import click
 from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
 from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_label_for_force, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
-                                  output_option, progress_printer, seed_option, study_options, threads_option, use_device)
+                                  output_option, progress_printer, seed_option, study_options, threads_option, typed_options, use_device)
 
 
 @click.command()
@@ -51,6 +51,9 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     check_request(model_path=model_path, cv=cv, model_spec=model_spec, grid=grid, plot=plot, hyperparameters=chosen)
     tables.check_folder(*(path for path in (output, metrics_path, plot) if path not in (None, "-")))
     tables.check_not_inputs(paths, metrics=metrics_path, plot=plot)
+    cv_only = typed_options("repeats", "val_fraction", "val_per", "seed", "jobs", "scheduler", "cache") if model_path else []
+    if cv_only:
+        raise UsageError(f"{', '.join(cv_only)} apply to --cv only: a model file is scored as it is, with no training")
     if plot_trials and not plot:
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
