@@ -214,6 +214,8 @@ def split(table: pa.Table, fraction: float | None = None, where: str | None = No
         raise SchemaError("split moves whole trials: the table has no trial column (select rows with `neurotac select`)")
     if (fraction is None) == (where is None):
         raise UsageError("give either --fraction (a seeded share of the trials) or --where (the test trials by a condition)")
+    if per is not None and where is not None:
+        raise UsageError("--per draws --fraction's share within each label value; --where chooses the test trials itself")
     groups = _groups(table)
     if where is not None:
         test_groups = set(groups[where_mask(table, where)].tolist())
@@ -223,27 +225,33 @@ def split(table: pa.Table, fraction: float | None = None, where: str | None = No
         test_groups = _draw(table, groups, fraction, per, np.random.default_rng(seed))
     in_test = np.isin(groups, list(test_groups))
     if in_test.all() or not in_test.any():
-        raise NeurotacError(f"the split leaves the {'training' if in_test.all() else 'test'} table empty; "
-                            "change --fraction or --where")
+        lone = per is not None and where is None and all(len(members) == 1 for members in _strata(table, groups, per).values())
+        advice = ("every --per group holds one trial, whose share rounds to none or all of it: split without --per, or per "
+                  "a label of larger groups") if lone else "change --fraction or --where"
+        raise NeurotacError(f"the split leaves the {'training' if in_test.all() else 'test'} table empty; {advice}")
     train, test = table.filter(pa.array(~in_test)), table.filter(pa.array(in_test))
     report = {"train_trials": len(set(groups[~in_test].tolist())), "test_trials": len(test_groups),
               "train_rows": train.num_rows, "test_rows": test.num_rows, "test": sorted(test_groups)}
     return train, test, report
 
 
-def _draw(table: pa.Table, groups: np.ndarray, fraction: float, per: str | None, rng) -> set:
+def _strata(table: pa.Table, groups: np.ndarray, per: str | None) -> dict:
+    """{label value: its trials} (one stratum of every trial without `per`)."""
     unique = list(dict.fromkeys(groups.tolist()))
     if per is None:
-        strata = {"": unique}
-    else:
-        if per not in table.column_names:
-            raise SchemaError(f"no label column {per!r} to split per (labels: {', '.join(sch.label_columns(table.schema))})")
-        labels = dict(zip(groups.tolist(), table.column(per).to_pylist()))
-        strata = {}
-        for group in unique:
-            strata.setdefault(labels[group], []).append(group)
+        return {"": unique}
+    if per not in table.column_names:
+        raise SchemaError(f"no label column {per!r} to split per (labels: {', '.join(sch.label_columns(table.schema))})")
+    labels = dict(zip(groups.tolist(), table.column(per).to_pylist()))
+    strata = {}
+    for group in unique:
+        strata.setdefault(labels[group], []).append(group)
+    return strata
+
+
+def _draw(table: pa.Table, groups: np.ndarray, fraction: float, per: str | None, rng) -> set:
     chosen = set()
-    for members in strata.values():
+    for members in _strata(table, groups, per).values():
         count = int(round(fraction * len(members)))
         chosen.update(rng.choice(np.array(members, dtype=object), size=count, replace=False).tolist() if count else [])
     return chosen

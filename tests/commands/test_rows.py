@@ -114,6 +114,10 @@ def test_split_by_a_condition_and_refusals():
         split(frames, where="object = 'huge'")
     with pytest.raises(NeurotacError, match="either --fraction"):
         split(frames)
+    with pytest.raises(UsageError, match="--where chooses the test trials itself"):
+        split(frames, where="object = 'large'", per="object")
+    with pytest.raises(NeurotacError, match="every --per group holds one trial"):
+        split(frames, fraction=0.5, per="trial")
 
 
 def test_split_command_writes_both_tables(tmp_path):
