@@ -453,6 +453,10 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes)
     is_tables = [not _exists(path) or camera.is_table(path) for path in paths]
     if all(is_tables):
+        if sensor is not None:
+            from neurotac_cli.errors import UsageError
+
+            raise UsageError("--sensor is for camera files that do not say their sensor size; a table carries its own")
         opened = tables.open_input(paths, allow_empty=True)
         return describe(opened.schema, opened.batches, everything=everything)
     if len(paths) > 1:

@@ -126,8 +126,15 @@ class IntTuple(ParamType):
             self.fail(f"expected {self.name}, e.g. {self.example}, got {value!r}", param, ctx)
 
 
+def one_stdin(ctx, param, paths):
+    """Callback of input path arguments: `-` names stdin once."""
+    if list(paths).count("-") > 1:
+        raise click.BadParameter(f"- (stdin) is given {list(paths).count('-')} times; stdin holds one input", ctx, param)
+    return paths
+
+
 def input_paths(function):
-    return click.argument("paths", nargs=-1, type=click.Path(dir_okay=False, allow_dash=True))(function)
+    return click.argument("paths", nargs=-1, type=click.Path(dir_okay=False, allow_dash=True), callback=one_stdin)(function)
 
 
 class TablePath(click.Path):

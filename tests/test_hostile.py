@@ -1029,3 +1029,19 @@ def test_cross_validation_options_given_to_a_model_file_s_scoring_are_a_usage_er
     assert code == 2 and "--repeats, --seed apply to --cv only" in stderr
     monkeypatch.setenv("NEUROTAC_JOBS", "4")  # a session's environment is not a request
     assert invoke(args)[0] == 0
+
+
+def test_a_box_given_to_a_view_that_draws_no_box_is_a_usage_error(files, tmp_path):  # noqa: F811
+    code, stderr, _ = invoke(["render", "--size", "4x4", "--center", "3,3", f"{files}/f.arrows", "-o", str(tmp_path / "r.png")])
+    assert code == 2 and "with --view crop" in stderr and not (tmp_path / "r.png").exists()
+
+
+def test_a_sensor_size_given_for_a_table_is_a_usage_error(files):  # noqa: F811
+    code, stderr, _ = invoke(["info", "--sensor", "10x10", f"{files}/f.arrows"])
+    assert code == 2 and "a table carries its own" in stderr
+
+
+@pytest.mark.parametrize("verb", [["concat"], ["info"], ["import"], ["select", "--where", "true"]])
+def test_stdin_named_twice_is_a_usage_error(verb):
+    code, stderr, _ = invoke([*verb, "-", "-"])
+    assert code == 2 and "stdin holds one input" in stderr

@@ -2,11 +2,11 @@
 
 import click
 
-from neurotac_cli.options import output_option
+from neurotac_cli.options import one_stdin, output_option
 
 
 @click.command()
-@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False, allow_dash=True))
+@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False, allow_dash=True), callback=one_stdin)
 @output_option
 @click.option("--rename", is_flag=True, help="Give a trial already seen in an earlier input the suffix ~2 (~3, ...) "
               "instead of refusing it, with a warning.")

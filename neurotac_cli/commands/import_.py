@@ -2,12 +2,12 @@
 
 import click
 
-from neurotac_cli.options import (Size, camera_input_options, echo_lines, history, idle_timeout_needs_follow, output_option,
+from neurotac_cli.options import (Size, camera_input_options, one_stdin, echo_lines, history, idle_timeout_needs_follow, output_option,
                                   replay_speed)
 
 
 @click.command("import")
-@click.argument("paths", nargs=-1, required=True, metavar="FILE...")
+@click.argument("paths", nargs=-1, required=True, metavar="FILE...", callback=one_stdin)
 @output_option
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the file does not say (DAT, HDF5, text), or to override it.")
 @camera_input_options

@@ -2,11 +2,11 @@
 
 import click
 
-from neurotac_cli.options import Size
+from neurotac_cli.options import Size, one_stdin
 
 
 @click.command()
-@click.argument("paths", nargs=-1, metavar="FILE|-")
+@click.argument("paths", nargs=-1, metavar="FILE|-", callback=one_stdin)
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON (for scripts) instead of text.")
 @click.option("--all", "everything", is_flag=True, help="Show every trial and every metric row (the text shows the first 20 "
               "trials and 50 metric rows, --json the first 200 metric rows).")

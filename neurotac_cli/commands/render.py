@@ -45,6 +45,10 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
     given = {name for name in ("fps", "slices", "slice_us") if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT}
     if rd.output_format(output) == "png" and "fps" in given:
         raise click.UsageError("--fps sets the pace of a GIF or MP4; a PNG is one picture (write -o NAME.gif to animate)")
+    boxed = [flag for flag, value in (("--box", box), ("--size", size), ("--center", center)) if value is not None]
+    if boxed and view != "crop":
+        raise click.UsageError(f"{', '.join(boxed)} draw{'s' if len(boxed) == 1 else ''} a box with --view crop; "
+                               f"--view {view} draws the whole frame")
     crop = CropSpec(box=box, size=size, center=center) if box or size else None
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))
