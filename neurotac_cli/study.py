@@ -683,6 +683,9 @@ def _grid_values(name: str, text: str) -> list:
         else:
             values.append(_scalar(part))
         index += 1
+    repeated = sorted({str(value) for value in values if values.count(value) > 1})
+    if repeated:  # each point would be trained again for nothing (1 and 1.0 are one value)
+        raise UsageError(f"grid {name}={text} gives {', '.join(repeated)} more than once; give each value once")
     return values
 
 

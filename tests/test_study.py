@@ -507,3 +507,8 @@ def test_a_study_that_takes_tasks_from_the_cache_says_so_once(tiny_frames_file, 
     assert again.stderr.count("from the cache") == 1
     assert re.search(r"tdnn grid: 10 of 10 tasks from the cache \S+, the oldest finished 20\d\d-\d\d-\d\dT\d\d:\d\d:\d\dZ "
                      r"\(not in this run's time\)", again.stderr)
+
+
+def test_a_grid_value_given_twice_is_refused():
+    with pytest.raises(NeurotacError, match="gives 2 more than once"):
+        parse_grid(["layers=1..3,2"])
