@@ -1045,3 +1045,9 @@ def test_a_sensor_size_given_for_a_table_is_a_usage_error(files):  # noqa: F811
 def test_stdin_named_twice_is_a_usage_error(verb):
     code, stderr, _ = invoke([*verb, "-", "-"])
     assert code == 2 and "stdin holds one input" in stderr
+
+
+@pytest.mark.parametrize("verb", ["eval", "predict", "classify"])
+def test_an_empty_model_path_is_a_usage_error_as_an_empty_output_path_is(files, verb):  # noqa: F811
+    code, stderr, _ = invoke([verb, "--model", "", f"{files}/f.arrows"])
+    assert code == 2 and "an empty model path" in stderr

@@ -51,7 +51,7 @@ def read_header(path: str) -> dict:
 
     if not os.path.exists(path):
         if path == "":
-            raise ModelError("an empty model path was given (an unset shell variable?)")
+            raise UsageError("an empty model path was given (an unset shell variable?)")
         raise ModelError(f"{path}: no such model file (train one with `neurotac train --model NAME -o {path}`)")
     if not os.path.isfile(path):
         raise ModelError(f"{path} is not a regular file; give a model file written by `neurotac train`")
