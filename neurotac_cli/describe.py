@@ -6,6 +6,8 @@ The description never names the container (stream, Arrow file, Parquet), so the 
 describes the same wherever it is stored.
 """
 
+import os
+
 import numpy as np
 import pyarrow as pa
 
@@ -450,8 +452,10 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     paths = list(paths) or ["-"]
     if len(paths) == 1 and _exists(paths[0]) and _is_model(paths[0]):
         return describe_model(paths[0])
-    # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes)
-    is_tables = [not _exists(path) or camera.is_table(path) for path in paths]
+    # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes),
+    # and so does a file named as a table, whose reader says what it is not
+    is_tables = [not _exists(path) or camera.is_table(path) or tables.SUFFIXES.get(os.path.splitext(path)[1].lower()) in ("parquet", "file", "stream")
+                 for path in paths]
     if all(is_tables):
         if sensor is not None:
             from neurotac_cli.errors import UsageError

@@ -1051,3 +1051,10 @@ def test_stdin_named_twice_is_a_usage_error(verb):
 def test_an_empty_model_path_is_a_usage_error_as_an_empty_output_path_is(files, verb):  # noqa: F811
     code, stderr, _ = invoke([verb, "--model", "", f"{files}/f.arrows"])
     assert code == 2 and "an empty model path" in stderr
+
+
+def test_info_on_a_damaged_file_named_as_a_table_says_it_is_no_table(tmp_path):
+    damaged = tmp_path / "bad.arrows"
+    damaged.write_bytes(b"hello world\nfoo\n")
+    code, stderr, _ = invoke(["info", str(damaged)])
+    assert one_line(stderr, code, 1) and "is not an Arrow or Parquet table" in stderr
