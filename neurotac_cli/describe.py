@@ -446,7 +446,7 @@ def _rate(rate: float) -> str:
 def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
     """Describe tables (read as one, as every command does) or one camera file (decoded on the fly)."""
     from neurotac_cli import tables
-    from neurotac_cli.errors import InputError
+    from neurotac_cli.errors import InputError, UsageError
     from neurotac_cli.io import camera, events
 
     paths = list(paths) or ["-"]
@@ -454,12 +454,10 @@ def describe_paths(paths, sensor=None, everything: bool = False) -> dict:
         return describe_model(paths[0])
     # a pipe or a missing path goes to the table reader (peeking at a pipe would lose its first bytes),
     # and so does a file named as a table, whose reader says what it is not
-    is_tables = [not _exists(path) or camera.is_table(path) or tables.SUFFIXES.get(os.path.splitext(path)[1].lower()) in ("parquet", "file", "stream")
-                 for path in paths]
+    named = lambda path: tables.SUFFIXES.get(os.path.splitext(path)[1].lower()) in ("parquet", "file", "stream")  # noqa: E731
+    is_tables = [not _exists(path) or camera.is_table(path) or named(path) for path in paths]
     if all(is_tables):
         if sensor is not None:
-            from neurotac_cli.errors import UsageError
-
             raise UsageError("--sensor is for camera files that do not say their sensor size; a table carries its own")
         opened = tables.open_input(paths, allow_empty=True)
         return describe(opened.schema, opened.batches, everything=everything)

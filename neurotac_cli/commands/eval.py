@@ -105,7 +105,6 @@ def _plotted_trials(table, plot_trials: str | None) -> list | None:
 def _model_label(header: dict, label: str) -> str:
     """The label a model file classifies by (its training's): a classifier predicts only that one, so
     a --label that differs would score it under another label's name; a force model has none."""
-
     refuse_label_for_force(header["model"])
     if header["task"] != "material":
         return label

@@ -120,7 +120,7 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
     are refused, or with `rename` get `~2`, `~3`, ... (returned as notes for a warning)."""
     seen, notes, tables = {}, [], []
     check_alike(parts)
-    if len(parts) > 1 and not trial_ids(parts[0][1]) and "trial" not in parts[0][1].column_names:
+    if len(parts) > 1 and "trial" not in parts[0][1].column_names:
         raise SchemaError(f"{parts[0][0]} has no trial column: an events table is one recording on one clock, and "
                           "recordings joined end to end would read as one; give the camera files to `neurotac import` "
                           "together (one trial per file), or sync each and concatenate the recordings tables")
