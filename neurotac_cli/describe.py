@@ -12,6 +12,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
+from neurotac_cli.errors import NeurotacError
 from neurotac_cli.units import counted
 
 TRIALS_SHOWN = 20
@@ -152,11 +153,18 @@ class _Frames:
         self.on = self.off = 0.0
         self.phases = {}
         self.force = [None, None]
+        self.unique = sch.UniqueRows("frames") if "frame" in schema.names else None  # described, not refused
+        self.repeated = None
 
     def add(self, batch):
         if not batch.num_rows:
             return
         ids = batch.column("trial").to_pylist()
+        if self.unique is not None and self.repeated is None:
+            try:
+                self.unique.check(batch)
+            except NeurotacError as repeated:  # the first one, as commands that train or score would name it
+                self.repeated = str(repeated).split(" (")[0]
         counts = sch.counts_numpy(batch.column("counts")) if self.shape else None
         if counts is not None:
             sums = counts.reshape(len(counts), 2, -1).sum(axis=2, dtype=np.float64)
@@ -191,6 +199,8 @@ class _Frames:
             "labels": _label_values(list(self.trials.values())),
             "per_trial": list(self.trials.values()),
         }
+        if self.repeated:
+            out["repeated_frame"] = self.repeated
         return out
 
 
@@ -322,6 +332,8 @@ def _content_pairs(info: dict, sync: dict) -> list:
         ("window", "window_us" in info, lambda: _duration(info["window_us"])),
         ("frame shape", info.get("frame_shape"), lambda: "x".join(str(n) for n in info["frame_shape"]) + " (channels x rows x columns)"),
         ("frames/trial", info.get("frames_per_trial"), lambda: "{min}..{max} (mean {mean:.1f})".format(**info["frames_per_trial"])),
+        ("repeated", info.get("repeated_frame"), lambda: f"{info['repeated_frame']} (one trial in two inputs? commands that "
+         "train or score refuse it)"),
         ("phases", info.get("phases"), lambda: ", ".join(f"{k} {v:,}" for k, v in info["phases"].items())),
         ("force", info.get("force_range_n"), lambda: "{:.3f} .. {:.3f} N".format(*info["force_range_n"])),
         ("triggers", "triggers" in info, lambda: f"{info['triggers']['count']:,}"

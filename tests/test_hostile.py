@@ -1058,3 +1058,9 @@ def test_info_on_a_damaged_file_named_as_a_table_says_it_is_no_table(tmp_path):
     damaged.write_bytes(b"hello world\nfoo\n")
     code, stderr, _ = invoke(["info", str(damaged)])
     assert one_line(stderr, code, 1) and "is not an Arrow or Parquet table" in stderr
+
+
+def test_info_names_a_frame_given_twice_that_training_would_refuse(files):  # noqa: F811
+    code, _, said = invoke(["info", f"{files}/f.arrows", f"{files}/f.arrows"])
+    assert code == 0 and "appears twice in the input" in said
+    assert "repeated" not in invoke(["info", f"{files}/f.arrows"])[2]
