@@ -496,9 +496,10 @@ def describe_csv(path: str) -> dict | None:
         head = handle.read(1 << 16)
     first = camera.first_data_line(head.removeprefix(camera.BOM))
     try:  # semicolons: a spreadsheet's CSV where the comma is the decimal mark, as `sync` reads force logs; never events
-        if camera.detect_format(path, head) != "csv" and ";" not in first:
-            return None
+        fmt = camera.detect_format(path, head)
     except NeurotacError:
+        return None
+    if fmt not in ("csv", "text") or (fmt == "text" and ";" not in first):  # a camera format's bytes may hold a `;`
         return None
     names, _ = text.column_names(next(csv.reader([first]), []))
     if text.names_events(names):

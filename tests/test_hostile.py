@@ -1059,3 +1059,13 @@ def test_info_names_a_frame_given_twice_that_training_would_refuse(files):  # no
     code, _, said = invoke(["info", f"{files}/f.arrows", f"{files}/f.arrows"])
     assert code == 0 and "appears twice in the input" in said
     assert "repeated" not in invoke(["info", f"{files}/f.arrows"])[2]
+
+
+def test_info_reads_a_camera_file_whose_first_bytes_hold_a_semicolon(tmp_path):
+    import struct
+
+    path = tmp_path / "semicolon.aedat"
+    records = b"".join(struct.pack(">II", (y << 22) | (x << 12) | (p << 11), t) for x, y, p, t in [(10, 20, 1, 59), (11, 21, 0, 60), (12, 22, 1, 70)])
+    path.write_bytes(b"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n" + records)  # 59 is `;`
+    code, _, said = invoke(["info", str(path)])
+    assert code == 0 and "AEDAT 2.0" in said and "CSV" not in said
