@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import Decoded, check_sensor, cut_bytes, read_chunks
+from neurotac_cli.io.reader import Decoded, check_sensor, cut_bytes, read_chunks, unwrap_32
 
 # AEChip class name (lowercase, a fragment of it) -> (width, height)
 CHIPS = [
@@ -91,34 +91,39 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     chip = chip_of(header)
     declared = check_sensor(sensor_line(header) or sensor_of_chip(chip))  # its height flips the rows, --sensor or not
     offset = len(header)
-    if is_dvs128(chip):
-
-        def dvs128_chunks():
-            for block in read_chunks(path, offset, RECORD):
-                yield decode_dvs128(block)
-
-        return Decoded(sensor=(128, 128), chunks=dvs128_chunks, meta={"source": {"camera": chip}},
-                       cut_bytes=cut_bytes(path, offset, RECORD))
-    height = (declared or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
-    if height is None:
-        raise FormatError(
-            f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
-            "(give it with --sensor WxH, e.g. --sensor 240x180)"
-        )
-
-    from neurotac_cli.io import kernels
+    dvs128 = is_dvs128(chip)
+    height = None if dvs128 else flip_height(chip, declared, sensor)
 
     def chunks():
+        state = {"last": None, "loop": 0}
         for block in read_chunks(path, offset, RECORD):
-            t, x, y, p, largest = kernels.decode_davis(np.frombuffer(block, dtype=np.uint8), height)
-            if largest >= height:
-                raise FormatError(
-                    f"DVS event row {largest} lies outside the sensor's {height} rows (damaged file, or wrong --sensor)"
-                )
-            yield t, x, y, p
+            yield decode(block, dvs128, height, state)
 
-    return Decoded(sensor=declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {},
+    return Decoded(sensor=(128, 128) if dvs128 else declared, chunks=chunks, meta={"source": {"camera": chip}} if chip else {},
                    cut_bytes=cut_bytes(path, offset, RECORD))
+
+
+def flip_height(chip: str | None, declared, given) -> int:
+    """The sensor height jAER's y axis is flipped with: the chip's own, else --sensor's."""
+    height = (declared or given or (None, None))[1]
+    if height is None:
+        raise FormatError(f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
+                          "(give it with --sensor WxH, e.g. --sensor 240x180)")
+    return height
+
+
+def decode(block: bytes, dvs128: bool, height: int | None, state: dict):
+    """Whole records -> (t, x, y, p) of the DVS events, rows flipped, the 32-bit timestamps unwrapped
+    across blocks (`state`: `reader.unwrap_32`; jAER's own reader unwraps them too)."""
+    if dvs128:
+        t, x, y, p = decode_dvs128(block)
+    else:
+        from neurotac_cli.io import kernels
+
+        t, x, y, p, largest = kernels.decode_davis(np.frombuffer(block, dtype=np.uint8), height)
+        if largest >= height:
+            raise FormatError(f"DVS event row {largest} lies outside the sensor's {height} rows (damaged data, or wrong --sensor)")
+    return unwrap_32(t, state), x, y, p
 
 
 def is_dvs128(chip: str | None) -> bool:

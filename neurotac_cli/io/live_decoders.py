@@ -122,20 +122,13 @@ class Davis(_Records):
         self.dvs128 = aedat2.is_dvs128(chip)
         self.sensor = (128, 128) if self.dvs128 else check_sensor(aedat2.sensor_line(header) or aedat2.sensor_of_chip(chip))
         self.meta = {"source": {"camera": chip}} if chip else {}
-        self.height = (self.sensor or sensor or (None, None))[1]  # jAER rows flip with the chip's own height
-        if self.height is None and not self.dvs128:
-            raise FormatError(f"jAER chip {chip or 'unnamed'} has an unknown sensor size, needed to flip jAER's y axis "
-                              "(give it with --sensor WxH, e.g. --sensor 240x180)")
+        self.height = None if self.dvs128 else aedat2.flip_height(chip, self.sensor, sensor)
+        self.state = {"last": None, "loop": 0}
 
     def decode(self, block: bytes):
-        from neurotac_cli.io import aedat2, kernels
+        from neurotac_cli.io import aedat2
 
-        if self.dvs128:
-            return aedat2.decode_dvs128(block)
-        t, x, y, p, largest = kernels.decode_davis(np.frombuffer(block, dtype=np.uint8), self.height)
-        if largest >= self.height:
-            raise FormatError(f"DVS event row {largest} lies outside the sensor's {self.height} rows (damaged stream, or wrong --sensor)")
-        return t, x, y, p
+        return aedat2.decode(block, self.dvs128, self.height, self.state)
 
 
 class Aedat3(_Records):

@@ -17,7 +17,7 @@ import re
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import Decoded, cut_bytes, read_chunks
+from neurotac_cli.io.reader import Decoded, cut_bytes, read_chunks, unwrap_32
 
 # plugin / sensor names in Prophesee headers -> (width, height)
 SENSORS = [
@@ -190,15 +190,9 @@ def decode_dat(block: bytes, state: dict):
     """Whole 8-byte DAT records -> (t, x, y, p); `state` ({"last": None, "loop": 0}) carries the
     32-bit timestamp wraps from block to block."""
     records = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
-    t = records[:, 0].astype(np.int64)
-    # 32-bit timestamps wrap after 71 minutes: a fall by more than half the range is a wrap
-    previous = np.concatenate(([state["last"] if state["last"] is not None else t[0]], t[:-1])) if len(t) else t
-    loops = np.cumsum(previous - t > (1 << 31)) + state["loop"]
-    if len(t):
-        state["last"], state["loop"] = int(t[-1]), int(loops[-1])
     data = records[:, 1]
     return (
-        t + (loops << 32),
+        unwrap_32(records[:, 0], state),
         (data & 0x3FFF).astype(np.uint16),
         ((data >> 14) & 0x3FFF).astype(np.uint16),
         ((data >> 28) & 0x1).astype(np.uint8),

@@ -27,6 +27,19 @@ class Decoded:
     cut_bytes: int = 0  # bytes after the last whole record (a file cut mid-record): not decoded
 
 
+def unwrap_32(t: np.ndarray, state: dict) -> np.ndarray:
+    """32-bit microsecond timestamps (they wrap after 71.6 minutes) as int64 times that go on rising:
+    a fall by more than half the range is a wrap, a smaller one the camera's own order, kept.
+    `state` ({"last": None, "loop": 0}) carries the wraps from one block to the next."""
+    t = t.astype(np.int64)
+    if not len(t):
+        return t
+    previous = np.concatenate(([state["last"] if state["last"] is not None else t[0]], t[:-1]))
+    loops = np.cumsum(previous - t > (1 << 31)) + state["loop"]
+    state["last"], state["loop"] = int(t[-1]), int(loops[-1])
+    return t + (loops << 32)
+
+
 def refuse_device(path: str, what: str) -> None:
     """Refuse a device that gives bytes (/dev/zero, a serial port) or waits for them (a terminal) as
     a file read whole into memory: it never ends, and the read would take all memory or wait for

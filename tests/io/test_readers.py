@@ -424,3 +424,23 @@ def test_dvs128_aedat2_is_read_as_jaer_reads_it(tmp_path):
     table = read_events_table(path)
     assert sch.sensor_of(table.schema) == (128, 128)
     assert [tuple(r.values()) for r in table.to_pylist()] == [(10, 124, 122, 1), (20, 0, 127, 0), (30, 127, 0, 0)]
+
+
+def test_aedat2_32_bit_timestamps_are_unwrapped_in_a_file_and_in_a_stream(tmp_path):
+    """jAER writes µs in 32 bits: after 71.6 minutes they start again at 0, and time must go on."""
+    from neurotac_cli.io import live
+
+    n = 1000
+    t = (1 << 32) - 5000 + np.arange(n) * 10
+    x, row = np.arange(n) % 240, np.arange(n) % 180
+    words = np.empty((n, 2), ">u4")
+    words[:, 0] = ((179 - row) << 22) | (x << 12) | (1 << 11)
+    words[:, 1] = t & 0xFFFFFFFF
+    header = b"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n"
+    path = tmp_path / "long.aedat"
+    path.write_bytes(header + words.tobytes())
+    assert read_events_table(path).column("t").to_numpy().tolist() == t.tolist()
+    decoder = live._decoder("aedat2", header, None)
+    body = words.tobytes()
+    streamed = np.concatenate([decoder.decode(body[: 8 * 400])[0], decoder.decode(body[8 * 400 :])[0]])
+    assert streamed.tolist() == t.tolist()
