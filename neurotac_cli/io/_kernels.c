@@ -523,15 +523,18 @@ static const int64_t POWERS[19] = {1LL, 10LL, 100LL, 1000LL, 10000LL, 100000LL, 
 typedef struct {
     int64_t mantissa, significant, fraction, exponent, exp_digits;
     int negative, exp_negative, signed_, digits, content, part;  /* part: 0 before a digit, 1 integer, 2 fraction, 3 exponent */
+    int dropped, dropped_first;  /* a time's fraction digits past 18 significant ones (Unix seconds to the ns): the first of them */
 } Field;
 
 static int text_value(const Field *f, int64_t role, int64_t time_digits, int64_t *out) {
     int64_t scale = (role == 0 ? time_digits : 0) + (f->exp_negative ? -f->exponent : f->exponent) - f->fraction;
     int64_t value = f->mantissa;
-    if (scale > 0) {
-        if (scale > 18 || f->mantissa > INT64_MAX / POWERS[scale]) return TEXT_DIGITS;
+    if (scale > 0) {  /* digits dropped before the µs would be digits of the time itself */
+        if (f->dropped || scale > 18 || f->mantissa > INT64_MAX / POWERS[scale]) return TEXT_DIGITS;
         value = f->mantissa * POWERS[scale];
-    } else if (scale < 0) {
+    } else if (scale == 0) {
+        if (f->dropped && f->dropped_first >= 5) value += 1;  /* half away from zero, as below */
+    } else if (scale < 0) {  /* dropped digits lie below the kept remainder: they cannot move its rounding */
         int64_t divisor = POWERS[-scale > 18 ? 18 : -scale];
         value = -scale > 18 ? 0 : f->mantissa / divisor;
         int64_t rest = f->mantissa - value * divisor;
@@ -593,6 +596,9 @@ static PyObject *parse_text(PyObject *self, PyObject *args) {
                 f.mantissa = f.mantissa * 10 + digit;
                 f.significant += f.mantissa != 0;
                 f.fraction += f.part == 2;
+            } else if (f.part == 2 && role == 0 && time_digits > 0) {
+                if (!f.dropped) f.dropped_first = (int)digit;
+                f.dropped = 1;
             } else if (f.part != 2 || digit != 0) FAIL(TEXT_DIGITS);
             if (f.part == 0) f.part = 1;
             continue;

@@ -125,6 +125,16 @@ def test_times_are_scaled_exactly_from_their_digits(tmp_path):
     assert table["p"].to_pylist() == [1, 0, 0, 1, 1]
 
 
+def test_unix_seconds_to_the_nanosecond_round_to_the_microsecond(tmp_path):
+    """ROS exports write `secs.nsecs`: 19 or more significant digits, finer than the µs kept."""
+    text = ("1468939993.067416019 34 145 0\n1468939993.0674165 1 1 1\n1468939993.067416499999999999 2 2 0\n"
+            "1468939993.06741650000000001 3 3 1\n-1468939993.0674165001 4 4 1\n")
+    table = read_events_table(write(tmp_path, "ros.txt", text))
+    assert table["t"].to_pylist() == [1468939993067416, 1468939993067417, 1468939993067416, 1468939993067417, -1468939993067417]
+    with pytest.raises(FormatError, match="line 1"):  # 20 digits before the µs: the time itself, not rounding
+        read_events_table(write(tmp_path, "long.txt", "12345678901234567890.5 1 1 1\n"))
+
+
 def test_extra_csv_columns_are_ignored_and_negative_times_kept(tmp_path):
     table = read_events_table(write(tmp_path, "e.csv", "t_ms,x,y,p,note\n1.5,1,2,1,abc\n-2,3,4,0,\n"))
     assert events_of(table) == [(1500, 1, 2, 1), (-2000, 3, 4, 0)]
