@@ -21,10 +21,12 @@ CHIPS = [
     ("davis240", (240, 180)),
     ("davis346", (346, 260)),
     ("davis640", (640, 480)),
+    ("rgbw640", (640, 480)),
+    ("cdavis", (640, 480)),
     ("davis208", (208, 192)),
     ("davis128", (128, 128)),
-    ("davis", (240, 180)),
 ]
+OTHER_DAVIS = (240, 180)  # a DAVIS chip of no known size: the commonest, unless --sensor says otherwise
 RECORD = 8
 APS_OR_IMU = np.uint32(1 << 31)
 SPECIAL = np.uint32(1 << 10)
@@ -75,6 +77,15 @@ def sensor_of_chip(chip: str | None) -> tuple[int, int] | None:
     return None
 
 
+def declared_sensor(header: bytes, chip: str | None, given) -> tuple[int, int] | None:
+    """The sensor the header names (a `# sensor:` line, or the chip), else for another DAVIS chip the
+    commonest size where --sensor (`given`) does not say."""
+    declared = check_sensor(sensor_line(header) or sensor_of_chip(chip))
+    if declared is None and given is None and "davis" in (chip or "").rsplit(".", 1)[-1].lower():
+        return OTHER_DAVIS
+    return declared
+
+
 def _read_header(path: str, head: bytes) -> bytes:
     if header_length(head) < len(head) or len(head) < (1 << 16):
         return head[: header_length(head)]
@@ -89,7 +100,7 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
         raise FormatError(f"the AEDAT 2.0 header is cut short: the file ends mid-line after {len(header)} bytes "
                           "(is it the whole file?)")
     chip = chip_of(header)
-    declared = check_sensor(sensor_line(header) or sensor_of_chip(chip))  # its height flips the rows, --sensor or not
+    declared = declared_sensor(header, chip, sensor)  # its height flips the rows, --sensor or not
     offset = len(header)
     dvs128 = is_dvs128(chip)
     height = None if dvs128 else flip_height(chip, declared, sensor)

@@ -55,7 +55,7 @@ def sensor_of_header(header: bytes) -> tuple[tuple[int, int] | None, str | None,
     for fragment, size in CHIPS:
         if fragment in name:
             return size, camera, chosen
-    return aedat2.sensor_of_chip(camera), camera, chosen
+    return aedat2.sensor_of_chip(camera) or (aedat2.OTHER_DAVIS if "davis" in name else None), camera, chosen
 
 
 def packet_header(data: bytes, offset: int = 0) -> tuple[int, int, int, int, int, int]:

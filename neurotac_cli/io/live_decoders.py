@@ -16,7 +16,6 @@ import tempfile
 import numpy as np
 
 from neurotac_cli.errors import FormatError
-from neurotac_cli.io.reader import check_sensor
 
 
 class _Records:
@@ -120,7 +119,7 @@ class Davis(_Records):
 
         chip = aedat2.chip_of(header)
         self.dvs128 = aedat2.is_dvs128(chip)
-        self.sensor = (128, 128) if self.dvs128 else check_sensor(aedat2.sensor_line(header) or aedat2.sensor_of_chip(chip))
+        self.sensor = (128, 128) if self.dvs128 else aedat2.declared_sensor(header, chip, sensor)
         self.meta = {"source": {"camera": chip}} if chip else {}
         self.height = None if self.dvs128 else aedat2.flip_height(chip, self.sensor, sensor)
         self.state = {"last": None, "loop": 0}

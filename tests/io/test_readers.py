@@ -444,3 +444,17 @@ def test_aedat2_32_bit_timestamps_are_unwrapped_in_a_file_and_in_a_stream(tmp_pa
     body = words.tobytes()
     streamed = np.concatenate([decoder.decode(body[: 8 * 400])[0], decoder.decode(body[8 * 400 :])[0]])
     assert streamed.tolist() == t.tolist()
+
+
+@pytest.mark.parametrize("chip, given, size", [("CDAVIS", None, (640, 480)), ("DavisRGBW640", None, (640, 480)),
+                                               ("DavisFuture", None, (240, 180)), ("DavisFuture", (640, 480), (640, 480))])
+def test_jaer_chips_of_other_sizes_and_a_sensor_given_for_an_unknown_one(tmp_path, chip, given, size):
+    n = 100
+    x, row = np.arange(n) % size[0], np.arange(n) % size[1]
+    words = np.empty((n, 2), ">u4")
+    words[:, 0] = ((size[1] - 1 - row) << 22) | (x << 12) | (1 << 11)
+    words[:, 1] = np.arange(n) * 10
+    path = tmp_path / "chip.aedat"
+    path.write_bytes(f"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.{chip}\r\n".encode() + words.tobytes())
+    table = read_events_table(path, sensor=given)
+    assert sch.sensor_of(table.schema) == size and table.column("y").to_numpy().tolist() == row.tolist()
