@@ -458,3 +458,20 @@ def test_jaer_chips_of_other_sizes_and_a_sensor_given_for_an_unknown_one(tmp_pat
     path.write_bytes(f"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.{chip}\r\n".encode() + words.tobytes())
     table = read_events_table(path, sensor=given)
     assert sch.sensor_of(table.schema) == size and table.column("y").to_numpy().tolist() == row.tolist()
+
+
+def test_a_dvs128_file_that_names_no_chip_is_told_from_its_addresses(tmp_path):
+    rng = np.random.default_rng(1)
+    n = 1000
+    x, y_up, raw = rng.integers(0, 128, n), rng.integers(0, 128, n), rng.integers(0, 2, n)
+    words = np.empty((n, 2), ">u4")
+    words[:, 0] = (y_up << 8) | ((127 - x) << 1) | raw
+    words[:, 1] = np.arange(n) * 10
+    path = tmp_path / "dvs128.aedat"
+    path.write_bytes(b"#!AER-DAT2.0\r\n# This is a raw AE data file - do not edit\r\n" + words.tobytes())
+    table = read_events_table(path)
+    assert sch.sensor_of(table.schema) == (128, 128) and table.num_rows == n
+    assert table.column("x").to_numpy().tolist() == x.tolist() and table.column("y").to_numpy().tolist() == (127 - y_up).tolist()
+    davis = real_file("davis240c_rotdisk.aedat").read_bytes().replace(b"AEChip:", b"AEChap:", 1)
+    (tmp_path / "davis.aedat").write_bytes(davis)
+    assert read_events_table(tmp_path / "davis.aedat", sensor=(240, 180)).num_rows == 374_296  # still the DAVIS layout
