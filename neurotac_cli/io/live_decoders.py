@@ -191,7 +191,7 @@ class Dat(_Records):
         if typed:
             prophesee.check_dat_kind(header[-2:])
         self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
-        self.state = {"last": None, "loop": 0}
+        self.state = prophesee.dat_state(fields)
 
     def decode(self, block: bytes):
         from neurotac_cli.io import prophesee

@@ -170,11 +170,19 @@ def open_dat(path: str, head: bytes, sensor) -> Decoded:
     check_dat_kind(kind_size)
 
     def chunks():
-        state = {"last": None, "loop": 0}
+        state = dat_state(fields)
         for block in read_chunks(path, offset + 2, 8):
             yield decode_dat(block, state)
 
     return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields), cut_bytes=cut_bytes(path, offset + 2, 8))
+
+
+def dat_state(fields: dict) -> dict:
+    """What `decode_dat` carries: the timestamp wraps, and the address layout of the file's `% Version`
+    (before version 2, ATIS files: x in 9 bits, y in 8, polarity at bit 17, as Prophesee's
+    `load_cd_events` reads them; a file without the line is read as version 2, as files written today are)."""
+    match = re.match(r"\s*(\d+)", fields.get("version", ""))
+    return {"last": None, "loop": 0, "legacy": bool(match) and int(match.group(1)) < 2}
 
 
 def check_dat_kind(kind_size: bytes):
@@ -191,11 +199,12 @@ def decode_dat(block: bytes, state: dict):
     32-bit timestamp wraps from block to block."""
     records = np.frombuffer(block, dtype="<u4").reshape(-1, 2)
     data = records[:, 1]
+    (x_bits, y_shift, y_bits, p_shift) = (0x1FF, 9, 0xFF, 17) if state.get("legacy") else (0x3FFF, 14, 0x3FFF, 28)
     return (
         unwrap_32(records[:, 0], state),
-        (data & 0x3FFF).astype(np.uint16),
-        ((data >> 14) & 0x3FFF).astype(np.uint16),
-        ((data >> 28) & 0x1).astype(np.uint8),
+        (data & x_bits).astype(np.uint16),
+        ((data >> y_shift) & y_bits).astype(np.uint16),
+        ((data >> p_shift) & 0x1).astype(np.uint8),
     )
 
 

@@ -475,3 +475,20 @@ def test_a_dvs128_file_that_names_no_chip_is_told_from_its_addresses(tmp_path):
     davis = real_file("davis240c_rotdisk.aedat").read_bytes().replace(b"AEChip:", b"AEChap:", 1)
     (tmp_path / "davis.aedat").write_bytes(davis)
     assert read_events_table(tmp_path / "davis.aedat", sensor=(240, 180)).num_rows == 374_296  # still the DAVIS layout
+
+
+def test_an_atis_dat_file_before_version_2_is_read_with_its_own_address_layout(tmp_path):
+    from neurotac_cli.io import live
+
+    rng = np.random.default_rng(1)
+    n = 500
+    x, y, p = rng.integers(0, 304, n), rng.integers(0, 240, n), rng.integers(0, 2, n)
+    records = np.empty((n, 2), "<u4")
+    records[:, 0], records[:, 1] = np.arange(n) * 10, x | (y << 9) | (p << 17)
+    header = b"% Data file containing CD events.\n% Version 1\n"
+    path = tmp_path / "v1.dat"
+    path.write_bytes(header + bytes([0, 8]) + records.tobytes())
+    table = read_events_table(path)
+    assert [table.column(c).to_numpy().tolist() for c in "xyp"] == [x.tolist(), y.tolist(), p.tolist()]
+    streamed = live._decoder("dat", header + bytes([0, 8]), None).decode(records.tobytes())
+    assert streamed[1].tolist() == x.tolist() and streamed[2].tolist() == y.tolist()
