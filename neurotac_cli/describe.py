@@ -316,6 +316,8 @@ def _identity_pairs(info: dict) -> list:
             text += f" ({source['camera']})"
         if source.get("cut_bytes"):
             text += f"; its last {source['cut_bytes']} bytes, a record cut short, were left out"
+        if source.get("note"):
+            text += f"; {source['note']}"
         pairs.append(("source", text))
     if info["kind"] == "recordings":
         pairs.append(("events", f"{info['events']:,}"))

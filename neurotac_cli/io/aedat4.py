@@ -8,6 +8,7 @@ frame and exposure triggers of the APS are left out, as are frames and IMU sampl
 
 import itertools
 import os
+import re
 import struct
 
 import numpy as np
@@ -116,13 +117,17 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     events_id = event_ids[0]
     declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
     has_triggers = any(s.get("type") == "triggers" for s in streams.values())
+    # a second events stream (another camera, or the same one undistorted) is not read: named in the source
+    names = [_output_names(head).get(i, f"#{i}") for i in event_ids]
+    others = {"other_event_streams": names[1:], "note": f"events stream(s) {', '.join(names[1:])} not read (the first, "
+              f"{names[0]}, is)"} if len(names) > 1 else {}
     # A recording stopped mid-write (mid-packet, or between packets before its index table) is read as
     # far as its last whole packet: the decoder, asked for one more, fails on the missing bytes.
     limit, cut = whole_packets(path, streams)
     if not has_triggers:
         packets.close()
-        return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path, limit=limit), events_id), meta={},
-                       cut_bytes=cut)
+        return Decoded(sensor=declared, chunks=lambda: _event_chunks(_packets(path, limit=limit), events_id),
+                       meta={"source": others} if others else {}, cut_bytes=cut)
     # The triggers go into the schema, which is written before the first batch: find them first.
     # A small file is decoded once and its events kept; a large one is decoded twice, so memory
     # stays flat.
@@ -139,7 +144,14 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
         chunks = lambda: _event_chunks(iter(kept), events_id)  # noqa: E731
     else:
         chunks = lambda: _event_chunks(_packets(path, skip_streams=True, limit=limit), events_id)  # noqa: E731
-    return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers}, cut_bytes=cut)
+    return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers, **({"source": others} if others else {})}, cut_bytes=cut)
+
+
+def _output_names(head: bytes) -> dict:
+    """{stream id: the name its writer gave it} from the header's `outInfo` nodes (as far as `head` holds them)."""
+    found = re.findall(rb'<node name="(\d+)" path="/[^"]*outInfo/\d+/">\s*(?:<attr[^>]*>[^<]*</attr>\s*)*?'
+                       rb'<attr key="originalOutputName" type="string">([^<]*)</attr>', head)
+    return {int(i): name.decode("utf-8", "replace") for i, name in found}
 
 
 def _event_chunks(packets, events_id):

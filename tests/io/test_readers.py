@@ -492,3 +492,25 @@ def test_an_atis_dat_file_before_version_2_is_read_with_its_own_address_layout(t
     assert [table.column(c).to_numpy().tolist() for c in "xyp"] == [x.tolist(), y.tolist(), p.tolist()]
     streamed = live._decoder("dat", header + bytes([0, 8]), None).decode(records.tobytes())
     assert streamed[1].tolist() == x.tolist() and streamed[2].tolist() == y.tolist()
+
+
+def test_an_aedat4_files_second_events_stream_is_named_as_not_read(tmp_path):
+    import struct
+
+    from neurotac_cli.export import aedat4_bytes
+    from neurotac_cli.io import events
+
+    one = aedat4_bytes(np.arange(50), np.arange(50) % 64, np.arange(50) % 48, np.arange(50) % 2, 64, 48)
+    length = struct.unpack("<I", one[14:18])[0]
+    header, packets = one[18 : 18 + length], one[18 + length :]
+    start, end = header.index(b"<dv"), header.index(b"</dv>")
+    second = header[header.index(b'<node name="0"'):end - len(b"</node>")].replace(b'name="0"', b'name="1"').replace(
+        b"outInfo/0/", b"outInfo/1/").replace(b">events<", b">events_undistorted<")
+    description = header[start:end - len(b"</node>")] + second + b"</node></dv>"
+    rebuilt = header[: start - 4] + struct.pack("<I", len(description)) + description + b"\0"
+    rebuilt += b"\0" * (-len(rebuilt) % 4)
+    path = tmp_path / "two.aedat4"
+    path.write_bytes(one[:14] + struct.pack("<I", len(rebuilt)) + rebuilt + packets + struct.pack("<I", 1) + packets[4:])
+    table = read_events_table(path)
+    assert table.num_rows == 50
+    assert events.source_notes(table.schema) == ["two.aedat4: events stream(s) events_undistorted not read (the first, events, is)"]
