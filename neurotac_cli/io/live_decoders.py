@@ -50,11 +50,14 @@ class Words(_Records):
         self.sensor, self.meta, self.record = prophesee.sensor_of_header(fields), prophesee._meta(fields), word_bytes
         self._decode, self._find, fresh, self.dtype = prophesee.word_kernels(word_bytes, legacy)
         self.state, self.trigger_state = fresh(), fresh()
+        self.t0 = prophesee.time_origin(fields)
 
     def decode(self, block: bytes):
+        from neurotac_cli.io import prophesee
+
         words = np.frombuffer(block, dtype=self.dtype)
         self.triggers += len(self._find(words, self.trigger_state)[0])
-        return self._decode(words, self.state)
+        return prophesee.shifted(self._decode(words, self.state), self.t0)
 
 
 class Evt21(Words):
@@ -191,12 +194,12 @@ class Dat(_Records):
         if typed:
             prophesee.check_dat_kind(header[-2:])
         self.sensor, self.meta = prophesee.sensor_of_header(fields), prophesee._meta(fields)
-        self.state = prophesee.dat_state(fields)
+        self.state, self.t0 = prophesee.dat_state(fields), prophesee.time_origin(fields)
 
     def decode(self, block: bytes):
         from neurotac_cli.io import prophesee
 
-        return prophesee.decode_dat(block, self.state)
+        return prophesee.shifted(prophesee.decode_dat(block, self.state), self.t0)
 
 
 class Aedat4:

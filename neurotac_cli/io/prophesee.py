@@ -75,6 +75,19 @@ def sensor_of_header(fields: dict) -> tuple[int, int] | None:
     return None
 
 
+def time_origin(fields: dict) -> int:
+    """µs to add to every time: faery writes `% t0 N` into the Prophesee files it converts (their times
+    counted from N) and adds N back when it reads them; OpenEB's files have no such line (0)."""
+    match = re.match(r"\s*(\d+)\s*$", fields.get("t0", ""))
+    return int(match.group(1)) if match else 0
+
+
+def shifted(decoded: tuple, t0: int) -> tuple:
+    """(t, x, y, p) with `t0` µs added to t (`time_origin`)."""
+    t, *rest = decoded
+    return (t + t0, *rest) if t0 else decoded
+
+
 def _meta(fields: dict) -> dict:
     keep = {k: fields[k] for k in ("plugin_name", "serial_number", "date") if k in fields}
     return {"source": {"camera": keep.get("plugin_name")}} if keep.get("plugin_name") else {}
@@ -127,12 +140,16 @@ def _open_words(path: str, head: bytes, word_bytes: int) -> Decoded:
     def blocks():
         return held if held is not None else read_chunks(path, offset, word_bytes)
 
+    t0 = time_origin(fields)
+
     def chunks():
         state = fresh()
         for block in blocks():
-            yield decode(np.frombuffer(block, dtype=dtype), state)
+            yield shifted(decode(np.frombuffer(block, dtype=dtype), state), t0)
 
     triggers = _triggers(blocks(), dtype, find, fresh())
+    for trigger in triggers or ():
+        trigger["t"] += t0
     meta = _meta(fields)
     if legacy is not None:
         note_evt21_order(meta, legacy)
@@ -169,10 +186,12 @@ def open_dat(path: str, head: bytes, sensor) -> Decoded:
                           "the event type and size that follow the header (is it the whole file?)")
     check_dat_kind(kind_size)
 
+    t0 = time_origin(fields)
+
     def chunks():
         state = dat_state(fields)
         for block in read_chunks(path, offset + 2, 8):
-            yield decode_dat(block, state)
+            yield shifted(decode_dat(block, state), t0)
 
     return Decoded(sensor=sensor_of_header(fields), chunks=chunks, meta=_meta(fields), cut_bytes=cut_bytes(path, offset + 2, 8))
 

@@ -514,3 +514,19 @@ def test_an_aedat4_files_second_events_stream_is_named_as_not_read(tmp_path):
     table = read_events_table(path)
     assert table.num_rows == 50
     assert events.source_notes(table.schema) == ["two.aedat4: events stream(s) events_undistorted not read (the first, events, is)"]
+
+
+def test_a_time_origin_in_a_prophesee_header_is_added_as_faery_adds_it(tmp_path):
+    """faery writes `% t0 N` (`% T0 N` in DAT) into the files it converts, their times counted from N."""
+    import struct
+
+    from neurotac_cli.io import live
+
+    header = b"% evt 2.0\n% format EVT2;width=1280;height=720\n% geometry 1280x720\n% t0 913716224\n% end\n"
+    words = struct.pack("<2I", 0x8 << 28, (1 << 28) | (5 << 22) | (100 << 11) | 200)
+    (tmp_path / "t0.raw").write_bytes(header + words)
+    assert read_events_table(tmp_path / "t0.raw").column("t").to_pylist() == [913716229]
+    assert live._decoder("evt2", header, None).decode(words)[0].tolist() == [913716229]
+    dat_header = b"% Data file containing CD events.\n% Version 2\n% Width 304\n% Height 240\n% T0 1000\n"
+    (tmp_path / "t0.dat").write_bytes(dat_header + bytes([0, 8]) + struct.pack("<2I", 5, 10 | (20 << 14)))
+    assert read_events_table(tmp_path / "t0.dat").column("t").to_pylist() == [1005]
