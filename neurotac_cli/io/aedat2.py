@@ -110,8 +110,8 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
         for block in read_chunks(path, offset, RECORD):
             yield decode(block, dvs128, height, state)
 
-    return Decoded(sensor=(128, 128) if dvs128 else declared, chunks=chunks,
-                   meta={"source": {"camera": chip or ("DVS128 (told from its addresses)" if dvs128 else None)}} if chip or dvs128 else {},
+    camera = chip or ("DVS128 (told from its addresses)" if dvs128 else None)
+    return Decoded(sensor=(128, 128) if dvs128 else declared, chunks=chunks, meta={"source": {"camera": camera}} if camera else {},
                    cut_bytes=cut_bytes(path, offset, RECORD))
 
 
