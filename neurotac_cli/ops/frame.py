@@ -286,6 +286,8 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         out_schema = sch.set_meta(out_schema, scale=scale)
     out_schema = _keep_meta(table.schema, out_schema)
 
+    several = []  # trials framed as one grasp whose force comes back to rest between grasps
+
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
@@ -293,12 +295,18 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
                 phase, grasp = ph.session_columns(force, n_real, n_total)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
+                if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
+                    several.append(trial)
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
                                     label_values, labels, framing.window_us, scale, first_frame=first,
                                     grasp=None if grasp is None else grasp[first:end], slip=None if slip is None else slip[first:end])
+        if several:
+            report.notes.append(f"the force comes back to rest between grasps in {counted(len(several), 'trial')} "
+                                f"({', '.join(several[:3])}{', ...' if len(several) > 3 else ''}), labelled as one grasp each "
+                                "(--phases auto); a session of many grasps needs --phases session")
 
     return out_schema, batches()
 
@@ -319,6 +327,13 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
         times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
         check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
     periods = [float(np.median(np.diff(force_t))) for _, _, (force_t, _), _ in rows if len(force_t) > 1]
+    gaps = [(trial, *_force_gap(force_t)) for trial, _, (force_t, _), _ in rows if len(force_t) > 2]
+    gaps = [gap for gap in gaps if gap[1] is not None]
+    if gaps:
+        trial, start, length = max(gaps, key=lambda gap: gap[2])
+        report.notes.append(f"the force log of {counted(len(gaps), 'trial')} has no sample for a stretch many times its "
+                            f"sampling period ({trial}: {length / 1e6:.3g} s from {start / 1e6:.3g} s): frames there hold "
+                            "the last sample before it (a logger that dropped samples?)")
     if framing.phases == "session" and periods and max(periods) > window:
         report.notes.append(f"the force log is sampled every {max(periods) / 1000:g} ms, more slowly than the "
                             f"{window / 1000:g} ms window: frames repeat its samples, and phases read from it split grasps "
@@ -391,6 +406,19 @@ class _TrialCounter:
             for _, counts in self.chunks(events, n_real, n_real, count=False):
                 peaks = np.maximum(peaks, counts.max(axis=(0, 2, 3)))
         return [float(max(peak, 1)) for peak in peaks]
+
+
+GAP_PERIODS, GAP_LEAST_US = 20, 100_000  # a force log's hole longer than both is named
+
+
+def _force_gap(force_t: np.ndarray) -> tuple:
+    """(start µs, length µs) of a force log's longest stretch without a sample, where it is longer than
+    GAP_PERIODS sampling periods and GAP_LEAST_US; (None, 0) otherwise."""
+    steps = np.diff(np.asarray(force_t, dtype=np.int64))
+    longest = int(np.argmax(steps))
+    if steps[longest] > max(GAP_PERIODS * float(np.median(steps)), GAP_LEAST_US):
+        return int(force_t[longest]), int(steps[longest])
+    return None, 0
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:

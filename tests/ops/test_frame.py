@@ -545,3 +545,24 @@ def test_the_report_counts_a_streams_small_drops_and_warns_on_large_ones():
     assert small.messages(lead_in_expected=True) == []  # a synced trial's lead-in is dropped by design
     large = FramingReport(events=100, after_end=50)
     assert [line.startswith("warning: 50 of 100 events") for line in large.messages()] == [True]
+
+
+def test_a_session_framed_as_one_grasp_and_a_force_log_with_a_hole_are_named():
+    t_ms = np.arange(0, 1_001, 2)
+    force = np.where((t_ms % 500 > 100) & (t_ms % 500 < 300), 2.0, 0.0)  # two grasps with a rest between
+    events = random_events(1, span=1_000_000)
+    table = recordings([{"trial": "s", "t0": 0, "events": events, "force": (t_ms * 1000, force)}])
+    report = fr.FramingReport()
+    fr.frame_recordings(table, 10_000, report=report)
+    assert any("comes back to rest between grasps in 1 trial (s)" in note for note in report.notes)
+    report = fr.FramingReport()
+    fr.frame_recordings(table, 10_000, report=report, phases="session")
+    assert not any("rest between grasps" in note for note in report.notes)
+    holed = (t_ms < 300) | (t_ms > 700)
+    table = recordings([{"trial": "s", "t0": 0, "events": events, "force": (t_ms[holed] * 1000, force[holed])}])
+    report = fr.FramingReport()
+    fr.frame_recordings(table, 10_000, report=report, phases="session")
+    assert any("no sample for a stretch" in note and "0.404 s from 0.298 s" in note for note in report.notes)
+    report = fr.FramingReport()
+    fr.frame_recordings(recordings([{"trial": "a", "t0": 0, "events": random_events(2), "force": trapezoid_force()}]), 10_000, report=report)
+    assert not any("rest between grasps" in note or "no sample" in note for note in report.notes)
