@@ -58,15 +58,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     trials = _plotted_trials(table, plot_trials)
-    if model_path:
-        from neurotac_cli.model.core import unstated_window
-        from neurotac_cli.model.store import read_header
-
-        header = read_header(model_path)
-        label = _model_label(header, label)
-        echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema)]), "warning: ")
-    elif model_spec:
-        refuse_label_for_force(model_spec)
+    label = _checked_model(table, model_path, model_spec, label)
     import torch
 
     from neurotac_cli.model import evaluate, plots
@@ -88,6 +80,26 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     if plot:
         plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
     tables.write(output, result.predictions, step=step)
+
+
+def _checked_model(table, model_path: str | None, model_spec: str | None, label: str) -> str:
+    """The label scored (a model file's classifier's own), with a warning on stderr for each way the
+    frames do not fit the model: a window they do not state, sessions given to a model of whole trials."""
+    from neurotac_cli.model.session import CONTACT_KEY, whole_trials_note
+
+    if model_spec:
+        refuse_label_for_force(model_spec)
+        echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table, "cross-validation")]), "warning: ")
+        return label
+    from neurotac_cli.model.core import unstated_window
+    from neurotac_cli.model.store import read_header
+
+    header = read_header(model_path)
+    label = _model_label(header, label)
+    whole = header["task"] != "material" and CONTACT_KEY not in (header["input"] or {})
+    echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema),
+                                     whole and whole_trials_note(table, "a model trained without --contacts")]), "warning: ")
+    return label
 
 
 def _plotted_trials(table, plot_trials: str | None) -> list | None:

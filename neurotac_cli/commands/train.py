@@ -4,7 +4,7 @@ import click
 
 from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (PlotPath, TablePath, refuse_label_for_force, device_option, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
+from neurotac_cli.options import (PlotPath, TablePath, refuse_label_for_force, device_option, echo_lines, history, hyperparameter_options, hyperparameters, input_paths, progress_printer,
                                   seed_option, threads_option, use_device, validation_options)
 
 
@@ -74,9 +74,15 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     torch.set_num_threads(max(1, threads))
     use_device(device)
+    from neurotac_cli.model import session
+
+    if not contacts and model_name in FORCE_MODELS:
+        echo_lines("train", filter(None, [session.whole_trials_note(table, "training without --contacts")]), "warning: ")
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer(), contacts=contacts)
+    if contacts:
+        echo_lines("train", filter(None, [session.one_contact_note(trained.model.training.get("contacts", {}))]), "warning: ")
     models.save(trained.model, output)
     if trained.summary:
         click.echo(f"{trained.summary}; wrote {output}", err=True)

@@ -44,6 +44,25 @@ MAX_CONTACT_FRAMES = 60_000  # a material model sees at most the last 10 min (at
 RELEASE_SHARE = 0.1  # a contact ends when the estimate falls under this share of the largest training force
 
 
+def whole_trials_note(table: pa.Table, what: str) -> str | None:
+    """A warning where frames of sessions (a `grasp` column: `frame --phases session`) meet a force
+    model of whole trials (`what`: how it meets them), which reads a session of many grasps as one."""
+    if "grasp" not in table.column_names:
+        return None
+    return (f"the frames hold sessions of many grasps (a grasp column), and {what} takes each session as one trial: "
+            "no rest, drift, contact or slip figures; a model for sessions is trained with `train --contacts`")
+
+
+def one_contact_note(summary: dict) -> str | None:
+    """A warning where `train --contacts` found one contact per stream covering nearly all of it: the
+    frames' phases were not read per grasp (`frame --phases session`)."""
+    if summary.get("contacts", 0) and summary["contacts"] <= summary["sessions"] and summary["frames_in_contacts"] > 0.9 * summary["frames"]:
+        return (f"{counted(summary['contacts'], 'contact')} in {counted(summary['sessions'], 'stream')} covering "
+                f"{100 * summary['frames_in_contacts'] / summary['frames']:.0f}% of the frames: were the sessions framed "
+                "with --phases session? (--phases auto labels a whole trial as one grasp)")
+    return None
+
+
 def is_session_model(model) -> bool:
     return CONTACT_KEY in (model.input_spec or {})
 

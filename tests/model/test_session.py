@@ -740,3 +740,10 @@ def test_the_session_summary_leaves_out_figures_that_had_no_frames_rather_than_p
     """One frame (no drift), no frame at rest, no `grasp` column, no contact or slip found: each read `nan`."""
     lines = "\n".join(session.summary_lines(figures))
     assert "nan" not in lines, lines
+
+
+def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_stream_are_named(sessions):
+    assert "takes each session as one trial" in session.whole_trials_note(sessions, "training without --contacts")
+    assert session.whole_trials_note(sessions.drop(["grasp"]), "training") is None
+    assert "covering 95% of the frames" in session.one_contact_note({"contacts": 2, "sessions": 2, "frames_in_contacts": 950, "frames": 1000})
+    assert session.one_contact_note({"contacts": 12, "sessions": 2, "frames_in_contacts": 600, "frames": 1000}) is None
