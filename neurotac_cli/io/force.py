@@ -114,6 +114,9 @@ def _column(table: pa.Table, chosen, default_index: int, what: str, path: str) -
     raise InputError(f"{path}: no {what} column {chosen!r} (columns: {', '.join(names)})")
 
 
+RESTART_LEAST_SAMPLES = 10  # a trial of a log whose clock restarts per trial holds at least a grasp's samples
+
+
 def _trial_rows(table: pa.Table, t_us: np.ndarray, path: str) -> list[tuple]:
     """(trial name or None, its rows) of a force log: by its `trial` column, else cut where the clock
     restarts (a log of several trials restarts its clock once per trial)."""
@@ -121,10 +124,12 @@ def _trial_rows(table: pa.Table, t_us: np.ndarray, path: str) -> list[tuple]:
         names = np.asarray([str(v) for v in table.column("trial").to_pylist()], dtype=object)
         return [(name, np.flatnonzero(names == name)) for name in dict.fromkeys(names)]
     cuts = np.flatnonzero(np.diff(t_us) < 0) + 1
-    if len(cuts) and len(cuts) >= len(t_us) // 2:  # not trials whose clocks restart: a log out of order
+    bounds = np.concatenate([[0], cuts, [len(t_us)]])
+    # not trials whose clocks restart, but a log out of order: steps back at most samples, or so often
+    # that a typical run between them is shorter than a grasp's few samples
+    if len(cuts) and (len(cuts) >= len(t_us) // 2 or (len(cuts) > 2 and np.median(np.diff(bounds)) < RESTART_LEAST_SAMPLES)):
         raise FormatError(f"{path}: force time runs backwards at {len(cuts):,} of {len(t_us):,} samples; sort the log by "
                           "time (a log of several trials restarts its clock once per trial)")
-    bounds = np.concatenate([[0], cuts, [len(t_us)]])
     return [(None, np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 

@@ -82,6 +82,15 @@ def test_force_log_time_restarting_at_zero_starts_a_new_trial(tmp_path):
     assert [len(log.t) for log in logs] == [3, 2]
 
 
+def test_a_force_log_out_of_order_in_places_is_told_from_trials_whose_clocks_restart(tmp_path):
+    t = np.arange(0, 4000, 2)
+    t[1::5], t[2::5] = t[2::5].copy(), t[1::5].copy()  # a fifth of the neighbours swapped: 400 steps back of 2000
+    path = tmp_path / "f.csv"
+    path.write_text("t_ms,force_N\n" + "".join(f"{v},0\n" for v in t))
+    with pytest.raises(NeurotacError, match="runs backwards at 400 of 2,000 samples; sort the log"):
+        read_force_log(str(path))
+
+
 def test_force_log_errors_say_what_to_do(tmp_path):
     path = tmp_path / "f.csv"
     path.write_text("t_ms,force_N\n0,0\n2,\n")
