@@ -286,7 +286,7 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         out_schema = sch.set_meta(out_schema, scale=scale)
     out_schema = _keep_meta(table.schema, out_schema)
 
-    several = []  # trials framed as one grasp whose force comes back to rest between grasps
+    doubts = _LabelDoubts()
 
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
@@ -295,20 +295,43 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
                 phase, grasp = ph.session_columns(force, n_real, n_total)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
-                if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
-                    several.append(trial)
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
+            doubts.look(framing, trial, force, phase, grasp, n_real, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
                                     label_values, labels, framing.window_us, scale, first_frame=first,
                                     grasp=None if grasp is None else grasp[first:end], slip=None if slip is None else slip[first:end])
-        if several:
-            report.notes.append(f"the force comes back to rest between grasps in {counted(len(several), 'trial')} "
-                                f"({', '.join(several[:3])}{', ...' if len(several) > 3 else ''}), labelled as one grasp each "
-                                "(--phases auto); a session of many grasps needs --phases session")
+        report.notes.extend(doubts.notes())
 
     return out_schema, batches()
+
+
+class _LabelDoubts:
+    """Labels that are likely not what the user meant, gathered over the trials for one warning each:
+    a session framed as one grasp (`--phases auto`), true slips at rest outside every grasp."""
+
+    def __init__(self):
+        self.several, self.resting = [], 0
+
+    def look(self, framing: Framing, trial: str, force, phase, grasp, n_real: int, n_total: int) -> None:
+        if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
+            self.several.append(trial)
+        if framing.slips is not None and grasp is not None:
+            for span in framing.slips.get(trial, ()):
+                inside = slip_column([span], framing.window_us, n_total)
+                self.resting += bool(inside.any() and (grasp[inside] < 0).all())
+
+    def notes(self) -> list[str]:
+        notes = []
+        if self.resting:
+            notes.append(f"{counted(self.resting, 'true slip')} {'lies' if self.resting == 1 else 'lie'} at rest, outside every "
+                         "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")
+        if self.several:
+            notes.append(f"the force comes back to rest between grasps in {counted(len(self.several), 'trial')} "
+                         f"({', '.join(self.several[:3])}{', ...' if len(self.several) > 3 else ''}), labelled as one grasp "
+                         "each (--phases auto); a session of many grasps needs --phases session")
+        return notes
 
 
 def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, sensor) -> list:

@@ -566,3 +566,12 @@ def test_a_session_framed_as_one_grasp_and_a_force_log_with_a_hole_are_named():
     report = fr.FramingReport()
     fr.frame_recordings(recordings([{"trial": "a", "t0": 0, "events": random_events(2), "force": trapezoid_force()}]), 10_000, report=report)
     assert not any("rest between grasps" in note or "no sample" in note for note in report.notes)
+
+
+def test_a_true_slip_at_rest_outside_every_grasp_is_named():
+    t_ms = np.arange(0, 1_001, 2)
+    force = np.where((t_ms % 500 > 100) & (t_ms % 500 < 300), 2.0, 0.0)
+    table = recordings([{"trial": "s", "t0": 0, "events": random_events(1, span=1_000_000), "force": (t_ms * 1000, force)}])
+    report = fr.FramingReport()
+    fr.frame_recordings(table, 10_000, report=report, phases="session", slips={"s": [(20_000, 60_000), (150_000, 200_000)]})
+    assert any("1 true slip lies at rest" in note for note in report.notes)
