@@ -84,6 +84,18 @@ def overlap_warnings(t0: int, log: ForceLog, first_us: int, last_us: int, where:
     return []
 
 
+def coverage_warnings(t0: int, log: ForceLog, last_us: int, where: str) -> list[str]:
+    """Warn when a recording's only force log covers less than SHORT_OVERLAP of the recording after
+    its sync instant: frames end where the log ends, so the later events are left out."""
+    after = last_us - t0
+    covered = min(t0 + int(log.t[-1]), last_us) - max(t0 + int(log.t[0]), t0)
+    if after > 0 and covered < SHORT_OVERLAP * after:
+        return [f"{where}: the force log covers only {100 * max(covered, 0) / after:.0f}% of the recording after its sync "
+                f"instant ({max(covered, 0) / 1e6:.3g} of {after / 1e6:.3g} s): frames end where it ends, and later events "
+                "are left out; is it the whole log?"]
+    return []
+
+
 def check_logs(t: np.ndarray, instants: list, logs: list[ForceLog], recording: str) -> None:
     """Check each force log against the recording's events (times `t`, camera clock) at its sync
     instant: refusals raise SyncError, warnings are added to the instant's details."""
@@ -93,6 +105,8 @@ def check_logs(t: np.ndarray, instants: list, logs: list[ForceLog], recording: s
     for number, (instant, log) in enumerate(zip(instants, logs), start=1):
         where = _where(recording, logs, log, number)
         warnings = plausibility_warnings(log, where) + overlap_warnings(instant.t0, log, first_us, last_us, where)
+        if len(logs) == 1:  # one log for the whole recording (a session): it should last as long
+            warnings += coverage_warnings(instant.t0, log, last_us, where)
         if warnings:
             instant.details["warnings"] = warnings
 

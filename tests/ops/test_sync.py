@@ -496,3 +496,13 @@ def test_a_median_window_longer_than_half_the_force_log_is_refused():
 def test_method_offset_without_offset_is_a_usage_error():
     with pytest.raises(UsageError, match="--method offset needs --offset"):
         sy.SyncMethod(method="offset")
+
+
+def test_a_sessions_only_force_log_that_ends_early_is_named():
+    from neurotac_cli.io.force import ForceLog
+    from neurotac_cli.ops.forcelog import coverage_warnings
+
+    log = ForceLog(t=np.arange(0, 5_000_000, 2000), value=np.zeros(2500))
+    said = coverage_warnings(1_000_000, log, 16_000_000, "session00")
+    assert len(said) == 1 and "covers only 33% of the recording after its sync instant" in said[0]
+    assert coverage_warnings(1_000_000, log, 6_500_000, "session00") == []
