@@ -379,7 +379,8 @@ def validation_options(function):
     function = click.option("--val-fraction", type=FiniteRange(0, 1, max_open=True), default=None,
                             help="Validate on this fraction of source trials, drawn per --val-per value (default 0.1 when no other choice is given).")(function)
     function = click.option("--val-trials", default=None, metavar="ID,ID,...",
-                            help="Validate on these trials (comma-separated ids).")(function)
+                            help="Validate on these trials (comma-separated ids; with --contacts a session's id holds out every "
+                            "contact found in it).")(function)
     return function
 
 

@@ -290,10 +290,22 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames; slips flagged at "
                  f"{slip.min_events:g} OFF and {slip.on_events:g} ON events above the background")
+    if options.get("val_trials"):
+        options = dict(options, val_trials=_contacts_of(found, options["val_trials"]))
     model = core.train(found, spec, **options)
     model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
     model.training = dict(model.training, contacts=summary)
     return model
+
+
+def _contacts_of(found: pa.Table, chosen: list) -> list:
+    """Validation ids given as sessions (the frames' trials) stand for every contact found in them
+    (named STREAM@FRAME); a contact's own name stays as it is."""
+    names = list(dict.fromkeys(found.column("trial").to_pylist()))
+    out = []
+    for name in chosen:
+        out += [name] if name in names else [contact for contact in names if contact.split("@")[0] == name] or [name]
+    return out
 
 
 def release_force(table: pa.Table) -> float:

@@ -747,3 +747,11 @@ def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_strea
     assert session.whole_trials_note(sessions.drop(["grasp"]), "training") is None
     assert "covering 95% of the frames" in session.one_contact_note({"contacts": 2, "sessions": 2, "frames_in_contacts": 950, "frames": 1000})
     assert session.one_contact_note({"contacts": 12, "sessions": 2, "frames_in_contacts": 600, "frames": 1000}) is None
+
+
+def test_a_session_given_for_validation_holds_out_every_contact_found_in_it(sessions):
+    found, _ = session.contacts_table(sessions, contact.ContactConfig())
+    chosen = session._contacts_of(found, ["s1"])
+    assert chosen and all(name.split("@")[0] == "s1" for name in chosen)
+    assert len(chosen) == len({t for t in found.column("trial").to_pylist() if t.startswith("s1@")})
+    assert session._contacts_of(found, [chosen[0], "elsewhere"]) == [chosen[0], "elsewhere"]  # a contact, and one left to be refused
