@@ -147,6 +147,9 @@ def _signed_rate(index, x, y, p, burst):
     return off - off.sum() / on.sum() * on
 
 
+ACTIVE_SHARE = 0.05  # a force log's grasps: where it reads above this share of its peak
+
+
 def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturation: float, signed: bool):
     """Every sensor model (given, or each pair of `lag_grid`) against every offset: (correlation, rise,
     fall, best lag index, correlation by lag, lags, valid lags) of the chosen model. The target is
@@ -167,7 +170,14 @@ def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturatio
     on_fall = {fall: _SensorSide(lagged[fall], falling) for fall in {pair[1] for pair in candidates}}
     lags = np.arange(-len(grid) + 1, len(rate))
     overlap = np.minimum(len(rate), lags + len(grid)) - np.maximum(0, lags)
-    valid = overlap >= len(grid) - XCORR_SLACK_US // bin_us  # the force trace lies inside the recording
+    # the force trace lies inside the recording. One longer than the recording (a logger started before
+    # the camera, or stopped after it) cannot: its grasps (where it leaves rest) must, and the rest logged
+    # before or after them may reach past its ends. (Letting a trace that fits reach past them too moved
+    # simulated `ch5` offsets by 60 ms: its own ends hold the offset in place.)
+    slack = XCORR_SLACK_US // bin_us
+    pressed = np.flatnonzero(np.abs(force) > ACTIVE_SHARE * peak_force)
+    first, last = (pressed[0], pressed[-1]) if len(grid) > len(rate) and len(pressed) else (0, len(grid) - 1)
+    valid = (lags + first >= -slack) & (lags + last < len(rate) + slack)
     # the force the sensor was following, y + tau dy/dt smoothed, is linear in the taus: its parts are smoothed once
     smoothed = [gaussian_filter1d(part, 8 * smooth) for part in (force, slope * rising / bin_us, slope * falling / bin_us)]
     fits = []
@@ -182,7 +192,7 @@ def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturatio
         fits.append((float(corr[best]), rise, fall, best, corr))
     top = max(fit[0] for fit in fits)
     if not np.isfinite(top):
-        raise SyncError("the recording is shorter than the force log: nothing to cross-correlate")
+        raise SyncError("the force log's grasps span longer than the recording: no offset puts them inside it")
     # a slower sensor model also smooths, which alone lifts a correlation a little: near-ties go to the faster
     peak, rise, fall, best, corr = min((fit for fit in fits if fit[0] >= top - tie), key=lambda fit: (fit[1] + fit[2], -fit[0]))
     return peak, rise, fall, best, corr, lags, valid

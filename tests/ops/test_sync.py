@@ -276,6 +276,25 @@ def test_xcorr_sync_of_simulated_grasps_within_2ms(simulated):
     assert all(entry["correlation"] > 0.3 for entry in info["trials"].values())
 
 
+def test_xcorr_finds_a_grasp_whose_force_log_runs_before_and_after_the_recording(simulated, tmp_path):
+    """A logger started before the camera and stopped after it: the log is longer than the recording."""
+    folder = simulated["plain"]
+    trial = sorted(true_instants(folder))[0]
+    lines = (folder / f"{trial}_force.csv").read_text().splitlines()
+    PAD = 500  # samples of rest logged before the grasp's log and after it: a log longer than the recording
+    times = [float(line.split(",")[0]) for line in lines[1:]]
+    step = times[1] - times[0]
+    pad = [f"{i * step:g},0" for i in range(PAD)]
+    body = [f"{t + PAD * step:g},{line.split(',')[1]}" for t, line in zip(times, lines[1:])]
+    after = [f"{times[-1] + (PAD + 1 + i) * step:g},0" for i in range(PAD)]
+    (tmp_path / "long.csv").write_text("\n".join([lines[0], *pad, *body, *after]) + "\n")
+    shutil.copy(folder / f"{trial}.aedat", tmp_path / "g.aedat")
+    done = run(["sync", "g.aedat", "--force", "long.csv", "--method", "xcorr", "-o", "g.parquet"], cwd=tmp_path)
+    assert done.returncode == 0, done.stderr.decode()
+    t0 = tables.read([str(tmp_path / "g.parquet")]).column("t0")[0].as_py()
+    assert abs(t0 + PAD * step * 1000 - true_instants(folder)[trial]) <= 2000
+
+
 def test_sync_command_on_a_text_event_file_and_a_t_ms_force_log(simulated, tmp_path):
     from neurotac_cli.io import read_events_table
 
