@@ -296,7 +296,7 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
-            doubts.look(framing, trial, force, phase, grasp, n_real, n_total)
+            doubts.look(framing, trial, force if len(force_t) else None, phase, grasp, n_real, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
@@ -307,14 +307,21 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
     return out_schema, batches()
 
 
+UNFORCED_LEAST, UNFORCED_SHARE = 5, 0.01  # frames without force named where more than both (a log's first sample a few ms late is not)
+
+
 class _LabelDoubts:
     """Labels that are likely not what the user meant, gathered over the trials for one warning each:
     a session framed as one grasp (`--phases auto`), true slips at rest outside every grasp."""
 
     def __init__(self):
-        self.several, self.resting = [], 0
+        self.several, self.resting, self.unforced = [], 0, {}
 
     def look(self, framing: Framing, trial: str, force, phase, grasp, n_real: int, n_total: int) -> None:
+        """`force`: the trial's frames' force, None where it has no force log."""
+        unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
+        if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
+            self.unforced[trial] = unforced
         if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
             self.several.append(trial)
         if framing.slips is not None and grasp is not None:
@@ -324,6 +331,11 @@ class _LabelDoubts:
 
     def notes(self) -> list[str]:
         notes = []
+        if self.unforced:
+            trial, count = max(self.unforced.items(), key=lambda item: item[1])
+            notes.append(f"{counted(sum(self.unforced.values()), 'frame')} of {counted(len(self.unforced), 'trial')} come before "
+                         f"the force log's first sample ({trial}: {count}) and have no force (NaN): training and scoring leave "
+                         "them out; does the log start after the camera?")
         if self.resting:
             notes.append(f"{counted(self.resting, 'true slip')} {'lies' if self.resting == 1 else 'lie'} at rest, outside every "
                          "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")

@@ -575,3 +575,13 @@ def test_a_true_slip_at_rest_outside_every_grasp_is_named():
     report = fr.FramingReport()
     fr.frame_recordings(table, 10_000, report=report, phases="session", slips={"s": [(20_000, 60_000), (150_000, 200_000)]})
     assert any("1 true slip lies at rest" in note for note in report.notes)
+
+
+def test_frames_before_a_force_log_that_starts_late_are_named():
+    t_ms = np.arange(0, 1_001, 2)
+    late = t_ms >= 400  # the logger started 0.4 s after the sync instant
+    table = recordings([{"trial": "s", "t0": 0, "events": random_events(1, span=1_000_000), "force": (t_ms[late] * 1000, np.zeros(late.sum()))}])
+    report = fr.FramingReport()
+    frames = fr.frame_recordings(table, 10_000, report=report)
+    assert np.isnan(frames.column("force").to_numpy(zero_copy_only=False)).sum() == 39
+    assert any("39 frames of 1 trial come before the force log's first sample" in note for note in report.notes)
