@@ -1069,3 +1069,13 @@ def test_info_reads_a_camera_file_whose_first_bytes_hold_a_semicolon(tmp_path):
     path.write_bytes(b"#!AER-DAT2.0\r\n# AEChip: eu.seebetter.ini.chips.davis.DAVIS240C\r\n" + records)  # 59 is `;`
     code, _, said = invoke(["info", str(path)])
     assert code == 0 and "AEDAT 2.0" in said and "CSV" not in said
+
+
+def test_frames_without_a_measured_force_are_counted_as_left_out():
+    from neurotac_cli import metrics
+    from neurotac_cli.model import scoring
+
+    rows = metrics.force_rows(["a"] * 4, ["holding"] * 4, [np.nan, np.nan, 1.0, 2.0], [0.5, 0.5, 1.0, 2.1])
+    assert ("all", "unforced_frames", 2.0) in rows
+    assert "2 frames without a measured force (NaN) left out" in scoring.summary(rows)
+    assert not any(metric == "unforced_frames" for _, metric, _ in metrics.force_rows(["a"] * 2, ["holding"] * 2, [1.0, 2.0], [1.0, 2.0]))

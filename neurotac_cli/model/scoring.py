@@ -109,6 +109,9 @@ def summary(rows: list, title: str = "") -> str:
         lines.append(f"{scope:<18}" + "".join(cells))
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
+    unforced = by_scope.get("all", {}).get("unforced_frames")
+    if unforced:
+        lines.append(f"{counted(int(unforced), 'frame')} without a measured force (NaN) left out of these figures")
     flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
     if flat:
         lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
