@@ -557,16 +557,17 @@ def check_streams(model: Model):
                          "(a classifier goes to --material-model)")
 
 
-def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None = None):
+def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None = None, notes: list | None = None):
     """Predictions batch by batch as frames arrive; each trial's state is carried from frame to frame
-    (`advice` as `check_input`'s).
+    (`advice` as `check_input`'s; `notes` gets a line on the frames missing inside trials, once the
+    batches end: the state runs over such a gap as if its frames had come).
 
     Returns (predictions schema, iterator of record batches).
     """
     check_streams(model)
     check_input(model, schema, advice)
     out_schema, labels = _predictions_schema(schema, FORCE_FIELDS, model)
-    states, last = {}, {}
+    states, last, missing = {}, {}, {}
     # a first step pays its one-off costs (allocations, kernel choices) now, not on the first frame
     model.step(np.zeros((1, 1, len(CHANNELS), *sch.frames_shape(schema)), np.float32), np.zeros((1, 1), np.int64))
 
@@ -582,7 +583,11 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             edges = [0] + [i for i in range(1, len(trials)) if trials[i] != trials[i - 1]] + [len(trials)]
             for begin, end in zip(edges[:-1], edges[1:]):
                 trial = trials[begin]
-                last[trial] = _in_order(trial, last.get(trial), numbers[begin:end], t[begin:end])
+                before = last.get(trial)
+                last[trial] = _in_order(trial, before, numbers[begin:end], t[begin:end])
+                # frames strictly rising (`_in_order`): the ones skipped are the span less those given
+                start = int(numbers[begin]) if before is None else before[0] + 1
+                missing[trial] = missing.get(trial, 0) + int(numbers[end - 1]) - start + 1 - (end - begin)
                 force, states[trial] = model.step(counts[None, begin:end], t[None, begin:end], states.get(trial))
                 prediction[begin:end] = force[0]
             columns = {
@@ -593,6 +598,11 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             for name in labels:
                 columns[name] = batch.column(name)
             yield pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
+        gaps = {trial: count for trial, count in missing.items() if count}
+        if gaps and notes is not None:
+            trial, count = max(gaps.items(), key=lambda item: item[1])
+            notes.append(f"warning: {counted(sum(gaps.values()), 'frame')} missing inside {counted(len(gaps), 'trial')} ({trial}: "
+                         f"{count}): the model's state ran over each gap as if its frames had come")
 
     return out_schema, run()
 

@@ -37,7 +37,7 @@ def stream(model: core.Model, schema: pa.Schema, batches, material: core.Model |
         raise ModelError(f"--material-model names each contact's material: it needs a force model trained with --contacts, "
                          f"and {model.name!r} was trained on whole trials")
     else:
-        schema, out = core.stream_trials(model, schema, batches, advice=advice)
+        schema, out = core.stream_trials(model, schema, batches, advice=advice, notes=notes)
     return schema, (out if outside is None else outside.watch_estimates(out))
 
 

@@ -121,6 +121,19 @@ def test_frames_busier_than_any_training_frame_are_named_at_once_and_counted(tmp
     assert tables.read([str(tmp_path / "b.arrows")]).num_rows == busy.num_rows
 
 
+def test_frames_missing_inside_a_trial_are_counted_for_a_model_of_whole_trials():
+    frames = tiny_frames(trials=2)
+    model = models.train(frames, models.make_spec("tdnn", epochs=1), seed=0)
+    kept = frames.filter(pa.array([f not in (3, 4, 5) for f in frames.column("frame").to_pylist()]))
+    notes = []
+    _, batches = models.stream(model, kept.schema, iter(kept.to_batches(max_chunksize=2)), notes=notes)
+    list(batches)
+    assert notes == ["warning: 6 frames missing inside 2 trials (t0: 3): the model's state ran over each gap as if its frames had come"]
+    notes = []
+    list(models.stream(model, frames.schema, iter(frames.to_batches(max_chunksize=2)), notes=notes)[1])
+    assert notes == []
+
+
 def test_estimates_beyond_the_training_forces_are_counted_and_older_model_files_still_run():
     frames = tiny_frames(trials=2)
     model = models.train(frames, models.make_spec("lstm", epochs=1), seed=0)
