@@ -109,19 +109,25 @@ def summary(rows: list, title: str = "") -> str:
         lines.append(f"{scope:<18}" + "".join(cells))
     if any("_fold_mean" in m for s in scopes for m in by_scope.get(s, {})):
         lines.append("(a±b: mean ± σ over folds; pooled figures in the metrics table)")
-    unforced = by_scope.get("all", {}).get("unforced_frames")
-    if unforced:
-        lines.append(f"{counted(int(unforced), 'frame')} without a measured force (NaN) left out of these figures")
-    flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
-    if flat:
-        lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
-                     f"({', '.join(flat[:3])}{', ...' if len(flat) > 3 else ''}), '-' here and NaN in the metrics table")
+    lines += _left_out_lines(rows, by_scope.get("all", {}))
     lines += _validation_lines(by_scope.get("all", {}))
     if "rest_frames" in by_scope.get("all", {}):  # a model run on streams (train --contacts)
         from neurotac_cli.model.session import summary_lines
 
         lines += summary_lines(by_scope["all"])
     return "\n".join(lines)
+
+
+def _left_out_lines(rows: list, figures: dict) -> list:
+    """What the figures leave out: frames without a measured force, scopes whose force does not vary."""
+    lines = []
+    if figures.get("unforced_frames"):
+        lines.append(f"{counted(int(figures['unforced_frames']), 'frame')} without a measured force (NaN) left out of these figures")
+    flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
+    if flat:
+        lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
+                     f"({', '.join(flat[:3])}{', ...' if len(flat) > 3 else ''}), '-' here and NaN in the metrics table")
+    return lines
 
 
 def _validation_lines(figures: dict) -> list:
