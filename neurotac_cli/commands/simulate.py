@@ -4,7 +4,7 @@ import sys
 
 import click
 
-from neurotac_cli.options import Duration, KeyValue, Size, distinct_names, history, output_option, seed_option
+from neurotac_cli.options import Duration, KeyValue, Size, distinct_names, echo_lines, history, output_option, seed_option
 
 
 def _progress_printer():
@@ -136,7 +136,9 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     if session:
         from neurotac_cli.sim.session import write_sessions
 
-        write_sessions(config, seed, grasps, out_dir, sessions, variation, duration or 0, _progress_printer())
+        notes = []
+        write_sessions(config, seed, grasps, out_dir, sessions, variation, duration or 0, _progress_printer(), notes=notes)
+        echo_lines("simulate", notes, "warning: ")
         return
     if synced and output in (None, "-"):
         tables.refuse_terminal()  # before minutes of work, not after

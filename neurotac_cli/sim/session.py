@@ -57,6 +57,7 @@ class SessionGrasp:
     speed: float  # gripper speed factor
     events: dict = field(default_factory=dict)  # regrasp / change / partial: local start time (µs)
     slip: Slip | None = None
+    slip_drawn: bool = False  # a slip was drawn for this grasp (slip_share); None above where no plateau could hold it
     config: SimConfig | None = None  # the grasp's own physics, where the objects family is drawn per grasp
     physics: dict = field(default_factory=dict)  # what was drawn for this grasp
 
@@ -146,6 +147,7 @@ def _plan_grasp(config, rng, index, material, shape, labels, offset_us) -> Sessi
     grasp = _pose(config, rng, index, material, shape, labels, peak, segments, released)
     planned = SessionGrasp(index, grasp, offset_us, segments, speed, events)
     if rng.random() < config.slip_share:
+        planned.slip_drawn = True
         planned.slip = _plan_slip(config, rng, grasp, [segments[i] for i in plateaus])
     return planned
 
@@ -477,8 +479,9 @@ def _chunks(session: Session):
 
 
 def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, sessions: int = 1, variation=None,
-                   min_duration_us: int = 0, progress=None) -> list[str]:
-    """Write `sessions` sessions (`sessionNN.aedat`, `sessionNN_force.csv`), manifest.csv and grasps.csv; returns the paths."""
+                   min_duration_us: int = 0, progress=None, notes: list | None = None) -> list[str]:
+    """Write `sessions` sessions (`sessionNN.aedat`, `sessionNN_force.csv`), manifest.csv and grasps.csv; returns the paths.
+    `notes` gets a line where slips drawn had no plateau long enough to hold them."""
     from neurotac_cli.io.writers import aedat2_bytes
     from neurotac_cli.sim.run import FORCE_HEADER, force_lines, prepare_folder, write_csv
     from neurotac_cli.tables import atomic_file
@@ -513,6 +516,11 @@ def write_sessions(config: SimConfig, seed: int, n_grasps: int, folder: str, ses
         written += [events_path, force_path]
     written.append(write_csv(os.path.join(folder, "manifest.csv"), rows))
     written.append(write_csv(os.path.join(folder, "grasps.csv"), grasp_rows, GRASP_COLUMNS))
+    grasps = [planned for draw in draws for planned in draw.session.grasps]
+    drawn, dropped = sum(g.slip_drawn for g in grasps), sum(g.slip_drawn and g.slip is None for g in grasps)
+    if dropped and notes is not None:
+        notes.append(f"{dropped} of the {drawn} slips drawn had no hold long enough for them (slip_us {config.slip_us[0] / 1000:g} ms "
+                     "and more, with 30 ms either side) and were left out: lengthen session_hold_us or shorten slip_us")
     return written
 
 

@@ -187,3 +187,11 @@ def test_true_slips_naming_no_recorded_trial_are_warned_about_and_label_nothing(
     assert done.returncode == 0, done.stderr.decode()
     assert "session99" in done.stderr.decode() and done.stderr.decode().startswith("neurotac frame: warning:")
     assert not pa.ipc.open_stream(done.stdout).read_all()["slip"].to_numpy(zero_copy_only=False).any()
+
+
+def test_slips_drawn_that_no_hold_can_hold_are_counted(tmp_path):
+    done = subprocess.run(["neurotac", "simulate", "--session", "--grasps", "3", "--seed", "4", "--set", "slip_share=1",
+                           "--set", "slip_us=2s..3s", "--out", str(tmp_path / "s")], capture_output=True, text=True)
+    assert done.returncode == 0 and "2 of the 3 slips drawn had no hold long enough" in done.stderr
+    rows = read_csv(tmp_path / "s" / "grasps.csv")
+    assert sum(1 for row in rows if row["slip_start_ms"]) == 1
