@@ -57,7 +57,7 @@ class SessionGrasp:
     speed: float  # gripper speed factor
     events: dict = field(default_factory=dict)  # regrasp / change / partial: local start time (µs)
     slip: Slip | None = None
-    slip_drawn: bool = False  # a slip was drawn for this grasp (slip_share); None above where no plateau could hold it
+    slip_drawn: bool = False  # a slip was drawn for this grasp (slip_share); `slip` stays None where no plateau could hold it
     config: SimConfig | None = None  # the grasp's own physics, where the objects family is drawn per grasp
     physics: dict = field(default_factory=dict)  # what was drawn for this grasp
 
