@@ -14,6 +14,7 @@ Core code: no click, nothing on stdout, no exits. Progress goes to stderr.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import datetime
 import dataclasses
@@ -683,7 +684,7 @@ def _grid_values(name: str, text: str) -> list:
         else:
             values.append(_scalar(part))
         index += 1
-    repeated = sorted({str(value) for value in values if values.count(value) > 1})
+    repeated = sorted(str(value) for value, times in collections.Counter(values).items() if times > 1)
     if repeated:  # each point would be trained again for nothing (1 and 1.0 are one value)
         raise UsageError(f"grid {name}={text} gives {', '.join(repeated)} more than once; give each value once")
     return values
