@@ -85,8 +85,8 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
     series = trial if series is None else np.asarray(series, dtype=object)
     phase = np.asarray([p if p is not None else "none" for p in phase], dtype=object)
     true, pred = np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
-    true_all = true
     keep = ~np.isnan(true)
+    unforced = int(np.count_nonzero(~keep))  # frames without a measured force: left out, and said (scoring.summary)
     if nonzero:
         keep &= np.abs(true) > NONZERO_N
     trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]
@@ -96,8 +96,7 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
         rows.extend((scope, name, float(value)) for name, value in figures.items())
 
     add("all", regression(true, pred))
-    unforced = int(np.isnan(np.asarray(true_all, dtype=np.float64)).sum())
-    if unforced:  # frames without a measured force: left out, and said (scoring.summary)
+    if unforced:
         rows.append(("all", "unforced_frames", float(unforced)))
     for name in [p for p in PHASES if p in set(phase)] + sorted(set(phase) - set(PHASES) - {"none"}):
         inside = phase == name

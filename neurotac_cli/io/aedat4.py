@@ -118,7 +118,8 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
     has_triggers = any(s.get("type") == "triggers" for s in streams.values())
     # a second events stream (another camera, or the same one undistorted) is not read: named in the source
-    names = [_output_names(head).get(i, f"#{i}") for i in event_ids]
+    given = _output_names(head)
+    names = [given.get(i, f"#{i}") for i in event_ids]
     others = {"other_event_streams": names[1:], "note": f"events stream(s) {', '.join(names[1:])} not read (the first, "
               f"{names[0]}, is)"} if len(names) > 1 else {}
     # A recording stopped mid-write (mid-packet, or between packets before its index table) is read as
