@@ -304,7 +304,8 @@ def _contacts_of(found: pa.Table, chosen: list) -> list:
     names = list(dict.fromkeys(found.column("trial").to_pylist()))
     out = []
     for name in chosen:
-        out += [name] if name in names else [contact for contact in names if contact.split("@")[0] == name] or [name]
+        inside = [contact for contact in names if contact.split("@")[0] == name]
+        out += inside if name not in names and inside else [name]  # an unknown id is left for training to refuse
     return out
 
 

@@ -312,7 +312,8 @@ UNFORCED_LEAST, UNFORCED_SHARE = 5, 0.01  # frames without force named where mor
 
 class _LabelDoubts:
     """Labels that are likely not what the user meant, gathered over the trials for one warning each:
-    a session framed as one grasp (`--phases auto`), true slips at rest outside every grasp."""
+    frames before a force log's first sample, a session framed as one grasp (`--phases auto`), true
+    slips at rest outside every grasp."""
 
     def __init__(self):
         self.several, self.resting, self.unforced = [], 0, {}
