@@ -17,10 +17,15 @@ class InputError(NeurotacError):
     """Input that cannot be read: a missing file, an unknown format, a stream cut short."""
 
 
+def empty_path(what: str = "") -> str:
+    """The line for a path given empty: a shell variable left unset, found before any work."""
+    return f"an empty {what + ' ' if what else ''}path was given (an unset shell variable?)"
+
+
 def cannot_open(path, error: OSError) -> InputError:
     """The one-line error for an input path that cannot be opened for reading."""
     if path == "":  # a shell variable left unset: say so, not ": no such file"
-        return InputError("an empty path was given (an unset shell variable?)")
+        return InputError(empty_path())
     if isinstance(error, FileNotFoundError):
         return InputError(f"{path}: no such file")
     if isinstance(error, PermissionError):

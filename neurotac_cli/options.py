@@ -150,7 +150,9 @@ class TablePath(click.Path):
         from neurotac_cli.tables import is_special  # here: loading pyarrow for --help costs every command's start
 
         if value == "":
-            self.fail("an empty output path was given (an unset shell variable?)", param, ctx)
+            from neurotac_cli.errors import empty_path
+
+            self.fail(empty_path("output"), param, ctx)
         path = super().convert(value, param, ctx)
         if path != "-" and os.path.splitext(str(path))[1].lower() not in self.SUFFIXES and not is_special(str(path)):
             self.fail(f"cannot tell the table format of {path!r} from its suffix (use .parquet, .arrow, .feather or .arrows; .csv, .json or .ndjson for tables without tensors)", param, ctx)

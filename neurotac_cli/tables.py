@@ -23,7 +23,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 
 from neurotac_cli import __version__, bridges, schema as sch
-from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, UsageError, cannot_open
+from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, UsageError, cannot_open, empty_path
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -437,7 +437,7 @@ def check_folder(*paths) -> None:
     seen = {}
     for path in paths:
         if path == "":  # an unset shell variable: found now, not after the work, when the write fails
-            raise UsageError("an empty output path was given (an unset shell variable?)")
+            raise UsageError(empty_path("output"))
         if path == "-" or path == os.devnull:  # not files in a folder: /dev/null takes any number of outputs
             continue
         # the folder resolved, the name not: a write renames over a link named here, not its target

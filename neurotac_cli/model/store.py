@@ -6,7 +6,7 @@ import json
 import math
 import os
 
-from neurotac_cli.errors import ModelError, UsageError
+from neurotac_cli.errors import ModelError, UsageError, empty_path
 from neurotac_cli.schema import is_positive_count, is_sensor
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
@@ -51,7 +51,7 @@ def read_header(path: str) -> dict:
 
     if not os.path.exists(path):
         if path == "":
-            raise UsageError("an empty model path was given (an unset shell variable?)")
+            raise UsageError(empty_path("model"))
         raise ModelError(f"{path}: no such model file (train one with `neurotac train --model NAME -o {path}`)")
     if not os.path.isfile(path):
         raise ModelError(f"{path} is not a regular file; give a model file written by `neurotac train`")
