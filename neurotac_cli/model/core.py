@@ -283,8 +283,9 @@ def unstated_window(input_spec: dict, schema: pa.Schema) -> str | None:
 
 
 def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, val_where=None, per=None,
-          seed: int = 0, progress=None, label: str = "material") -> Model:
+          seed: int = 0, progress=None, label: str = "material", unit: str = "trial") -> Model:
     """Train the model of `spec` on a frames table, validation chosen as asked (never leaking copies).
+    `unit`: what one sequence is, as the progress line counts them (a trial, or a session's contact).
 
     `per`: the label whose values each get a share of the validation trials; default `object` (the
     thesis draws one per size) for force models, the class label for classifiers (stratified).
@@ -318,7 +319,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
         progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
                  "is held out for validation (early stopping follows the training loss)")
     if progress:
-        progress(f"{name}: {counted(len(train_set), 'training trial')}, {counted(len(val_set), 'validation trial')}")
+        progress(f"{name}: {counted(len(train_set), 'training ' + unit)}, {counted(len(val_set), 'validation ' + unit)}")
     training = {
         "spec": spec,
         "fit": dataclasses.asdict(fit_config),
@@ -385,6 +386,11 @@ def _train_force(name, config, fit_config, data, splits, train_set, input_spec, 
     net.calibrate(train_set.counts, _seconds(train_set))
     if not getattr(net, "trained_by_gradient", True):
         curve = net.fit(train_set.counts, _seconds(train_set), [f / force_scale for f in train_set.force], rng, progress)
+        held_out = np.flatnonzero(splits[0])
+        if len(held_out):  # a closed-form fit stops on nothing, but its held-out error is still worth reading
+            val = _force_tensors(data.subset(held_out), force_scale)
+            with torch.no_grad():
+                curve[0]["val_loss"] = float(_masked_mse(net(val["counts"], val["t"])[0], val["force"], val["mask"]))
     else:
         # fixed features (deform-gru) are computed once for every trial, not once per epoch and member
         features = net.encode(torch.as_tensor(padded(data.counts)), None) if hasattr(net, "encode") else None

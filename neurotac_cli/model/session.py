@@ -292,7 +292,7 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
                  f"{slip.min_events:g} OFF and {slip.on_events:g} ON events above the background")
     if options.get("val_trials"):
         options = dict(options, val_trials=_contacts_of(found, options["val_trials"]))
-    model = core.train(found, spec, **options)
+    model = core.train(found, spec, unit="contact", **options)
     model.input_spec = dict(model.input_spec, **{CONTACT_KEY: config.to_dict(), SLIP_KEY: slip.to_dict()})
     model.training = dict(model.training, contacts=summary)
     return model

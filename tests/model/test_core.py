@@ -61,6 +61,16 @@ def test_gp_is_stored_as_arrays(frames, tmp_path):
     assert tensors["length_scale"].shape == (3,)
 
 
+def test_a_gp_reports_its_held_out_error_and_no_epochs(frames):
+    from neurotac_cli.model.training import train_model
+
+    trained = train_model(frames, "gp", {"restarts": 1, "max_points": 50}, val_fraction=0.3, seed=0)
+    (row,) = trained.model.training["curve"]
+    assert row["val_loss"] == row["val_loss"] and row["val_loss"] > 0  # measured on the held-out trials
+    assert trained.summary.startswith("gp: fitted in closed form (train ") and ", validation " in trained.summary
+    assert "epoch" not in trained.summary
+
+
 def test_same_seed_same_model(frames):
     a = models.train(frames, models.make_spec("deform-gru", **FAST), val_fraction=0.3, seed=5)
     b = models.train(frames, models.make_spec("deform-gru", **FAST), val_fraction=0.3, seed=5)

@@ -573,6 +573,7 @@ def test_train_contacts_then_predict_writes_contact_and_phase(sessions, tmp_path
         done = run(["train", "--model", "deform-gru", "--contacts", "--epochs", "2", "--hidden", "4", "-o", str(tmp_path / "m.model")], stdin)
     assert done.returncode == 0, done.stderr
     assert b"contacts: 18 in 3 streams" in done.stderr
+    assert b"training contacts, " in done.stderr and b"training trial" not in done.stderr
     with open(tmp_path / "s.arrows", "rb") as stdin:
         done = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "p.arrows")], stdin)
     assert done.returncode == 0, done.stderr
