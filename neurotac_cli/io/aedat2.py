@@ -102,7 +102,7 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     chip = chip_of(header)
     declared = declared_sensor(header, chip, sensor)  # its height flips the rows, --sensor or not
     offset = len(header)
-    dvs128 = is_dvs128(chip) or (chip is None and declared is None and _dvs128_addresses(path, offset))
+    dvs128 = is_dvs128(chip) or (chip is None and declared is None and bool(_dvs128_addresses(path, offset)))
     height = None if dvs128 else flip_height(chip, declared, sensor)
 
     def chunks():
@@ -110,20 +110,29 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
         for block in read_chunks(path, offset, RECORD):
             yield decode(block, dvs128, height, state)
 
-    camera = chip or ("DVS128 (told from its addresses)" if dvs128 else None)
+    camera = chip or (TOLD_DVS128 if dvs128 else None)
     return Decoded(sensor=(128, 128) if dvs128 else declared, chunks=chunks, meta={"source": {"camera": camera}} if camera else {},
                    cut_bytes=cut_bytes(path, offset, RECORD))
 
 
-def _dvs128_addresses(path: str, offset: int, records: int = 1 << 16) -> bool:
-    """A file that names no chip holds DVS128 records when none of its first addresses has a bit above
-    the 16 that layout uses: a DAVIS address holds x from bit 12 and y from bit 22, so all but the
-    events of a 16-pixel corner set a higher bit."""
+TOLD_DVS128 = "DVS128 (told from its addresses)"
+ADDRESSES_TO_TELL = 1 << 16  # records looked at; at least 16 are needed
+
+
+def _dvs128_addresses(path: str, offset: int) -> bool:
     with open(path, "rb") as handle:
         handle.seek(offset)
-        data = handle.read(records * RECORD)
-    words = np.frombuffer(data[: len(data) // RECORD * RECORD], dtype=">u4").reshape(-1, 2)
-    return len(words) >= 16 and not np.any(words[:, 0] >> 16)
+        return bool(dvs128_records(handle.read(ADDRESSES_TO_TELL * RECORD)))
+
+
+def dvs128_records(data: bytes) -> bool | None:
+    """Whether records of a file that names no chip are DVS128's: none of the first addresses has a
+    bit above the 16 that layout uses (a DAVIS address holds x from bit 12 and y from bit 22, so all
+    but the events of a 16-pixel corner set a higher bit). None: fewer than 16 whole records."""
+    words = np.frombuffer(data[: min(len(data), ADDRESSES_TO_TELL * RECORD) // RECORD * RECORD], dtype=">u4").reshape(-1, 2)
+    if len(words) < 16:
+        return None
+    return not np.any(words[:, 0] >> 16)
 
 
 def flip_height(chip: str | None, declared, given) -> int:

@@ -177,14 +177,15 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
             return _whole(name, fmt, feed, buffer, sensor, follow, close)
         buffer = _read_until(feed, buffer, lambda data, end: header_length(fmt, data, end) is not None)
         length = camera._guarded_call(name, fmt, lambda: header_length(fmt, buffer, True))
-        decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, bytes(buffer[:length]), sensor))
+        header = bytes(buffer[:length])
+        decoder = camera._guarded_call(name, fmt, lambda: _decoder(fmt, header, sensor))
+        del buffer[:length]
+        _settle(name, fmt, feed, buffer, decoder)
         declared = sensor or camera._guarded_call(name, fmt, lambda: check_sensor(decoder.sensor))
         if declared is None:
             decoder.close()
             decoder = None
-            return _whole(name, fmt, feed, buffer, sensor, follow, close)
-        del buffer[:length]
-        _settle(name, fmt, feed, buffer, decoder)
+            return _whole(name, fmt, feed, bytearray(header) + buffer, sensor, follow, close)
     except BaseException:
         if decoder is not None:  # AEDAT 4.0's keeps a temporary file
             decoder.close()
@@ -200,9 +201,10 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
 
 
 def _settle(name, fmt, feed: Feed, pending: bytearray, decoder):
-    """Read on until the decoder's metadata is complete, so that it goes out with the schema. Only an
-    EVT 2.1 stream whose header does not give its word order waits here, for its first TIME_HIGH word:
-    no event before that word can be decoded, so no event is held back by the wait."""
+    """Read on until the decoder's metadata is complete, so that it goes out with the schema. An EVT 2.1
+    stream whose header does not give its word order waits here for its first TIME_HIGH word (no event
+    before that word can be decoded, so none is held back by the wait); an AEDAT 2.0 stream that names
+    no chip, for the 16 records that tell DVS128 from DAVIS."""
     from neurotac_cli.io import camera
 
     while not camera._guarded_call(name, fmt, lambda: decoder.settled(pending, False)):

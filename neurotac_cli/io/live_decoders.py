@@ -124,8 +124,26 @@ class Davis(_Records):
         self.dvs128 = aedat2.is_dvs128(chip)
         self.sensor = (128, 128) if self.dvs128 else aedat2.declared_sensor(header, chip, sensor)
         self.meta = {"source": {"camera": chip}} if chip else {}
-        self.height = None if self.dvs128 else aedat2.flip_height(chip, self.sensor, sensor)
+        self.given = sensor
+        # a file that names no chip nor size: its first records tell DVS128 from DAVIS, as a file's do
+        self.undecided = chip is None and self.sensor is None
+        self.height = None if self.dvs128 or self.undecided else aedat2.flip_height(chip, self.sensor, sensor)
         self.state = {"last": None, "loop": 0}
+
+    def settled(self, pending: bytearray, at_end: bool) -> bool:
+        from neurotac_cli.io import aedat2
+
+        if not self.undecided:
+            return True
+        told = aedat2.dvs128_records(bytes(pending))
+        if told is None and not at_end:
+            return False
+        self.undecided = False
+        if told:
+            self.dvs128, self.sensor, self.meta = True, (128, 128), {"source": {"camera": aedat2.TOLD_DVS128}}
+        else:
+            self.height = aedat2.flip_height(None, None, self.given)
+        return True
 
     def decode(self, block: bytes):
         from neurotac_cli.io import aedat2

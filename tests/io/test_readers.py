@@ -472,9 +472,17 @@ def test_a_dvs128_file_that_names_no_chip_is_told_from_its_addresses(tmp_path):
     table = read_events_table(path)
     assert sch.sensor_of(table.schema) == (128, 128) and table.num_rows == n
     assert table.column("x").to_numpy().tolist() == x.tolist() and table.column("y").to_numpy().tolist() == (127 - y_up).tolist()
+    from neurotac_cli.io import live
+
+    stream = live.open_stream(str(path), fmt=None, follow=True, idle_timeout=0.1)  # followed: the same records, the same layout
+    batches = list(stream.batches)
+    streamed = {name: np.concatenate([batch.column(name).to_numpy() for batch in batches]) for name in "txyp"}
+    assert sch.sensor_of(stream.schema) == (128, 128) and all(streamed[n].tolist() == table.column(n).to_pylist() for n in "txyp")
     davis = real_file("davis240c_rotdisk.aedat").read_bytes().replace(b"AEChip:", b"AEChap:", 1)
     (tmp_path / "davis.aedat").write_bytes(davis)
     assert read_events_table(tmp_path / "davis.aedat", sensor=(240, 180)).num_rows == 374_296  # still the DAVIS layout
+    stream = live.open_stream(str(tmp_path / "davis.aedat"), sensor=(240, 180), follow=True, idle_timeout=0.1)
+    assert sum(batch.num_rows for batch in stream.batches) == 374_296
 
 
 def test_an_atis_dat_file_before_version_2_is_read_with_its_own_address_layout(tmp_path):
