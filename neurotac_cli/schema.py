@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pyarrow as pa
 
-from neurotac_cli.errors import SchemaError
+from neurotac_cli.errors import SchemaError, UsageError
 
 KIND = "neurotac:kind"
 SENSOR = "neurotac:sensor"
@@ -146,6 +146,21 @@ def sensor_of(schema: pa.Schema) -> tuple[int, int] | None:
 
 def sensor_meta(width: int, height: int) -> dict:
     return {"width": int(width), "height": int(height)}
+
+
+def with_given_sensor(schema: pa.Schema, given) -> pa.Schema:
+    """`schema` with --sensor's size (`given`) where the table declares none. A table that declares
+    another size is refused: its coordinates are in that size, and a size given over it would put
+    events outside the sensor or frame them in one corner of a larger one."""
+    if given is None:
+        return schema
+    declared, given = sensor_of(schema), (int(given[0]), int(given[1]))
+    if declared is None:
+        return set_meta(schema, sensor=sensor_meta(*given))
+    if declared != given:
+        raise UsageError(f"--sensor {given[0]}x{given[1]}: the table declares its sensor as {declared[0]}x{declared[1]} "
+                         "(--sensor is for tables that do not declare one; leave it out)")
+    return schema
 
 
 def label_columns(schema: pa.Schema) -> list[str]:
@@ -429,7 +444,7 @@ def _check_counts(column):
     """Event counts are finite and not negative: a NaN or infinite count (a float table from another
     tool) would train a model to NaN or score it on fewer frames without a word, a negative one would
     be read as events of the other polarity."""
-    if not pa.types.is_floating(column.type.value_type):  # integer counts are finite by their type
+    if pa.types.is_unsigned_integer(column.type.value_type):  # finite and not negative by their type
         return
     counts = counts_numpy(column)
     finite = np.isfinite(counts)

@@ -38,10 +38,44 @@ def test_render_and_a_pooling_crop_refuse_events_beyond_the_stated_sensor(tmp_pa
         sch.set_meta(sch.events_schema(), sensor=sch.sensor_meta(10, 10)).metadata))
     code, stderr, _ = invoke(["render", "-o", str(tmp_path / "r.png"), path])
     assert one_line(stderr, code, 1) and "outside the 10x10 sensor" in stderr
-    good = str(tmp_path / "g.arrows")
-    tables.write(good, events([0, 9], [0, 5], [0, 1], 10, 10))
-    code, stderr, _ = invoke(["crop", "--pool", "2x2", "--sensor", "4x4", "-o", str(tmp_path / "c.arrows"), good])
+    undeclared = str(tmp_path / "u.arrows")
+    tables.write(undeclared, events([0, 9], [0, 5], [0, 1], 10, 10).replace_schema_metadata(sch.events_schema().metadata))
+    code, stderr, _ = invoke(["crop", "--pool", "2x2", "--sensor", "4x4", "-o", str(tmp_path / "c.arrows"), undeclared])
     assert one_line(stderr, code, 1) and "outside the 4x4 sensor" in stderr
+    code, stderr, _ = invoke(["crop", "--box", "0,0,5,5", "-o", str(tmp_path / "c.arrows"), path])  # a fixed box: refused, not cut
+    assert one_line(stderr, code, 1) and "outside the 10x10 sensor" in stderr
+
+
+@pytest.mark.parametrize("verb", [["crop", "--box", "0,0,5,5"], ["crop", "--pool", "2x2"], ["frame", "--window", "10ms"]])
+def test_a_sensor_size_that_contradicts_the_table_s_own_is_a_usage_error(tmp_path, verb):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 9], [0, 5], [0, 1], 10, 10))
+    code, stderr, _ = invoke([*verb, "--sensor", "20x20", "-o", str(tmp_path / "c.arrows"), path])
+    assert one_line(stderr, code, 2) and "declares its sensor as 10x10" in stderr
+    code, stderr, _ = invoke([*verb, "--sensor", "10x10", "-o", str(tmp_path / "c.arrows"), path])  # the same size: fine
+    assert code == 0, stderr
+
+
+def _recording(force_t, labels=None):
+    return {"trial": "a", "t0": 0, "events": (np.arange(3) * 1000, np.array([1, 2, 3]), np.array([1, 2, 3]), np.array([0, 1, 1])),
+            "force": (np.asarray(force_t), np.linspace(0, 1, len(force_t))), "labels": labels or {}}
+
+
+def test_frame_names_what_a_recordings_table_would_lose_and_refuses_a_force_log_out_of_order(tmp_path):
+    empty = {"trial": "b", "t0": 0, "events": tuple(np.array([], np.int64) for _ in range(4)),
+             "force": (np.array([], np.int64), np.array([], np.float32)), "labels": {}}
+    table = sch.recordings_table([_recording([0, 10_000, 20_000]), empty], 10, 10)
+    table = table.append_column("size_mm", pa.array([12, 9])).append_column("points", pa.array([[1], [2]]))
+    path, out = str(tmp_path / "r.arrows"), str(tmp_path / "f.arrows")
+    tables.write(path, table)
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", out, path])
+    assert code == 0, stderr
+    assert "size_mm (int64) carried into the frames as text" in stderr and "points (list<item: int64>) left out" in stderr
+    assert "1 trial (b) holds no event and no force sample" in stderr
+    assert set(tables.read([out]).column("size_mm").to_pylist()) == {"12"}
+    tables.write(path, sch.recordings_table([_recording([0, 20_000, 10_000])], 10, 10))
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", out, path])
+    assert one_line(stderr, code, 1) and "force time runs backwards at 1 sample of 3" in stderr
 
 
 def test_a_crop_keeps_another_tool_s_columns_with_their_events(tmp_path):
@@ -53,10 +87,10 @@ def test_a_crop_keeps_another_tool_s_columns_with_their_events(tmp_path):
     assert tables.read([out]).column("source").to_pylist() == ["a", "c"]
 
 
-@pytest.mark.parametrize("bad", [-5.0, np.nan, np.inf])
+@pytest.mark.parametrize("bad", [-5.0, np.nan, np.inf, -3])
 def test_frames_with_counts_that_are_no_numbers_or_negative_are_refused(files, tmp_path, bad):  # noqa: F811
     table = frames_table()
-    counts = sch.counts_numpy(table.column("counts")).astype(np.float32)
+    counts = sch.counts_numpy(table.column("counts")).astype(np.int32 if isinstance(bad, int) else np.float32)
     counts[3, 0, 2, 2] = bad
     table = pa.Table.from_arrays([*table.columns[:3], sch.counts_array(counts), *table.columns[4:]],
                                  names=table.column_names).replace_schema_metadata(table.schema.metadata)
@@ -1079,3 +1113,11 @@ def test_frames_without_a_measured_force_are_counted_as_left_out():
     assert ("all", "unforced_frames", 2.0) in rows
     assert "2 frames without a measured force (NaN) left out" in scoring.summary(rows)
     assert not any(metric == "unforced_frames" for _, metric, _ in metrics.force_rows(["a"] * 2, ["holding"] * 2, [1.0, 2.0], [1.0, 2.0]))
+
+
+@pytest.mark.parametrize("option, said", [(["--rotate", "360"], "--rotate 360 changes nothing"),
+                                          (["--rotate-range", "-720", "720"], "is not in the range -360<=x<=360"),
+                                          (["--rotate-range", "-1e308", "1e308"], "is not in the range -360<=x<=360")])
+def test_rotations_of_whole_turns_or_beyond_one_turn_are_usage_errors(files, tmp_path, option, said):  # noqa: F811
+    code, stderr, _ = invoke(["augment", *option, "-o", str(tmp_path / "a.arrows"), f"{files}/f.arrows"])
+    assert one_line(stderr, code, 2) and said in stderr

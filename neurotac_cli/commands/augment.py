@@ -8,9 +8,9 @@ from neurotac_cli.options import Finite, FiniteRange, KeyValue, echo_lines, hist
 @click.command()
 @input_paths
 @output_option
-@click.option("--rotate", "rotate", type=Finite(), default=None, metavar="DEG",
+@click.option("--rotate", "rotate", type=FiniteRange(-360, 360), default=None, metavar="DEG",
               help="Rotate every frame of a trial by DEG degrees about its contact centre (clockwise on screen).")
-@click.option("--rotate-range", "rotate_range", type=Finite(), nargs=2, default=None, metavar="A B",
+@click.option("--rotate-range", "rotate_range", type=FiniteRange(-360, 360), nargs=2, default=None, metavar="A B",
               help="Rotate each copy of a trial by one angle drawn uniformly from [A, B] degrees (thesis: 0 45).")
 @click.option("--resize", "resize", type=Finite(above=0), default=None, metavar="BETA",
               help="Scale about the contact centre by BETA > 0 (>1 larger; thesis 1.25 small objects, 0.83 large), "
@@ -51,8 +51,9 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
     from neurotac_cli.ops import augment
 
     unchanged = [name for name, same in (("--fs 0", fs == 0), ("--tes with J 0", tes is not None and tes[0] == 0),
-                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), ("--rotate 0", rotate == 0),
-                                         ("--rotate-range 0 0", tuple(rotate_range or ()) == (0, 0)), ("--resize 1", resize == 1))
+                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), (f"--rotate {rotate:g}" if rotate is not None else "", rotate is not None and rotate % 360 == 0),
+                                         (f"--rotate-range {rotate_range[0]:g} {rotate_range[1]:g}" if rotate_range else "",
+                                          bool(rotate_range) and rotate_range[0] == rotate_range[1] and rotate_range[0] % 360 == 0), ("--resize 1", resize == 1))
                  if same]
     methods = sum(value is not None for value in (rotate, rotate_range, resize, fs, tes, noise))
     if unchanged and not (combine == "hybrid" and methods > len(unchanged)):  # in a hybrid, the other methods change the copies

@@ -39,9 +39,7 @@ def read_camera(path: str, sensor=None) -> pa.Table:
     """A camera file in any format `import` reads, or an events table, as one events table."""
     if os.path.isfile(path) and is_table(path):  # a pipe is not peeked at: its first bytes would be lost
         table = tables.read([path], kind="events")
-        if sensor is not None:
-            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
-        return table
+        return table.replace_schema_metadata(sch.with_given_sensor(table.schema, sensor).metadata)
     return read_events_table(path, sensor=sensor)
 
 

@@ -197,6 +197,9 @@ def events_to_move(counts: np.ndarray, zeta: float) -> np.ndarray:
     return np.rint(zeta * totals).astype(np.int64)
 
 
+DRAW_AT_ONCE = 1 << 25  # events drawn as one array (about 1.3 GB of working arrays); more are drawn group by group
+
+
 def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Draw `take[g]` of the events of each group g without replacement (multivariate hypergeometric).
 
@@ -207,6 +210,11 @@ def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) 
     """
     groups, pixels = counts.shape
     flat = counts.ravel()
+    if int(flat.sum(dtype=np.int64)) > DRAW_AT_ONCE:
+        # more events than one array of them fits in memory: each group drawn from its pixels' counts
+        rows = counts.astype(np.int64)
+        return np.stack([rng.multivariate_hypergeometric(row, int(k), method="marginals") if k else np.zeros(pixels, np.int64)
+                         for row, k in zip(rows, take)]) if groups else np.zeros((0, pixels), np.int64)
     entries = np.flatnonzero(flat)
     event_pixel = np.repeat(entries, flat[entries].astype(np.int64))
     if len(event_pixel) == 0:

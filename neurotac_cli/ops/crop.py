@@ -309,9 +309,9 @@ def _frames_schema_like(schema: pa.Schema, height: int, width: int, dtype) -> pa
 
 def crop_event_arrays(t, x, y, p, box, pool, sensor):
     """Keep events inside `box`, shift them to its origin, pool coordinates; returns arrays and the mask.
-    Without a box every event is kept, so each must lie on the `sensor` (W, H) the output is sized from."""
+    Every event must lie on the `sensor` (W, H): one outside it is refused, not counted as cut."""
+    sch.check_events(t, x, y, p, sensor, sorted_time=False)
     if box is None:
-        sch.check_events(t, x, y, p, sensor, sorted_time=False)
         inside = None
     else:
         x0, y0, w, h = box
@@ -324,9 +324,9 @@ def crop_event_arrays(t, x, y, p, box, pool, sensor):
     return (t, x.astype(np.uint16), y.astype(np.uint16), p), inside
 
 
-def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropReport, sensor=None):
+def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropReport):
     """Crop an events stream batch by batch; returns (schema, iterator). The report fills as it runs."""
-    width, height = sensor or sensor_size(schema)
+    width, height = sensor_size(schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
     out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
@@ -350,14 +350,14 @@ def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropRepor
     return out_schema, generate()
 
 
-def crop_recordings(table: pa.Table, box, pool, report: CropReport, sensor=None) -> pa.Table:
-    schema, batches = crop_recordings_batches(table.schema, table.to_batches(), box, pool, report, sensor)
+def crop_recordings(table: pa.Table, box, pool, report: CropReport) -> pa.Table:
+    schema, batches = crop_recordings_batches(table.schema, table.to_batches(), box, pool, report)
     return pa.Table.from_batches(list(batches), schema=schema)
 
 
-def crop_recordings_batches(schema: pa.Schema, batches, box, pool, report: CropReport, sensor=None):
+def crop_recordings_batches(schema: pa.Schema, batches, box, pool, report: CropReport):
     """Crop a recordings stream trial batch by trial batch; returns (schema, iterator)."""
-    width, height = sensor or sensor_size(schema)
+    width, height = sensor_size(schema)
     x0, y0, w, h = box if box is not None else (0, 0, width, height)
     new_w, new_h = pooled_size(w, h, pool)
     out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
@@ -395,8 +395,7 @@ def crop_table(table: pa.Table, spec: CropSpec, report: CropReport | None = None
     """Crop a whole frames, recordings or events table (auto centre from the whole table)."""
     report = report if report is not None else CropReport()
     kind = sch.table_kind(table.schema)
-    if sensor is not None and kind != "frames":
-        table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+    table = table.replace_schema_metadata(sch.with_given_sensor(table.schema, sensor).metadata)
     dims = sensor_size(table.schema)
     activity = activity_map(table) if spec.center == "auto" else None
     box = resolve_box(spec, dims, activity, report)
@@ -421,16 +420,15 @@ def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Sc
     fills as the batches are written. The automatic centre needs the whole input: it is read whole."""
     report = CropReport()
     kind = sch.table_kind(schema)
+    schema = sch.with_given_sensor(schema, sensor)
     try:
         if spec.center != "auto" and kind in STREAMERS:
-            dims = sensor_size(schema) if kind == "frames" else (sensor or sensor_size(schema))
-            box = resolve_box(spec, dims, report=report)
+            box = resolve_box(spec, sensor_size(schema), report=report)
             report.box, report.streamed = (list(box) if box else None), True
             report.pool = list(spec.pool) if isinstance(spec.pool, tuple) else spec.pool
-            extra = {} if kind == "frames" else {"sensor": sensor}
-            out_schema, out = STREAMERS[kind](schema, batches, box, spec.pool, report, **extra)
+            out_schema, out = STREAMERS[kind](schema, batches, box, spec.pool, report)
             return out_schema, out, report
-        table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report, sensor=sensor)
+        table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report)
     except OutsideSensorError as error:
         if sensor is None and sch.camera_source(schema).get("sensor_from") == "events":
             raise OutsideSensorError(f"{error} (that size is the events' extent, the camera file does not give it: "

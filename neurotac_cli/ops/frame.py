@@ -362,6 +362,34 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
         # the trial's end is its force log's when it has one (see trial_end), else its last event's
         times, what = (force_t, "force sample") if len(force_t) else (np.sort(t), "event")
         check_frame_count(sum(totals), framing, lambda: f"trial {trial}: " + why_so_many(np.concatenate([[0], times]), 0, window, -1, what))
+    _trial_notes(rows, totals, framing, report)
+    plan = []
+    for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
+        t, x, y, p = events
+        sch.check_events(t, x, y, p, sensor, where=f"trial {trial}", sorted_time=False)
+        sch.check_force(force_v, where=f"trial {trial}")
+        backwards = int(np.count_nonzero(np.diff(force_t) < 0))
+        if backwards:
+            raise SchemaError(f"trial {trial}: force time runs backwards at {counted(backwards, 'sample')} of {len(force_t):,}; "
+                              "a recording's force samples are in time order (as `neurotac sync` writes them)")
+        n_real = min(n_real, n_total)
+        before = int(np.count_nonzero(t < 0))
+        after = int(np.count_nonzero(t >= n_real * window))
+        report.events += len(t)
+        report.before_start += before
+        report.after_end += after
+        report.framed += len(t) - before - after
+        report.trials += 1
+        report.frames += n_total
+        report.padded_frames += n_total - n_real
+        plan.append((trial, events, force_t, force_v, label_values, n_real, n_total))
+    return plan
+
+
+def _trial_notes(rows: list, totals: list, framing: Framing, report: FramingReport) -> None:
+    """What the trials' force logs and the options leave doubtful, as notes: holes in a log, a log
+    slower than the window for session phases, phase ranges past a trial's end, empty trials."""
+    window = framing.window_us
     periods = [float(np.median(np.diff(force_t))) for _, _, (force_t, _), _ in rows if len(force_t) > 1]
     gaps = [(trial, *_force_gap(force_t)) for trial, _, (force_t, _), _ in rows if len(force_t) > 2]
     gaps = [gap for gap in gaps if gap[1] is not None]
@@ -380,23 +408,11 @@ def _plan_trials(table: pa.Table, framing: Framing, report: FramingReport, senso
             (trial, n), last = short[0], framing.phases[-1]
             report.notes.append(f"the phase ranges reach past the last frame of {counted(len(short), 'trial')} ({trial}: frames "
                                 f"0-{n - 1}, releasing from {last[0]}): their later phases label no frame")
-    plan = []
-    for (trial, events, (force_t, force_v), label_values), n_real, n_total in zip(rows, lengths, totals):
-        t, x, y, p = events
-        sch.check_events(t, x, y, p, sensor, where=f"trial {trial}", sorted_time=False)
-        sch.check_force(force_v, where=f"trial {trial}")
-        n_real = min(n_real, n_total)
-        before = int(np.count_nonzero(t < 0))
-        after = int(np.count_nonzero(t >= n_real * window))
-        report.events += len(t)
-        report.before_start += before
-        report.after_end += after
-        report.framed += len(t) - before - after
-        report.trials += 1
-        report.frames += n_total
-        report.padded_frames += n_total - n_real
-        plan.append((trial, events, force_t, force_v, label_values, n_real, n_total))
-    return plan
+    empty = [trial for (trial, events, (force_t, _), _), n_total in zip(rows, totals)
+             if not n_total and not len(events[0]) and not len(force_t)]
+    if empty:
+        report.notes.append(f"{counted(len(empty), 'trial')} ({', '.join(empty[:3])}{', ...' if len(empty) > 3 else ''}) "
+                            f"{'holds' if len(empty) == 1 else 'hold'} no event and no force sample: {'it makes' if len(empty) == 1 else 'they make'} no frame")
 
 
 class _TrialCounter:
@@ -559,7 +575,7 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
     until the channels' maxima are known. Returns (frames schema, iterator of batches); the report
     is complete once the iterator is exhausted.
     """
-    sensor = sensor or sch.sensor_of(schema)
+    sensor = sch.sensor_of(sch.with_given_sensor(schema, sensor))
     if sensor is None:
         raise SchemaError("events table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
     width, height = sensor
@@ -852,6 +868,27 @@ def frames_from_events_table(table: pa.Table, window_us: int, report: FramingRep
 # ---------------------------------------------------------------- the verb
 
 
+def _string_labels(table: pa.Table, report: FramingReport) -> pa.Table:
+    """A recordings table's columns beyond the contract's that are not strings (another tool's
+    `size_mm` of integers): frames carry labels as strings, so numbers and flags go on as their text;
+    a nested column cannot be a label and is named as left out."""
+    structural = set(sch.REQUIRED["recordings"]) | sch.NOT_LABELS
+    cast, left = [], []
+    for index, column in enumerate(table.schema):
+        if column.name in structural or pa.types.is_string(column.type):
+            continue
+        if pa.types.is_integer(column.type) or pa.types.is_floating(column.type) or pa.types.is_boolean(column.type):
+            table = table.set_column(index, pa.field(column.name, pa.string()), table.column(index).cast(pa.string()))
+            cast.append(f"{column.name} ({column.type})")
+        else:
+            left.append(f"{column.name} ({column.type})")
+    if cast:
+        report.notes.append(f"{', '.join(cast)} carried into the frames as text: frames hold labels as strings")
+    if left:
+        report.notes.append(f"{', '.join(left)} left out of the frames: a label is one value per trial (a string)")
+    return table
+
+
 def frame(source, framing: Framing, sensor=None):
     """Frame an opened `recordings` or `events` input (tables.Input): (frames schema, batches, report,
     the settings as history records them). A recordings table is read whole and framed trial by
@@ -860,8 +897,7 @@ def frame(source, framing: Framing, sensor=None):
     args = framing.args()
     if source.kind == "recordings":
         table = source.read_all()
-        if sensor is not None:
-            table = table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(*sensor)).metadata)
+        table = _string_labels(table.replace_schema_metadata(sch.with_given_sensor(table.schema, sensor).metadata), report)
         schema, batches = frame_recordings_batches(table, framing, report)
         args["report"] = report.as_dict()
     else:

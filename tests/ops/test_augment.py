@@ -231,6 +231,19 @@ def test_tes_draws_each_event_with_equal_probability():
     np.testing.assert_allclose(total[0] / 4000, counts[0] * 5 / 20, atol=0.1)
 
 
+def test_tes_of_more_events_than_one_array_holds_draws_group_by_group_with_the_same_law(monkeypatch):
+    """A trial of billions of events (a block of saturated pixels) would need tens of GB as one array."""
+    counts = np.array([[1, 2, 3, 4, 0, 10], [0, 0, 7, 0, 1, 0]], dtype=np.int64)
+    monkeypatch.setattr(aug, "DRAW_AT_ONCE", 5)
+    rng = np.random.default_rng(7)
+    draws = [aug.draw_events(counts, np.array([5, 3]), rng) for _ in range(4000)]
+    assert all(np.all(d <= counts) and d.sum(axis=1).tolist() == [5, 3] for d in draws)
+    np.testing.assert_allclose(sum(draws)[0] / 4000, counts[0] * 5 / 20, atol=0.1)
+    huge = np.full((2, 400), 60_000, np.int64)  # 48 million events: drawn without an array of them
+    monkeypatch.setattr(aug, "DRAW_AT_ONCE", 1 << 25)
+    assert aug.draw_events(huge, np.array([1000, 0]), rng).sum(axis=1).tolist() == [1000, 0]
+
+
 def test_tes_rounds_halves_like_python_round():
     counts = np.zeros((2, 2, 1, 5), np.uint16)
     counts[0, 0, 0, :3] = 1  # 3 events: 1.5 -> 2
