@@ -1121,3 +1121,39 @@ def test_frames_without_a_measured_force_are_counted_as_left_out():
 def test_rotations_of_whole_turns_or_beyond_one_turn_are_usage_errors(files, tmp_path, option, said):  # noqa: F811
     code, stderr, _ = invoke(["augment", *option, "-o", str(tmp_path / "a.arrows"), f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and said in stderr
+
+
+@pytest.mark.parametrize("option, said", [(["--latency", "-5ms"], "--latency is a delay"),
+                                          (["--method", "offset", "--offset", "0ms", "--latency", "1ms"], "--latency is the camera's delay"),
+                                          (["--method", "xcorr", "--keep-led"], "--keep-led keeps the LED blink's burst"),
+                                          (["--method", "offset", "--offset", "0ms", "--region", "0,0,2,2"], "--region is where led and xcorr look"),
+                                          (["--region", "5,5,10,10"], "--region 5,5,10,10 reaches past the 10x10 sensor")])
+def test_sync_settings_that_would_be_ignored_or_reach_past_the_sensor_are_usage_errors(tmp_path, option, said):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 9], [0, 5], [0, 1], 10, 10))
+    (tmp_path / "force.csv").write_text("t_ms,force_N\n" + "".join(f"{t},0\n" for t in range(0, 40, 2)))
+    code, stderr, _ = invoke(["sync", path, "--force", str(tmp_path / "force.csv"), *option])
+    assert one_line(stderr, code, 2) and said in stderr
+
+
+def test_a_force_log_that_is_a_table_or_a_camera_file_is_named_so_and_an_arrow_log_is_read(tmp_path):
+    from neurotac_cli.io.force import read_table
+
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 9], [0, 5], [0, 1], 10, 10))
+    code, stderr, _ = invoke(["sync", path, "--force", path])
+    assert one_line(stderr, code, 1) and "is a neurotac events table, not a force log" in stderr
+    (tmp_path / "cam.aedat").write_bytes(b"#!AER-DAT2.0\r\n" + bytes(range(256)) * 4)
+    code, stderr, _ = invoke(["sync", path, "--force", str(tmp_path / "cam.aedat")])
+    assert one_line(stderr, code, 1) and "holds binary data, not a force log" in stderr
+    import pyarrow.feather as feather
+
+    feather.write_feather(pa.table({"t_ms": [0.0, 2.0], "force_N": [0.0, 1.0]}), str(tmp_path / "log.feather"))
+    assert read_table(str(tmp_path / "log.feather")).column("force_N").to_pylist() == [0.0, 1.0]
+
+
+def test_session_phases_of_a_plain_events_table_are_a_usage_error(tmp_path):
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, events([0, 9], [0, 5], [0, 1], 10, 10))
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "--phases", "session", "-o", str(tmp_path / "f.arrows"), path])
+    assert one_line(stderr, code, 2) and "a plain events table has none" in stderr

@@ -136,6 +136,9 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         raise UsageError(f"{', '.join(events_only)} {'is' if one else 'are'} for plain events tables (from `neurotac import`); "
                          "a recordings table's trials keep their ids and are framed from their sync instant t0: leave "
                          f"{'it' if one else 'them'} out")
+    if source.kind == "events" and phases == "session":
+        raise UsageError("--phases session reads each grasp from the force log, and a plain events table has none: "
+                         "sync it with its log first (`neurotac sync`), or frame it without --phases session")
     framing = fr.Framing(
         window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
         dtype=dtype, scale=scale, start_us=start, trial=(camera_file_stem(source.schema) or "events") if trial is None else trial,

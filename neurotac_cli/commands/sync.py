@@ -44,7 +44,7 @@ class SensorLag(ParamType):
 @click.command()
 @click.argument("events", required=False, type=click.Path(allow_dash=True))
 @output_option
-@click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV or Parquet): time and force columns, e.g. t_ms,force_N.")
+@click.option("--force", "force_path", type=click.Path(dir_okay=False), help="Force log (CSV, Parquet or Arrow/Feather): time and force columns, e.g. t_ms,force_N.")
 @click.option("--trial", default=None, help="Trial id (default: the events file's name); a session's trials are numbered after it.")
 @click.option("--label", "labels", type=KeyValue(), multiple=True, callback=distinct_names, help="A label of the trial, NAME=VALUE (repeatable): --label material=foam.")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="CSV with one row per recording: trial,events,force,<labels> (paths relative to it); true_* columns are ignored.")

@@ -1,4 +1,4 @@
-"""Force logs: CSV or Parquet, one time column and one force column, read into µs and newtons.
+"""Force logs: CSV, Parquet or Arrow (Feather), one time column and one force column, read into µs and newtons.
 
 By default the first column is time and the second force. Units come from the header's suffix:
 time `t_ms`, `time_us`, `t_s` (also `_ns`, `_min`); force `force_N`, `force_mN`, `force_kN`, `fz_g`
@@ -60,7 +60,7 @@ def force_unit_of(name: str) -> str | None:
 
 
 def read_table(path: str) -> pa.Table:
-    """A force log's columns as written (CSV or Parquet, told from the first bytes), before any is chosen.
+    """A force log's columns as written (CSV, Parquet or Arrow, told from the first bytes), before any is chosen.
     Read once, into memory (a log is small), so a pipe such as bash's `<(...)` serves as well as a file."""
     if os.path.isdir(path):
         raise InputError(f"{path}: is a folder, not a force log")
@@ -73,23 +73,42 @@ def read_table(path: str) -> pa.Table:
     except OSError as error:
         raise InputError(f"{path}: cannot read the force log ({error.strerror or error})") from None
     if not data:
-        raise FormatError(f"{path}: the force log is empty; expected CSV or Parquet with a header such as t_ms,force_N")
+        raise FormatError(f"{path}: the force log is empty; expected CSV, Parquet or Arrow with a header such as t_ms,force_N")
     try:
         if data[:4] == b"PAR1":
             import pyarrow.parquet as pq
 
             table = pq.read_table(pa.BufferReader(data))
+        elif data.startswith((b"ARROW1", b"\xff\xff\xff\xff")):  # Arrow (Feather) from another tool
+            table = _arrow_log(data, path)
+        elif b"\0" in data[:4096]:
+            raise FormatError(f"{path}: holds binary data, not a force log (a camera file?); expected CSV, Parquet or Arrow "
+                              "with a header such as t_ms,force_N")
         else:
             import pyarrow.csv as csv
 
             first = data.split(b"\n", 1)[0].decode(errors="replace")
             table = csv.read_csv(pa.BufferReader(data), parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
     except (pa.ArrowInvalid, OSError) as error:
-        raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV or Parquet with a header such as t_ms,force_N)") from None
+        raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV, Parquet or Arrow with a header such as t_ms,force_N)") from None
     names = table.column_names
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise FormatError(f"{path}: the force log names column {repeated[0]!r} more than once; give each column its own name")
+    return table
+
+
+def _arrow_log(data: bytes, path: str) -> pa.Table:
+    """An Arrow file or stream of a force log's columns; one of neurotac's own tables is no force log."""
+    import pyarrow.ipc as ipc
+
+    from neurotac_cli import schema as sch
+
+    reader = ipc.open_file(pa.BufferReader(data)) if data.startswith(b"ARROW1") else ipc.open_stream(pa.BufferReader(data))
+    table = reader.read_all()
+    kind = sch.kind_of(table.schema)
+    if kind:
+        raise FormatError(f"{path}: is a neurotac {kind} table, not a force log; give the log the force sensor wrote (CSV, Parquet or Arrow)")
     return table
 
 

@@ -63,6 +63,10 @@ class SyncMethod:
                              "they would be ignored")
         if self.region is not None and (len(self.region) != 4 or self.region[2] <= 0 or self.region[3] <= 0):
             raise NeurotacError(f"region must be X,Y,W,H with positive W and H, got {self.region!r}")
+        if self.method not in ("led", "xcorr") and self.region is not None:
+            raise UsageError(f"--region is where led and xcorr look; with --method {self.method} it would be ignored")
+        if self.method != "led" and self.keep_led:
+            raise UsageError(f"--keep-led keeps the LED blink's burst of --method led; with --method {self.method} there is none")
         if self.median_us < 0:
             raise NeurotacError("the median filter window cannot be negative")
         if self.sensor_lag_us is not None and (len(self.sensor_lag_us) != 2 or min(self.sensor_lag_us) < 0):
@@ -96,6 +100,10 @@ class SyncMethod:
 def sync_method(method: str = "led", latency_us: int | None = None, **settings) -> SyncMethod:
     """A SyncMethod whose `latency_us`, when given, is the camera's delay of the chosen method: from
     the LED's switch-off to the spike (led), or of the event rate behind the force (xcorr)."""
+    if latency_us is not None and method not in ("led", "xcorr"):
+        raise UsageError(f"--latency is the camera's delay for led and xcorr; with --method {method} it would be ignored")
+    if latency_us is not None and latency_us < 0:
+        raise UsageError(f"--latency is a delay, at least 0, got {latency_us / 1000:g} ms")
     return SyncMethod(method=method, latency_us=LED_LATENCY_US if latency_us is None else latency_us,
                       response_us=XCORR_RESPONSE_US if latency_us is None else latency_us, **settings)
 
@@ -222,10 +230,17 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     return trials, info
 
 
+def _check_region(region, sensor) -> None:
+    """A --region that reaches past the sensor is a box typed for another camera, or mistyped."""
+    if region is not None and sensor is not None and (region[0] + region[2] > sensor[0] or region[1] + region[3] > sensor[1]):
+        raise UsageError(f"--region {','.join(map(str, region))} reaches past the {sensor[0]}x{sensor[1]} sensor")
+
+
 def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
     """The sync instant of each trial of the force log, found by the chosen method."""
     count = len(logs)
     try:
+        _check_region(method.region, sch.sensor_of(table.schema))
         if method.method == "led":
             instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
         elif method.method == "trigger":
