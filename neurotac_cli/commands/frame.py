@@ -145,6 +145,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         max_frames=max_frames, sort=sort, slips=None if slips_path is None else read_slips(slips_path),
     )
     schema, batches, report, args = fr.frame(source, framing, sensor)
+    echo_lines("frame", filter(None, [fr.size_note(schema, report.frames)]), "warning: ")  # now, before the writing starts
     tables.write(output, batches, step=("frame", args), schema=schema, flush_each=True)
     echo_lines("frame", report.messages(lead_in_expected=source.kind == "recordings"))
 

@@ -765,6 +765,20 @@ class _StreamFramer:
         return why_so_many(np.concatenate([[self.previous], t]), self.start, self.window, self.report.events - len(t) - 1)
 
 
+LARGE_OUTPUT_BYTES = 8 << 30  # frames beyond this are worth a word before they fill a disk
+
+
+def size_note(schema: pa.Schema, frames: int) -> str | None:
+    """A warning when `frames` frames of `schema` make a very large output (a recordings table's
+    frames are counted before any is written)."""
+    height, width = sch.frames_shape(schema)
+    size = frames * 2 * height * width * schema.field("counts").type.value_type.byte_width
+    if size <= LARGE_OUTPUT_BYTES:
+        return None
+    return (f"{frames:,} frames of 2x{height}x{width} counts make {size / 1e9:.3g} GB; pool the events first "
+            "(`neurotac crop --pool`), crop them, or frame with a longer --window")
+
+
 def check_frame_count(frames: int, framing: Framing, why, streaming: bool = False) -> None:
     """Refuse to write more than framing.max_frames frames; `why()` says where they come from. A
     stream's count is of the events so far: `streaming` says so."""
