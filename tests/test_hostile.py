@@ -1162,7 +1162,7 @@ def test_session_phases_of_a_plain_events_table_are_a_usage_error(tmp_path):
 def test_frames_that_would_fill_a_disk_are_named_before_they_are_written(files, tmp_path, monkeypatch):  # noqa: F811
     from neurotac_cli.ops import frame
 
-    monkeypatch.setattr(frame, "LARGE_OUTPUT_BYTES", 1000)
+    monkeypatch.setattr(frame, "LARGE_OUTPUT_BYTES", 10)
     code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), f"{files}/r.arrows"])
     assert code == 0 and "counts make" in stderr and "pool the events first" in stderr
     monkeypatch.setattr(frame, "LARGE_OUTPUT_BYTES", 8 << 30)
