@@ -114,6 +114,9 @@ def check_header(schema: pa.Schema) -> None:
     repeated = sorted({name for name in schema.names if schema.names.count(name) > 1})
     if repeated:
         raise SchemaError(f"the table has {len(repeated)} column name(s) twice ({', '.join(map(repr, repeated))}); rename or drop one of each")
+    for key in schema.metadata or {}:  # every neurotac entry is JSON, read or not by this command
+        if key.startswith(b"neurotac:"):
+            get_meta(schema, key.decode(errors="replace"))
     kind_of(schema)
     sensor = get_meta(schema, SENSOR)
     if sensor is not None and not is_sensor(sensor):
@@ -433,6 +436,9 @@ def conform(batch, kind: str):
             try:
                 column = column.cast(typ, safe=True)
             except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
+                if name == "p" and kind == "events":
+                    raise SchemaError("polarity (column 'p') must be 0 (OFF) or 1 (ON), found values outside 0..255 "
+                                      f"({column.type})") from None
                 raise SchemaError(f"{kind} column {name!r} cannot be read as {typ}: {error}") from None
             batch = batch.set_column(index, pa.field(name, typ), column)
     if kind == "frames":

@@ -1168,3 +1168,15 @@ def test_frames_that_would_fill_a_disk_are_named_before_they_are_written(files, 
     monkeypatch.setattr(frame, "LARGE_OUTPUT_BYTES", 8 << 30)
     code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), f"{files}/r.arrows"])
     assert code == 0 and "counts make" not in stderr
+
+
+def test_metadata_that_is_not_json_is_refused_at_the_door_and_a_negative_polarity_named(tmp_path):
+    table = events([0, 9], [0, 5], [0, 1], 10, 10)
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, table.replace_schema_metadata({**table.schema.metadata, b"neurotac:sync": b"garbage"}))
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), path])
+    assert one_line(stderr, code, 1) and "metadata neurotac:sync is not valid JSON" in stderr
+    signed = table.set_column(3, "p", pa.array([0, -1], pa.int8()))
+    tables.write(path, signed)
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), path])
+    assert one_line(stderr, code, 1) and "polarity (column 'p') must be 0 (OFF) or 1 (ON)" in stderr
