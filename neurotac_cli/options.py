@@ -440,10 +440,11 @@ def threads_option(default: int, text: str = "CPU threads for torch."):
     return click.option("--threads", type=click.IntRange(1, MOST_THREADS), default=default, show_default=True, help=text)
 
 
-def progress_printer(every: int = 25, quiet_s: float = 30.0):
+def progress_printer(command: str, every: int = 25, quiet_s: float = 30.0):
     """Progress on stderr: every message on a terminal (overwriting epoch lines); otherwise the first
     epoch, every 25th, and any epoch that ends 30 s or more after the last line shown (a slow model
-    shows it is alive), besides every message that is not an epoch line."""
+    shows it is alive), besides every message that is not an epoch line. A message that is a warning
+    is written as every warning is, `neurotac COMMAND: warning: ...`."""
     import re
     import sys
     import time
@@ -454,7 +455,7 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
     shown = [time.monotonic()]
 
     def show(message: str):
-        line = re.match(r"\S+: epoch (\d+) ", message)  # `fit`'s per-epoch line
+        line = re.match(r"\S+(?: member \d+/\d+)?: epoch (\d+) ", message)  # `fit`'s per-epoch line, of a member or not
         if line:
             epoch = int(line.group(1))
             if interactive:
@@ -464,7 +465,7 @@ def progress_printer(every: int = 25, quiet_s: float = 30.0):
                 return
         elif interactive:
             click.echo("", err=True)
-        click.echo(message, err=True)
+        click.echo(f"neurotac {command}: {message}" if message.startswith("warning: ") else message, err=True)
         shown[0] = time.monotonic()
 
     return show

@@ -69,7 +69,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     result = evaluate.evaluate(
         table, model_path=model_path, model_spec=model_spec, hyperparameters=chosen, grid=grid,
         folds=folds, nonzero=nonzero, per_trial=per_trial, runner=evaluate.Runner(jobs, scheduler, cache),
-        progress=progress_printer())
+        progress=progress_printer("eval"))
     click.echo(result.summary, err=True)
     # what did not apply: the folds' settings when a model file is scored, the label when it estimates force
     unused = (() if cv else ("repeats", "val_fraction", "val_per", "seed")) + (

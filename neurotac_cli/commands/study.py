@@ -56,7 +56,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     result = evaluate.study(
         table, model, grid, hyperparameters(options),
         evaluate.Folds(cv, repeats, seed, val_fraction, val_per, label), nonzero=nonzero, per_trial=per_trial,
-        runner=evaluate.Runner(jobs, scheduler, cache), progress=progress_printer())
+        runner=evaluate.Runner(jobs, scheduler, cache), progress=progress_printer("study"))
     click.echo(result.summary, err=True)
     step = history()
     if metrics_path:

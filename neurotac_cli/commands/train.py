@@ -80,7 +80,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
         echo_lines("train", filter(None, [session.whole_trials_note(table, "training without --contacts")]), "warning: ")
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
-                          progress=progress_printer(), contacts=contacts)
+                          progress=progress_printer("train"), contacts=contacts)
     if contacts:
         echo_lines("train", filter(None, [session.one_contact_note(trained.model.training.get("contacts", {}))]), "warning: ")
     models.save(trained.model, output)

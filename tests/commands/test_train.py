@@ -159,7 +159,7 @@ def test_progress_off_a_terminal_shows_the_first_epoch_every_25th_and_a_slow_one
 
     clock = [0.0]
     monkeypatch.setattr("time.monotonic", lambda: clock[0])
-    show = progress_printer()
+    show = progress_printer("train")
     for epoch in range(1, 61):
         clock[0] += 40.0 if epoch == 33 else 1.0  # epoch 33 ends 40 s after the line before it
         show(f"m: epoch {epoch} loss 1 best 1 (0/20 without improvement, 1s)")
@@ -167,3 +167,9 @@ def test_progress_off_a_terminal_shows_the_first_epoch_every_25th_and_a_slow_one
     lines = capsys.readouterr().err.splitlines()
     assert [line.split()[2] for line in lines[:-1]] == ["1", "25", "33", "50"]
     assert lines[-1].startswith("m: 60 epochs")
+    for epoch in range(1, 30):  # a member's epochs are thinned alike
+        show(f"deform-gru member 2/3: epoch {epoch} loss 1 val 1 best 1 (0/40 without improvement, 1s)")
+    show("warning: the training frames carry forces up to 900 N")
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.split()[4] for line in lines[:-1]] == ["1", "25"]
+    assert lines[-1] == "neurotac train: warning: the training frames carry forces up to 900 N"
