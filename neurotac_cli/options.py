@@ -194,18 +194,27 @@ class Pool(ParamType):
         return Size().convert(value, param, ctx)
 
 
-def crop_box_options(function):
-    """--box, --size, --center, --pool: the contact area to keep (crop, sense)."""
-    for option in reversed([
-        click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="Keep this box: left, top, width, height in pixels."),
-        click.option("--size", type=Size(), default=None, help="Keep a WxH box centred at --center (thesis: 115x115 in ch. 4, 140x150 in ch. 5)."),
-        click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
-                     help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (recorded in history; "
-                     "`auto` reads the whole input before writing a frame, so on a live stream give X,Y)."),
-        click.option("--pool", type=Pool(), default=None, help="Sum KxL neighbouring pixels (2x2: 140x150 -> 70x75), or `all`: one pixel per channel."),
-    ]):
-        function = option(function)
-    return function
+def crop_box_options(streaming: bool = False):
+    """--box, --size, --center, --pool: the contact area to keep (crop; sense, `streaming`, whose
+    centre is given: `auto` needs the whole input)."""
+    center = (click.option("--center", type=IntTuple(2, "120,90", "X,Y", words=("auto",)), default=None,  # `auto` refused with its reason
+                           help="Centre of the --size box (`neurotac crop --center auto` on a recording of the rig prints it).")
+              if streaming else
+              click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
+                           help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (printed, "
+                           "and recorded in history; `auto` reads the whole input before writing a frame, so on a live stream give X,Y)."))
+
+    def decorate(function):
+        for option in reversed([
+            click.option("--box", type=IntTuple(4, "60,30,115,115", "X,Y,W,H"), default=None, help="Keep this box: left, top, width, height in pixels."),
+            click.option("--size", type=Size(), default=None, help="Keep a WxH box centred at --center (thesis: 115x115 in ch. 4, 140x150 in ch. 5)."),
+            center,
+            click.option("--pool", type=Pool(), default=None, help="Sum KxL neighbouring pixels (2x2: 140x150 -> 70x75), or `all`: one pixel per channel."),
+        ]):
+            function = option(function)
+        return function
+
+    return decorate
 
 
 CAMERA_FORMATS = ["aedat2", "aedat3", "aedat4", "evt2", "evt21", "evt3", "dat", "es", "csv", "text", "hdf5"]  # io.camera.FORMATS, without its imports

@@ -6,7 +6,7 @@ from neurotac_cli.options import FiniteRange, Size, crop_box_options, echo_lines
 @click.command()
 @input_paths
 @output_option
-@crop_box_options
+@crop_box_options()
 @click.option("--warn-above", type=FiniteRange(0, 1), default=0.9, show_default=True,
               help="Warn on stderr when the crop cuts away more than this share of the events or counts (a crop to the "
               "contact area normally cuts the background and the LED flash at t0, often over half).")

@@ -17,7 +17,7 @@ from neurotac_cli.options import (Duration, Size, camera_input_options, crop_box
               "when the input ends: on stderr).")
 @click.option("--window", type=Duration(positive=True), default="10ms", show_default=True,
               help="Frame length, with its unit, as `frame --window`.")
-@crop_box_options
+@crop_box_options(streaming=True)
 @click.option("--sensor", type=Size(), default=None, help="Sensor WxH where the camera file does not say (DAT, text), or to override it.")
 @camera_input_options
 @threads_option(1, "CPU threads for torch (1 gives the lowest latency per frame).")

@@ -43,7 +43,7 @@ def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, 
     line when a frame or an estimate first lies outside the model's training data (`predict.Outside`)."""
     if box is not None and box.center == "auto":
         raise UsageError("sense streams, and --center auto needs the whole input: give the centre as X,Y "
-                         "(`neurotac info` or `neurotac crop --center auto` on a recording shows it)")
+                         "(`neurotac crop --center auto` on a recording of the rig prints it)")
     report = SenseReport()
     schema, frames = framing_ops.frame_events(stream.schema, stream.batches, framing, report.framing, sensor=sensor)
     cropped = frames

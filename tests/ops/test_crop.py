@@ -130,6 +130,8 @@ def test_crop_command_records_the_auto_centre_in_history(tmp_path):
     cropped = tables.read([str(tmp_path / "c.arrows")], kind="frames")
     step = sch.get_meta(cropped.schema, sch.HISTORY)[-1]
     assert step["command"] == "crop" and len(step["args"]["report"]["center"]) == 2
+    x, y = step["args"]["report"]["center"]  # said on stderr, for a live stream's fixed box
+    assert f"the contact's centre {x},{y} (box ".encode() in done.stderr and f"--center {x},{y})".encode() in done.stderr
     assert step["args"]["report"]["kept"] + step["args"]["report"]["cut"] == sch.counts_numpy(frames.column("counts")).sum()
     done = subprocess.run(["neurotac", "crop", "--box", "0,0,4,4", "--warn-above", "0.5", str(source), "-o", str(tmp_path / "d.arrows")],
                           capture_output=True, env=env)
