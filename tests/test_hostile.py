@@ -254,7 +254,7 @@ def test_export_refuses_events_a_camera_file_cannot_hold(tmp_path):
 @pytest.mark.parametrize("model", ["lstm", "convlstm", "deform-gru"])
 def test_a_recurrent_model_needs_a_layer(files, tmp_path, model):  # noqa: F811
     code, stderr, _ = invoke(["train", "--model", model, "--layers", "0", "-o", str(tmp_path / "m.model"), f"{files}/f.arrows"])
-    assert code == 2 and "--layers must be a finite number of at least 1" in stderr
+    assert code == 2 and "--layers must be a finite number from 1 to 64" in stderr
 
 
 def test_an_automatic_crop_centre_refuses_events_beyond_the_stated_sensor(tmp_path):

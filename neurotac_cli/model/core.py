@@ -80,13 +80,15 @@ def _typed(key: str, value, default):
 # The settings' ranges, (lowest, highest, whether the highest is excluded): a setting outside them
 # would fail deep inside torch or train a model that cannot work, so it is refused here, where
 # options, --grid values and a study's specs all pass.
+# The highest sizes are far past any network of this field (the thesis's largest has 6 layers of
+# 64 units), yet below what would exhaust memory or run for days before a word.
 SETTING_RANGES = {
-    "layers": (0, None, False), "units": (1, None, False), "delays": (0, None, False), "filters": (1, None, False),
-    "kernel": (1, None, False), "dropout": (0.0, 1.0, True), "dense": (0, None, False), "hidden": (1, None, False),
-    "members": (1, 64, False), "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, None, False),
-    "max_points": (1, None, False), "points": (2, None, False), "lr": (0.0, None, False), "beta1": (0.0, 1.0, True),
+    "layers": (0, 64, False), "units": (1, 4096, False), "delays": (0, 1000, False), "filters": (1, 1024, False),
+    "kernel": (1, 64, False), "dropout": (0.0, 1.0, True), "dense": (0, 4096, False), "hidden": (1, 4096, False),
+    "members": (1, 64, False), "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, 100, False),
+    "max_points": (1, 20_000, False), "points": (2, None, False), "lr": (0.0, 1000.0, False), "beta1": (0.0, 1.0, True),
     "beta2": (0.0, 1.0, True), "batch_size": (1, None, False), "epochs": (1, None, False), "patience": (1, None, False),
-    "weight_decay": (0.0, None, False),
+    "weight_decay": (0.0, 1000.0, False),
 }
 
 
@@ -103,7 +105,7 @@ def _check_setting(key: str, value, model: str = ""):
     if not math.isfinite(value) or value < low or (key == "lr" and value <= 0) or (
             high is not None and (value >= high if open_high else value > high)):
         if key == "lr":
-            bound = "above 0"
+            bound = f"above 0 and at most {high:g}"
         elif high is None:
             bound = f"of at least {low:g}"
         else:

@@ -53,6 +53,9 @@ def fit(net, batch_loss, n_train: int, val_loss, config: FitConfig, generator: t
         with torch.no_grad():
             val = val_loss()
         watched = train if val is None else val
+        if not math.isfinite(watched):  # NaN weights never come back: better no model than the untrained one
+            raise ModelError(f"{label}: the training diverged at epoch {epoch} (its {'training' if val is None else 'validation'} "
+                             f"loss is {watched}); lower --lr (now {config.lr:g})")
         curve.append({"epoch": epoch, "train_loss": train, "val_loss": math.nan if val is None else float(val)})
         if watched < best - IMPROVEMENT:
             best, best_state, since = watched, copy.deepcopy(net.state_dict()), 0

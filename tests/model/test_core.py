@@ -136,3 +136,28 @@ def test_ours_trained_on_features_computed_once_equals_the_full_forward():
         full, _ = net(counts, t_s)
         encoded = net.forward_encoded(net.encode(counts, t_s, chunk=2))
     assert torch.allclose(full, encoded, atol=1e-5)
+
+
+@pytest.mark.parametrize("with_validation", [True, False])
+def test_a_training_that_diverges_is_refused_not_written_as_its_untrained_weights(with_validation):
+    import torch
+
+    from neurotac_cli.model.fit import FitConfig, fit
+
+    net = torch.nn.Linear(1, 1)
+    x = torch.ones(4, 1)
+
+    def batch_loss(indices):
+        return (net(x[indices]) * float("nan")).sum()
+
+    def val_loss():
+        return float((net(x) * float("inf")).sum()) if with_validation else None
+
+    with pytest.raises(ModelError, match="diverged at epoch 1 .* lower --lr"):
+        fit(net, batch_loss, 4, val_loss, FitConfig(epochs=3), torch.Generator().manual_seed(0))
+
+
+@pytest.mark.parametrize("setting, value", [("layers", 100_000), ("lr", 1e39), ("weight_decay", 1e39), ("units", 10**9)])
+def test_sizes_and_rates_far_past_any_network_are_refused(setting, value):
+    with pytest.raises(UsageError, match=f"--{setting.replace('_', '-')} must be a finite number"):
+        models.make_spec("tdnn", **{setting: value})
