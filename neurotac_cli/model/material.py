@@ -32,6 +32,7 @@ from torch import nn
 
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model.data import Sequences, resample
+from neurotac_cli.units import counted
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,11 @@ LDA_RIDGE = 1e-3  # added to the pooled covariance of the standardised features,
 
 def features(data: Sequences, config: Config) -> np.ndarray:
     """(n_trials, n_features) inputs of the classifier."""
+    if config.inputs == "force":  # an unmeasured trace would be read as a grasp of no force
+        blind = [trial for trial, f in zip(data.trials, data.force) if np.isnan(f).all()]
+        if blind:
+            raise ModelError(f"material-force reads the measured force, and {counted(len(blind), 'trial')} "
+                             f"({', '.join(blind[:3])}{', ...' if len(blind) > 3 else ''}) have none (column force is empty)")
     return np.stack([_trial_features(c, f, config) for c, f in zip(data.counts, data.force)]).astype(np.float32)
 
 

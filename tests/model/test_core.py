@@ -1,6 +1,7 @@
 import json
 
 import numpy as np
+import pyarrow as pa
 import pytest
 
 from neurotac_cli import model as models
@@ -161,3 +162,11 @@ def test_a_training_that_diverges_is_refused_not_written_as_its_untrained_weight
 def test_sizes_and_rates_far_past_any_network_are_refused(setting, value):
     with pytest.raises(UsageError, match=f"--{setting.replace('_', '-')} must be a finite number"):
         models.make_spec("tdnn", **{setting: value})
+
+
+def test_a_force_reading_classifier_refuses_trials_whose_force_was_not_measured(frames):
+    model = models.train(frames, models.make_spec("material-force", epochs=2), seed=0)
+    force = frames.schema.get_field_index("force")
+    blind = frames.set_column(force, frames.schema.field(force), pa.nulls(frames.num_rows, pa.float32()))
+    with pytest.raises(ModelError, match=r"material-force reads the measured force, and \d+ trials .* have none"):
+        models.classify_table(model, blind.replace_schema_metadata(frames.schema.metadata))
