@@ -284,6 +284,9 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     if spec["model"] == "deform-gru":
         spec = {"memory_frames": detector.frames_at(DEFAULT_MEMORY_FRAMES, window), **spec}
     found, summary = contacts_table(table, config)
+    if summary["frames_in_contacts"] >= summary["frames"]:  # nothing at rest: no zero to learn, no background to detect from
+        raise ModelError(f"every one of the {summary['frames']:,} training frames lies inside a contact: --contacts learns from "
+                         "sessions with rests between grasps (`frame --phases session`); trials of one grasp each train without --contacts")
     slip = slip or detector.at_window(detector.slip_for(summary["press_off"], summary["release_on"]), window)
     progress = options.get("progress")
     if progress:

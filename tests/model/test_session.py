@@ -756,3 +756,12 @@ def test_a_session_given_for_validation_holds_out_every_contact_found_in_it(sess
     assert chosen and all(name.split("@")[0] == "s1" for name in chosen)
     assert len(chosen) == len({t for t in found.column("trial").to_pylist() if t.startswith("s1@")})
     assert session._contacts_of(found, [chosen[0], "elsewhere"]) == [chosen[0], "elsewhere"]  # a contact, and one left to be refused
+
+
+def test_training_on_contacts_refuses_frames_with_no_rest_between_grasps():
+    """Trials of one grasp, each a contact from its first frame: the model would learn no zero, and
+    the detector at run time no background, so it would never find a contact."""
+    from tests.model.helpers import tiny_frames
+
+    with pytest.raises(ModelError, match="every one of the 96 training frames lies inside a contact"):
+        session.train(tiny_frames(), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
