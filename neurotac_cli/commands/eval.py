@@ -89,7 +89,7 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
 
     if model_spec:
         refuse_label_for_force(model_spec)
-        echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table, "cross-validation")]), "warning: ")
+        echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table.schema, "cross-validation")]), "warning: ")
         return label
     from neurotac_cli.model.core import unstated_window
     from neurotac_cli.model.store import read_header
@@ -98,7 +98,7 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
     label = _model_label(header, label)
     whole = header["task"] != "material" and CONTACT_KEY not in (header["input"] or {})
     echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema),
-                                     whole and whole_trials_note(table, "a model trained without --contacts")]), "warning: ")
+                                     whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
     return label
 
 

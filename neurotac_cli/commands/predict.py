@@ -31,6 +31,7 @@ def command(paths, output, model_path, material_path, threads):
 
     from neurotac_cli import model as models
     from neurotac_cli import tables
+    from neurotac_cli.model import session
     from neurotac_cli.model.store import load_in_background, read_header
 
     read_header(model_path)  # a wrong model file fails at once
@@ -45,7 +46,10 @@ def command(paths, output, model_path, material_path, threads):
     frames = iter(source.batches)
     first = next(frames)  # an empty input fails here
     model = loaded()
-    echo_lines("predict", filter(None, [models.unstated_window(model.input_spec, source.schema)]), "warning: ")
+    whole = model.task == "force" and not session.is_session_model(model)
+    echo_lines("predict", filter(None, [models.unstated_window(model.input_spec, source.schema),
+                                        whole and session.whole_trials_note(source.schema, "a model trained without --contacts")]),
+               "warning: ")
     outside = models.Outside.of(model, say=lambda line: echo_lines("predict", [line], "warning: "))
     notes = []
     schema, batches = models.stream(model, source.schema, itertools.chain([first], frames), material=material(), outside=outside,

@@ -77,7 +77,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     from neurotac_cli.model import session
 
     if not contacts and model_name in FORCE_MODELS:
-        echo_lines("train", filter(None, [session.whole_trials_note(table, "training without --contacts")]), "warning: ")
+        echo_lines("train", filter(None, [session.whole_trials_note(table.schema, "training without --contacts")]), "warning: ")
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer("train"), contacts=contacts)

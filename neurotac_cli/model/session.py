@@ -44,10 +44,10 @@ MAX_CONTACT_FRAMES = 60_000  # a material model sees at most the last 10 min (at
 RELEASE_SHARE = 0.1  # a contact ends when the estimate falls under this share of the largest training force
 
 
-def whole_trials_note(table: pa.Table, what: str) -> str | None:
+def whole_trials_note(schema: pa.Schema, what: str) -> str | None:
     """A warning where frames of sessions (a `grasp` column: `frame --phases session`) meet a force
     model of whole trials (`what`: how it meets them), which reads a session of many grasps as one."""
-    if "grasp" not in table.column_names:
+    if "grasp" not in schema.names:
         return None
     return (f"the frames hold sessions of many grasps (a grasp column), and {what} takes each session as one trial: "
             "no rest, drift, contact or slip figures; a model for sessions is trained with `train --contacts`")

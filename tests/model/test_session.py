@@ -744,8 +744,8 @@ def test_the_session_summary_leaves_out_figures_that_had_no_frames_rather_than_p
 
 
 def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_stream_are_named(sessions):
-    assert "takes each session as one trial" in session.whole_trials_note(sessions, "training without --contacts")
-    assert session.whole_trials_note(sessions.drop(["grasp"]), "training") is None
+    assert "takes each session as one trial" in session.whole_trials_note(sessions.schema, "training without --contacts")
+    assert session.whole_trials_note(sessions.drop(["grasp"]).schema, "training") is None
     assert "covering 95% of the frames" in session.one_contact_note({"contacts": 2, "sessions": 2, "frames_in_contacts": 950, "frames": 1000})
     assert session.one_contact_note({"contacts": 12, "sessions": 2, "frames_in_contacts": 600, "frames": 1000}) is None
 
@@ -765,3 +765,12 @@ def test_training_on_contacts_refuses_frames_with_no_rest_between_grasps():
 
     with pytest.raises(ModelError, match="every one of the 96 training frames lies inside a contact"):
         session.train(tiny_frames(), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+
+
+def test_predict_names_session_frames_given_to_a_model_of_whole_trials(sessions, tmp_path):
+    model = models.train(sessions.drop(["grasp"]), models.make_spec("tdnn", epochs=1), seed=0)
+    models.save(model, str(tmp_path / "m.model"))
+    tables.write(str(tmp_path / "s.arrows"), sessions)
+    with open(tmp_path / "s.arrows", "rb") as stdin:
+        done = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "p.arrows")], stdin)
+    assert done.returncode == 0 and b"a model trained without --contacts takes each session as one trial" in done.stderr
