@@ -1180,3 +1180,17 @@ def test_metadata_that_is_not_json_is_refused_at_the_door_and_a_negative_polarit
     tables.write(path, signed)
     code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", str(tmp_path / "f.arrows"), path])
     assert one_line(stderr, code, 1) and "polarity (column 'p') must be 0 (OFF) or 1 (ON)" in stderr
+
+
+def test_frames_missing_inside_a_trial_are_named_by_eval_and_train_as_by_predict(files, tmp_path):  # noqa: F811
+    import pyarrow.compute as pc
+
+    table = tables.read([f"{files}/f.arrows"])
+    first = table.column("trial")[0].as_py()
+    gap = pc.and_(pc.equal(table.column("trial"), first), pc.equal(table.column("frame"), 2))
+    path = str(tmp_path / "gap.arrows")
+    tables.write(path, table.filter(pc.invert(gap)))
+    for args in (["eval", "--model", f"{files}/m.model"], ["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model")],
+                 ["predict", "--model", f"{files}/m.model", "-o", str(tmp_path / "p.arrows")]):
+        code, stderr, _ = invoke([*args, path])
+        assert code == 0 and f"1 frame missing inside 1 trial ({first}: 1)" in stderr, (args, stderr)

@@ -91,7 +91,7 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
         refuse_label_for_force(model_spec)
         echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table.schema, "cross-validation")]), "warning: ")
         return label
-    from neurotac_cli.model.core import unstated_window
+    from neurotac_cli.model.core import gaps_note, missing_frames, unstated_window
     from neurotac_cli.model.store import read_header
 
     header = read_header(model_path)
@@ -99,6 +99,7 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
     whole = header["task"] != "material" and CONTACT_KEY not in (header["input"] or {})
     echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema),
                                      whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
+    echo_lines("eval", filter(None, [whole and gaps_note(missing_frames(table), "runs")]))
     return label
 
 

@@ -70,6 +70,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
 
+    from neurotac_cli.model.core import gaps_note, missing_frames
     from neurotac_cli.model.training import train_model
 
     torch.set_num_threads(max(1, threads))
@@ -78,6 +79,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
 
     if not contacts and model_name in FORCE_MODELS:
         echo_lines("train", filter(None, [session.whole_trials_note(table.schema, "training without --contacts")]), "warning: ")
+        echo_lines("train", filter(None, [gaps_note(missing_frames(table), "runs")]))
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer("train"), contacts=contacts)

@@ -606,13 +606,34 @@ def stream_trials(model: Model, schema: pa.Schema, batches, advice: str | None =
             for name in labels:
                 columns[name] = batch.column(name)
             yield pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
-        gaps = {trial: count for trial, count in missing.items() if count}
-        if gaps and notes is not None:
-            trial, count = max(gaps.items(), key=lambda item: item[1])
-            notes.append(f"warning: {counted(sum(gaps.values()), 'frame')} missing inside {counted(len(gaps), 'trial')} ({trial}: "
-                         f"{count}): the model's state ran over each gap as if its frames had come")
+        if notes is not None:
+            notes.extend(filter(None, [gaps_note(missing)]))
 
     return out_schema, run()
+
+
+def gaps_note(missing: dict, runs: str = "ran") -> str | None:
+    """A warning for frames missing inside trials ({trial: frames missing}): a model of whole trials
+    carries its state over each gap as if the missing frames had come."""
+    gaps = {trial: count for trial, count in missing.items() if count}
+    if not gaps:
+        return None
+    trial, count = max(gaps.items(), key=lambda item: item[1])
+    return (f"warning: {counted(sum(gaps.values()), 'frame')} missing inside {counted(len(gaps), 'trial')} ({trial}: "
+            f"{count}): the model's state {runs} over each gap as if its frames had come")
+
+
+def missing_frames(table: pa.Table) -> dict:
+    """{trial: frame numbers missing between its first and last frame} of a frames table."""
+    trials = np.asarray(table.column("trial").to_pylist(), dtype=object)
+    frames = table.column("frame").to_numpy().astype(np.int64)
+    names, index = np.unique(trials.astype(str), return_inverse=True)
+    low = np.full(len(names), np.iinfo(np.int64).max)
+    high = np.full(len(names), np.iinfo(np.int64).min)
+    np.minimum.at(low, index, frames)
+    np.maximum.at(high, index, frames)
+    distinct = np.bincount(np.unique(np.stack([index, frames]), axis=1)[0], minlength=len(names))
+    return {str(name): int(span) for name, span in zip(names, high - low + 1 - distinct)}
 
 
 def _in_order(trial: str, last: tuple | None, frames: np.ndarray, t: np.ndarray) -> tuple:
