@@ -20,6 +20,8 @@ hundred frames, and it keeps a compiled dependency out of the install.
 
 import numpy as np
 
+from neurotac_cli.errors import NeurotacError
+
 PHASES = ("grasping", "holding", "releasing")
 
 
@@ -89,6 +91,8 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
     unforced = int(np.count_nonzero(~keep))  # frames without a measured force: left out, and said (scoring.summary)
     if nonzero:
         keep &= np.abs(true) > NONZERO_N
+        if len(keep) and not keep.any():
+            raise NeurotacError("--nonzero: no frame has a measured force other than zero, so nothing is left to score")
     trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]
     rows = []
 

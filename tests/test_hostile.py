@@ -1194,3 +1194,14 @@ def test_frames_missing_inside_a_trial_are_named_by_eval_and_train_as_by_predict
                  ["predict", "--model", f"{files}/m.model", "-o", str(tmp_path / "p.arrows")]):
         code, stderr, _ = invoke([*args, path])
         assert code == 0 and f"1 frame missing inside 1 trial ({first}: 1)" in stderr, (args, stderr)
+
+
+def test_nonzero_with_nothing_left_to_score_or_with_a_classifier_is_refused(files, tmp_path):  # noqa: F811
+    table = tables.read([f"{files}/f.arrows"])
+    force = table.schema.get_field_index("force")
+    path = str(tmp_path / "zero.arrows")
+    tables.write(path, table.set_column(force, table.schema.field(force), pa.array(np.zeros(table.num_rows, np.float32))))
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/m.model", "--nonzero", path])
+    assert one_line(stderr, code, 1) and "nothing is left to score" in stderr
+    code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", "--nonzero", f"{files}/f.arrows"])
+    assert one_line(stderr, code, 2) and "a classifier is scored on whole trials" in stderr

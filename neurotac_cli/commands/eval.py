@@ -56,6 +56,8 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         raise UsageError(f"{', '.join(cv_only)} apply to --cv only: a model file is scored as it is, with no training")
     if plot_trials and not plot:
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
+    if nonzero and _classifier(model_path, model_spec):
+        raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     trials = _plotted_trials(table, plot_trials)
     label = _checked_model(table, model_path, model_spec, label)
@@ -101,6 +103,12 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
                                      whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
     echo_lines("eval", filter(None, [whole and gaps_note(missing_frames(table), "runs")]))
     return label
+
+
+def _classifier(model_path, model_spec) -> bool:
+    from neurotac_cli.model.store import read_header
+
+    return model_spec in MATERIAL_MODELS if model_spec else read_header(model_path)["task"] == "material"
 
 
 def _plotted_trials(table, plot_trials: str | None) -> list | None:
