@@ -1205,3 +1205,11 @@ def test_nonzero_with_nothing_left_to_score_or_with_a_classifier_is_refused(file
     assert one_line(stderr, code, 1) and "nothing is left to score" in stderr
     code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", "--nonzero", f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and "a classifier is scored on whole trials" in stderr
+
+
+def test_training_frames_that_do_not_record_their_window_are_named(files, tmp_path):  # noqa: F811
+    table = tables.read([f"{files}/f.arrows"])
+    path = str(tmp_path / "bare.arrows")
+    tables.write(path, table.replace_schema_metadata({k: v for k, v in table.schema.metadata.items() if k != b"neurotac:window_us"}))
+    code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model"), path])
+    assert code == 0 and "the frames do not record their window" in stderr

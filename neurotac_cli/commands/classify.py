@@ -25,7 +25,7 @@ def command(paths, output, model_path):
     read_header(model_path)  # a wrong model file fails at once, an empty input next, before torch's import
     table = tables.read(paths, kind="frames")
     model = models.load(model_path)
-    notes = []
+    notes = models.input_notes(model.input_spec, (model.training or {}).get("data_history"), table.schema)
     predicted = models.classify_table(model, table, notes)
     echo_lines("classify", notes, "warning: ")
     tables.write(output, predicted, step=history())

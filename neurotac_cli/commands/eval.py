@@ -93,14 +93,14 @@ def _checked_model(table, model_path: str | None, model_spec: str | None, label:
         refuse_label_for_force(model_spec)
         echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table.schema, "cross-validation")]), "warning: ")
         return label
-    from neurotac_cli.model.core import gaps_note, missing_frames, unstated_window
+    from neurotac_cli.model.core import gaps_note, input_notes, missing_frames
     from neurotac_cli.model.store import read_header
 
     header = read_header(model_path)
     label = _model_label(header, label)
     whole = header["task"] != "material" and CONTACT_KEY not in (header["input"] or {})
-    echo_lines("eval", filter(None, [unstated_window(header["input"], table.schema),
-                                     whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
+    notes = input_notes(header["input"], (header.get("training") or {}).get("data_history"), table.schema)
+    echo_lines("eval", filter(None, [*notes, whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
     echo_lines("eval", filter(None, [whole and gaps_note(missing_frames(table), "runs")]))
     return label
 

@@ -47,8 +47,8 @@ def command(paths, output, model_path, material_path, threads):
     first = next(frames)  # an empty input fails here
     model = loaded()
     whole = model.task == "force" and not session.is_session_model(model)
-    echo_lines("predict", filter(None, [models.unstated_window(model.input_spec, source.schema),
-                                        whole and session.whole_trials_note(source.schema, "a model trained without --contacts")]),
+    doubts = models.input_notes(model.input_spec, (model.training or {}).get("data_history"), source.schema)
+    echo_lines("predict", filter(None, [*doubts, whole and session.whole_trials_note(source.schema, "a model trained without --contacts")]),
                "warning: ")
     outside = models.Outside.of(model, say=lambda line: echo_lines("predict", [line], "warning: "))
     notes = []

@@ -58,6 +58,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
           | neurotac crop --size 115x115 --center auto | neurotac train --model deform-gru -o force.model
     """
     from neurotac_cli import model as models
+    from neurotac_cli import schema as sch
     from neurotac_cli import tables
     from neurotac_cli.model.curve import member_curves
     from neurotac_cli.model.plots import curve_figure
@@ -77,6 +78,9 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     use_device(device)
     from neurotac_cli.model import session
 
+    if not sch.get_meta(table.schema, sch.WINDOW):
+        echo_lines("train", [f"the frames do not record their window (metadata {sch.WINDOW}): the model cannot check the "
+                             "window of the frames it reads later"], "warning: ")
     if not contacts and model_name in FORCE_MODELS:
         echo_lines("train", filter(None, [session.whole_trials_note(table.schema, "training without --contacts")]), "warning: ")
         echo_lines("train", filter(None, [gaps_note(missing_frames(table), "runs")]))

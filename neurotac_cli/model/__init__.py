@@ -10,7 +10,8 @@ Public API (used by the train, eval, classify and predict commands, and by studi
   `stream(model, batches) -> iterator of predictions batches` (state carried per trial); `Outside`: what
   in a stream lies beyond the model's training data, counted as it passes.
 - `check_input(model, schema)`: refuse frames whose window, crop or channels differ from training;
-  `unstated_window(input_spec, schema)`: the warning where the frames do not record their window.
+  `input_notes(input_spec, training_history, schema)`: warnings where the frames may differ from the
+  training frames in what `check_input` cannot compare (a window not recorded, a box elsewhere).
 
 The names are loaded when first used, so a command can list the model names (`model.names`)
 for its --help without importing torch.
@@ -20,7 +21,7 @@ import importlib
 
 _HOMES = {
     "FORCE_MODELS": "names", "MATERIAL_MODELS": "names",
-    "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core", "unstated_window": "core",
+    "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core", "input_notes": "core",
     "Outside": "predict", "predict_table": "predict", "stream": "predict", "train": "core",
     "load": "store", "save": "store",
 }

@@ -273,12 +273,49 @@ def made_by(history: list) -> tuple:
 
 
 def unstated_window(input_spec: dict, schema: pa.Schema) -> str | None:
-    """A warning where the frames do not record their window, so `check_input` could not compare it."""
+    """A warning where the frames, or the model's training frames, do not record their window, so
+    `check_input` could not compare it."""
     window = input_spec.get("window_us")
     if window and not sch.get_meta(schema, sch.WINDOW):
         return (f"the frames do not record their window (metadata {sch.WINDOW}), so it was not checked; the model "
                 f"was trained on {window / 1000:g} ms frames and reads others wrongly")
+    if not window:
+        return ("the model does not record the window of its training frames (they lacked metadata "
+                f"{sch.WINDOW}), so the window of these frames was not checked")
     return None
+
+
+def input_notes(input_spec: dict, training_history: list, schema: pa.Schema) -> list[str]:
+    """Warnings where frames may differ from the model's training frames in what `check_input`
+    cannot compare: a window not recorded, a box elsewhere on the sensor."""
+    return [note for note in (unstated_window(input_spec, schema), moved_box(training_history, schema)) if note]
+
+
+def first_box(history: list) -> tuple | None:
+    """The (x, y, w, h) box on the sensor that frames of this history were first cropped to, where it says."""
+    for step in history:
+        if step.get("command") == "crop":
+            box = ((step.get("args") or {}).get("report") or {}).get("box")
+            ok = isinstance(box, list) and len(box) == 4 and all(isinstance(v, int) for v in box)
+            return tuple(box) if ok else None
+    return None
+
+
+def moved_box(training_history: list, schema: pa.Schema) -> str | None:
+    """A warning where the frames were cropped to a box elsewhere on the sensor than the model's
+    training frames (less than half of the two boxes shared): the same size passes `check_input`,
+    but the contact lies elsewhere in the frame. Centres found by `--center auto` on different
+    recordings of one rig differ by a few pixels, which is no warning."""
+    trained, given = first_box(training_history or []), first_box(sch.get_meta(schema, sch.HISTORY, []))
+    if trained is None or given is None:
+        return None
+    (ax, ay, aw, ah), (bx, by, bw, bh) = trained, given
+    shared = max(0, min(ax + aw, bx + bw) - max(ax, bx)) * max(0, min(ay + ah, by + bh) - max(ay, by))
+    if shared >= 0.5 * (aw * ah + bw * bh - shared):
+        return None
+    return (f"the frames were cropped to the box {','.join(map(str, given))} of the sensor, the model's training frames to "
+            f"{','.join(map(str, trained))}: the contact lies elsewhere in these frames (crop with the training's box, "
+            f"--box {','.join(map(str, trained))})")
 
 
 # ---------------------------------------------------------------- training

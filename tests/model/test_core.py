@@ -170,3 +170,21 @@ def test_a_force_reading_classifier_refuses_trials_whose_force_was_not_measured(
     blind = frames.set_column(force, frames.schema.field(force), pa.nulls(frames.num_rows, pa.float32()))
     with pytest.raises(ModelError, match=r"material-force reads the measured force, and \d+ trials .* have none"):
         models.classify_table(model, blind.replace_schema_metadata(frames.schema.metadata))
+
+
+def _cropped(box):
+    return [{"command": "frame", "args": {"window_us": 10000}}, {"command": "crop", "args": {"report": {"box": list(box)}}}]
+
+
+def test_frames_cropped_elsewhere_on_the_sensor_or_of_no_stated_window_are_named():
+    from neurotac_cli import schema as sch
+    from neurotac_cli.model.core import input_notes
+
+    schema = sch.set_meta(sch.frames_schema(32, 32, window_us=10000), history=_cropped((0, 0, 32, 32)))
+    spec = {"window_us": 10000}
+    (note,) = input_notes(spec, _cropped((104, 74, 32, 32)), schema)
+    assert "cropped to the box 0,0,32,32 of the sensor, the model's training frames to 104,74,32,32" in note
+    assert input_notes(spec, _cropped((4, 2, 32, 32)), schema) == []  # an automatic centre a few pixels off
+    assert input_notes(spec, [], schema) == []  # a history that does not say
+    (note,) = input_notes({"window_us": None}, [], schema)
+    assert "the model does not record the window of its training frames" in note
