@@ -220,8 +220,12 @@ def _whole(reader, stream: _Prepend, name: str) -> Iterator[pa.RecordBatch]:
 
 def _describe(error: Exception) -> str:
     text = str(error).splitlines()[0] if str(error) else type(error).__name__
-    if "Expected to" in text or "end of stream" in text.lower() or "truncated" in text.lower() or "EOF" in text or "too short" in text:
+    lowered = text.lower()
+    # "bytes available": a stream cut inside its end-of-stream marker ("only 3 bytes available")
+    if any(word in lowered for word in ("expected to", "end of stream", "truncated", "eof", "too short", "bytes available")):
         return TRUNCATED
+    if "was null or length 0" in text:  # a second end-of-stream marker where a schema was expected
+        return "the stream holds an end marker where its schema should be (two streams written into one file?)"
     if "Parquet magic bytes not found" in text or "footer" in text.lower():
         return "Parquet file is cut short or damaged (its footer is missing)"
     return f"cannot read table ({text})"

@@ -1213,3 +1213,14 @@ def test_training_frames_that_do_not_record_their_window_are_named(files, tmp_pa
     tables.write(path, table.replace_schema_metadata({k: v for k, v in table.schema.metadata.items() if k != b"neurotac:window_us"}))
     code, stderr, _ = invoke(["train", "--model", "tdnn", "--epochs", "1", "-o", str(tmp_path / "m.model"), path])
     assert code == 0 and "the frames do not record their window" in stderr
+
+
+def test_a_stream_cut_inside_its_end_marker_or_opening_with_one_is_named_so(files, tmp_path):  # noqa: F811
+    data = open(f"{files}/f.arrows", "rb").read()
+    for cut in (1, 4, 7):
+        (tmp_path / "cut.arrows").write_bytes(data[:-cut])
+        code, stderr, _ = invoke(["info", str(tmp_path / "cut.arrows")])
+        assert one_line(stderr, code, 1) and "input ended mid-table" in stderr
+    (tmp_path / "marker.arrows").write_bytes(data[-8:] + data)
+    code, stderr, _ = invoke(["info", str(tmp_path / "marker.arrows")])
+    assert one_line(stderr, code, 1) and "an end marker where its schema should be" in stderr
