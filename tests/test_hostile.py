@@ -328,7 +328,9 @@ def test_training_data_that_would_train_silently_wrong_is_refused(tmp_path):
     mixed = _with_column(table, "material", ["rubber"] + table.column("material").to_pylist()[1:])  # trial a: foam and rubber
     unlabelled = _with_column(table, "material", [None] * 4 + table.column("material").to_pylist()[4:])
     empty = _with_column(table, "material", [""] * 4 + table.column("material").to_pylist()[4:])
+    partly = _with_column(table, "material", [None] + table.column("material").to_pylist()[1:])
     for data, args, said in [(spike, ["--model", "tdnn"], "force of 1e+30 N"), (flat, ["--model", "tdnn"], "0 N on every frame"),
+                             (partly, ["--model", "material-dnn"], "trial 'a': material is 'foam' on some frames and missing (null) on 1 frame"),
                              (mixed, ["--model", "material-dnn"], "trial 'a' has more than one material (foam, rubber)"),
                              (unlabelled, ["--model", "material-dnn"], "1 trial with no material (a)"),
                              (empty, ["--model", "material-dnn"], "1 trial with no material (a)"),

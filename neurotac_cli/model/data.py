@@ -12,6 +12,7 @@ import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import ModelError, SchemaError, UsageError
+from neurotac_cli.units import counted
 
 
 @dataclass
@@ -112,7 +113,12 @@ def _check_one_value_per_trial(column, order, codes, names, label: str):
     changed = np.flatnonzero((values[1:] != values[:-1]) & (codes[1:] == codes[:-1]))
     if len(changed):
         trial = names[codes[changed[0]]]
-        seen = sorted({str(v) for v in np.asarray(column.to_pylist(), dtype=object)[order][codes == codes[changed[0]]]})
+        inside = np.asarray(column.to_pylist(), dtype=object)[order][codes == codes[changed[0]]]
+        seen = sorted({str(v) for v in inside if v is not None})
+        if len(seen) == 1:  # one value, and frames without it
+            missing = sum(v is None for v in inside)
+            raise ModelError(f"trial {trial!r}: {label} is {seen[0]!r} on some frames and missing (null) on {counted(missing, 'frame')}; "
+                             "a label holds one value per trial: fill it in")
         raise ModelError(f"trial {trial!r} has more than one {label} ({', '.join(seen[:4])}); a label holds one value "
                          "per trial: correct it, or give the parts trial ids of their own")
 
