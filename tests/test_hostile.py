@@ -1226,3 +1226,17 @@ def test_a_stream_cut_inside_its_end_marker_or_opening_with_one_is_named_so(file
     (tmp_path / "marker.arrows").write_bytes(data[-8:] + data)
     code, stderr, _ = invoke(["info", str(tmp_path / "marker.arrows")])
     assert one_line(stderr, code, 1) and "an end marker where its schema should be" in stderr
+
+
+def test_a_parquet_force_log_s_typed_times_carry_their_unit_and_flags_are_no_force(tmp_path):
+    import pyarrow.parquet as pq
+
+    from neurotac_cli.io.force import read_force_log
+
+    t = np.arange(20, dtype=np.int64) * 2
+    pq.write_table(pa.table({"time": pa.array(t, pa.duration("ms")), "force": np.linspace(0, 1, 20)}), tmp_path / "d.parquet")
+    (log,) = read_force_log(str(tmp_path / "d.parquet"), force_unit="N")
+    assert log.t.tolist() == (t * 1000).tolist()
+    pq.write_table(pa.table({"t_ms": t, "force_N": pa.array([True, False] * 10)}), tmp_path / "b.parquet")
+    with pytest.raises(Exception, match="holds true/false flags, not forces"):
+        read_force_log(str(tmp_path / "b.parquet"))

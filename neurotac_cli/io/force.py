@@ -158,6 +158,13 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
     time_name = _column(table, time_column, 0, "time", path)
     force_name = _column(table, force_column, 1, "force", path)
     notes = []
+    typed = table.schema.field(time_name).type
+    if pa.types.is_timestamp(typed) or pa.types.is_duration(typed):  # Parquet's time types carry their unit
+        table = table.set_column(table.schema.get_field_index(time_name), time_name, table.column(time_name).cast(pa.int64()))
+        time_unit = time_unit or typed.unit
+    if pa.types.is_boolean(table.schema.field(force_name).type):
+        raise FormatError(f"{path}: force column {force_name!r} holds true/false flags, not forces; name the force column "
+                          "with --force-column")
     unit = time_unit or time_unit_of(time_name)
     if unit is None:
         raise InputError(
