@@ -10,6 +10,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli.errors import SchemaError, UsageError
+from neurotac_cli.units import MAX_SIDE
 
 KIND = "neurotac:kind"
 SENSOR = "neurotac:sensor"
@@ -130,8 +131,9 @@ def check_header(schema: pa.Schema) -> None:
 
 
 def is_sensor(value) -> bool:
-    """A sensor as metadata and model headers hold it: {"width": W, "height": H} in whole pixels."""
-    return isinstance(value, dict) and all(is_positive_count(value.get(k)) for k in ("width", "height"))
+    """A sensor as metadata and model headers hold it: {"width": W, "height": H} in whole pixels, each
+    side within the 16-bit coordinates of an event."""
+    return isinstance(value, dict) and all(is_positive_count(value.get(k)) and value[k] <= MAX_SIDE for k in ("width", "height"))
 
 
 def is_positive_count(value) -> bool:

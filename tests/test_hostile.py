@@ -1240,3 +1240,12 @@ def test_a_parquet_force_log_s_typed_times_carry_their_unit_and_flags_are_no_for
     pq.write_table(pa.table({"t_ms": t, "force_N": pa.array([True, False] * 10)}), tmp_path / "b.parquet")
     with pytest.raises(Exception, match="holds true/false flags, not forces"):
         read_force_log(str(tmp_path / "b.parquet"))
+
+
+def test_a_table_stating_a_sensor_past_16_bit_coordinates_is_refused_at_the_door(tmp_path):
+    table = events([0, 9], [0, 5], [0, 1], 10, 10)
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, table.replace_schema_metadata(sch.set_meta(table.schema, sensor=sch.sensor_meta(100_000, 100_000)).metadata))
+    code, stderr, _ = invoke(["export", "-o", str(tmp_path / "x.h5"), path])
+    assert one_line(stderr, code, 1) and "metadata neurotac:sensor is" in stderr
+    assert not (tmp_path / "x.h5").exists()
