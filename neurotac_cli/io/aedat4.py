@@ -111,17 +111,8 @@ def whole_packets(path: str, streams) -> tuple[int, int]:
 def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     packets = _packets(path)
     streams = next(packets)
-    event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
-    if not event_ids:
-        raise FormatError("the AEDAT 4.0 file has no events stream")
-    events_id = event_ids[0]
-    declared = (int(streams[events_id]["width"]), int(streams[events_id]["height"])) if "width" in streams[events_id] else None
+    events_id, declared, others = events_stream(streams, head, "file")
     has_triggers = any(s.get("type") == "triggers" for s in streams.values())
-    # a second events stream (another camera, or the same one undistorted) is not read: named in the source
-    given = _output_names(head)
-    names = [given.get(i, f"#{i}") for i in event_ids]
-    others = {"other_event_streams": names[1:], "note": f"events stream(s) {', '.join(names[1:])} not read (the first, "
-              f"{names[0]}, is)"} if len(names) > 1 else {}
     # A recording stopped mid-write (mid-packet, or between packets before its index table) is read as
     # far as its last whole packet: the decoder, asked for one more, fails on the missing bytes.
     limit, cut = whole_packets(path, streams)
@@ -146,6 +137,22 @@ def open_aedat4(path: str, head: bytes, sensor) -> Decoded:
     else:
         chunks = lambda: _event_chunks(_packets(path, skip_streams=True, limit=limit), events_id)  # noqa: E731
     return Decoded(sensor=declared, chunks=chunks, meta={"triggers": triggers, **({"source": others} if others else {})}, cut_bytes=cut)
+
+
+def events_stream(streams: dict, header: bytes, what: str) -> tuple:
+    """(id of the events stream read, the sensor it declares or None, source metadata naming the
+    events streams not read) of a file's or a stream's (`what`) streams. A second events stream
+    (another camera, or the same one undistorted) is not read: named in the source."""
+    event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
+    if not event_ids:
+        raise FormatError(f"the AEDAT 4.0 {what} has no events stream")
+    found = streams[event_ids[0]]
+    declared = (int(found["width"]), int(found["height"])) if "width" in found else None
+    given = _output_names(header)
+    names = [given.get(i, f"#{i}") for i in event_ids]
+    others = {"other_event_streams": names[1:], "note": f"events stream(s) {', '.join(names[1:])} not read (the first, "
+              f"{names[0]}, is)"} if len(names) > 1 else {}
+    return event_ids[0], declared, others
 
 
 def _output_names(head: bytes) -> dict:

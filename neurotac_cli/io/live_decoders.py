@@ -239,17 +239,12 @@ class Aedat4:
             packets = aedat4._packets(self.path)
             streams = next(packets)
             packets.close()
+            self.events_id, self.sensor, others = aedat4.events_stream(streams, header, "stream")
         except BaseException:
             self.close()
             raise
-        event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
-        if not event_ids:
-            self.close()
-            raise FormatError("the AEDAT 4.0 stream has no events stream")
-        self.events_id, self.known = event_ids[0], set(streams)
-        found = streams[self.events_id]
-        self.sensor = (int(found["width"]), int(found["height"])) if "width" in found else None
-        self.meta = {}
+        self.known = set(streams)
+        self.meta = {"source": others} if others else {}
 
     def complete(self, pending) -> int:
         from neurotac_cli.io import aedat4

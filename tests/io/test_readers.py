@@ -522,6 +522,11 @@ def test_an_aedat4_files_second_events_stream_is_named_as_not_read(tmp_path):
     table = read_events_table(path)
     assert table.num_rows == 50
     assert events.source_notes(table.schema) == ["two.aedat4: events stream(s) events_undistorted not read (the first, events, is)"]
+    from neurotac_cli.io import live
+
+    stream = live.open_stream(str(path), follow=True, idle_timeout=0.1)  # followed, the same note
+    assert sum(batch.num_rows for batch in stream.batches) == 50
+    assert events.source_notes(stream.schema) == ["two.aedat4: events stream(s) events_undistorted not read (the first, events, is)"]
 
 
 def test_a_time_origin_in_a_prophesee_header_is_added_as_faery_adds_it(tmp_path):
