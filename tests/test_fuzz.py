@@ -244,9 +244,9 @@ def test_framing_a_recording_into_many_frames_stays_within_a_small_memory_limit(
 
 
 def test_torch_running_out_of_memory_is_one_line(tmp_path):
-    """torch's allocator raises RuntimeError, not MemoryError: 100,000 units a layer need ~40 GB."""
+    """torch's allocator raises RuntimeError, not MemoryError: 64 layers of 4096 units need ~4 GB, Adam three times that."""
     tables.write(str(tmp_path / "f.arrows"), frames_table())
-    done = under_ulimit("neurotac train --model tdnn --units 100000 --layers 3 --epochs 1 -o m.model f.arrows", tmp_path)
+    done = under_ulimit("neurotac train --model tdnn --units 4096 --layers 64 --epochs 1 -o m.model f.arrows", tmp_path)
     assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
     assert "neurotac train: error: out of memory" in done.stderr
     assert not (tmp_path / "m.model").exists()
