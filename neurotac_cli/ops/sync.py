@@ -26,7 +26,8 @@ from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import LED_LATENCY_US, find_led_spikes
-from neurotac_cli.ops.xcorr import XCORR_RESPONSE_US, XCORR_SATURATION, uncertainty_warnings, unrelated_warnings, xcorr_instant
+from neurotac_cli.ops.xcorr import (XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, uncertainty_warnings,
+                                   unrelated_warnings, xcorr_instant)
 
 METHODS = ("led", "trigger", "offset", "xcorr")
 
@@ -118,6 +119,8 @@ def sync(sources, method: SyncMethod) -> tuple[pa.Table, list[str]]:
     warnings += list(dict.fromkeys(note for info in trials.values() for note in info.get("notes", [])))
     if method.method == "xcorr":
         warnings += uncertainty_warnings(trials) + unrelated_warnings(trials)
+    else:
+        warnings += disagreement_warnings(trials, {"led": "the LED blink", "trigger": "the trigger"}.get(method.method, "--offset"))
     return recordings, warnings
 
 
@@ -224,6 +227,8 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         )
         entry = {"t0": instant.t0, "score": instant.score}
         entry.update(instant.details)
+        if method.method != "xcorr":  # xcorr reports its own correlation
+            entry["agreement"] = agreement(t, x, y, log.t, values, instant.t0, method.region)
         if log.notes:
             entry["notes"] = log.notes
         info[name] = entry

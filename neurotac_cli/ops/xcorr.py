@@ -56,7 +56,7 @@ XCORR_MIN_CORRELATION = 0.5
 def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
     """Align the camera's event rate with |dF/dt| through a force-sensor model (see the module doc);
     with polarities `p`, a slow sensor is aligned on the signed rate against signed dF/dt instead."""
-    from scipy.ndimage import gaussian_filter1d, median_filter
+    from scipy.ndimage import gaussian_filter1d
 
     bin_us = XCORR_BIN_US
     smooth = XCORR_SMOOTH_US / bin_us
@@ -66,11 +66,8 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
         raise SyncError("too few events or force samples to cross-correlate (need activity during the grasp)")
     origin = int(times.min())
     bins = (times - origin) // bin_us
-    rate = np.bincount(bins).astype(np.float64)
-    # blinks and flicker: bins far above their surroundings are set to the surroundings' level
-    local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
-    burst = rate > 10 * (local + 3)
-    rate = gaussian_filter1d(np.where(burst, local, rate), smooth)
+    rate, burst = _steady_rate(bins, bin_us)
+    rate = gaussian_filter1d(rate, smooth)
     grid = np.arange(int(force_t[0]), int(force_t[-1]) + 1, bin_us)
     force = gaussian_filter1d(np.interp(grid, force_t, force_v), smooth)
     slope = np.gradient(force)  # N per bin
@@ -105,6 +102,62 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
             "signal": signal,
         },
     )
+
+
+def _steady_rate(bins: np.ndarray, bin_us: int, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Events per bin, with blinks and flicker (bins far above their surroundings) set to the
+    surroundings' level; and where they were."""
+    from scipy.ndimage import median_filter
+
+    rate = np.bincount(bins, minlength=length or 0).astype(np.float64)
+    local = median_filter(rate, size=(50_000 // bin_us) | 1, mode="nearest")
+    burst = rate > 10 * (local + 3)
+    return np.where(burst, local, rate), burst
+
+
+AGREE_BIN_US = 1_000
+AGREE_SMOOTH_US = 10_000  # grasps last hundreds of ms: whether they line up needs no finer match
+AGREE_LAG_US = 50_000  # the force sensor's and the membrane's lags, either way
+AGREE_MIN = 0.2  # simulated sessions: their own log r 0.56-0.78, another session's 0.02-0.06
+
+
+def agreement(t, x, y, force_t, force_v, t0: int, region=None) -> float | None:
+    """How well the event rate follows |dF/dt| with the force log placed at camera time `t0` (as a
+    blink or a trigger placed it): Pearson r at the best lag within AGREE_LAG_US. None where the log
+    does not change, or it and the events share too little time to tell."""
+    from scipy.ndimage import gaussian_filter1d
+
+    times = t[in_region(x, y, region)]
+    start, end = max(int(times.min(initial=0)), t0 + int(force_t[0])), min(int(times.max(initial=0)), t0 + int(force_t[-1]))
+    lags = AGREE_LAG_US // AGREE_BIN_US
+    length = (end - start) // AGREE_BIN_US
+    if len(times) < 100 or len(force_t) < 10 or length < 10 * lags:
+        return None
+    inside = times[(times >= start) & (times < start + length * AGREE_BIN_US)]
+    rate = gaussian_filter1d(_steady_rate((inside - start) // AGREE_BIN_US, AGREE_BIN_US, length)[0][:length], AGREE_SMOOTH_US / AGREE_BIN_US)
+    grid = start + (np.arange(length) + 0.5) * AGREE_BIN_US
+    force = gaussian_filter1d(np.interp(grid, t0 + np.asarray(force_t), np.asarray(force_v, dtype=np.float64)), AGREE_SMOOTH_US / AGREE_BIN_US)
+    slope = np.abs(np.gradient(force))
+    if not slope.any() or rate.std() == 0:
+        return None
+    a = rate[lags:length - lags]
+    best = -1.0
+    for lag in range(-lags, lags + 1):
+        b = slope[lags - lag:length - lags - lag]
+        if a.std() and b.std():
+            best = max(best, float(np.corrcoef(a, b)[0, 1]))
+    return round(best, 3)
+
+
+def disagreement_warnings(trials: dict, how: str) -> list[str]:
+    """One warning for the trials whose force log, placed by `how` (a blink, a trigger), hardly moves
+    with the events: a log of another recording paired with this one."""
+    low = {name: info["agreement"] for name, info in trials.items() if info.get("agreement") is not None and info["agreement"] < AGREE_MIN}
+    if not low:
+        return []
+    worst = min(low, key=low.get)
+    return [f"on {len(low)} of {len(trials)} trial(s) the force log, placed by {how}, hardly moves with the events (r below "
+            f"{AGREE_MIN} with |dF/dt|; lowest {low[worst]:.3f}, {worst}): is each log paired with its own recording?"]
 
 
 def _around_the_peak(peak, best, corr, lags, valid, bin_us):

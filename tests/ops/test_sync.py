@@ -525,3 +525,35 @@ def test_a_sessions_only_force_log_that_ends_early_is_named():
     said = coverage_warnings(1_000_000, log, 16_000_000, "session00")
     assert len(said) == 1 and "covers only 33% of the recording after its sync instant" in said[0]
     assert coverage_warnings(1_000_000, log, 6_500_000, "session00") == []
+
+
+def _grasping_events(force_t, force_v, t0, seed):
+    """Events at a rate that follows |dF/dt| of the log placed at camera time t0, over a background."""
+    rng = np.random.default_rng(seed)
+    grid = np.arange(0, int(force_t[-1]) + t0 + 1_000_000, 1_000)
+    slope = np.abs(np.gradient(np.interp(grid - t0, force_t, force_v, left=0.0, right=0.0)))
+    counts = rng.poisson(0.5 + 400 * slope / slope.max())
+    t = np.repeat(grid, counts) + rng.integers(0, 1_000, counts.sum())
+    t.sort()
+    n = len(t)
+    return t, rng.integers(0, 240, n).astype(np.uint16), rng.integers(0, 180, n).astype(np.uint16), rng.integers(0, 2, n).astype(np.uint8)
+
+
+def _session_log(seed, grasps=8):
+    rng = np.random.default_rng(seed)
+    force_t = np.arange(0, 40_000_000, 2_000)
+    force_v = np.zeros(len(force_t))
+    for start in np.sort(rng.uniform(0, 36e6, grasps)):
+        force_v += np.interp(force_t, [start, start + 2e5, start + 1.2e6, start + 1.5e6], [0, 3, 3, 0], left=0, right=0)
+    return force_t, force_v
+
+
+def test_a_force_log_placed_by_a_blink_is_checked_against_the_events_and_another_session_s_log_is_named():
+    own_t, own_v = _session_log(1)
+    other_t, other_v = _session_log(2)
+    t, x, y, p = _grasping_events(own_t, own_v, 3_000_000, seed=0)
+    assert xcorr.agreement(t, x, y, own_t, own_v, 3_000_000) > 0.6
+    assert xcorr.agreement(t, x, y, other_t, other_v, 3_000_000) < xcorr.AGREE_MIN
+    assert xcorr.agreement(t, x, y, own_t[:100], own_v[:100], 3_000_000) is None  # 0.2 s shared: too little to tell
+    warnings = xcorr.disagreement_warnings({"s0": {"agreement": 0.71}, "s1": {"agreement": 0.03}}, "the LED blink")
+    assert len(warnings) == 1 and "on 1 of 2 trial(s) the force log, placed by the LED blink, hardly moves" in warnings[0]
