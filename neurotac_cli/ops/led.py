@@ -25,9 +25,9 @@ def in_region(x, y, region):
     return (x >= rx) & (x < rx + rw) & (y >= ry) & (y < ry + rh)
 
 
-def find_led_spikes(t, x, y, p, method, count: int, sensor=None) -> list[Instant]:
-    """The `count` strongest LED-off spikes of a sync.SyncMethod's settings, in time order;
-    SyncError when fewer stand out."""
+def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> list[Instant]:
+    """The strongest LED-off spikes, `count` and up to `spare` more, in time order; SyncError when
+    fewer than `count` stand out."""
     times, off_x, off_y = _off_events(t, x, y, p, method.region)
     bin_us = method.bin_us
     origin = int(times.min())
@@ -57,12 +57,10 @@ def find_led_spikes(t, x, y, p, method, count: int, sensor=None) -> list[Instant
         # the pair starting at bin i holds the spike: its end is counted from the fuller bin
         end_us = origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us
         chosen.append(_spike_instant(times[c:d], z[i], coverage, end_us, method.latency_us))
-        if len(chosen) > count:  # one more than wanted is enough to know the blinks and the log disagree
+        if len(chosen) >= count + spare:
             break
     if len(chosen) < count:
         raise _no_spike(len(chosen), count, max(rejected, default=None), method)
-    if len(chosen) > count:
-        raise _extra_spike(chosen, count)
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
@@ -108,12 +106,12 @@ def _no_spike(found: int, count: int, best, method) -> SyncError:
     )
 
 
-def _extra_spike(chosen: list[Instant], count: int) -> SyncError:
+def extra_spike(chosen: list[Instant], count: int, why: str = "") -> SyncError:
     """The error when more spikes stand out than the force log has trials: taking the strongest
-    would put the trial's zero at whichever blink happened to be brighter."""
+    would put the trial's zero at whichever blink happened to be brighter. `why`: what else was tried."""
     onsets = ", ".join(f"{instant.details['onset_us']} µs" for instant in sorted(chosen, key=lambda instant: instant.t0))
     return SyncError(
-        f"more LED-off spikes stand out than the force log has trials ({count}): at least {len(chosen)}, at {onsets}; "
+        f"more LED-off spikes stand out than the force log has trials ({count}): at least {len(chosen)}, at {onsets}{why}; "
         "which one starts a trial is not ours to guess: give --region, cut the recording to one blink per trial "
         "(neurotac select --where \"t BETWEEN a AND b\"), or give the force log of every blink"
     )

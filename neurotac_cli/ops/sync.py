@@ -25,9 +25,10 @@ from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
-from neurotac_cli.ops.led import LED_LATENCY_US, find_led_spikes
-from neurotac_cli.ops.xcorr import (XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, uncertainty_warnings,
+from neurotac_cli.ops.led import LED_LATENCY_US, extra_spike, led_spikes
+from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
+from neurotac_cli.units import counted
 
 METHODS = ("led", "trigger", "offset", "xcorr")
 
@@ -235,6 +236,27 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     return trials, info
 
 
+SPARE_SPIKES = 4  # spikes beyond the log's trials weighed by how well the log then moves with the events
+AGREE_MARGIN = 0.2  # the best placement's r must lead the next by this much to be taken
+
+
+def _by_agreement(spikes: list, count: int, t, x, y, logs, forces, method: SyncMethod) -> list:
+    """One blink among several spikes (a fast press or a flicker can also darken a share of the
+    membrane at once): the one where the force log, placed there, moves with the events, when it
+    clearly does; else the spikes are refused as before."""
+    if count != 1:
+        raise extra_spike(spikes, count)
+    scored = [(agreement(t, x, y, logs[0].t, forces[0], spike.t0, method.region), spike) for spike in spikes]
+    ranked = sorted(((r, spike) for r, spike in scored if r is not None), key=lambda item: -item[0])
+    figures = ", ".join(f"r {r:.2f} at {spike.details['onset_us']} µs" for r, spike in ranked)
+    if not ranked or ranked[0][0] < AGREE_MIN or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN):
+        raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures or 'cannot tell'})")
+    r, spike = ranked[0]
+    spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
+                                 f"was taken, where the force log moves with the events ({figures})"]
+    return [spike]
+
+
 def _check_region(region, sensor) -> None:
     """A --region that reaches past the sensor is a box typed for another camera, or mistyped."""
     if region is not None and sensor is not None and (region[0] + region[2] > sensor[0] or region[1] + region[3] > sensor[1]):
@@ -247,7 +269,9 @@ def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
     try:
         _check_region(method.region, sch.sensor_of(table.schema))
         if method.method == "led":
-            instants = find_led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema))
+            instants = led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES)
+            if len(instants) > count:
+                instants = _by_agreement(instants, count, t, x, y, logs, forces, method)
         elif method.method == "trigger":
             instants = find_triggers(table.schema, method, count)
         elif method.method == "offset":

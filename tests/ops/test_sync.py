@@ -557,3 +557,23 @@ def test_a_force_log_placed_by_a_blink_is_checked_against_the_events_and_another
     assert xcorr.agreement(t, x, y, own_t[:100], own_v[:100], 3_000_000) is None  # 0.2 s shared: too little to tell
     warnings = xcorr.disagreement_warnings({"s0": {"agreement": 0.71}, "s1": {"agreement": 0.03}}, "the LED blink")
     assert len(warnings) == 1 and "on 1 of 2 trial(s) the force log, placed by the LED blink, hardly moves" in warnings[0]
+
+
+def _blink(at_us, seed, width=240, height=180):
+    """An LED-off spike over the whole sensor (or a press that darkens as much of it at once)."""
+    rng = np.random.default_rng(seed)
+    n = 2 * width * height
+    return (at_us + sy.LED_LATENCY_US + rng.exponential(300.0, n).astype(np.int64), rng.integers(0, width, n),
+            rng.integers(0, height, n), np.zeros(n, np.int64))
+
+
+def test_a_session_s_blink_is_told_from_a_press_as_bright_by_where_the_force_log_fits():
+    force_t, force_v = _session_log(1)
+    parts = [_grasping_events(force_t, force_v, 3_000_000, seed=0), _blink(3_000_000, 1), _blink(12_000_000, 2)]
+    t, x, y, p = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(t, kind="stable")
+    table = sch.events_table(t[order], x[order], y[order], p[order], 240, 180)
+    trials, info = sy.sync_source(manifest.Source("s", table, [sy.ForceLog(t=force_t, value=force_v)]), sy.SyncMethod())
+    assert abs(trials[0]["t0"] - 3_000_000) <= 200
+    (said,) = info["s"]["warnings"]
+    assert said.startswith("2 LED-off spikes stand out; the one at") and "where the force log moves with the events" in said
