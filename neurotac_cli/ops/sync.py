@@ -251,7 +251,7 @@ def _by_agreement(spikes: list, count: int, t, x, y, logs, forces, method: SyncM
     figures = ", ".join(f"r {r:.2f} at {spike.details['onset_us']} µs" for r, spike in ranked)
     if not ranked or ranked[0][0] < AGREE_MIN or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN):
         raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures or 'cannot tell'})")
-    r, spike = ranked[0]
+    spike = ranked[0][1]
     spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
                                  f"was taken, where the force log moves with the events ({figures})"]
     return [spike]
