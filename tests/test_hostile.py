@@ -1249,3 +1249,12 @@ def test_a_table_stating_a_sensor_past_16_bit_coordinates_is_refused_at_the_door
     code, stderr, _ = invoke(["export", "-o", str(tmp_path / "x.h5"), path])
     assert one_line(stderr, code, 1) and "metadata neurotac:sensor is" in stderr
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_force_times_that_one_microsecond_merges_name_the_unit(tmp_path):
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.io.force import read_force_log
+
+    (tmp_path / "f.csv").write_text("t_ms,force_N\n" + "".join(f"{t},0\n" for t in range(0, 40, 2)))
+    with pytest.raises(FormatError, match=r"0 and 2 ns round to one microsecond: is the unit ns\?"):
+        read_force_log(str(tmp_path / "f.csv"), time_unit="ns")

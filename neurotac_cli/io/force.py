@@ -203,6 +203,9 @@ def read_force_log(path: str, time_column=None, force_column=None, time_unit=Non
             bad = int(np.argmax(np.diff(t) <= 0)) + 1
             what = (f"repeats {t[bad] / 1000:g} ms" if t[bad] == t[bad - 1] else
                     f"goes back from {t[bad - 1] / 1000:g} ms to {t[bad] / 1000:g} ms")
+            raw = times[rows]
+            if t[bad] == t[bad - 1] and raw[bad] != raw[bad - 1]:  # distinct in the log, one µs once converted
+                what += f" ({raw[bad - 1]:g} and {raw[bad]:g} {unit} round to one microsecond: is the unit {unit}?)"
             raise FormatError(f"{path}: force time {what} at sample {bad + 1} of trial {name or len(logs) + 1}; give every "
                               "sample its own time, in order (drop repeated rows, sort the log)")
         logs.append(ForceLog(t=t, value=newtons[rows], trial=name, notes=list(notes)))
