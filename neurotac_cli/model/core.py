@@ -545,6 +545,8 @@ def _train_material(name, config, fit_config, train_set, val_set, input_spec, tr
                 lambda: None if val_x is None else float(loss(net(val_x), val_y)), fit_config, generator, progress, label=name)
     training["curve"] = curve
     training["label"] = label
+    # the features summarise a whole grasp: `classify` names trials much shorter than any learnt from
+    training["trial_frames"] = [min(map(len, train_set.counts)), max(map(len, train_set.counts))]
     input_spec = dict(input_spec, normalisation={"feature_mean": net.feature_mean.tolist(), "feature_std": net.feature_std.tolist()})
     return Model(name, config, net, input_spec, classes, training)
 
@@ -689,6 +691,9 @@ def _in_order(trial: str, last: tuple | None, frames: np.ndarray, t: np.ndarray)
     return int(given[-1]), int(times[-1])
 
 
+SHORT_SHARE = 0.5  # a trial under this share of the shortest training trial is named by `classify`
+
+
 def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> pa.Table:
     """One row per trial: the true class where known, the predicted class and every class's probability;
     `notes` gets what an adapted model could not standardise over the input's own grasps (`Model.proba`)."""
@@ -696,6 +701,11 @@ def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> 
         raise ModelError(f"model {model.name!r} estimates force; use `neurotac eval` or `neurotac predict`")
     check_input(model, table.schema)
     data = sequences(table)
+    shortest = (model.training.get("trial_frames") or [0])[0]
+    short = [trial for trial, counts in zip(data.trials, data.counts) if len(counts) < SHORT_SHARE * shortest]
+    if short and notes is not None:
+        notes.append(f"{counted(len(short), 'trial')} ({', '.join(short[:3])}{', ...' if len(short) > 3 else ''}) hold fewer than "
+                     f"half the frames of the shortest training trial ({shortest}): a part of a grasp, whose class is a guess")
     proba = model.proba(data, notes)
     label = model.training.get("label", "material")
     fields = [("trial", pa.string())]

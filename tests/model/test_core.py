@@ -188,3 +188,16 @@ def test_frames_cropped_elsewhere_on_the_sensor_or_of_no_stated_window_are_named
     assert input_notes(spec, [], schema) == []  # a history that does not say
     (note,) = input_notes({"window_us": None}, [], schema)
     assert "the model does not record the window of its training frames" in note
+
+
+def test_classify_names_trials_much_shorter_than_any_it_learnt_from(frames):
+    import pyarrow.compute as pc
+
+    model = models.train(frames, models.make_spec("material-dnn", epochs=2), seed=0)
+    assert model.training["trial_frames"] == [12, 12]
+    notes = []
+    models.classify_table(model, frames, notes)
+    assert notes == []
+    cut = frames.filter(pc.less(frames.column("frame"), 3))
+    models.classify_table(model, cut, notes)
+    assert len(notes) == 1 and "hold fewer than half the frames of the shortest training trial (12)" in notes[0]
