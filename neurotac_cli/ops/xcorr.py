@@ -118,7 +118,7 @@ def _steady_rate(bins: np.ndarray, bin_us: int, length: int | None = None) -> tu
 AGREE_BIN_US = 1_000
 AGREE_SMOOTH_US = 10_000  # grasps last hundreds of ms: whether they line up needs no finer match
 AGREE_LAG_US = 50_000  # the force sensor's and the membrane's lags, either way
-AGREE_MIN = 0.2  # simulated sessions: their own log r 0.56-0.78, another session's 0.02-0.06
+AGREE_MIN = 0.2  # 20 simulated sessions: their own log r 0.56-0.78; another session's 0.02-0.06
 
 
 def agreement(t, x, y, force_t, force_v, t0: int, region=None) -> float | None:
