@@ -79,10 +79,11 @@ def bhattacharyya(a, b, floor: float = VARIANCE_FLOOR_N2) -> float:
     return float(0.25 * np.log(0.25 * (va / vb + vb / va + 2)) + 0.25 * (a.mean() - b.mean()) ** 2 / (va + vb))
 
 
-def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, series=None) -> list:
+def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, series=None, whole=True) -> list:
     """(scope, metric, value) rows: overall, per phase, per trial; DTW and D_B per phase (mean over
     time series). `series`: which frames form one time series (default: the trial; cross-validation
-    repeats predict a trial once per seed, and each prediction is a series of its own)."""
+    repeats predict a trial once per seed, and each prediction is a series of its own). `whole`: the
+    frames are all that is scored (not one fold of several), so nothing left by --nonzero is refused."""
     trial = np.asarray(trial, dtype=object)
     series = trial if series is None else np.asarray(series, dtype=object)
     phase = np.asarray([p if p is not None else "none" for p in phase], dtype=object)
@@ -91,7 +92,7 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
     unforced = int(np.count_nonzero(~keep))  # frames without a measured force: left out, and said (scoring.summary)
     if nonzero:
         keep &= np.abs(true) > NONZERO_N
-        if len(keep) and not keep.any():
+        if whole and len(keep) and not keep.any():
             raise NeurotacError("--nonzero: no frame has a measured force other than zero, so nothing is left to score")
     trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]
     rows = []

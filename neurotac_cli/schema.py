@@ -154,17 +154,23 @@ def sensor_meta(width: int, height: int) -> dict:
 
 
 def with_given_sensor(schema: pa.Schema, given) -> pa.Schema:
-    """`schema` with --sensor's size (`given`) where the table declares none. A table that declares
-    another size is refused: its coordinates are in that size, and a size given over it would put
-    events outside the sensor or frame them in one corner of a larger one."""
+    """`schema` with --sensor's size (`given`) where the table declares none, or only the extent of
+    its events (`import` of a file that does not say: the events are checked against the size given
+    when they are read). A table that declares another size is refused: its coordinates are in that
+    size, and a size given over it would put events outside the sensor or frame them in one corner
+    of a larger one."""
     if given is None:
         return schema
     declared, given = sensor_of(schema), (int(given[0]), int(given[1]))
-    if declared is None:
+    source = camera_source(schema)
+    if declared is None or (declared != given and source.get("sensor_from") == "events"):
+        if source.get("sensor_from") == "events":
+            schema = set_meta(schema, source={**source, "sensor_from": "option"})
         return set_meta(schema, sensor=sensor_meta(*given))
     if declared != given:
         raise UsageError(f"--sensor {given[0]}x{given[1]}: the table declares its sensor as {declared[0]}x{declared[1]} "
-                         "(--sensor is for tables that do not declare one; leave it out)")
+                         "(--sensor is for tables that do not declare one; to change it, import the camera file again "
+                         "with `neurotac import --sensor WxH`)")
     return schema
 
 
@@ -438,7 +444,7 @@ def conform(batch, kind: str):
             try:
                 column = column.cast(typ, safe=True)
             except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as error:
-                if name == "p" and kind == "events":
+                if name == "p" and kind == "events" and pa.types.is_integer(column.type):
                     raise SchemaError("polarity (column 'p') must be 0 (OFF) or 1 (ON), found values outside 0..255 "
                                       f"({column.type})") from None
                 raise SchemaError(f"{kind} column {name!r} cannot be read as {typ}: {error}") from None

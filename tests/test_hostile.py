@@ -66,13 +66,16 @@ def test_frame_names_what_a_recordings_table_would_lose_and_refuses_a_force_log_
              "force": (np.array([], np.int64), np.array([], np.float32)), "labels": {}}
     table = sch.recordings_table([_recording([0, 10_000, 20_000]), empty], 10, 10)
     table = table.append_column("size_mm", pa.array([12, 9])).append_column("points", pa.array([[1], [2]]))
+    table = table.append_column("frame", pa.array([3, 4])).append_column("lab", pa.array(["x", "y"], pa.large_string()))
     path, out = str(tmp_path / "r.arrows"), str(tmp_path / "f.arrows")
     tables.write(path, table)
     code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", out, path])
     assert code == 0, stderr
     assert "size_mm (int64) carried into the frames as text" in stderr and "points (list<item: int64>) left out" in stderr
     assert "1 trial (b) holds no event and no force sample" in stderr
-    assert set(tables.read([out]).column("size_mm").to_pylist()) == {"12"}
+    assert "frame (int64) left out of the frames: the frames have a column of that name" in stderr and "lab (" not in stderr
+    framed = tables.read([out])
+    assert set(framed.column("size_mm").to_pylist()) == {"12"} and set(framed.column("lab").to_pylist()) == {"x"}
     tables.write(path, sch.recordings_table([_recording([0, 20_000, 10_000])], 10, 10))
     code, stderr, _ = invoke(["frame", "--window", "10ms", "-o", out, path])
     assert one_line(stderr, code, 1) and "force time runs backwards at 1 sample of 3" in stderr
@@ -1207,6 +1210,10 @@ def test_nonzero_with_nothing_left_to_score_or_with_a_classifier_is_refused(file
     assert one_line(stderr, code, 1) and "nothing is left to score" in stderr
     code, stderr, _ = invoke(["eval", "--model", f"{files}/c.model", "--nonzero", f"{files}/f.arrows"])
     assert one_line(stderr, code, 2) and "a classifier is scored on whole trials" in stderr
+    from neurotac_cli import metrics
+
+    rows = metrics.force_rows(["a"] * 3, ["none"] * 3, [0.0] * 3, [1.0] * 3, nonzero=True, whole=False)  # one fold of several
+    assert ("all", "n", 0.0) in rows
 
 
 def test_training_frames_that_do_not_record_their_window_are_named(files, tmp_path):  # noqa: F811
@@ -1258,3 +1265,15 @@ def test_force_times_that_one_microsecond_merges_name_the_unit(tmp_path):
     (tmp_path / "f.csv").write_text("t_ms,force_N\n" + "".join(f"{t},0\n" for t in range(0, 40, 2)))
     with pytest.raises(FormatError, match=r"0 and 2 ns round to one microsecond: is the unit ns\?"):
         read_force_log(str(tmp_path / "f.csv"), time_unit="ns")
+
+
+def test_a_sensor_given_over_one_import_only_guessed_from_the_events_is_taken(tmp_path):
+    (tmp_path / "ev.txt").write_text("".join(f"{t / 1e6:.6f} {t % 230} {t % 170} {t % 2}\n" for t in range(0, 5000)))
+    path = str(tmp_path / "ev.arrows")
+    code, stderr, _ = invoke(["import", "-o", path, str(tmp_path / "ev.txt")])
+    assert code == 0, stderr
+    out = str(tmp_path / "f.arrows")
+    code, stderr, _ = invoke(["frame", "--window", "1ms", "--sensor", "240x180", "-o", out, path])
+    assert code == 0, stderr
+    framed = tables.read([out])
+    assert sch.sensor_of(framed.schema) == (240, 180) and sch.camera_source(framed.schema)["sensor_from"] == "option"

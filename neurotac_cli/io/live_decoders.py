@@ -80,6 +80,8 @@ class Evt21(Words):
         order (little), as a file has."""
         if self.legacy is None:
             whole = len(pending) - len(pending) % self.record
+            if not whole and not at_end:  # the header alone: no word has come to tell the order
+                return False
             if not self._order_from(bytes(pending[:whole])):
                 if not at_end:
                     del pending[:whole]

@@ -39,7 +39,10 @@ def read_camera(path: str, sensor=None) -> pa.Table:
     """A camera file in any format `import` reads, or an events table, as one events table."""
     if os.path.isfile(path) and is_table(path):  # a pipe is not peeked at: its first bytes would be lost
         table = tables.read([path], kind="events")
-        return table.replace_schema_metadata(sch.with_given_sensor(table.schema, sensor).metadata)
+        try:
+            return table.replace_schema_metadata(sch.with_given_sensor(table.schema, sensor).metadata)
+        except UsageError as error:
+            raise UsageError(f"{path}: {error}") from None
     return read_events_table(path, sensor=sensor)
 
 

@@ -9,14 +9,14 @@ from neurotac_cli.errors import SchemaError
 from neurotac_cli.units import counted
 
 
-def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material") -> list:
-    """Metric rows of a predictions table (force or material)."""
+def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material", whole=True) -> list:
+    """Metric rows of a predictions table (force or material); `whole`: as `metrics.force_rows`."""
     names = predictions.schema.names
     if "force_pred" in names:
         rows = metrics.force_rows(
             predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
             predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
-            nonzero=nonzero, per_trial=per_trial,
+            nonzero=nonzero, per_trial=per_trial, whole=whole,
             series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
             if "repeat" in names else None,
         )
@@ -41,7 +41,7 @@ def score_folds(results: list, folds: int, *, nonzero=False, per_trial=True, lab
     parts, per_fold = [], []
     for index, (predictions, validation) in enumerate(results):
         repeat, fold = divmod(index, folds)
-        rows = score(predictions, nonzero=nonzero, per_trial=False, label=label)
+        rows = score(predictions, nonzero=nonzero, per_trial=False, label=label, whole=False)
         rows += [("all", name, float(value)) for name, value in validation.items()]
         per_fold.append(rows)
         n = predictions.num_rows

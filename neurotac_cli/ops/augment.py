@@ -198,21 +198,27 @@ def events_to_move(counts: np.ndarray, zeta: float) -> np.ndarray:
 
 
 DRAW_AT_ONCE = 1 << 25  # events drawn as one array (about 1.3 GB of working arrays); more are drawn group by group
+EXACT_DRAW_MOST = 10**9  # numpy's hypergeometric draws stay exact below this many events
 
 
 def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Draw `take[g]` of the events of each group g without replacement (multivariate hypergeometric).
 
-    `counts` is (groups, P) of non-negative integers. All groups are drawn at once: the events of
-    all groups are shuffled together, stably sorted back into their groups (a radix sort on the
-    group number), and the first `take[g]` of each group are kept, so every subset of the right
-    size is equally likely. Returns the drawn counts, (groups, P) int64.
+    `counts` is (groups, P) of non-negative integers. Up to DRAW_AT_ONCE events, all groups are drawn
+    at once: the events of all groups are shuffled together, stably sorted back into their groups (a
+    radix sort on the group number), and the first `take[g]` of each group are kept, so every subset
+    of the right size is equally likely. Beyond it, each group is drawn by numpy's multivariate
+    hypergeometric sampler, the same law without an array of the events. Returns the drawn counts,
+    (groups, P) int64.
     """
     groups, pixels = counts.shape
     flat = counts.ravel()
     if int(flat.sum(dtype=np.int64)) > DRAW_AT_ONCE:
         # more events than one array of them fits in memory: each group drawn from its pixels' counts
         rows = counts.astype(np.int64)
+        if rows.sum(axis=1).max(initial=0) >= EXACT_DRAW_MOST:
+            raise NeurotacError(f"a frame holds {int(rows.sum(axis=1).max()):,} events in one channel, beyond the "
+                                f"{EXACT_DRAW_MOST:,} TES draws from exactly (saturated counts?)")
         return np.stack([rng.multivariate_hypergeometric(row, int(k), method="marginals") if k else np.zeros(pixels, np.int64)
                          for row, k in zip(rows, take)]) if groups else np.zeros((0, pixels), np.int64)
     entries = np.flatnonzero(flat)

@@ -105,8 +105,9 @@ class CropReport:
         history cannot hold it), then the warnings."""
         counted = [f"cut {self.cut:.15g} of {self.kept + self.cut:.15g} {self.unit}"] if self.streamed and self.cut else []
         if self.center_from == "auto" and self.box:  # the centre a live stream's fixed box needs (`sense`)
+            x0, y0, w, h = self.box  # moved inside the sensor where the contact lies near its edge
             counted.insert(0, f"the contact's centre {self.center[0]},{self.center[1]} (box {','.join(map(str, self.box))}; "
-                              f"a fixed box there: --center {self.center[0]},{self.center[1]})")
+                              f"a fixed box there: --center {x0 + w // 2},{y0 + h // 2})")
         return counted + [f"warning: {line}" for line in self.warnings(threshold)]
 
     def warnings(self, threshold: float) -> list[str]:

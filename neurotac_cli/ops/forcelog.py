@@ -108,7 +108,7 @@ def check_logs(t: np.ndarray, instants: list, logs: list[ForceLog], recording: s
         if len(logs) == 1:  # one log for the whole recording (a session): it should last as long
             warnings += coverage_warnings(instant.t0, log, last_us, where)
         if warnings:
-            instant.details["warnings"] = warnings
+            instant.details.setdefault("warnings", []).extend(warnings)
 
 
 def _where(recording: str, logs: list, log: ForceLog, number: int) -> str:

@@ -575,7 +575,8 @@ def frame_events(schema: pa.Schema, batches, framing: Framing, report: FramingRe
     until the channels' maxima are known. Returns (frames schema, iterator of batches); the report
     is complete once the iterator is exhausted.
     """
-    sensor = sch.sensor_of(sch.with_given_sensor(schema, sensor))
+    schema = sch.with_given_sensor(schema, sensor)
+    sensor = sch.sensor_of(schema)
     if sensor is None:
         raise SchemaError("events table has no neurotac:sensor metadata (give the sensor size with --sensor WxH)")
     width, height = sensor
@@ -884,22 +885,32 @@ def frames_from_events_table(table: pa.Table, window_us: int, report: FramingRep
 
 def _string_labels(table: pa.Table, report: FramingReport) -> pa.Table:
     """A recordings table's columns beyond the contract's that are not strings (another tool's
-    `size_mm` of integers): frames carry labels as strings, so numbers and flags go on as their text;
-    a nested column cannot be a label and is named as left out."""
+    `size_mm` of integers, Polars' large strings, dates): frames carry labels as strings, so they go
+    on as their text. A nested column cannot be a label, and a column named as one of the frames'
+    own cannot go on: each is named as left out."""
     structural = set(sch.REQUIRED["recordings"]) | sch.NOT_LABELS
-    cast, left = [], []
-    for index, column in enumerate(table.schema):
+    reserved = set(sch.REQUIRED["frames"]) | {"grasp", "slip", "source_trial", "augment"}
+    cast, nested, named = [], [], []
+    for column in list(table.schema):
         if column.name in structural or pa.types.is_string(column.type):
             continue
-        if pa.types.is_integer(column.type) or pa.types.is_floating(column.type) or pa.types.is_boolean(column.type):
-            table = table.set_column(index, pa.field(column.name, pa.string()), table.column(index).cast(pa.string()))
-            cast.append(f"{column.name} ({column.type})")
+        kind = column.type.value_type if pa.types.is_dictionary(column.type) else column.type
+        if column.name in reserved:
+            named.append(f"{column.name} ({column.type})")
+            table = table.drop([column.name])
+        elif pa.types.is_nested(kind):
+            nested.append(f"{column.name} ({column.type})")
         else:
-            left.append(f"{column.name} ({column.type})")
+            index = table.schema.get_field_index(column.name)
+            table = table.set_column(index, pa.field(column.name, pa.string()), table.column(index).cast(pa.string()))
+            if not (pa.types.is_large_string(kind) or pa.types.is_string(kind)):  # text already: nothing to say
+                cast.append(f"{column.name} ({column.type})")
     if cast:
         report.notes.append(f"{', '.join(cast)} carried into the frames as text: frames hold labels as strings")
-    if left:
-        report.notes.append(f"{', '.join(left)} left out of the frames: a label is one value per trial (a string)")
+    if nested:
+        report.notes.append(f"{', '.join(nested)} left out of the frames: a label is one value per trial")
+    if named:
+        report.notes.append(f"{', '.join(named)} left out of the frames: the frames have a column of that name")
     return table
 
 

@@ -229,7 +229,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         entry = {"t0": instant.t0, "score": instant.score}
         entry.update(instant.details)
         if method.method != "xcorr":  # xcorr reports its own correlation
-            entry["agreement"] = agreement(t, x, y, log.t, values, instant.t0, method.region)
+            entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True)
         if log.notes:
             entry["notes"] = log.notes
         info[name] = entry
@@ -240,17 +240,18 @@ SPARE_SPIKES = 4  # spikes beyond the log's trials weighed by how well the log t
 AGREE_MARGIN = 0.2  # the best placement's r must lead the next by this much to be taken
 
 
-def _by_agreement(spikes: list, count: int, t, x, y, logs, forces, method: SyncMethod) -> list:
+def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     """One blink among several spikes (a fast press or a flicker can also darken a share of the
     membrane at once): the one where the force log, placed there, moves with the events, when it
     clearly does; else the spikes are refused as before."""
     if count != 1:
         raise extra_spike(spikes, count)
-    scored = [(agreement(t, x, y, logs[0].t, forces[0], spike.t0, method.region), spike) for spike in spikes]
-    ranked = sorted(((r, spike) for r, spike in scored if r is not None), key=lambda item: -item[0])
-    figures = ", ".join(f"r {r:.2f} at {spike.details['onset_us']} µs" for r, spike in ranked)
-    if not ranked or ranked[0][0] < AGREE_MIN or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN):
-        raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures or 'cannot tell'})")
+    scored = [(agreement(t, logs[0].t, forces[0], spike.t0), spike) for spike in spikes]
+    figures = ", ".join(f"{'r ' + format(r, '.2f') if r is not None else 'no r'} at {spike.details['onset_us']} µs" for r, spike in scored)
+    ranked = sorted(scored, key=lambda item: -item[0] if item[0] is not None else np.inf)
+    # every placement scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
+    if any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN or ranked[0][0] - ranked[1][0] < AGREE_MARGIN:
+        raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures})")
     spike = ranked[0][1]
     spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
                                  f"was taken, where the force log moves with the events ({figures})"]
@@ -271,7 +272,7 @@ def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
         if method.method == "led":
             instants = led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES)
             if len(instants) > count:
-                instants = _by_agreement(instants, count, t, x, y, logs, forces, method)
+                instants = _by_agreement(instants, count, t, logs, forces)
         elif method.method == "trigger":
             instants = find_triggers(table.schema, method, count)
         elif method.method == "offset":

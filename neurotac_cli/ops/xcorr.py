@@ -121,17 +121,27 @@ AGREE_LAG_US = 50_000  # the force sensor's and the membrane's lags, either way
 AGREE_MIN = 0.2  # 20 simulated sessions: their own log r 0.56-0.78; another session's 0.02-0.06
 
 
-def agreement(t, x, y, force_t, force_v, t0: int, region=None) -> float | None:
+def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False) -> float | None:
     """How well the event rate follows |dF/dt| with the force log placed at camera time `t0` (as a
-    blink or a trigger placed it): Pearson r at the best lag within AGREE_LAG_US. None where the log
-    does not change, or it and the events share too little time to tell."""
+    blink or a trigger placed it): Pearson r at the best lag within AGREE_LAG_US, over the whole
+    sensor's event times `t` (an LED's --region holds no contact). None where the log does not change, or it and the
+    events share too little time to tell. `sorted_time`: `t` is in order, so the log's span is
+    found by bisection rather than by a pass over every event."""
     from scipy.ndimage import gaussian_filter1d
 
-    times = t[in_region(x, y, region)]
-    start, end = max(int(times.min(initial=0)), t0 + int(force_t[0])), min(int(times.max(initial=0)), t0 + int(force_t[-1]))
+    if len(force_t) < 10:
+        return None
+    lo, hi = t0 + int(force_t[0]), t0 + int(force_t[-1])
+    if sorted_time:
+        times = t[np.searchsorted(t, lo):np.searchsorted(t, hi)]
+    else:
+        times = t[(t >= lo) & (t < hi)]
     lags = AGREE_LAG_US // AGREE_BIN_US
+    if len(times) < 100:
+        return None
+    start, end = max(int(times.min()), lo), min(int(times.max()), hi)
     length = (end - start) // AGREE_BIN_US
-    if len(times) < 100 or len(force_t) < 10 or length < 10 * lags:
+    if length < 10 * lags:
         return None
     inside = times[(times >= start) & (times < start + length * AGREE_BIN_US)]
     rate = gaussian_filter1d(_steady_rate((inside - start) // AGREE_BIN_US, AGREE_BIN_US, length)[0][:length], AGREE_SMOOTH_US / AGREE_BIN_US)
@@ -141,12 +151,9 @@ def agreement(t, x, y, force_t, force_v, t0: int, region=None) -> float | None:
     if not slope.any() or rate.std() == 0:
         return None
     a = rate[lags:length - lags]
-    best = -1.0
-    for lag in range(-lags, lags + 1):
-        b = slope[lags - lag:length - lags - lag]
-        if a.std() and b.std():
-            best = max(best, float(np.corrcoef(a, b)[0, 1]))
-    return round(best, 3)
+    scores = [float(np.corrcoef(a, b)[0, 1]) for b in (slope[lags - lag:length - lags - lag] for lag in range(-lags, lags + 1))
+              if a.std() and b.std()]
+    return round(max(scores), 3) if scores else None
 
 
 def disagreement_warnings(trials: dict, how: str) -> list[str]:

@@ -242,6 +242,9 @@ def test_tes_of_more_events_than_one_array_holds_draws_group_by_group_with_the_s
     huge = np.full((2, 400), 60_000, np.int64)  # 48 million events: drawn without an array of them
     monkeypatch.setattr(aug, "DRAW_AT_ONCE", 1 << 25)
     assert aug.draw_events(huge, np.array([1000, 0]), rng).sum(axis=1).tolist() == [1000, 0]
+    saturated = np.full((1, 2 * 180 * 240), 65535, np.int64)  # 2.8e9 events in one group: past an exact draw
+    with pytest.raises(NeurotacError, match="beyond the 1,000,000,000 TES draws from exactly"):
+        aug.draw_events(saturated, np.array([10]), rng)
 
 
 def test_tes_rounds_halves_like_python_round():

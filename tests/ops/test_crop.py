@@ -196,3 +196,10 @@ def test_a_frame_leaves_crop_through_a_pipe_before_its_input_ends():
         assert b"cut " in process.stderr.read()
     finally:
         process.kill()
+
+
+def test_the_fixed_centre_crop_suggests_for_a_contact_near_the_edge_gives_the_same_box():
+    report = cr.CropReport(box=[0, 33, 115, 115], center=[14, 90], center_from="auto")
+    (line,) = report.messages(1.0)
+    assert line.endswith("--center 57,90)")
+    assert cr.resolve_box(cr.CropSpec(size=(115, 115), center=(57, 90)), (240, 180)) == (0, 33, 115, 115)

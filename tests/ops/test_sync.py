@@ -552,9 +552,11 @@ def test_a_force_log_placed_by_a_blink_is_checked_against_the_events_and_another
     own_t, own_v = _session_log(1)
     other_t, other_v = _session_log(2)
     t, x, y, p = _grasping_events(own_t, own_v, 3_000_000, seed=0)
-    assert xcorr.agreement(t, x, y, own_t, own_v, 3_000_000) > 0.6
-    assert xcorr.agreement(t, x, y, other_t, other_v, 3_000_000) < xcorr.AGREE_MIN
-    assert xcorr.agreement(t, x, y, own_t[:100], own_v[:100], 3_000_000) is None  # 0.2 s shared: too little to tell
+    assert xcorr.agreement(t, own_t, own_v, 3_000_000) > 0.6
+    assert xcorr.agreement(t, other_t, other_v, 3_000_000) < xcorr.AGREE_MIN
+    assert xcorr.agreement(t, own_t[:100], own_v[:100], 3_000_000) is None  # 0.2 s shared: too little to tell
+    assert xcorr.agreement(t, own_t, own_v, int(t.max()) - 200_000) is None  # the log reaches 0.2 s into the recording
+    assert xcorr.agreement(np.sort(t), own_t, own_v, 3_000_000, sorted_time=True) == xcorr.agreement(t, own_t, own_v, 3_000_000)
     warnings = xcorr.disagreement_warnings({"s0": {"agreement": 0.71}, "s1": {"agreement": 0.03}}, "the LED blink")
     assert len(warnings) == 1 and "on 1 of 2 trial(s) the force log, placed by the LED blink, hardly moves" in warnings[0]
 
@@ -573,7 +575,12 @@ def test_a_session_s_blink_is_told_from_a_press_as_bright_by_where_the_force_log
     t, x, y, p = (np.concatenate(column) for column in zip(*parts))
     order = np.argsort(t, kind="stable")
     table = sch.events_table(t[order], x[order], y[order], p[order], 240, 180)
-    trials, info = sy.sync_source(manifest.Source("s", table, [sy.ForceLog(t=force_t, value=force_v)]), sy.SyncMethod())
-    assert abs(trials[0]["t0"] - 3_000_000) <= 200
-    (said,) = info["s"]["warnings"]
-    assert said.startswith("2 LED-off spikes stand out; the one at") and "where the force log moves with the events" in said
+    log = sy.ForceLog(t=force_t, value=force_v)
+    for region in (None, (0, 0, 60, 60)):  # an LED's region holds little of the contact: the agreement reads the whole sensor
+        trials, info = sy.sync_source(manifest.Source("s", table, [log]), sy.SyncMethod(region=region))
+        assert abs(trials[0]["t0"] - 3_000_000) <= 200 and info["s"]["agreement"] > 0.6
+        said = [line for line in info["s"]["warnings"] if line.startswith("2 LED-off spikes stand out; the one at")]
+        assert len(said) == 1 and "where the force log moves with the events" in said[0]
+    short = sy.ForceLog(t=force_t[:5_000], value=force_v[:5_000])  # 10 s of a 40 s session: coverage warned, the choice kept
+    _, info = sy.sync_source(manifest.Source("s", table, [short]), sy.SyncMethod())
+    assert any(line.startswith("2 LED-off spikes stand out") for line in info["s"]["warnings"]) and len(info["s"]["warnings"]) >= 2
