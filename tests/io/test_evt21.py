@@ -189,3 +189,11 @@ def test_a_stream_whose_first_read_holds_no_time_high_waits_for_one(real):
     assert not len(decoder.decode(np.ascontiguousarray(no_high).tobytes())[0])
     decoded = decoder.decode(data)
     assert decoder.legacy and np.array_equal(decoded[0], t)
+
+
+def test_a_stream_whose_header_arrives_alone_waits_for_words_before_choosing_an_order():
+    from neurotac_cli.io import live_decoders
+
+    decoder = live_decoders.Evt21(b"% evt 2.1\n% end\n", None)
+    assert decoder.settled(bytearray(), at_end=False) is False and decoder.legacy is None
+    assert decoder.settled(bytearray(), at_end=True) is True and decoder.legacy is False  # OpenEB's default, as a file
