@@ -96,7 +96,9 @@ def walk_packets(read, size: int, streams, offset: int = 0) -> tuple[int, int, b
 
 def whole_packets(path: str, streams) -> tuple[int, int]:
     """(packets, cut bytes): how many packets lie whole in `path`, and the bytes after them of a packet
-    cut short (0 where none)."""
+    cut short (0 where none). Where the packets end at one of no declared stream that is not the
+    index table the header points to (a damaged packet, or a second file joined on), the file is
+    refused: what follows would be lost without a word."""
     with open(path, "rb") as handle:
         size = os.fstat(handle.fileno()).st_size
 
@@ -104,8 +106,35 @@ def whole_packets(path: str, streams) -> tuple[int, int]:
             handle.seek(offset)
             return handle.read(n)
 
-        count, end, finished = walk_packets(read, size, streams, 18 + struct.unpack("<I", read(14, 4))[0])
+        header_end = 18 + struct.unpack("<I", read(14, 4))[0]
+        count, end, finished = walk_packets(read, size, streams, header_end)
+        if finished:
+            table = table_position(read(0, header_end))
+            if table is None or table != end:
+                where = f", where the index table is not (it is at byte {table:,})" if table and table > 0 else ""
+                raise FormatError(f"the {size - end:,} bytes from byte {end:,} are no packet of a declared stream{where}: "
+                                  f"a damaged file, or two joined? (the {count:,} packets before them are whole)")
     return count, 0 if finished else size - end
+
+
+def table_offset(header: bytes) -> int | None:
+    """Where in `header` (the file's first bytes, through its IOHeader) the index table's position
+    is stored; None where the IOHeader does not hold it."""
+    try:
+        table = struct.unpack_from("<I", header, 18)[0] + 18
+        vtable = table - struct.unpack_from("<i", header, table)[0]
+        if struct.unpack_from("<H", header, vtable)[0] >= 4 + 2 * 2:
+            offset = struct.unpack_from("<H", header, vtable + 4 + 2)[0]
+            return table + offset if offset else None
+    except struct.error:
+        raise FormatError("the AEDAT 4.0 header is damaged") from None
+    return None
+
+
+def table_position(header: bytes) -> int | None:
+    """The index table's byte position the header states (-1: none written), or None."""
+    offset = table_offset(header)
+    return None if offset is None else struct.unpack_from("<q", header, offset)[0]
 
 
 def open_aedat4(path: str, head: bytes, sensor) -> Decoded:

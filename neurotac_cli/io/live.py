@@ -370,7 +370,7 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
     width, height = sensor
     try:
         while True:
-            usable = decoder.complete(pending)
+            usable = camera._guarded_call(name, fmt, lambda: decoder.complete(pending))
             if usable:
                 block = bytes(pending[:usable])
                 del pending[:usable]

@@ -247,11 +247,17 @@ class Aedat4:
             raise
         self.known = set(streams)
         self.meta = {"source": others} if others else {}
+        # a finished file piped in states where its index table is; a file still being written does not yet (-1)
+        self.table, self.offset = aedat4.table_position(header), len(header)
 
     def complete(self, pending) -> int:
         from neurotac_cli.io import aedat4
 
         _, end, self.finished = aedat4.walk_packets(lambda offset, n: pending[offset:offset + n], len(pending), self.known)
+        if self.finished and self.table and self.table > 0 and self.offset + end != self.table:
+            raise FormatError(f"the bytes from byte {self.offset + end:,} are no packet of a declared stream, where the index "
+                              f"table is not (it is at byte {self.table:,}): a damaged file?")
+        self.offset += end  # the caller takes the whole packets at once
         return end
 
     def held(self) -> int:
@@ -282,16 +288,12 @@ class Aedat4:
 def _without_table_position(header: bytes) -> bytes:
     """The AEDAT 4.0 header with its index-table position set to -1 (none): the `aedat` library seeks
     to that table, which lies beyond the packets it is given."""
+    from neurotac_cli.io import aedat4
+
     data = bytearray(header)
-    try:
-        table = struct.unpack_from("<I", data, 18)[0] + 18
-        vtable = table - struct.unpack_from("<i", data, table)[0]
-        if struct.unpack_from("<H", data, vtable)[0] >= 4 + 2 * 2:
-            offset = struct.unpack_from("<H", data, vtable + 4 + 2)[0]
-            if offset:
-                struct.pack_into("<q", data, table + offset, -1)
-    except struct.error:
-        raise FormatError("the AEDAT 4.0 header is damaged") from None
+    offset = aedat4.table_offset(header)
+    if offset is not None:
+        struct.pack_into("<q", data, offset, -1)
     return bytes(data)
 
 

@@ -543,3 +543,34 @@ def test_a_time_origin_in_a_prophesee_header_is_added_as_faery_adds_it(tmp_path)
     dat_header = b"% Data file containing CD events.\n% Version 2\n% Width 304\n% Height 240\n% T0 1000\n"
     (tmp_path / "t0.dat").write_bytes(dat_header + bytes([0, 8]) + struct.pack("<2I", 5, 10 | (20 << 14)))
     assert read_events_table(tmp_path / "t0.dat").column("t").to_pylist() == [1005]
+
+
+def test_an_aedat4_file_whose_packets_end_before_its_index_table_is_refused_not_read_in_part(tmp_path):
+    """A damaged packet header read as the index table dropped the rest of the file without a word."""
+    import struct
+
+    from neurotac_cli.errors import FormatError
+    from neurotac_cli.export import aedat4_bytes
+    from neurotac_cli.io import live
+
+    data = bytearray(real_file("davis346_aestream.aedat4").read_bytes())
+    offset = 18 + struct.unpack_from("<I", data, 14)[0]
+    for _ in range(20):  # the 21st packet's stream id damaged
+        offset += 8 + struct.unpack_from("<I", data, offset + 4)[0]
+    struct.pack_into("<i", data, offset, 77)
+    damaged = tmp_path / "damaged.aedat4"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(FormatError, match=f"from byte {offset:,} are no packet of a declared stream, where the index table is not"):
+        read_events_table(damaged)
+    header_end = 18 + struct.unpack_from("<I", data, 14)[0]
+    decoder = live._decoder("aedat4", bytes(data[:header_end]), None)  # piped: the same file as its bytes arrive
+    try:
+        with pytest.raises(FormatError, match=f"from byte {offset:,} are no packet of a declared stream"):
+            decoder.complete(bytearray(data[header_end:]))
+    finally:
+        decoder.close()
+    one = aedat4_bytes(np.arange(50), np.arange(50) % 64, np.arange(50) % 48, np.arange(50) % 2, 64, 48)
+    (tmp_path / "two.aedat4").write_bytes(one + one)  # two files joined
+    with pytest.raises(FormatError, match="a damaged file, or two joined"):
+        read_events_table(tmp_path / "two.aedat4")
+    assert read_events_table(real_file("davis346_aestream.aedat4")).num_rows == 117_667  # the index table itself: read whole
