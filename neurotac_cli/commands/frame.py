@@ -87,7 +87,8 @@ class Scale(ParamType):
     default=1_000_000,
     show_default=True,
     help="Refuse to write more frames than this (a clock jump or a tiny --window would otherwise write without end); "
-    "the error says where the frames come from.",
+    "the error says where the frames come from. A plain events stream is refused more than this many frames at once "
+    "(a clock jump), and otherwise runs for as long as it lasts (a live camera).",
 )
 @click.option(
     "--sort",

@@ -60,7 +60,7 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     material = load_in_background(material_path, threads) if material_path else lambda: None
     stream = events.import_events([path], sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
                                   speed=pace, stop=live.stop_on_signals())
-    framing = Framing(window_us=window, trial=camera_file_stem(stream.schema) or "events")
+    framing = Framing(window_us=window, trial=camera_file_stem(stream.schema) or "events", frame_options=False)
     box_spec = CropSpec(box=box, size=size, center=center, pool=pool) if (box, size, center, pool) != (None, None, None, None) else None
     schema, batches, report = sense.sense(stream, loaded(), framing, box_spec,
                                           material=material(), sensor=sensor,

@@ -17,7 +17,8 @@ the `neurotac:scale` metadata and in history so the same scale can be given to n
 Everything not framed is counted in a `FramingReport`: events before the start, after the end
 (or past --pad-to N), late events (a stream's events that arrive, less than one window out of time
 order, after their frame has left), saturated events. Nothing unbounded is written: more than
-`max_frames` frames are refused before they are written, with where they come from.
+`max_frames` frames are refused before they are written, with where they come from (in a stream,
+more than that many opened at once: a clock jump; a live stream runs on for as long as it lasts).
 """
 
 import dataclasses
@@ -85,6 +86,7 @@ class Framing:
     max_frames: int = MAX_FRAMES
     sort: bool = False
     slips: dict | None = None  # {trial: [(start µs, end µs), ...]} on the synced clock: a bool `slip` column
+    frame_options: bool = True  # the errors may offer `frame`'s --max-frames and --sort (`sense` has neither)
 
     def __post_init__(self):
         if not isinstance(self.window_us, (int, np.integer)) or self.window_us <= 0:
@@ -668,7 +670,9 @@ class _StreamFramer:
                     self.gap = (int(order[3]), self.report.events - len(t) + int(order[4]), int(order[5]))
                     order[4] = -1
                 if self.latest >= self.start:
-                    frames = (self.latest - self.start) // self.window + 1
+                    # the frames this batch opens at once, not all so far: a live sensor runs for hours
+                    # (a million 10 ms windows are 2.8 of them), a clock jump opens millions in one step
+                    frames = (self.latest - self.start) // self.window + 1 - self.emitted
                     check_frame_count(frames, self.framing, lambda: self._why(t), streaming=True)
                 order = None  # once per batch
             if not beyond:
@@ -703,7 +707,8 @@ class _StreamFramer:
         raise NeurotacError(
             f"{back:,} event{'s' if back > 1 else ''} more than one window out of time order (the first: event "
             f"{self.report.events - len(t) + first:,} at t = {int(t[first])} µs, after an event at {ahead} µs; "
-            "sort them with --sort, or fix the recording)"
+            + ("sort them with --sort, or fix the recording)" if self.framing.frame_options else
+               "fix the recording, or sort it: `neurotac import` it, then `neurotac frame --sort`)")
         )
 
     def _closed(self) -> int:
@@ -763,7 +768,8 @@ class _StreamFramer:
         yield from self._emit(n_total)
 
     def _why(self, t: np.ndarray) -> str:
-        return why_so_many(np.concatenate([[self.previous], t]), self.start, self.window, self.report.events - len(t) - 1)
+        return why_so_many(np.concatenate([[self.previous], t]), self.start, self.window, self.report.events - len(t) - 1,
+                           limit=self.framing.frame_options)
 
 
 LARGE_OUTPUT_BYTES = 8 << 30  # frames beyond this are worth a word before they fill a disk
@@ -785,12 +791,15 @@ def check_frame_count(frames: int, framing: Framing, why, streaming: bool = Fals
     stream's count is of the events so far: `streaming` says so."""
     if frames > framing.max_frames:
         at_least = "at least " if streaming else ""
-        raise NeurotacError(f"{at_least}{frames:,} frames to write, more than --max-frames {framing.max_frames:,} ({why()})")
+        limit = f"--max-frames {framing.max_frames:,}" if framing.frame_options else f"the {framing.max_frames:,} a stream may open at once"
+        raise NeurotacError(f"{at_least}{frames:,} frames to write, more than {limit} ({why()})")
 
 
-def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int, what: str = "event") -> str:
+def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int, what: str = "event", limit: bool = True) -> str:
     """The reason for a frame count: the largest gap in `times` (times of `what`, numbered from
-    `first_index`) when it holds most of the span from `start`, else a window too small for it."""
+    `first_index`) when it holds most of the span from `start`, else a window too small for it.
+    `limit`: the advice may offer raising --max-frames."""
+    raise_it = ", or raise --max-frames" if limit else ""
     reach = np.maximum.accumulate(np.asarray(times, dtype=np.int64))
     span = int(reach[-1]) - start
     steps = np.diff(reach)
@@ -798,11 +807,11 @@ def why_so_many(times: np.ndarray, start: int, window_us: int, first_index: int,
     if len(steps) and 2 * int(steps[i]) > span:
         return (
             f"a gap of {_duration(int(steps[i]))} at {what} {first_index + i + 1:,}, from t = {int(reach[i])} to {int(reach[i + 1])} µs, "
-            "a clock jump or a corrupt record; cut the input there, or raise --max-frames"
+            f"a clock jump or a corrupt record; cut the input there{raise_it}"
         )
     return (
         f"the {what}s span {_duration(span)}: a window of {_duration(window_us)} is too small for it; "
-        "give a longer --window, or raise --max-frames"
+        f"give a longer --window{raise_it}"
     )
 
 

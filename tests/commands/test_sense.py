@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from neurotac_cli import tables
+from neurotac_cli import schema as sch, tables
 
 BOX = ["--size", "60x60", "--center", "120,90", "--pool", "4x4"]
 
@@ -98,3 +98,22 @@ def test_sense_tells_its_own_options_when_the_box_differs_from_the_training_fram
     folder, camera = rig
     done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", "--size", "40x40", "--center", "120,90", "--pool", "4x4")
     assert done.returncode == 1 and "give `sense` the training's --window" in done.stderr and "neurotac crop" not in done.stderr
+
+
+def test_sense_s_framing_errors_offer_no_option_sense_lacks():
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.ops import frame as fr
+
+    t = np.array([0, 5_000, 12_000, 10**12])
+    events = sch.events_table(t, np.zeros(4, int), np.zeros(4, int), np.zeros(4, int), 8, 8)
+    schema, batches = fr.frame_events(events.schema, events.to_batches(max_chunksize=1),
+                                      fr.Framing(window_us=10_000, frame_options=False), fr.FramingReport())
+    with pytest.raises(NeurotacError) as caught:
+        list(batches)
+    assert "--max-frames" not in str(caught.value) and "a gap of" in str(caught.value)
+    back = sch.events_table(np.array([0, 50_000, 10_000]), np.zeros(3, int), np.zeros(3, int), np.zeros(3, int), 8, 8)
+    schema, batches = fr.frame_events(back.schema, back.to_batches(max_chunksize=1),
+                                      fr.Framing(window_us=10_000, frame_options=False), fr.FramingReport())
+    with pytest.raises(NeurotacError) as caught:
+        list(batches)
+    assert "with --sort" not in str(caught.value) and "`neurotac frame --sort`" in str(caught.value)

@@ -585,3 +585,16 @@ def test_frames_before_a_force_log_that_starts_late_are_named():
     frames = fr.frame_recordings(table, 10_000, report=report)
     assert np.isnan(frames.column("force").to_numpy(zero_copy_only=False)).sum() == 39
     assert any("39 frames of 1 trial come before the force log's first sample" in note for note in report.notes)
+
+
+def test_a_live_stream_runs_past_the_frame_limit_while_a_jump_in_it_is_refused():
+    """A sensor runs for hours: a million 10 ms windows are 2.8 of them. Only frames opened at once count."""
+    t = np.arange(0, 200_000, 100)  # 200 ms of events, 2,000 batches of one event: 200 frames of 1 ms
+    events = sch.events_table(t, np.zeros(len(t), int), np.zeros(len(t), int), np.zeros(len(t), int), W, H)
+    framing = fr.Framing(window_us=1_000, max_frames=50)
+    schema, batches = fr.frame_events(events.schema, events.to_batches(max_chunksize=1), framing, fr.FramingReport())
+    assert sum(batch.num_rows for batch in batches) == 200
+    jump = sch.events_table(np.append(t, 10**9), np.zeros(len(t) + 1, int), np.zeros(len(t) + 1, int), np.zeros(len(t) + 1, int), W, H)
+    schema, batches = fr.frame_events(jump.schema, jump.to_batches(max_chunksize=1), framing, fr.FramingReport())
+    with pytest.raises(NeurotacError, match="frames to write, more than --max-frames 50"):
+        list(batches)
