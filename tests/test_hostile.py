@@ -1277,3 +1277,19 @@ def test_a_sensor_given_over_one_import_only_guessed_from_the_events_is_taken(tm
     assert code == 0, stderr
     framed = tables.read([out])
     assert sch.sensor_of(framed.schema) == (240, 180) and sch.camera_source(framed.schema)["sensor_from"] == "option"
+
+
+def test_concat_refuses_frames_pooled_differently_though_their_shapes_agree(tmp_path):
+    table = frames_table()
+
+    def made(pool):
+        history = [{"command": "frame", "args": {"window_us": 10_000, "dtype": "uint16"}}, {"command": "crop", "args": {"pool": list(pool)}}]
+        return table.replace_schema_metadata(sch.set_meta(table.schema, history=history).metadata)
+
+    tables.write(str(tmp_path / "a.arrows"), made((6, 6)))
+    tables.write(str(tmp_path / "b.arrows"), made((3, 3)))
+    code, stderr, _ = invoke(["concat", "--rename", "-o", str(tmp_path / "ab.arrows"), str(tmp_path / "a.arrows"), str(tmp_path / "b.arrows")])
+    assert one_line(stderr, code, 1) and "was pooled 3x3" in stderr and "6x6" in stderr
+    tables.write(str(tmp_path / "c.arrows"), made((6, 6)))
+    code, stderr, _ = invoke(["concat", "--rename", "-o", str(tmp_path / "ac.arrows"), str(tmp_path / "a.arrows"), str(tmp_path / "c.arrows")])
+    assert code == 0, stderr

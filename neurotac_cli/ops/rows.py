@@ -148,7 +148,7 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
         differences = [_difference(first, table.schema, name) for (name, _), table in zip(parts[1:], tables[1:])]
         detail = "; ".join(d for d in differences if d) or str(error).splitlines()[0]
         raise SchemaError(f"the tables have different columns or types ({detail}); "
-                          "select the same columns in each first") from None
+                          "make them with the same steps and labels (DuckDB or Polars can drop or add a column)") from None
     return combined, notes
 
 
@@ -182,6 +182,21 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
             known, unknown = (first_name, name) if windows[0] is not None else (name, first_name)
             raise SchemaError(f"{unknown} does not record its frame window (metadata {sch.WINDOW}) and {known} has "
                               f"{windows[0] or windows[1]} µs; frame both with `neurotac frame --window` so that the window is known")
+        _check_made_alike(first_name, first.schema, name, table.schema)
+
+
+def _check_made_alike(first_name: str, first: pa.Schema, name: str, other: pa.Schema) -> None:
+    """Frames pooled or scaled differently (known where both histories say): one count would mean
+    another amount of the sensor in each, though their shapes agree."""
+    from neurotac_cli.model.core import made_by
+
+    (pool_a, scaled_a), (pool_b, scaled_b) = made_by(sch.get_meta(first, sch.HISTORY, [])), made_by(sch.get_meta(other, sch.HISTORY, []))
+    if None not in (pool_a, pool_b) and pool_a != pool_b:
+        raise SchemaError(f"{name} was pooled {pool_b[0]}x{pool_b[1]}, {first_name} {pool_a[0]}x{pool_a[1]}: one count covers "
+                          "another area of the sensor in each; concatenate tables made alike (crop and frame them the same way)")
+    if None not in (scaled_a, scaled_b) and scaled_a != scaled_b:
+        raise SchemaError(f"{name} holds counts {'scaled' if scaled_b else 'as counted'}, {first_name} "
+                          f"{'scaled' if scaled_a else 'as counted'} (`frame --dtype`); concatenate tables made alike")
 
 
 def _show(value) -> str:
