@@ -696,6 +696,10 @@ def _arange(start, stop, step, name, text) -> list:
     count = int(math.floor((stop - start) / step + 1e-9)) + 1
     if count > 100_000:
         raise UsageError(f"grid {name}={text} has {count} values (more than 100000; use a larger step)")
+    last = start + (count - 1) * step
+    if abs(last - stop) > 1e-9 * max(1.0, abs(stop)):  # A..B is inclusive: an end the steps pass over would be left out
+        raise UsageError(f"grid {name}={text}: the steps of {step} from {start} end at {round(last, 12)}, not at {stop}; "
+                         "give an end the steps reach, or list the values")
     if all(isinstance(v, int) for v in (start, stop, step)):
         return [start + i * step for i in range(count)]
     return [round(start + i * step, 12) for i in range(count)]

@@ -512,3 +512,12 @@ def test_a_study_that_takes_tasks_from_the_cache_says_so_once(tiny_frames_file, 
 def test_a_grid_value_given_twice_is_refused():
     with pytest.raises(NeurotacError, match="gives 2 more than once"):
         parse_grid(["layers=1..3,2"])
+
+
+@pytest.mark.parametrize("spec", ["units=5,10,...,41", "layers=1..4:2"])
+def test_a_grid_range_whose_steps_pass_over_its_end_is_refused_not_cut_short(spec):
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.study import parse_grid
+
+    with pytest.raises(UsageError, match="give an end the steps reach"):
+        parse_grid([spec])
