@@ -121,6 +121,23 @@ def aedat4_bytes(t, x, y, p, width: int, height: int) -> bytes:
     return b"".join(out)
 
 
+MS_TO_IDX_MOST = 30 * 24 * 3600 * 1000  # milliseconds: a longer span is a clock jump, not a recording
+MS_BLOCK = 1 << 20  # milliseconds of ms_to_idx computed at once, so memory stays flat however long the span
+
+
+def _write_ms_to_idx(handle, t: np.ndarray) -> None:
+    """DSEC's `ms_to_idx` of time-sorted events `t` (µs from the first), written a block at a time,
+    compressed: one entry per millisecond of the span, which a clock jump would make enormous."""
+    count = int(t[-1]) // 1000 + 2 if len(t) else 1
+    if count > MS_TO_IDX_MOST:
+        raise NeurotacError(f"the events span {count / 8.64e7:.1f} days, beyond the {MS_TO_IDX_MOST // 86_400_000} days "
+                            "an HDF5 ms_to_idx index is written for (a clock jump?); cut the events first (`neurotac select`)")
+    dataset = handle.create_dataset("ms_to_idx", shape=(count,), dtype=np.uint64, chunks=True, compression="gzip", compression_opts=4)
+    for start in range(0, count, MS_BLOCK):
+        milliseconds = np.arange(start, min(count, start + MS_BLOCK), dtype=np.int64) * 1000
+        dataset[start:start + len(milliseconds)] = np.searchsorted(t, milliseconds).astype(np.uint64)
+
+
 def write_hdf5(path: str, t, x, y, p, width: int, height: int) -> bool:
     """An HDF5 file in DSEC's layout: `events/{x, y, t, p}` (uint16, uint16, int64 µs after `t_offset`,
     uint8 0/1), `t_offset` (the first event's time, µs) and, for time-sorted events, `ms_to_idx` (the
@@ -141,8 +158,7 @@ def write_hdf5(path: str, t, x, y, p, width: int, height: int) -> bool:
         group.create_dataset("p", data=(np.asarray(p) > 0).astype(np.uint8), **chunked)
         handle.create_dataset("t_offset", data=np.int64(offset))
         if ordered:
-            milliseconds = np.arange(0, (int(t[-1]) - offset) // 1000 + 2 if len(t) else 1) * 1000
-            handle.create_dataset("ms_to_idx", data=np.searchsorted(t - offset, milliseconds).astype(np.uint64))
+            _write_ms_to_idx(handle, t - offset)
         handle.attrs["width"], handle.attrs["height"] = int(width), int(height)
         handle.attrs["geometry"] = f"{int(width)}x{int(height)}"
     return ordered

@@ -1293,3 +1293,16 @@ def test_concat_refuses_frames_pooled_differently_though_their_shapes_agree(tmp_
     tables.write(str(tmp_path / "c.arrows"), made((6, 6)))
     code, stderr, _ = invoke(["concat", "--rename", "-o", str(tmp_path / "ac.arrows"), str(tmp_path / "a.arrows"), str(tmp_path / "c.arrows")])
     assert code == 0, stderr
+
+
+def test_an_hdf5_export_of_events_a_clock_jump_apart_is_refused_and_a_long_span_stays_small(tmp_path):
+    t = np.array([0, 10, 40 * 86_400_000_000])  # 40 days apart
+    path = str(tmp_path / "e.arrows")
+    tables.write(path, sch.events_table(t, np.zeros(3, int), np.zeros(3, int), np.zeros(3, int), 8, 8))
+    code, stderr, _ = invoke(["export", "-o", str(tmp_path / "x.h5"), path])
+    assert one_line(stderr, code, 1) and "the events span 40.0 days" in stderr
+    assert not any(p.name.startswith("x.h5") for p in tmp_path.iterdir())
+    tables.write(path, sch.events_table(np.array([0, 10, 3 * 3_600_000_000]), np.zeros(3, int), np.zeros(3, int), np.zeros(3, int), 8, 8))
+    code, stderr, _ = invoke(["export", "-o", str(tmp_path / "y.h5"), path])
+    assert code == 0, stderr
+    assert (tmp_path / "y.h5").stat().st_size < 2_000_000  # 10.8 million ms_to_idx entries, compressed
