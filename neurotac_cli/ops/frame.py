@@ -907,17 +907,22 @@ def _string_labels(table: pa.Table, report: FramingReport) -> pa.Table:
         if column.name in reserved:
             named.append(f"{column.name} ({column.type})")
             table = table.drop([column.name])
-        elif pa.types.is_nested(kind):
-            nested.append(f"{column.name} ({column.type})")
         else:
             index = table.schema.get_field_index(column.name)
-            table = table.set_column(index, pa.field(column.name, pa.string()), table.column(index).cast(pa.string()))
+            try:
+                text = None if pa.types.is_nested(kind) else table.column(index).cast(pa.string())
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError):  # bytes that are no text, types without one
+                text = None
+            if text is None:
+                nested.append(f"{column.name} ({column.type})")
+                continue
+            table = table.set_column(index, pa.field(column.name, pa.string()), text)
             if not (pa.types.is_large_string(kind) or pa.types.is_string(kind)):  # text already: nothing to say
                 cast.append(f"{column.name} ({column.type})")
     if cast:
         report.notes.append(f"{', '.join(cast)} carried into the frames as text: frames hold labels as strings")
     if nested:
-        report.notes.append(f"{', '.join(nested)} left out of the frames: a label is one value per trial")
+        report.notes.append(f"{', '.join(nested)} left out of the frames: a label is one value per trial, as text")
     if named:
         report.notes.append(f"{', '.join(named)} left out of the frames: the frames have a column of that name")
     return table
