@@ -1,21 +1,24 @@
 """Durations and sizes as written on the command line: `10ms`, `500us`, `1.5s`, `115x115`."""
 
+import math
 import re
 
 from neurotac_cli.errors import NeurotacError
 
 _UNIT_US = {"us": 1, "µs": 1, "ms": 1_000, "s": 1_000_000, "min": 60_000_000, "h": 3_600_000_000}
-_DURATION = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?|[-+]?\.\d+)\s*(us|µs|ms|s|min|h)\s*$")
+_DURATION = re.compile(r"^\s*([-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)\s*(us|µs|ms|s|min|h)\s*$")
+_UNIT_AT_END = re.compile(r"\d\s*(us|µs|ms|s|min|h)\s*$")
 
 
 def parse_duration_us(text: str) -> int:
     """`10ms` -> 10000. A bare number is refused: peer tools disagree on its unit."""
     match = _DURATION.match(str(text))
     if not match:
-        raise NeurotacError(
-            f"cannot read duration {text!r} (a duration carries its unit; write e.g. 10ms, 500us or 1.5s)"
-        )
+        why = ("its number is not one" if _UNIT_AT_END.search(str(text)) else "a duration carries its unit")
+        raise NeurotacError(f"cannot read duration {text!r} ({why}; write e.g. 10ms, 500us, 1.5s or 2e-3s)")
     value = float(match.group(1)) * _UNIT_US[match.group(2)]
+    if not math.isfinite(value):
+        raise NeurotacError(f"duration {text!r} is beyond any clock")
     if abs(value - round(value)) > 1e-6:
         raise NeurotacError(f"duration {text!r} is not a whole number of microseconds (use a finer unit)")
     return int(round(value))

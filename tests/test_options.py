@@ -1,6 +1,7 @@
 """Shared options: the history a command records comes from its parsed parameters, and contradicting
 options are one usage line with exit 2."""
 
+import pytest
 from click.testing import CliRunner
 
 from neurotac_cli import schema as sch
@@ -44,3 +45,16 @@ def test_threads_below_1_and_negative_jobs_are_usage_errors():
                  ["eval", "--cv", "loo", "--model-spec", "tdnn", "-j", "-2"]):
         result = CliRunner().invoke(cli, args, input=b"")
         assert result.exit_code == 2 and "is not in the range" in result.output, (args, result.output)
+
+
+def test_a_duration_takes_an_exponent_and_says_which_part_it_could_not_read():
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.units import parse_duration_us
+
+    assert parse_duration_us("2e-3s") == 2_000 and parse_duration_us("1e1ms") == 10_000
+    with pytest.raises(NeurotacError, match="its number is not one"):
+        parse_duration_us("1.5.2ms")
+    with pytest.raises(NeurotacError, match="a duration carries its unit"):
+        parse_duration_us("10")
+    with pytest.raises(NeurotacError, match="beyond any clock"):
+        parse_duration_us("1e400s")
