@@ -1306,3 +1306,9 @@ def test_an_hdf5_export_of_events_a_clock_jump_apart_is_refused_and_a_long_span_
     code, stderr, _ = invoke(["export", "-o", str(tmp_path / "y.h5"), path])
     assert code == 0, stderr
     assert (tmp_path / "y.h5").stat().st_size < 2_000_000  # 10.8 million ms_to_idx entries, compressed
+
+
+@pytest.mark.parametrize("condition, mark", [("frame < 3 /*", "/*"), ("frame < 3 -- note", "--"), ("frame < 3; drop", ";")])
+def test_a_condition_that_cuts_its_query_names_the_mark_that_cuts_it(files, condition, mark):  # noqa: F811
+    code, stderr, _ = invoke(["select", "--where", condition, f"{files}/f.arrows"])
+    assert one_line(stderr, code, 1) and f"a condition cannot hold `{mark}`" in stderr and "not a condition on each row" not in stderr

@@ -49,10 +49,10 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
                                   f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
     except duckdb.Error as error:
         first = str(error).splitlines()[0]
-        if ROW_INDEX in first and ROW_INDEX not in expression and "Candidate bindings" not in first:
-            raise NeurotacError(f"{expression!r} is not a condition on each row ({PER_ROW})") from None
         # the condition is set inside a query, so a comment or a `;` cuts the query, not the condition
         cut = next((f"; a condition cannot hold `{mark}`, which cuts the query it is set in" for mark in ("--", "/*", ";") if mark in expression), "")
+        if ROW_INDEX in first and ROW_INDEX not in expression and "Candidate bindings" not in first and not cut:
+            raise NeurotacError(f"{expression!r} is not a condition on each row ({PER_ROW})") from None
         raise NeurotacError(f"cannot evaluate {expression!r}: {first}{cut} (columns: {', '.join(plain.column_names[:-1])}; "
                             "write SQL, strings in single quotes, times in µs)") from None
     finally:
