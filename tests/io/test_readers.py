@@ -574,3 +574,9 @@ def test_an_aedat4_file_whose_packets_end_before_its_index_table_is_refused_not_
     with pytest.raises(FormatError, match="a damaged file, or two joined"):
         read_events_table(tmp_path / "two.aedat4")
     assert read_events_table(real_file("davis346_aestream.aedat4")).num_rows == 117_667  # the index table itself: read whole
+    from neurotac_cli.io import aedat4
+
+    unstated = bytearray(real_file("davis346_aestream.aedat4").read_bytes())  # a writer that never updated its header
+    struct.pack_into("<q", unstated, aedat4.table_offset(bytes(unstated)), -1)
+    (tmp_path / "unstated.aedat4").write_bytes(bytes(unstated))
+    assert read_events_table(tmp_path / "unstated.aedat4").num_rows == 117_667
