@@ -150,10 +150,21 @@ def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False) -> float 
     slope = np.abs(np.gradient(force))
     if not slope.any() or rate.std() == 0:
         return None
-    a = rate[lags:length - lags]
-    scores = [float(np.corrcoef(a, b)[0, 1]) for b in (slope[lags - lag:length - lags - lag] for lag in range(-lags, lags + 1))
-              if a.std() and b.std()]
-    return round(max(scores), 3) if scores else None
+    scores = _window_pearson(rate[lags:length - lags], slope)  # each lag's window of the slope, from -lags to +lags
+    return round(float(np.nanmax(scores)), 3) if np.isfinite(scores).any() else None
+
+
+def _window_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pearson r of `a` with every window of `b` as long as `a` (b[k:k + len(a)], k = 0 .. len(b) -
+    len(a)), NaN where either is flat: the products by FFT (`_xc`), the windows' sums from running sums."""
+    m = len(a)
+    s_ab = _xc(b, a)[m - 1:len(b)]
+    running = np.concatenate([[0.0], np.cumsum(b)]), np.concatenate([[0.0], np.cumsum(b * b)])
+    s_b, s_bb = (total[m:] - total[:-m] for total in running)
+    cov = s_ab - a.sum() * s_b / m
+    var = (np.dot(a, a) - a.sum() ** 2 / m) * (s_bb - s_b * s_b / m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(var > 1e-12 * np.maximum(np.dot(a, a) * s_bb, 1e-300), cov / np.sqrt(np.maximum(var, 1e-300)), np.nan)
 
 
 def disagreement_warnings(trials: dict, how: str) -> list[str]:
