@@ -16,6 +16,7 @@ import pyarrow as pa
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError
+from neurotac_cli.units import first_few
 
 CAMERA_SUFFIXES = (".aedat", ".aedat4", ".raw", ".dat", ".es", ".h5", ".hdf5")
 
@@ -94,8 +95,8 @@ def folder_manifest(folder: str) -> tuple[str, str]:
         force = next((f.format(stem=stem) for f in FORCE_NAMES if os.path.isfile(os.path.join(folder, f.format(stem=stem)))), None)
         (rows.append([stem, name, force]) if force else alone.append(name))
     if alone:
-        raise InputError(f"no force log for {len(alone)} camera file(s) in {folder} ({', '.join(alone[:3])}"
-                         f"{', ...' if len(alone) > 3 else ''}); name each {FORCE_NAMES[0].format(stem='<name>')}, "
+        raise InputError(f"no force log for {len(alone)} camera file(s) in {folder} ({first_few(alone)})"
+                         f"; name each {FORCE_NAMES[0].format(stem='<name>')}, "
                          f"or write {path} yourself (trial,events,force,<labels>)")
     from neurotac_cli.tables import atomic_file
 

@@ -56,6 +56,12 @@ def is_whole(value) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
+def first_few(names, most: int = 3) -> str:
+    """`a, b, c, ...`: the first `most` of `names`, and an ellipsis where there are more."""
+    names = list(names)
+    return ", ".join(map(str, names[:most])) + (", ..." if len(names) > most else "")
+
+
 def counted(n: int, noun: str) -> str:
     """`1 trial`, `3 trials`: a count and its noun, plural where it is not one."""
     return f"{n:,} {noun}{'' if n == 1 else 's'}"

@@ -16,7 +16,7 @@ from neurotac_cli.model.data import (Sequences, already_accumulated, check_time_
                                      sequences)
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, first_few
 
 CHANNELS = ["off", "on"]
 EVAL_BATCH = 16
@@ -383,8 +383,8 @@ def _check_classes(data, label: str):
         return  # told by _check_training_set, with the labels there are
     missing = [trial for trial, value in zip(data.trials, data.labels[label]) if value is None or not value.strip()]
     if missing:
-        raise ModelError(f"{counted(len(missing), 'trial')} with no {label} ({', '.join(missing[:3])}"
-                         f"{', ...' if len(missing) > 3 else ''}); label them, or leave them out (`neurotac select`)")
+        raise ModelError(f"{counted(len(missing), 'trial')} with no {label} ({first_few(missing)})"
+                         f"; label them, or leave them out (`neurotac select`)")
 
 
 def _check_training_set(name, config, train_set, label) -> float:
@@ -704,7 +704,7 @@ def classify_table(model: Model, table: pa.Table, notes: list | None = None) -> 
     shortest = (model.training.get("trial_frames") or [0])[0]
     short = [trial for trial, counts in zip(data.trials, data.counts) if len(counts) < SHORT_SHARE * shortest]
     if short and notes is not None:
-        notes.append(f"{counted(len(short), 'trial')} ({', '.join(short[:3])}{', ...' if len(short) > 3 else ''}) hold fewer than "
+        notes.append(f"{counted(len(short), 'trial')} ({first_few(short)}) hold fewer than "
                      f"half the frames of the shortest training trial ({shortest}): a part of a grasp, whose class is a guess")
     proba = model.proba(data, notes)
     label = model.training.get("label", "material")

@@ -10,7 +10,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from neurotac_cli.errors import ModelError, UsageError
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, first_few
 from neurotac_cli.model.data import Sequences
 from neurotac_cli.model.curve import best_epoch, member_curves
 
@@ -50,8 +50,8 @@ def folds(data: Sequences, cv: str, rng: np.random.Generator) -> list:
         values = [data.labels[label][i] for i in originals]
         unlabelled = [data.trials[i] for i, v in zip(originals, values) if v in (None, "")]
         if unlabelled and not value:
-            raise ModelError(f"--cv group:{label}: {counted(len(unlabelled), 'trial')} with no {label} value ({', '.join(unlabelled[:3])}"
-                             f"{', ...' if len(unlabelled) > 3 else ''}) would be tested in no fold; label them, or leave them "
+            raise ModelError(f"--cv group:{label}: {counted(len(unlabelled), 'trial')} with no {label} value ({first_few(unlabelled)})"
+                             f" would be tested in no fold; label them, or leave them "
                              f"out with `neurotac select --where \"{label} <> ''\"`")
         wanted = [value] if value else sorted({v for v in values if v is not None})
         if value and value not in values:

@@ -32,7 +32,7 @@ from torch import nn
 
 from neurotac_cli.errors import ModelError
 from neurotac_cli.model.data import Sequences, resample
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, first_few
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ def features(data: Sequences, config: Config) -> np.ndarray:
         blind = [trial for trial, f in zip(data.trials, data.force) if np.isnan(f).all()]
         if blind:
             raise ModelError(f"material-force reads the measured force, and {counted(len(blind), 'trial')} "
-                             f"({', '.join(blind[:3])}{', ...' if len(blind) > 3 else ''}) have none (column force is empty)")
+                             f"({first_few(blind)}) have none (column force is empty)")
     return np.stack([_trial_features(c, f, config) for c, f in zip(data.counts, data.force)]).astype(np.float32)
 
 
@@ -107,7 +107,7 @@ def domains_of(data: Sequences, label: str) -> np.ndarray:
         return np.asarray(["all"] * len(data), dtype=object)
     missing = [trial for trial, value in zip(data.trials, values) if value is None or not str(value).strip()]
     if missing:
-        raise ModelError(f"{len(missing)} trial(s) with no {label} ({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}); "
+        raise ModelError(f"{len(missing)} trial(s) with no {label} ({first_few(missing)}); "
                          f"a model adapted by {label} standardises each {label} apart: label them, or leave them out")
     return np.asarray([str(v) for v in values], dtype=object)
 

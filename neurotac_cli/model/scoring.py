@@ -6,7 +6,7 @@ import pyarrow as pa
 
 from neurotac_cli import metrics
 from neurotac_cli.errors import SchemaError
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, first_few
 
 
 def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None, label="material", whole=True) -> list:
@@ -126,7 +126,7 @@ def _left_out_lines(rows: list, figures: dict) -> list:
     flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
     if flat:
         lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
-                     f"({', '.join(flat[:3])}{', ...' if len(flat) > 3 else ''}), '-' here and NaN in the metrics table")
+                     f"({first_few(flat)}), '-' here and NaN in the metrics table")
     return lines
 
 

@@ -33,7 +33,7 @@ import pyarrow.ipc as ipc
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 from neurotac_cli.io import kernels
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, first_few
 from neurotac_cli.ops import phases as ph
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
@@ -275,7 +275,7 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         unknown = sorted(set(framing.slips) - {trial for trial, *_ in plan})
         if unknown:
             report.notes.append(f"the true slips name {len(unknown)} trial(s) not among the recordings "
-                                f"({', '.join(unknown[:3])}{', ...' if len(unknown) > 3 else ''}): their slips label no frame")
+                                f"({first_few(unknown)}): their slips label no frame")
         spans = {trial: n_total * framing.window_us for trial, *_, n_total in plan}
         beyond = sum(1 for trial, end_us in spans.items() for start, end in framing.slips.get(trial, ())
                      if end <= 0 or start >= end_us)
@@ -344,7 +344,7 @@ class _LabelDoubts:
                          "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")
         if self.several:
             notes.append(f"the force comes back to rest between grasps in {counted(len(self.several), 'trial')} "
-                         f"({', '.join(self.several[:3])}{', ...' if len(self.several) > 3 else ''}), labelled as one grasp "
+                         f"({first_few(self.several)}), labelled as one grasp "
                          "each (--phases auto); a session of many grasps needs --phases session")
         return notes
 
@@ -413,7 +413,7 @@ def _trial_notes(rows: list, totals: list, framing: Framing, report: FramingRepo
     empty = [trial for (trial, events, (force_t, _), _), n_total in zip(rows, totals)
              if not n_total and not len(events[0]) and not len(force_t)]
     if empty:
-        report.notes.append(f"{counted(len(empty), 'trial')} ({', '.join(empty[:3])}{', ...' if len(empty) > 3 else ''}) "
+        report.notes.append(f"{counted(len(empty), 'trial')} ({first_few(empty)}) "
                             f"{'holds' if len(empty) == 1 else 'hold'} no event and no force sample: {'it makes' if len(empty) == 1 else 'they make'} no frame")
 
 
