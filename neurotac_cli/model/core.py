@@ -664,15 +664,10 @@ def gaps_note(missing: dict, runs: str = "ran") -> str | None:
 
 def missing_frames(table: pa.Table) -> dict:
     """{trial: frame numbers missing between its first and last frame} of a frames table."""
-    trials = np.asarray(table.column("trial").to_pylist(), dtype=object)
-    frames = table.column("frame").to_numpy().astype(np.int64)
-    names, index = np.unique(trials.astype(str), return_inverse=True)
-    low = np.full(len(names), np.iinfo(np.int64).max)
-    high = np.full(len(names), np.iinfo(np.int64).min)
-    np.minimum.at(low, index, frames)
-    np.maximum.at(high, index, frames)
-    distinct = np.bincount(np.unique(np.stack([index, frames]), axis=1)[0], minlength=len(names))
-    return {str(name): int(span) for name, span in zip(names, high - low + 1 - distinct)}
+    spans = table.select(["trial", "frame"]).group_by("trial").aggregate(
+        [("frame", "min"), ("frame", "max"), ("frame", "count_distinct")]).to_pydict()
+    return {trial: high - low + 1 - distinct for trial, low, high, distinct
+            in zip(spans["trial"], spans["frame_min"], spans["frame_max"], spans["frame_count_distinct"])}
 
 
 def _in_order(trial: str, last: tuple | None, frames: np.ndarray, t: np.ndarray) -> tuple:
