@@ -102,7 +102,7 @@ def open_aedat2(path: str, head: bytes, sensor) -> Decoded:
     chip = chip_of(header)
     declared = declared_sensor(header, chip, sensor)  # its height flips the rows, --sensor or not
     offset = len(header)
-    dvs128 = is_dvs128(chip) or (chip is None and declared is None and bool(_dvs128_addresses(path, offset)))
+    dvs128 = is_dvs128(chip) or (chip is None and declared is None and _dvs128_addresses(path, offset))
     height = None if dvs128 else flip_height(chip, declared, sensor)
 
     def chunks():

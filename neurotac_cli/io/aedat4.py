@@ -109,15 +109,22 @@ def whole_packets(path: str, streams) -> tuple[int, int]:
         header_end = 18 + struct.unpack("<I", read(14, 4))[0]
         count, end, finished = walk_packets(read, size, streams, header_end)
         if finished:
-            table = table_position(read(0, header_end))
-            stated = table is not None and table > 0
-            # a header that states no table (its writer stopped before updating it) may still end in
-            # one: a few tens of bytes per packet, far fewer than a second recording or the rest of this one
-            if (stated and table != end) or (not stated and size - end > TABLE_BYTES_PER_PACKET * (count + 1)):
-                where = f", where the index table is not (it is at byte {table:,})" if stated else ""
-                raise FormatError(f"the {size - end:,} bytes from byte {end:,} are no packet of a declared stream{where}: "
-                                  f"a damaged file, or two joined? (the {count:,} packets before them are whole)")
+            check_table(end, table_position(read(0, header_end)), count, size - end)
     return count, 0 if finished else size - end
+
+
+def check_table(end: int, table: int | None, count: int, rest: int | None = None) -> None:
+    """Refuse packets that end, at byte `end`, at one of no declared stream that is not the index
+    table: a damaged packet, or a second file joined on, whose data would be lost without a word.
+    `table`: the position the header states (-1 or None: none). A header that states none (its writer
+    stopped before updating it) may still end in a table, a few tens of bytes per packet, far fewer
+    than a second recording: `rest`, the bytes from `end` to the file's end, tells (None in a stream,
+    whose end is not known: only a stated table is checked there)."""
+    stated = table is not None and table > 0
+    if (stated and table != end) or (not stated and rest is not None and rest > TABLE_BYTES_PER_PACKET * (count + 1)):
+        where = f", where the index table is not (it is at byte {table:,})" if stated else ""
+        raise FormatError(f"the bytes from byte {end:,} are no packet of a declared stream{where}: a damaged file, or two "
+                          f"joined? (the {count:,} packets before them are whole)")
 
 
 TABLE_BYTES_PER_PACKET = 256  # an index table entry is ~35 bytes (1,408 bytes for 40 packets in a DAVIS346 file)

@@ -248,15 +248,15 @@ class Aedat4:
         self.known = set(streams)
         self.meta = {"source": others} if others else {}
         # a finished file piped in states where its index table is; a file still being written does not yet (-1)
-        self.table, self.offset = aedat4.table_position(header), len(header)
+        self.table, self.offset, self.packets = aedat4.table_position(header), len(header), 0
 
     def complete(self, pending) -> int:
         from neurotac_cli.io import aedat4
 
-        _, end, self.finished = aedat4.walk_packets(lambda offset, n: pending[offset:offset + n], len(pending), self.known)
-        if self.finished and self.table and self.table > 0 and self.offset + end != self.table:
-            raise FormatError(f"the bytes from byte {self.offset + end:,} are no packet of a declared stream, where the index "
-                              f"table is not (it is at byte {self.table:,}): a damaged file?")
+        count, end, self.finished = aedat4.walk_packets(lambda offset, n: pending[offset:offset + n], len(pending), self.known)
+        self.packets += count
+        if self.finished:
+            aedat4.check_table(self.offset + end, self.table, self.packets)
         self.offset += end  # the caller takes the whole packets at once
         return end
 
