@@ -197,12 +197,11 @@ class Pool(ParamType):
 def crop_box_options(streaming: bool = False):
     """--box, --size, --center, --pool: the contact area to keep (crop; sense, `streaming`, whose
     centre is given: `auto` needs the whole input)."""
-    center = (click.option("--center", type=IntTuple(2, "120,90", "X,Y", words=("auto",)), default=None,  # `auto` refused with its reason
-                           help="Centre of the --size box (`neurotac crop --center auto` on a recording of the rig prints it).")
-              if streaming else
-              click.option("--center", type=IntTuple(2, "120,90", "X,Y|auto", words=("auto",)), default=None,
-                           help="Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (printed, "
-                           "and recorded in history; `auto` reads the whole input before writing a frame, so on a live stream give X,Y)."))
+    # `auto` is parsed for a stream too, so that it is refused with its reason rather than as a malformed X,Y
+    center = click.option("--center", type=IntTuple(2, "120,90", "X,Y" if streaming else "X,Y|auto", words=("auto",)), default=None,
+                          help="Centre of the --size box (`neurotac crop --center auto` on a recording of the rig prints it)." if streaming
+                          else "Centre of the --size box: X,Y, or `auto` = the contact area's centre from the whole input (printed, "
+                          "and recorded in history; `auto` reads the whole input before writing a frame, so on a live stream give X,Y).")
 
     def decorate(function):
         for option in reversed([

@@ -50,10 +50,12 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
     from neurotac_cli import tables
     from neurotac_cli.ops import augment
 
+    angles = [rotate] if rotate is not None else list(rotate_range or ())
+    rotation = f"--rotate {rotate:g}" if rotate is not None else "--rotate-range " + " ".join(f"{a:g}" for a in angles)
+    whole_turns = bool(angles) and min(angles) == max(angles) and angles[0] % 360 == 0  # 0, 360 or -360 degrees
     unchanged = [name for name, same in (("--fs 0", fs == 0), ("--tes with J 0", tes is not None and tes[0] == 0),
-                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), (f"--rotate {rotate:g}" if rotate is not None else "", rotate is not None and rotate % 360 == 0),
-                                         (f"--rotate-range {rotate_range[0]:g} {rotate_range[1]:g}" if rotate_range else "",
-                                          bool(rotate_range) and rotate_range[0] == rotate_range[1] and rotate_range[0] % 360 == 0), ("--resize 1", resize == 1))
+                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), (rotation, whole_turns),
+                                         ("--resize 1", resize == 1))
                  if same]
     methods = sum(value is not None for value in (rotate, rotate_range, resize, fs, tes, noise))
     if unchanged and not (combine == "hybrid" and methods > len(unchanged)):  # in a hybrid, the other methods change the copies

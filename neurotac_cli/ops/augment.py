@@ -220,7 +220,7 @@ def draw_events(counts: np.ndarray, take: np.ndarray, rng: np.random.Generator) 
             raise NeurotacError(f"a frame holds {int(rows.sum(axis=1).max()):,} events in one channel, beyond the "
                                 f"{EXACT_DRAW_MOST:,} TES draws from exactly (saturated counts?)")
         return np.stack([rng.multivariate_hypergeometric(row, int(k), method="marginals") if k else np.zeros(pixels, np.int64)
-                         for row, k in zip(rows, take)]) if groups else np.zeros((0, pixels), np.int64)
+                         for row, k in zip(rows, take)])
     entries = np.flatnonzero(flat)
     event_pixel = np.repeat(entries, flat[entries].astype(np.int64))
     if len(event_pixel) == 0:
