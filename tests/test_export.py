@@ -99,6 +99,19 @@ def test_events_before_time_zero_are_refused_in_one_line(tmp_path):
         evt3_bytes(*columns(table), 4, 4)
 
 
+def test_hdf5_ms_to_idx_written_in_blocks_equals_the_index_computed_whole(tmp_path, monkeypatch):
+    import h5py
+
+    from neurotac_cli import export as ex
+
+    t = np.sort(np.random.default_rng(2).integers(0, 250_000, 3_000))
+    monkeypatch.setattr(ex, "MS_BLOCK", 7)  # 252 milliseconds in 36 blocks, the last one short
+    with h5py.File(tmp_path / "b.h5", "w") as handle:
+        ex._write_ms_to_idx(handle, t)
+        index = handle["ms_to_idx"][()]
+    assert np.array_equal(index, np.searchsorted(t, np.arange(t[-1] // 1000 + 2) * 1000))
+
+
 def test_hdf5_is_dsecs_layout_as_its_readers_take_it(tmp_path):
     """What DSEC's loaders do (tonic's: events/x,y,t,p plus t_offset; seeking by ms_to_idx) gives the events back."""
     import h5py
