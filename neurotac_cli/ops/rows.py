@@ -45,6 +45,10 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
         connection.execute("SET enable_external_access = false")
         _refuse_changing_answers(connection, expression, plain.column_names)
         connection.register("input_rows", plain)
+        # DuckDB casts a string to a truth value ('yes', 't', '1'), so `--where "'yes'"` would keep every row
+        given = connection.execute(f"SELECT typeof(({expression})) FROM input_rows LIMIT 1").fetchall()
+        if given and given[0][0] not in ("BOOLEAN", '"NULL"', "NULL"):
+            raise NeurotacError(f"{expression!r} is not a condition (it gives {given[0][0]} values; compare, e.g. frame < 30)")
         keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows "
                                   f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
     except duckdb.Error as error:
@@ -60,8 +64,6 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     keep = np.asarray(keep)
     if len(keep) != table.num_rows:
         raise NeurotacError(f"{expression!r} is not a condition on each row ({len(keep):,} values for {table.num_rows:,} rows; {PER_ROW})")
-    if keep.dtype != bool:
-        raise NeurotacError(f"{expression!r} is not a condition (it gives {keep.dtype} values; compare, e.g. frame < 30)")
     return keep
 
 

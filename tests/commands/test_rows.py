@@ -39,7 +39,8 @@ def test_select_with_a_window_function_keeps_the_rows_it_names():
 @pytest.mark.parametrize("expression, words", [("frame <", "syntax error"), ("size > 1", 'column "size" not found'),
                                                ("frame + 1", "is not a condition"), ("read_csv('/etc/passwd') IS NULL", "cannot evaluate"),
                                                ("sum(frame) > 0", "not a condition on each row"), ("  ", "empty"),
-                                               ("frame < 3 -- the start", "cannot hold `--`")])
+                                               ("frame < 3 -- the start", "cannot hold `--`"),
+                                               ("'yes'", "gives VARCHAR values"), ("material", "gives VARCHAR values")])
 def test_select_refuses_what_it_cannot_evaluate(expression, words):
     with pytest.raises(NeurotacError, match=words):
         select(tiny_frames(trials=2), expression)
