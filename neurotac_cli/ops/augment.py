@@ -413,7 +413,9 @@ def _check_shift(shift, name: str) -> None:
 
 
 def _number(value: float) -> str:
-    return f"{round(float(value), 2):g}"
+    value = float(value)
+    # two decimals name an angle or a factor; a factor under 0.005 keeps its own digits, not "0"
+    return f"{round(value, 2):g}" if value == 0 or abs(value) >= 0.005 else f"{value:.3g}"
 
 
 # ---------------------------------------------------------------- frames tables

@@ -129,6 +129,14 @@ def test_resize_scales_about_the_contact_centre_with_zero_margin():
     assert bigger[0, :, :5].sum() == 0 and bigger[0, :, :, -5:].sum() == 0
 
 
+@pytest.mark.parametrize("method, label", [(aug.Resize(1e-9), "resize(1e-09)"), (aug.Resize(0.8333), "resize(0.83)"),
+                                           (aug.Rotate(0.001), "rotate(0.001)"), (aug.EventShift(-2, 0.004), "tes(-2,0.004)")])
+def test_copies_are_named_by_a_figure_that_tells_them_from_no_change(method, label):
+    counts = np.zeros((3, 2, 9, 9), np.uint16)
+    counts[1, :, 3:6, 3:6] = 2
+    assert method(counts, np.random.default_rng(0))[1] == label
+
+
 @SETTINGS
 @given(seed=seeds, beta=st.sampled_from([0.83, 1.25, 0.5, 1.7]), angle=st.floats(-90, 90))
 @example(seed=300000, beta=1.7, angle=0.0)  # a frame whose two OFF events are all scaled past the edge
