@@ -69,6 +69,8 @@ def open_text(path: str, head: bytes, sensor) -> Decoded:
     if repeated:  # which of the two columns holds the events cannot be told
         raise FormatError(f"header {first.strip()!r} names column {repeated!r} more than once; give each column its own name")
     factor = TIME_NAMES[time_name] or (1 if delimiter == "," else 1_000_000)
+    if TIME_NAMES[time_name] is None and delimiter != "," and has_header:
+        _refuse_whole_seconds(lines[skip + 1:], names.index(time_name), time_name)
     data_line = skip + 1 + (1 if has_header else 0)  # 1-based line number of the first data row
     roles = np.array([{time_name: 0, "x": 1, "y": 2, polarity_name: 3}.get(name, -1) for name in names], dtype=np.int64)
     time_digits = {1: 0, 1_000: 3, 1_000_000: 6}[factor]
@@ -118,6 +120,20 @@ def _line_blocks(path: str, first_line: int):
             yield memoryview(data)[:cut]
         if rest:
             yield memoryview(rest)
+
+
+def _refuse_whole_seconds(rows: list[str], column: int, name: str) -> None:
+    """A plain `t` in whitespace text is in seconds (the public datasets' `events.txt`, whose times
+    carry decimals); whole numbers under it are more likely a CSV's µs written with tabs or spaces,
+    which read as seconds would be a million times too late."""
+    first = next((row.split() for row in rows if row.strip() and row.lstrip()[:1] not in ("#", "%")), None)
+    if first is None or len(first) <= column:
+        return
+    value = first[column]
+    if _is_number(value) and not any(mark in value.lower() for mark in (".", "e")):
+        raise FormatError(f"whitespace text whose column {name!r} holds whole numbers ({value}): a plain {name!r} here is "
+                          "seconds, which whole numbers rarely are; name the column t_us, t_ms or t_s (or write the file "
+                          "with commas, where a plain t is µs)")
 
 
 def _is_coordinate(field: str) -> bool:

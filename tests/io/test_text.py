@@ -59,6 +59,15 @@ def test_tab_separated_text(tmp_path):
     assert table["t"].to_pylist() == [100_000, 200_000]
 
 
+@pytest.mark.parametrize("text", ["t\tx\ty\tp\n1000\t0\t0\t1\n2000\t1\t1\t0\n", "# log\ntime x y p\n5 1 2 1\n"])
+def test_whole_numbers_under_a_plain_t_in_whitespace_text_are_refused(tmp_path, text):
+    """Seconds there, µs in a CSV: whole numbers read as seconds would be a million times too late."""
+    with pytest.raises(FormatError, match="name the column t_us, t_ms or t_s"):
+        read_events_table(write(tmp_path, "events.csv", text))
+    assert read_events_table(write(tmp_path, "e.txt", "t x y p\n0.5 1 2 1\n"))["t"].to_pylist() == [500_000]
+    assert read_events_table(write(tmp_path, "f.txt", "t_us x y p\n1000 1 2 1\n"))["t"].to_pylist() == [1000]
+
+
 @pytest.mark.parametrize(
     "text, line",
     [
