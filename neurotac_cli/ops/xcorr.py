@@ -87,13 +87,18 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
     shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
     t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
+    # between two samples the log is a straight line, so the plateau of the correlation alone does not
+    # cover the error of a coarse log (50 Hz logs: up to 16.5 ms off beside a plateau of ±5.5 ms):
+    # the offset is not known better than one sample period (docs/journal.md)
+    period = float(np.median(np.diff(force_t)))
+    uncertainty = max(int((high - low) * bin_us // 2), int(period))
     return Instant(
         t0=int(round(t0)),
         score=round(peak, 3),
         details={
             "correlation": round(peak, 3),
             "margin": round(peak - second, 3),
-            "uncertainty_us": int((high - low) * bin_us // 2),
+            "uncertainty_us": uncertainty,
             "response_us": method.response_us,
             "sensor_rise_us": int(rise),
             "sensor_fall_us": int(fall),
@@ -319,7 +324,8 @@ def uncertainty_warnings(trials: dict) -> list[str]:
         return []
     worst = max(wide, key=wide.get)
     return [f"xcorr's offset is uncertain by more than ±{XCORR_UNCERTAIN_US / 1000:g} ms on {len(wide)} of {len(trials)} "
-            f"trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor?); an LED blink (--method led) "
+            f"trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor, or a log sampled more "
+            f"than {XCORR_UNCERTAIN_US / 1000:g} ms apart?); an LED blink (--method led) "
             "or a trigger aligns within 0.1 ms"]
 
 

@@ -454,7 +454,8 @@ def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(pres
 
 
 def test_sync_warns_when_xcorr_is_uncertain_and_only_then(presets):
-    """The uncertainty is half the span of offsets within 0.02 of the best correlation: ±1.5-2.6 ms on
+    """The uncertainty is half the span of offsets within 0.02 of the best correlation (at least the
+    log's 2 ms sample period): ±2.0-2.6 ms on
     every ch4/ch5 trial at seeds 3 and 4, ±3.4-14.6 ms on ch3, where it covered the error of 87 of 96 trials
     (examples/sync_accuracy.py)."""
     slow = run(["sync", "--manifest", str(presets["ch3"] / "manifest.csv"), "--method", "xcorr", "-o", str(presets["ch3"] / "s.arrows")])
@@ -463,6 +464,24 @@ def test_sync_warns_when_xcorr_is_uncertain_and_only_then(presets):
     lines = slow.stderr.decode().splitlines()
     assert len(lines) == 1 and lines[0].startswith("neurotac sync: warning: xcorr's offset is uncertain by more than ±5 ms on ")
     assert "--method led" in lines[0]
+
+
+def test_xcorr_on_a_coarse_log_is_uncertain_by_at_least_its_sample_period(presets, tmp_path):
+    """A 50 Hz log is a straight line between samples: the correlation's plateau alone claimed ±4.6 ms
+    where the offset was 15 ms off."""
+    folder = presets["ch4"]
+    rows = list(csv.DictReader(open(folder / "manifest.csv")))
+    for row in rows:
+        log = np.genfromtxt(folder / row["force"], delimiter=",", names=True)
+        kept = log[log["t_ms"] % 20 == 0]
+        (tmp_path / row["force"]).write_text("t_ms,force_N\n" + "".join(f"{t:g},{f:.4f}\n" for t, f in zip(kept["t_ms"], kept["force_N"])))
+        shutil.copy(folder / row["events"], tmp_path / row["events"])
+    shutil.copy(folder / "manifest.csv", tmp_path / "manifest.csv")
+    errors, info = xcorr_errors(tmp_path)
+    assert all(entry["uncertainty_us"] >= 20_000 for entry in info.values()), info
+    assert all(abs(errors[trial]) <= info[trial]["uncertainty_us"] for trial in errors), (errors, info)
+    done = run(["sync", "--manifest", str(tmp_path / "manifest.csv"), "--method", "xcorr", "-o", str(tmp_path / "s.arrows")])
+    assert done.returncode == 0 and b"sampled more than 5 ms apart" in done.stderr
 
 
 def test_xcorr_with_a_given_sensor_lag_records_it(presets):
