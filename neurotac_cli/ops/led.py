@@ -30,8 +30,10 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     fewer than `count` stand out."""
     times, off_x, off_y = _off_events(t, x, y, p, method.region)
     bin_us = method.bin_us
-    origin = int(times.min())
-    counts = np.bincount((times - origin) // bin_us).astype(np.float64)
+    # binned over the whole recording: a quiet --region holds OFF events only in its blink, and bins
+    # from its first to its last OFF event would make the blink its own background
+    origin = int(t.min())
+    counts = np.bincount((times - origin) // bin_us, minlength=int((t.max() - origin) // bin_us) + 1).astype(np.float64)
     from scipy.ndimage import median_filter
 
     background = median_filter(counts, size=51, mode="nearest")

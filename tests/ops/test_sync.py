@@ -131,6 +131,16 @@ def test_led_within_a_region():
     assert abs(trials[0]["t0"] - led_off) <= 100
 
 
+def test_led_in_a_quiet_region_that_holds_only_the_blink(tmp_path):
+    """A region whose only OFF events are the blink: its background comes from the whole recording."""
+    done = run(["simulate", "--trials", "1", "--seed", "0", "--set", "led_box=0,0,10,10", "--out", str(tmp_path / "lb")])
+    assert done.returncode == 0, done.stderr
+    row = next(csv.DictReader(open(tmp_path / "lb" / "manifest.csv")))
+    table = sy.sync_sources(manifest.manifest_sources(str(tmp_path / "lb" / "manifest.csv"), manifest.ForceOptions()),
+                            sy.SyncMethod(region=(0, 0, 10, 10)))
+    assert abs(table.column("t0")[0].as_py() - int(row["true_t0_us"])) <= 200
+
+
 def test_no_led_fails_with_one_clear_message():
     table = synthetic_recording(2, led_off=None)
     with pytest.raises(SyncError, match="no LED-off spike stands out") as caught:
