@@ -26,6 +26,7 @@ from neurotac_cli.io.readers import OPENERS
 from neurotac_cli.io.text import BOM
 from neurotac_cli.provenance import file_sha256
 from neurotac_cli.tables import is_terminal
+from neurotac_cli.units import MAX_SIDE
 
 # A file cut inside one of these is named as cut, not read as text that holds no rows.
 SIGNATURES = ((b"#!AER-DAT", "AEDAT"), (b"Event Stream", "Event Stream"), (HDF5_SIGNATURE, "HDF5"))
@@ -279,6 +280,10 @@ def _extent(name: str, fmt: str, decoded: Decoded) -> tuple[int, int]:
         if len(x):
             width = max(width, int(x.max()) + 1)
             height = max(height, int(y.max()) + 1)
+    if max(width, height) > MAX_SIDE:  # a coordinate of 65535 is past the last pixel of the largest sensor a table holds
+        raise FormatError(f"{name}: an event at {'x' if width > MAX_SIDE else 'y'} = {MAX_SIDE} would need a sensor "
+                          f"{MAX_SIDE + 1} pixels wide, past the {MAX_SIDE} a side that tables hold; the file is damaged, or "
+                          "its coordinates need an offset removed")
     return max(width, 1), max(height, 1)
 
 

@@ -207,3 +207,9 @@ def test_text_times_equal_exact_decimal_arithmetic(rows, digits, style, separato
     assert list(t) == expected
     assert list(x) == [r[1] for r in rows] and list(y) == [r[2] for r in rows]
     assert list(p) == [1 if r[3] == 1 else 0 for r in rows]
+
+
+def test_a_coordinate_past_the_largest_sensor_is_refused_where_the_size_is_guessed(tmp_path):
+    with pytest.raises(FormatError, match="x = 65535 would need a sensor 65536 pixels wide"):
+        read_events_table(write(tmp_path, "e.csv", "t,x,y,p\n1,65535,0,1\n"))
+    assert sch.sensor_of(read_events_table(write(tmp_path, "f.csv", "t,x,y,p\n1,65534,0,1\n")).schema) == (65535, 1)
