@@ -93,6 +93,14 @@ def test_evt3_is_read_back_equal_by_evlib(tmp_path):
     assert (theirs["polarity"].to_numpy() > 0).astype(int).tolist() == table.column("p").to_pylist()
 
 
+@pytest.mark.parametrize("suffix", [".h5", ".aedat4", ".raw"])
+def test_a_time_import_would_refuse_is_not_exported(tmp_path, suffix):
+    table = sch.events_table([2**62, 2**62 + 5], [0, 1], [0, 1], [1, 0], 4, 4)
+    with pytest.raises(NeurotacError, match="not one a camera writes"):
+        export(table, str(tmp_path / f"e{suffix}"))
+    assert not (tmp_path / f"e{suffix}").exists()
+
+
 def test_events_before_time_zero_are_refused_in_one_line(tmp_path):
     table = sch.events_table([-5, 3], [0, 1], [0, 1], [1, 0], 4, 4)
     with pytest.raises(NeurotacError, match="first event is at -5"):

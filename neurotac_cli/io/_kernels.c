@@ -596,6 +596,9 @@ static PyObject *parse_text(PyObject *self, PyObject *args) {
                 f.mantissa = f.mantissa * 10 + digit;
                 f.significant += f.mantissa != 0;
                 f.fraction += f.part == 2;
+            } else if (f.part <= 1 && f.mantissa <= (INT64_MAX - digit) / 10) {  /* a 19th whole digit that int64 holds */
+                f.mantissa = f.mantissa * 10 + digit;
+                f.significant++;
             } else if (f.part == 2 && role == 0 && time_digits > 0) {
                 if (!f.dropped) f.dropped_first = (int)digit;
                 f.dropped = 1;

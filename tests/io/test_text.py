@@ -171,6 +171,12 @@ def test_a_bad_row_is_told_by_its_line_and_the_field_to_blame(tmp_path, name, te
     assert said in str(error.value)
 
 
+def test_nineteen_digit_times_that_int64_holds_read_back(tmp_path):
+    """What `select -o x.csv` writes of an events table reads back, up to the largest int64."""
+    table = read_events_table(write(tmp_path, "e.csv", "t,x,y,p\n1000000000000000000,1,2,1\n9223372036854775807,1,2,0\n"))
+    assert table["t"].to_pylist() == [10**18, 2**63 - 1]
+
+
 def test_long_numbers_with_only_zeros_beyond_int64_are_fine(tmp_path):
     table = read_events_table(write(tmp_path, "e.csv", "t_s,x,y,p\n0000000000000000001.50000000000000000000,1,2,1\n"))
     assert table["t"].to_pylist() == [1_500_000]
