@@ -10,7 +10,7 @@ import torch
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError, ModelError, UsageError
-from neurotac_cli.ops.forcelog import RANGE_N
+from neurotac_cli.ops.forcelog import RANGE_N, RANGE_WARN_N
 from neurotac_cli.model.curve import best_epoch
 from neurotac_cli.model.data import (Sequences, already_accumulated, check_time_forward, choose_validation, padded, parse_where,
                                      sequences)
@@ -351,7 +351,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
     largest = _check_training_set(name, config, train_set, label)
-    if largest > RANGE_N and progress:  # as `sync` warns of a log
+    if largest > RANGE_WARN_N and progress:  # as `sync` warns of a log
         progress(f"warning: the training frames carry forces up to {largest:.4g} N, beyond {RANGE_N:g} N (the largest "
                  "FlexiForce range): a log in another unit (mN, g)? the model will read in those units")
     if val_fraction and not in_val.any() and progress:

@@ -17,6 +17,8 @@ SHORT_OVERLAP = 0.5  # warn when less than this share of a force log's span lies
 NEGATIVE_N = -0.1  # below the rest noise of the simulated Nano17 and FlexiForce (about ±0.02 N)
 NEGATIVE_SHARE = 0.5  # warn when more than this share of the samples reads below NEGATIVE_N
 RANGE_N = 450.0  # the largest FlexiForce A201 range (100 lbf); a log beyond it is read in the wrong unit
+# a sensor at its full range reads a little past it (noise, over-range): a wrong unit is 10 to 1000 times off
+RANGE_WARN_N = 1.1 * RANGE_N
 
 
 def check_samples(logs: list[ForceLog], recording: str) -> None:
@@ -56,7 +58,7 @@ def plausibility_warnings(log: ForceLog, where: str) -> list[str]:
             "labelled with it: check the sensor was connected and the force column (--force-column)"
         )
     peak = float(np.max(np.abs(values)))
-    if peak > RANGE_N:
+    if peak > RANGE_WARN_N:
         warnings.append(
             f"{where}: the force reaches {peak:.4g} N, beyond any sensor of the rig (largest range {RANGE_N:g} N); "
             "check the force unit (a header like force_mN, or --force-unit)"

@@ -105,6 +105,17 @@ def test_force_log_errors_say_what_to_do(tmp_path):
     assert "'furlongs' is no force unit" in read_force_log(str(path))[0].notes[0]
 
 
+def test_a_log_at_the_largest_range_is_not_taken_for_another_unit():
+    """A sensor at full range reads a little past it; a log in mN reads a thousand times past it."""
+    from neurotac_cli.ops.forcelog import plausibility_warnings
+
+    t = np.arange(0, 40_001, 2000)
+    at_range = sy.ForceLog(t=t, value=np.r_[np.zeros(10), np.full(11, 450.02)])
+    in_mn = sy.ForceLog(t=t, value=np.r_[np.zeros(10), np.full(11, 2500.0)])
+    assert plausibility_warnings(at_range, "log") == []
+    assert "check the force unit" in plausibility_warnings(in_mn, "log")[0]
+
+
 def test_median_filter_removes_a_single_sample_spike():
     log = sy.ForceLog(t=np.arange(0, 40_001, 2000), value=np.r_[np.ones(10), 9.0, np.ones(10)])
     assert sy.condition_force(log, 10_000).max() == 1.0
