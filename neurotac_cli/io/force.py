@@ -87,6 +87,7 @@ def read_table(path: str) -> pa.Table:
         else:
             import pyarrow.csv as csv
 
+            data = _without_comments(data)
             first = data.split(b"\n", 1)[0].decode(errors="replace")
             table = csv.read_csv(pa.BufferReader(data), parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
     except (pa.ArrowInvalid, OSError) as error:
@@ -96,6 +97,21 @@ def read_table(path: str) -> pa.Table:
     if repeated:
         raise FormatError(f"{path}: the force log names column {repeated[0]!r} more than once; give each column its own name")
     return table
+
+
+def _without_comments(data: bytes) -> bytes:
+    """A CSV log from its header on: loggers write `#` or `%` lines (firmware, date, settings) and blank
+    lines above it, as camera text files do."""
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    start = 0
+    while start < len(data):
+        end = data.find(b"\n", start)
+        end = len(data) if end < 0 else end + 1
+        line = data[start:end].strip()
+        if line and line[:1] not in (b"#", b"%"):
+            break
+        start = end
+    return data[start:]
 
 
 def _arrow_log(data: bytes, path: str) -> pa.Table:

@@ -116,6 +116,13 @@ def test_a_log_at_the_largest_range_is_not_taken_for_another_unit():
     assert "check the force unit" in plausibility_warnings(in_mn, "log")[0]
 
 
+def test_force_log_comment_lines_above_the_header_are_skipped(tmp_path):
+    path = tmp_path / "f.csv"
+    path.write_bytes(b"\xef\xbb\xbf# logger v1\n% 500 Hz\n\nt_ms,force_N\n0,0\n2,0.1\n" + b"".join(b"%d,0.2\n" % t for t in range(4, 40, 2)))
+    log = read_force_log(str(path))[0]
+    assert list(log.t[:2]) == [0, 2000] and log.value[1] == pytest.approx(0.1)
+
+
 def test_median_filter_removes_a_single_sample_spike():
     log = sy.ForceLog(t=np.arange(0, 40_001, 2000), value=np.r_[np.ones(10), 9.0, np.ones(10)])
     assert sy.condition_force(log, 10_000).max() == 1.0
