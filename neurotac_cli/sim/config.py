@@ -8,7 +8,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from neurotac_cli.errors import NeurotacError, UsageError
+from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
 from neurotac_cli.ops.forcelog import RANGE_N
 from neurotac_cli.schema import check_label_names
 
@@ -307,7 +307,10 @@ def parse_groups(groups) -> list[tuple]:
         reserved = [name for name in labels if name in ("material", "object", "size_mm")]
         if reserved:
             raise UsageError(f"label {reserved[0]!r} in {text!r} is set by the simulator from the group itself")
-        check_label_names(labels)
+        try:
+            check_label_names(labels)
+        except SchemaError as error:  # an option given wrong, like the reserved names above
+            raise UsageError(f"in {text!r}: {error}") from None
         parsed.append((material, parse_object(obj), count, labels))
     if not parsed:
         raise UsageError("no trials to simulate (give --objects/--materials or a preset)")
@@ -366,6 +369,11 @@ def _placement_problems(config: SimConfig) -> list[str]:
     problems = []
     if config.sensor_width > 1023 or config.sensor_height > 511 or min(config.sensor_width, config.sensor_height) < 16:
         problems.append("sensor size (AEDAT 2.0 DAVIS addresses hold 16..1023 x 16..511)")
+    view_mm = max(config.sensor_width, config.sensor_height) * config.pixel_pitch_mm
+    wide = [obj.name for _, obj, count, _ in parse_groups(config.groups) if count and obj.size_mm > view_mm]
+    if wide:  # its face would cover the whole picture, and its contact model grows with its area (minutes, gigabytes)
+        problems.append(f"object {wide[0]} is wider than the camera's view of the membrane ({view_mm:g} mm: "
+                        f"{max(config.sensor_width, config.sensor_height)} px of pixel_pitch_mm {config.pixel_pitch_mm:g})")
     if config.position_jitter_px > max(config.sensor_width, config.sensor_height):
         problems.append("position_jitter_px at most the sensor's larger side (most objects would land off it)")
     if config.led_box:

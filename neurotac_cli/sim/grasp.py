@@ -51,6 +51,8 @@ def plan_grasps(config: SimConfig, rng: np.random.Generator, trials: int | None 
     queue = []  # round-robin over groups so a small --trials still covers every group
     remaining = [g[2] for g in groups]
     total = sum(remaining)
+    if total == 0:
+        raise UsageError("every group of --objects counts 0 grasps: nothing to simulate (give a count of 1 or more)")
     if trials is not None and trials > total:  # writing fewer than asked for would pass unnoticed in a batch script
         raise UsageError(f"--trials {trials} is more than the {total} grasps of the preset's groups (or --objects); "
                          f"give --trials {total} or fewer, or more grasps per group with --objects")

@@ -214,3 +214,19 @@ def test_presets_follow_the_thesis_designs():
     high = [g.peak_force_n for g in plans["ch5"] if g.labels["gripper_force"] == "high"]
     assert max(low) < min(high) and max(high) <= 25.0
     assert len({g.trial for g in plans["ch5"]}) == 60
+
+
+@pytest.mark.parametrize("groups, said", [(("steel:bolt1000:1",), "object bolt1000 is wider than the camera's view"),
+                                          (("steel:bolt8:1:trial=x",), "label name 'trial' is a column"),
+                                          (("steel:bolt8:0",), "counts 0 grasps: nothing to simulate")])
+def test_objects_that_cannot_be_simulated_are_usage_errors(groups, said):
+    """An object wider than the picture ran for minutes into gigabytes; a label named like a column
+    exited 1 where other option errors exit 2; no grasp at all was advised `--trials 0 or fewer`."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.sim.config import validate
+    from neurotac_cli.sim.grasp import plan_grasps
+
+    with pytest.raises(UsageError, match=said):
+        config = preset_config("ch4", groups=groups)
+        validate(config)
+        plan_grasps(config, np.random.default_rng(0), 1)
