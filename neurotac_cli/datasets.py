@@ -47,25 +47,21 @@ def recordings_per_file(paths: list[str], sensor=None, fmt: str | None = None) -
     """One recordings row per camera file (see the module doc)."""
     from neurotac_cli import provenance
     from neurotac_cli.io.camera import trial_name
-    from neurotac_cli.io.events import read_events_table
+    from neurotac_cli.io.events import common_sensor, read_events_table
 
-    rows, sources, sizes, named = [], [], set(), {}
+    rows, sources, named = [], [], {}
     for path in paths:
         events = read_events_table(path, sensor=sensor, fmt=fmt)
         name = trial_name(path)
         if name in named:
             raise InputError(f"{named[name]} and {path} would both be trial {name!r}; rename one, or import them separately")
         named[name] = path
-        sizes.add(sch.sensor_of(events.schema))
         t = events.column("t").to_numpy()
         t0 = int(t.min()) if len(t) else 0
         columns = [events.column(c).to_numpy() for c in ("x", "y", "p")]
         rows.append({"trial": name, "t0": t0, "events": (t - t0, *columns), "force": (np.zeros(0, np.int64), np.zeros(0, np.float32))})
         sources.append(events.schema)
-    if len(sizes) > 1:
-        raise InputError(f"the camera files have different sensor sizes ({', '.join(f'{w}x{h}' for w, h in sizes)}); "
-                         "import them separately, or give --sensor WxH")
-    width, height = next(iter(sizes))
+    width, height = common_sensor(sources, paths)
     table = sch.recordings_table(rows, width, height, sync={"method": "first event", "note": "t0 = each file's first event; no force"})
     return provenance.carry(table, sources)
 

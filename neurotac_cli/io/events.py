@@ -48,10 +48,9 @@ def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema,
             raise InputError(f"{path} is already a table, not a camera file (pass it to the next command directly)")
         opened.append(read_events(path, sensor, fmt))
     schema = opened[0][0]
-    sizes = [sch.sensor_of(s) for s, _ in opened]
-    if len(set(sizes)) > 1:
-        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}" for p, (w, h) in zip(paths, sizes))
-        raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
+    common = common_sensor([s for s, _ in opened], paths)
+    if common != sch.sensor_of(schema):
+        schema = sch.set_meta(schema, sensor=sch.sensor_meta(*common))
     if len(opened) > 1:
         sources = [sch.get_meta(s, sch.SOURCE) for s, _ in opened]
         found = [sch.get_meta(s, "neurotac:triggers") for s, _ in opened]
@@ -64,6 +63,21 @@ def import_files(paths, sensor=None, fmt: str | None = None) -> tuple[pa.Schema,
                 yield pa.RecordBatch.from_arrays(batch.columns, schema=schema)
 
     return schema, batches()
+
+
+def common_sensor(schemas: list[pa.Schema], paths: list) -> tuple[int, int]:
+    """The one sensor of several camera files' events schemas; InputError where they differ. A size
+    guessed from a file's events is only the smallest sensor holding them, and one camera's files
+    differ in it: it gives way to the largest guess, or to the size the other files state if it fits."""
+    sizes = [sch.sensor_of(schema) for schema in schemas]
+    guessed = [(sch.get_meta(schema, sch.SOURCE) or {}).get("sensor_from") == "events" for schema in schemas]
+    stated = {size for size, guess in zip(sizes, guessed) if not guess}
+    common = stated.pop() if len(stated) == 1 else (max(w for w, _ in sizes), max(h for _, h in sizes)) if not stated else None
+    if common is None or any(w > common[0] or h > common[1] for (w, h), guess in zip(sizes, guessed) if guess):
+        listed = ", ".join(f"{os.path.basename(str(p))}: {w}x{h}{' (guessed from its events)' if guess else ''}"
+                           for p, (w, h), guess in zip(paths, sizes, guessed))
+        raise InputError(f"the camera files have different sensor sizes ({listed}); import them separately, or give --sensor WxH")
+    return common
 
 
 def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = False, idle_timeout: float = 2.0,

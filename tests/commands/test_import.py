@@ -81,8 +81,10 @@ def test_several_files_are_one_table_in_order(tmp_path):
     result = run(["import", "--one-stream", str(dat), str(dat), "-o", str(out), "--sensor", "304x240"])
     assert result.exit_code == 0, result.output
     assert pq.read_table(out).num_rows == 2 * 4_407
-    mixed = run(["import", "--one-stream", str(es), str(dat), "-o", str(out)])
+    mixed = run(["import", "--one-stream", str(es), str(real_file("davis240c_rotdisk.aedat")), "-o", str(out)])
     assert mixed.exit_code == 1 and "different sensor sizes" in mixed.output
+    joined = run(["import", "--one-stream", str(es), str(dat), "-o", str(out)])  # the DAT's size is guessed: it fits the ES's
+    assert joined.exit_code == 0 and sch.sensor_of(pq.read_schema(out)) == (54, 239)
 
 
 def test_sensor_option_overrides_and_too_small_a_sensor_is_an_error(tmp_path):
@@ -180,3 +182,17 @@ def test_a_recording_names_its_trial_after_the_file(path, name):
     from neurotac_cli.io.camera import trial_name
 
     assert trial_name(path) == name
+
+
+def test_sizes_guessed_from_the_events_give_way_to_the_largest_or_to_a_stated_one(tmp_path):
+    """One camera's text files: each guess is only the smallest sensor holding its events."""
+    (tmp_path / "a.csv").write_text("t,x,y,p\n1,239,179,1\n")
+    (tmp_path / "b.csv").write_text("t,x,y,p\n5,2,2,0\n")
+    (tmp_path / "c.csv").write_text("t,x@100,y@100,on\n5,2,2,0\n")
+    for paths, size in (("a.csv b.csv", (240, 180)), ("b.csv c.csv", (100, 100))):
+        out = tmp_path / "o.parquet"
+        done = run(["import", *(str(tmp_path / p) for p in paths.split()), "-o", str(out)])
+        assert done.exit_code == 0, done.output
+        assert sch.sensor_of(pq.read_schema(out)) == size
+    done = run(["import", str(tmp_path / "c.csv"), str(tmp_path / "a.csv"), "-o", str(tmp_path / "o.parquet")])
+    assert done.exit_code == 1 and "a.csv: 240x180 (guessed from its events)" in done.output
