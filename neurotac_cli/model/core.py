@@ -337,6 +337,8 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     per = per or (label if name in MATERIAL_MODELS else "object")
     if name in MATERIAL_MODELS:
         _check_classes(data, label)
+    else:
+        data = _with_force(data, unit, progress)
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
     in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
@@ -372,6 +374,25 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     if name in MATERIAL_MODELS:
         return _train_material(name, config, fit_config, train_set, val_set, input_spec, training, generator, progress, label)
     return _train_force(name, config, fit_config, data, splits, train_set, input_spec, training, generator, rng, progress, largest)
+
+
+def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
+    """A force model's sequences less those with no measured force at all (null on every frame):
+    they give nothing to learn from, and a validation trial without one would score 0 and stop
+    training at its first epoch. Frames without force inside the others are masked out of every
+    loss (their counts still feed the model's state). Both are counted on stderr."""
+    known = [int((~np.isnan(f)).sum()) for f in data.force]
+    empty = [trial for trial, n in zip(data.trials, known) if n == 0]
+    if len(empty) == len(data):
+        return data  # refused by _check_training_set, in the words of a table without force
+    frames = sum(len(f) for f, n in zip(data.force, known) if n) - sum(known)
+    if empty and progress:
+        progress(f"warning: {counted(len(empty), unit)} without a measured force (null on every frame) left out of "
+                 f"training and validation ({first_few(empty)})")
+    if frames and progress:
+        progress(f"warning: {counted(frames, 'frame')} without a measured force (null) left out of the loss; their "
+                 f"events still feed the model's state")
+    return data.subset([i for i, n in enumerate(known) if n]) if empty else data
 
 
 MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
@@ -463,6 +484,8 @@ def _fit_member(net, member, members, data, in_val, features, force_scale, fit_c
             group["features"] = features[indices, : part.max_length()]
         groups.append({key: value.to(device) for key, value in group.items()})
     tensors, val_tensors = groups
+    if val_tensors is not None and not float(val_tensors["mask"].sum()):
+        val_tensors = None  # no measured force to score: a loss of 0 would stop training at its first epoch
     chosen = member if members > 1 else None
 
     def run(group, indices=slice(None)):

@@ -201,3 +201,24 @@ def test_classify_names_trials_much_shorter_than_any_it_learnt_from(frames):
     cut = frames.filter(pc.less(frames.column("frame"), 3))
     models.classify_table(model, cut, notes)
     assert len(notes) == 1 and "hold fewer than half the frames of the shortest training trial (12)" in notes[0]
+
+
+def _without_force(frames, trials):
+    import pyarrow.compute as pc
+
+    force = frames.schema.get_field_index("force")
+    gone = pc.is_in(frames.column("trial"), pa.array(trials))
+    column = pc.if_else(gone, pa.nulls(frames.num_rows, pa.float32()), frames.column("force"))
+    return frames.set_column(force, frames.schema.field(force), column).replace_schema_metadata(frames.schema.metadata)
+
+
+@pytest.mark.parametrize("name", ["tdnn", "gp"])
+def test_trials_without_any_force_are_left_out_of_training_and_validation_and_counted(name, frames):
+    blind = _without_force(frames, ["t1", "t3", "t5", "t7"])  # every "large" trial: a draw per object validates on them
+    options = dict(FAST) if name != "gp" else {"restarts": 0, "max_points": 200}
+    messages = []
+    model = models.train(blind, models.make_spec(name, **options), val_fraction=0.3, seed=1, progress=messages.append)
+    held = model.training["trials"]
+    assert not {"t1", "t3", "t5", "t7"} & set(held["train"] + held["validation"])
+    assert any("4 trials without a measured force" in m and "left out of training and validation" in m for m in messages)
+    assert all(row["val_loss"] != 0 for row in model.training["curve"])  # nothing is never scored as a perfect 0
