@@ -111,8 +111,7 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
             mask = inside & (series == one)
             dtw.append(dtw_distance(true[mask], pred[mask]))
             bhat.append(bhattacharyya(true[mask], pred[mask]))
-        figures["dtw"] = float(np.nanmean(dtw)) if dtw else float("nan")
-        figures["bhattacharyya"] = float(np.nanmean(bhat)) if bhat else float("nan")
+        figures["dtw"], figures["bhattacharyya"] = _mean_of_known(dtw), _mean_of_known(bhat)
         add(f"phase:{name}", figures)
     if per_trial:
         for one in dict.fromkeys(trial):
@@ -322,3 +321,10 @@ def _grasp_rows(rows, trial, grasp, true, pred) -> dict:
         rmse.append(figures["rmse"])
         rows += [(f"grasp:{one}/{index}", "rmse", figures["rmse"]), (f"grasp:{one}/{index}", "mae", figures["mae"])]
     return {"grasp_rmse_mean": float(np.mean(rmse)), "grasp_rmse_max": float(np.max(rmse)), "grasps": len(rmse)} if rmse else {}
+
+
+def _mean_of_known(values: list) -> float:
+    """The mean of the values that are not NaN; NaN (and no numpy warning) where none is."""
+    known = np.asarray(values, dtype=np.float64)
+    known = known[~np.isnan(known)]
+    return float(known.mean()) if len(known) else float("nan")

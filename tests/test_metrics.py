@@ -84,3 +84,12 @@ def test_repeated_predictions_of_a_trial_are_separate_series():
         assert np.isclose(thrice[("phase:holding", metric)], once[("phase:holding", metric)]), metric
     strung = dict(((s, m), v) for s, m, v in metrics.force_rows(trial, phase, np.tile(true, 3), np.tile(pred, 3)))
     assert strung[("phase:holding", "dtw")] > 2 * once[("phase:holding", "dtw")]
+
+
+def test_a_phase_whose_distances_are_all_undefined_gives_nan_without_a_numpy_warning():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rows = metrics.force_rows(["a"] * 3, ["holding"] * 3, [1.0, 2.0, 3.0], [np.nan] * 3)
+    assert np.isnan(dict(((s, m), v) for s, m, v in rows)[("phase:holding", "dtw")])

@@ -172,7 +172,11 @@ class Model:
             counts = counts.copy()
         with torch.no_grad():
             out, state = self.net(torch.from_numpy(counts), torch.as_tensor(t_us / 1e6), state)
-        return out.numpy().astype(np.float32) * self.force_scale, state
+        force = out.numpy().astype(np.float32) * self.force_scale
+        if not np.isfinite(force).all():
+            raise ModelError(f"the {self.name} model gives a NaN or infinite force: its weights are damaged, or the frames "
+                             "are far beyond any it learnt from (`neurotac info` on both)")
+        return force, state
 
     def proba(self, data: Sequences, notes: list | None = None) -> np.ndarray:
         """Each trial's class probabilities; `notes` gets a line for each domain of an adapted model's
@@ -190,7 +194,11 @@ class Model:
             x = material.standardised(x, domains, stats, (np.asarray(adapt["mean"]), np.asarray(adapt["std"])))
         with torch.no_grad():
             logits = self.net(torch.as_tensor(x))
-        return torch.softmax(logits, dim=-1).numpy()
+        proba = torch.softmax(logits, dim=-1).numpy()
+        if not np.isfinite(proba).all():  # a class picked from NaN probabilities would be a guess written as an answer
+            raise ModelError(f"the {self.name} model gives NaN class probabilities: its weights are damaged, or the frames are "
+                             "far beyond any it learnt from (`neurotac info` on both)")
+        return proba
 
 
 # ---------------------------------------------------------------- input spec

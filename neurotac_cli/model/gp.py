@@ -22,6 +22,11 @@ class Config:
     accumulate: bool = True
 
 
+def first_outside(values, low: float, high: float) -> float:
+    values = values.reshape(-1)
+    return float(values[(values < low * 0.999) | (values > high * 1.001)][0])
+
+
 class Net(ForceNet):
     trained_by_gradient = False
 
@@ -39,6 +44,20 @@ class Net(ForceNet):
     def prepare_for(self, tensors):
         self.inputs = torch.zeros_like(tensors["inputs"])
         self.dual = torch.zeros_like(tensors["dual"])
+
+    # the optimiser's bounds on the kernel's hyperparameters (`fit`), with room for rounding
+    BOUNDS = {"length_scale": (1e-2, 1e3), "signal_variance": (1e-3, 1e3), "noise_variance": (1e-6, 1.0)}
+
+    def implausible(self, tensors) -> str | None:
+        """What in a loaded GP no fit can give (a damaged file): a GP out of its bounds estimates 0
+        or nonsense without a word."""
+        for name, (low, high) in self.BOUNDS.items():
+            values = tensors[name].to(torch.float64)
+            if values.numel() and not bool(((values >= low * 0.999) & (values <= high * 1.001)).all()):
+                return f"the GP's {name.replace('_', ' ')} {first_outside(values, low, high):.3g} is outside {low:g}..{high:g}"
+        if not bool((tensors["x_scale"] > 0).all()):
+            return "the GP's input scale is not above 0"
+        return None
 
     def init_state(self, batch: int):
         return {"acc": torch.zeros(batch, 2, dtype=torch.float64)}

@@ -23,9 +23,28 @@ def save(model, path: str):
     if bad:
         raise ModelError(f"training diverged: the weights {', '.join(bad[:3])} hold NaN or infinite values; "
                          "nothing written (lower --lr, or check the training data)")
-    header = json.dumps(model.header(), sort_keys=True, default=_json_default)
+    header = json.dumps({**model.header(), DIGEST_KEY: weights_digest(tensors)}, sort_keys=True, default=_json_default)
     with atomic_file(path) as temporary:
         save_file(tensors, temporary, metadata={HEADER_KEY: header})
+
+
+DIGEST_KEY = "weights_sha256"  # files written before it have none, and are checked for finite weights only
+
+
+def weights_digest(tensors: dict) -> str:
+    """SHA-256 over every tensor's name, type, shape and bytes, in name order: a byte changed in the
+    weights (a damaged disk or copy) changes it, while a finite but absurd weight would pass any
+    range check and estimate nonsense without a word."""
+    import hashlib
+
+    import torch
+
+    digest = hashlib.sha256()
+    for name in sorted(tensors):
+        tensor = tensors[name].detach().contiguous().cpu()
+        digest.update(f"{name}|{tensor.dtype}|{tuple(tensor.shape)}|".encode())
+        digest.update(tensor.view(-1).view(torch.uint8).numpy().tobytes() if tensor.numel() else b"")
+    return digest.hexdigest()
 
 
 def _not_finite(tensors: dict) -> list[str]:
@@ -182,12 +201,18 @@ def load(path: str):
     bad = _not_finite(tensors)
     if bad:
         raise ModelError(f"{path}: the weights {', '.join(bad[:3])} hold NaN or infinite values "
-                         "(a training that diverged); train the model again")
+                         "(a training that diverged, or a damaged file); train the model again")
+    if DIGEST_KEY in header and header[DIGEST_KEY] != weights_digest(tensors):
+        raise ModelError(f"{path}: the weights do not match the checksum written with them (a damaged file or copy); "
+                         "copy the model again or train it again")
     try:
         net.prepare_for(tensors)
         net.load_state_dict(tensors, strict=True)
     except (RuntimeError, KeyError) as error:
         raise ModelError(f"{path}: weights do not match the header's architecture ({str(error).splitlines()[0]})") from None
+    implausible = getattr(net, "implausible", lambda tensors: None)(tensors)
+    if implausible:
+        raise ModelError(f"{path}: {implausible}, outside what its training can give (a damaged file?); train the model again")
     return Model(name, config, net, spec, header.get("classes"), header.get("training"))
 
 

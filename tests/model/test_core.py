@@ -222,3 +222,47 @@ def test_trials_without_any_force_are_left_out_of_training_and_validation_and_co
     assert not {"t1", "t3", "t5", "t7"} & set(held["train"] + held["validation"])
     assert any("4 trials without a measured force" in m and "left out of training and validation" in m for m in messages)
     assert all(row["val_loss"] != 0 for row in model.training["curve"])  # nothing is never scored as a perfect 0
+
+
+def _flip_weights(path):
+    """What tests/h2's flip.py does: the high byte of every fourth byte of the weights changed, finite but absurd."""
+    import struct
+
+    data = bytearray(path.read_bytes())
+    (header,) = struct.unpack("<Q", data[:8])
+    for i in range(8 + header + 3, len(data), 4):
+        data[i] ^= 0x7F
+    path.write_bytes(bytes(data))
+
+
+def test_a_model_whose_weights_were_damaged_is_refused_on_load(frames, tmp_path):
+    path = tmp_path / "tdnn.model"
+    models.save(models.train(frames, models.make_spec("tdnn", **FAST), seed=0), str(path))
+    _flip_weights(path)
+    with pytest.raises(ModelError, match="do not match the checksum written with them"):
+        models.load(str(path))
+
+
+def test_a_gp_out_of_its_fitting_bounds_is_refused_on_load(frames, tmp_path):
+    import torch
+
+    model = models.train(frames, models.make_spec("gp", restarts=0, max_points=100), seed=0)
+    model.net.length_scale = torch.tensor([5e4, 1.0, 1.0], dtype=torch.float64)
+    path = tmp_path / "gp.model"
+    models.save(model, str(path))
+    with pytest.raises(ModelError, match=r"length scale 5e\+04 is outside 0.01..1000"):
+        models.load(str(path))
+
+
+def test_nan_forces_and_nan_class_probabilities_are_refused_not_written(frames):
+    import torch
+
+    force = models.train(frames, models.make_spec("tdnn", **FAST), seed=0)
+    classifier = models.train(frames, models.make_spec("material-dnn", epochs=2), seed=0)
+    for model in (force, classifier):
+        with torch.no_grad():
+            next(model.net.parameters()).fill_(float("nan"))
+    with pytest.raises(ModelError, match="gives a NaN or infinite force"):
+        models.predict_table(force, frames)
+    with pytest.raises(ModelError, match="gives NaN class probabilities"):
+        models.classify_table(classifier, frames)
