@@ -403,6 +403,7 @@ def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
     return data.subset([i for i, n in enumerate(known) if n]) if empty else data
 
 
+FORCE_SCALE_FLOOR_N = 1e-6  # the smallest force scale, and the least force range a model is trained on
 MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
 
 
@@ -430,6 +431,9 @@ def _check_training_set(name, config, train_set, label) -> float:
         if known.min() == known.max():
             raise ModelError(f"the training frames' force is {known[0]:g} N on every frame: there is no force to learn "
                              "(did the force sensor record?)")
+        if known.max() - known.min() < FORCE_SCALE_FLOOR_N:
+            raise ModelError(f"the training frames' force varies over {known.max() - known.min():.3g} N only, below the "
+                             f"{FORCE_SCALE_FLOOR_N:g} N a model resolves: a log in another unit (kN, MN)? give the force in newtons")
         return float(np.abs(known).max())
     if label not in train_set.labels:
         raise ModelError(f"classification needs a {label!r} label column in the frames (labels: {', '.join(train_set.labels) or 'none'})")
@@ -446,7 +450,7 @@ def _seconds(data):
 
 
 def _train_force(name, config, fit_config, data, splits, train_set, input_spec, training, generator, rng, progress, largest):
-    force_scale = max(largest, 1e-6)
+    force_scale = max(largest, FORCE_SCALE_FLOOR_N)
     # kept so that `predict` can name frames busier than any it learnt from (model.predict.Outside)
     training["events_per_frame_max"] = float(max(c.reshape(len(c), -1).sum(axis=1, dtype=np.float64).max(initial=0.0)
                                                  for c in train_set.counts))

@@ -266,3 +266,10 @@ def test_nan_forces_and_nan_class_probabilities_are_refused_not_written(frames):
         models.predict_table(force, frames)
     with pytest.raises(ModelError, match="gives NaN class probabilities"):
         models.classify_table(classifier, frames)
+
+
+def test_a_force_that_varies_below_the_scale_floor_is_refused_with_its_range(frames):
+    force = frames.schema.get_field_index("force")
+    tiny = frames.set_column(force, frames.schema.field(force), pa.array(frames.column("force").to_numpy() * 1e-9, pa.float32()))
+    with pytest.raises(ModelError, match=r"varies over 3e-09 N only, below the 1e-06 N .* give the force in newtons"):
+        models.train(tiny.replace_schema_metadata(frames.schema.metadata), models.make_spec("tdnn", **FAST), seed=0)
