@@ -440,6 +440,10 @@ def _check_training_set(name, config, train_set, label) -> float:
     classes = {v for v in train_set.labels[label] if v is not None}
     if len(classes) < 2:
         raise ModelError(f"the training trials hold {len(classes)} {label} class(es); a classifier needs at least two")
+    if config.head == "lda":
+        from neurotac_cli.model.material import check_discriminant_classes
+
+        check_discriminant_classes(train_set.labels[label], name, label)
     if config.inputs == "force" and np.isnan(np.concatenate(train_set.force)).all():
         raise ModelError("material-force needs the measured force in the frames (column force is empty)")
     return 0.0

@@ -194,6 +194,17 @@ def discriminant(z: np.ndarray, y: np.ndarray, classes: int) -> tuple:
     return weight, bias
 
 
+def check_discriminant_classes(values: list, name: str, label: str):
+    """Refuse a discriminant with a class of fewer than two training trials (`values`: each training
+    trial's class): that class adds no spread to the pooled covariance, and its mean sits on its one
+    grasp, so the fit is certain (probabilities exactly 0 and 1) and wrong on any other grasp of it."""
+    few = sorted((c, n) for c, n in collections.Counter(v for v in values if v is not None).items() if n < 2)
+    if few:
+        shown = ", ".join(f"{c} {n}" for c, n in few[:3]) + (", ..." if len(few) > 3 else "")
+        raise ModelError(f"{name} fits a spread within each {label} and needs at least 2 training trials of each; "
+                         f"training holds {shown}: give more trials, or hold fewer out (--val-fraction 0, --val-trials)")
+
+
 class Net(nn.Module):
     task = "material"
 
