@@ -506,6 +506,19 @@ def check_force(values: np.ndarray, where: str = ""):
         raise SchemaError(f"{int(bad.sum())} force values{place} are NaN or infinite; clean the force log first")
 
 
+MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
+
+
+def check_force_range(values: np.ndarray, what: str = "the training frames"):
+    """Refuse a force beyond MAX_FORCE_N (nulls as NaN are skipped): `train` would not learn from it,
+    and a score against it would be a figure of the corrupt sample, printed as if right."""
+    values = np.abs(np.asarray(values, dtype=np.float64))
+    values = values[~np.isnan(values)]
+    if len(values) and values.max() > MAX_FORCE_N:
+        raise SchemaError(f"{what} carry a force of {values.max():.3g} N, beyond any contact force (> {MAX_FORCE_N:g} N): "
+                          "a corrupt sample or a log in another unit; clean the force log")
+
+
 class UniqueRows:
     """Refuses a repeated trial (recordings) or (trial, frame) pair (frames) as batches flow past: the
     same table given twice, or two recordings synced under one name, would otherwise be trained on

@@ -404,7 +404,6 @@ def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
 
 
 FORCE_SCALE_FLOOR_N = 1e-6  # the smallest force scale, and the least force range a model is trained on
-MAX_FORCE_N = 10_000.0  # beyond any gripper's contact force: a value above it is a corrupt sample or another unit
 
 
 def _check_classes(data, label: str):
@@ -425,9 +424,7 @@ def _check_training_set(name, config, train_set, label) -> float:
         known = forces[~np.isnan(forces)]
         if not len(known):
             raise ModelError("the training frames carry no force (column force is empty); frame recordings that have a force log")
-        if np.abs(known).max() > MAX_FORCE_N:
-            raise ModelError(f"the training frames carry a force of {known[np.argmax(np.abs(known))]:.3g} N, beyond any contact "
-                             f"force (> {MAX_FORCE_N:g} N): a corrupt sample or a log in another unit; clean the force log")
+        sch.check_force_range(known)
         if known.min() == known.max():
             raise ModelError(f"the training frames' force is {known[0]:g} N on every frame: there is no force to learn "
                              "(did the force sensor record?)")

@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from neurotac_cli.schema import check_force_range
 from neurotac_cli.errors import ModelError, UsageError
 from neurotac_cli.units import counted, first_few
 from neurotac_cli.model.data import Sequences
@@ -142,6 +143,8 @@ def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, va
     if spec["model"] in MATERIAL_MODELS and cv.startswith("group:") and _group(cv)[0] == label:
         raise UsageError(f"--cv {cv} holds out every trial of a {label} class from its training, so no test trial's class "
                          f"could be named; group by another label (e.g. group:object), or use kfold:K")
+    if spec["model"] not in MATERIAL_MODELS:  # a held-out trial is scored, never trained on: its force is checked here
+        check_force_range(np.concatenate(data.force), "the frames cross-validated")
     rng = np.random.default_rng(seed)
     groups = folds(data, cv, rng)
     spec = resolved_spec(spec)

@@ -130,3 +130,27 @@ def test_a_members_validation_error_scores_each_member_alone_on_the_trials_it_va
             known = ~torch.isnan(force[rows])
             errors.append(((estimate - force[rows])[known] ** 2).numpy())
     assert validation_figures(model, frames)["val_mse"] == pytest.approx(float(np.concatenate(errors).mean()), rel=1e-4)
+
+
+def _with_huge_force(table, trial="t0"):
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    index = table.schema.get_field_index("force")
+    force = pc.if_else(pc.equal(table.column("trial"), trial), pa.scalar(1e30, pa.float32()), table.column("force"))
+    return table.set_column(index, table.schema.field(index), force).replace_schema_metadata(table.schema.metadata)
+
+
+def test_a_measured_force_train_would_refuse_is_not_scored_by_eval_or_a_cross_validation(tmp_path):
+    from neurotac_cli.errors import SchemaError
+    from neurotac_cli.model.evaluate import Folds, evaluate
+
+    frames = tiny_frames(trials=4)
+    model = models.train(frames, models.make_spec("tdnn", epochs=1), seed=0)
+    path = tmp_path / "m.model"
+    models.save(model, str(path))
+    huge = _with_huge_force(frames)
+    with pytest.raises(SchemaError, match=r"the frames scored carry a force of 1e\+30 N, beyond any contact force"):
+        evaluate(huge, model_path=str(path))
+    with pytest.raises(SchemaError, match=r"the frames cross-validated carry a force of 1e\+30 N"):
+        evaluate(huge, model_spec="tdnn", hyperparameters={"epochs": 1}, folds=Folds("kfold:2"))
