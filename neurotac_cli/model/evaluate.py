@@ -11,7 +11,7 @@ from neurotac_cli.errors import InputError
 from neurotac_cli.metrics import metrics_table
 from neurotac_cli.model.core import classify_table, make_spec
 from neurotac_cli.model.predict import predict_table
-from neurotac_cli.model.cv import fold_tasks, run_fold
+from neurotac_cli.model.cv import fold_tasks, run_fold, unseen_classes_note
 from neurotac_cli.model.data import sequences
 from neurotac_cli.model.grid import cross_validate_grid, grid_lines, grid_metrics_table
 from neurotac_cli.model.scoring import score, score_folds, summary
@@ -128,4 +128,7 @@ def cross_validate(table: pa.Table, spec: dict, cv: str, *, repeats=1, seed=0, v
         progress(f"cross-validation {cv}: {len(groups)} folds x {repeats} repeats = {len(tasks)} trainings of {spec['model']}")
     results = run_tasks(run_fold, tasks, jobs=jobs, scheduler=scheduler, cache_dir=cache,
                         label=f"{spec['model']} folds", shared={"frames": table}, note=progress)
+    unseen = unseen_classes_note(results, label)
+    if unseen and progress:
+        progress(unseen)
     return score_folds(results, len(groups), nonzero=nonzero, per_trial=per_trial, label=label)

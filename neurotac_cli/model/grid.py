@@ -6,7 +6,7 @@ import math
 import pyarrow as pa
 
 from neurotac_cli.metrics import metrics_table
-from neurotac_cli.model.cv import fold_tasks, run_fold
+from neurotac_cli.model.cv import fold_tasks, run_fold, unseen_classes_note
 from neurotac_cli.model.core import make_spec
 from neurotac_cli.model.data import sequences
 from neurotac_cli.model.scoring import score_folds
@@ -29,6 +29,9 @@ def cross_validate_grid(frames, model: str, cv: str, points: list[dict], *, repe
     results = run_tasks(run_fold, [task for _, tasks in plans for task in tasks], jobs=jobs,
                         scheduler=scheduler, cache_dir=cache_dir, label=f"{model} grid", shared={"frames": frames},
                         progress=progress, note=note)
+    unseen = unseen_classes_note(results, label)
+    if unseen and note:
+        note(unseen)
     parts, rows, start = [], [], 0
     for point, (groups, tasks) in zip(points, plans):
         predictions, point_rows = score_folds(results[start : start + len(tasks)], len(groups),

@@ -154,3 +154,31 @@ def test_a_measured_force_train_would_refuse_is_not_scored_by_eval_or_a_cross_va
         evaluate(huge, model_path=str(path))
     with pytest.raises(SchemaError, match=r"the frames cross-validated carry a force of 1e\+30 N"):
         evaluate(huge, model_spec="tdnn", hyperparameters={"epochs": 1}, folds=Folds("kfold:2"))
+
+
+def test_classifier_kfolds_deal_every_class_to_every_fold_and_a_class_a_fold_never_saw_is_named():
+    import pyarrow as pa
+
+    from neurotac_cli.model.cv import folds, unseen_classes_note
+    from neurotac_cli.model.data import sequences
+
+    data = sequences(tiny_frames(trials=4))  # materials foam, steel, foam, steel
+    material = dict(zip(data.trials, data.labels["material"]))
+    for seed in range(20):
+        for fold in folds(data, "kfold:2", np.random.default_rng(seed), stratify="material"):
+            assert sorted(material[t] for t in fold) == ["foam", "steel"]
+    seen = pa.table({"trial": ["t0", "t1"], "material": ["foam", "rock"], "material_pred": ["foam", "foam"],
+                     "prob_foam": [1.0, 1.0], "prob_steel": [0.0, 0.0]})
+    note = unseen_classes_note([(seen, {})], "material")
+    assert note.startswith("warning: 1 trial (t1) scored by a fold whose model never trained on their material (rock)")
+    assert unseen_classes_note([(seen.slice(0, 1), {})], "material") is None
+
+
+@pytest.mark.parametrize("k", [0, 1])
+def test_kfold_below_two_is_a_usage_error(k):
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.model.cv import folds
+    from neurotac_cli.model.data import sequences
+
+    with pytest.raises(UsageError, match=f"--cv kfold:{k} needs 2 <= K <= 4"):
+        folds(sequences(tiny_frames(trials=4)), f"kfold:{k}", np.random.default_rng(0))
