@@ -124,7 +124,7 @@ def check_header(schema: pa.Schema) -> None:
         raise SchemaError(f"metadata {SENSOR} is {sensor!r}, not {{\"width\": W, \"height\": H}} in pixels; re-import the recording")
     window = get_meta(schema, WINDOW)
     if window is not None and not is_positive_count(window):
-        raise SchemaError(f"metadata {WINDOW} is {window!r}, not a positive number of µs; frame the events again")
+        raise SchemaError(f"metadata {WINDOW} is {window!r}, not a whole number of µs, 1 or more; frame the events again")
     history = get_meta(schema, HISTORY)
     if history is not None and not (isinstance(history, list) and all(isinstance(step, dict) for step in history)):
         raise SchemaError(f"metadata {HISTORY} is not a list of steps; was the file written by another tool?")
@@ -367,13 +367,29 @@ def validate(schema: pa.Schema, kind) -> str:
         if name not in schema.names:
             raise SchemaError(f"{found} table has no {name!r} column (columns: {', '.join(schema.names)})")
         actual = schema.field(name).type
-        if typ is not None and not actual.equals(typ) and not _castable(actual, typ):
-            raise SchemaError(f"{found} column {name!r} has type {actual}, expected {typ}")
+        # whole-number trial ids (a numbering from another tool) are read as their text, as `frame` reads labels
+        whole_ids = name == "trial" and pa.types.is_integer(actual)
+        if typ is not None and not actual.equals(typ) and not _castable(actual, typ) and not whole_ids:
+            advice = "; trial ids are text or whole numbers: cast the column to text" if name == "trial" else ""
+            raise SchemaError(f"{found} column {name!r} has type {actual}, expected {typ}{advice}")
     if found == "frames":
         counts = schema.field("counts").type
         if not isinstance(counts, pa.FixedShapeTensorType) or len(counts.shape) != 3 or counts.shape[0] != 2:
             raise SchemaError(f"frames column 'counts' must be fixed_shape_tensor[2, H, W], got {counts}")
+        _check_frames_sensor(schema, int(counts.shape[2]), int(counts.shape[1]))
     return found
+
+
+def _check_frames_sensor(schema: pa.Schema, width: int, height: int):
+    """A frames table's neurotac:sensor is the coordinate space its counts are in (`frame` sets it to
+    the frame size, `crop` and its pooling to the cropped, pooled size: docs/formats.md), so a size
+    other than the counts' is metadata edited or copied from another table, and the box, centre and
+    pooling read from it would be another table's."""
+    sensor = sensor_of(schema)
+    if sensor is not None and sensor != (width, height):
+        raise SchemaError(f"metadata {SENSOR} says {sensor[0]}x{sensor[1]}, but the frames' counts are {width}x{height} "
+                          "(frame, crop and pool set it to the frames' size): metadata edited or taken from another table? "
+                          "make the frames again")
 
 
 def table_kind(schema: pa.Schema) -> str | None:

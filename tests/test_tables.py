@@ -411,3 +411,31 @@ def test_a_streamed_batch_leaves_an_unbuffered_stdout_in_one_write():
     assert raw.calls <= 50 + 2  # one a batch, the schema and the end (the schema goes with the first batch)
     assert not raw.closed
     assert pa.ipc.open_stream(bytes(raw.data)).read_all().equals(table)
+
+
+def _frames(trial, sensor=None, window_us=10000):
+    counts = schema.counts_array(np.zeros((2, 2, 3, 4), np.uint16))
+    frames = schema.frames_schema(3, 4, window_us=window_us)
+    table = pa.table({"trial": trial, "frame": pa.array([0, 1], pa.int32()), "t": pa.array([0, 10000], pa.int64()),
+                      "counts": counts, "force": pa.array([1.0, 2.0], pa.float32()), "phase": pa.array(["holding"] * 2)})
+    return table.replace_schema_metadata(schema.set_meta(frames, **({"sensor": sensor} if sensor else {})).metadata)
+
+
+def test_whole_number_trial_ids_are_read_as_text_and_other_types_get_advice(tmp_path):
+    path = write_to(tmp_path / "int.arrows", _frames(pa.array([7, 7], pa.int64())))
+    assert tables.read([str(path)], kind="frames").column("trial").to_pylist() == ["7", "7"]
+    path = write_to(tmp_path / "float.arrows", _frames(pa.array([7.5, 7.5])))
+    with pytest.raises(SchemaError, match="has type double, expected string; trial ids are text or whole numbers"):
+        tables.read([str(path)], kind="frames")
+
+
+def test_a_frames_sensor_that_contradicts_the_counts_or_a_fractional_window_is_refused(tmp_path):
+    path = write_to(tmp_path / "s.arrows", _frames(pa.array(["a", "a"]), sensor={"width": 30, "height": 30}))
+    with pytest.raises(SchemaError, match="neurotac:sensor says 30x30, but the frames' counts are 4x3"):
+        tables.read([str(path)], kind="frames")
+    assert tables.read([str(write_to(tmp_path / "ok.arrows", _frames(pa.array(["a", "a"]))))], kind="frames").num_rows == 2
+    half = _frames(pa.array(["a", "a"]))
+    half = half.replace_schema_metadata(schema.set_meta(half.schema, window_us=0.5).metadata)
+    pq.write_table(half, tmp_path / "half.parquet")
+    with pytest.raises(SchemaError, match=r"window_us is 0.5, not a whole number of µs, 1 or more"):
+        tables.read([str(tmp_path / "half.parquet")], kind="frames")
