@@ -54,8 +54,9 @@ def _chain(first, rest):
     yield from rest
 
 
-def conform_batch(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
-    """`batch` in the layout `accept` gave `schema` (a no-op for a batch already in it)."""
+def conform_batch(batch: pa.RecordBatch, schema: pa.Schema, first_row: int = 0) -> pa.RecordBatch:
+    """`batch` in the layout `accept` gave `schema` (a no-op for a batch already in it); `first_row`:
+    the table's row number of the batch's first row, as errors name rows."""
     if "polarity" in batch.schema.names and "p" in schema.names and "polarity" not in schema.names:
         batch = _events_batch(batch)
     elif "t" in batch.schema.names and not pa.types.is_integer(batch.schema.field("t").type) and sch.kind_of(schema) == "events":
@@ -63,7 +64,7 @@ def conform_batch(batch: pa.RecordBatch, schema: pa.Schema) -> pa.RecordBatch:
     if "counts" in schema.names and isinstance(schema.field("counts").type, pa.FixedShapeTensorType):
         index = batch.schema.get_field_index("counts")
         if index >= 0 and not isinstance(batch.column(index).type, pa.FixedShapeTensorType):
-            tensor = _tensor(batch.column(index), schema.field("counts").type)
+            tensor = _tensor(batch.column(index), schema.field("counts").type, first_row)
             batch = batch.set_column(index, pa.field("counts", tensor.type), tensor)
     return batch
 
@@ -116,6 +117,9 @@ def _frame_size(schema: pa.Schema, first: pa.RecordBatch | None) -> tuple[int, i
     given = os.environ.get(FRAME_SIZE_ENV)
     if given:
         width, height = parse_size(given)
+        if sensor and sensor != (width, height):  # the table's own word on its size, against a guess made for tables without one
+            raise SchemaError(f"--frame-size {width}x{height} ({FRAME_SIZE_ENV}) contradicts the table's own frame size "
+                              f"{sensor[0]}x{sensor[1]} (its neurotac:sensor metadata); leave --frame-size out")
         return height, width
     if sensor:
         return sensor[1], sensor[0]
@@ -127,12 +131,16 @@ def _frame_size(schema: pa.Schema, first: pa.RecordBatch | None) -> tuple[int, i
 
 
 def _wrong_length(row: int, held: int, target: pa.FixedShapeTensorType) -> SchemaError:
-    return SchemaError(f"frames 'counts' of row {row} hold {held} values, expected {int(np.prod(target.shape))} "
-                       f"(2x{target.shape[1]}x{target.shape[2]}); give the frame size: neurotac --frame-size WxH ...")
+    expected = f"{int(np.prod(target.shape))} (2x{target.shape[1]}x{target.shape[2]})"
+    if row:  # the rows before it held the size: the table mixes frame sizes, which no frame size given can mend
+        return SchemaError(f"frames 'counts' of row {row} hold {held} values where the rows before it hold {expected}: the table "
+                           "mixes frame sizes; crop every part to one size before joining them")
+    return SchemaError(f"frames 'counts' of row 0 hold {held} values, expected {expected}; give the frame size: "
+                       "neurotac --frame-size WxH ...")
 
 
-def _tensor(column: pa.Array, target: pa.FixedShapeTensorType) -> pa.ExtensionArray:
-    """A list column of counts as `target`, every row checked to hold 2·H·W values."""
+def _tensor(column: pa.Array, target: pa.FixedShapeTensorType, first_row: int = 0) -> pa.ExtensionArray:
+    """A list column of counts as `target`, every row checked to hold 2·H·W values (rows named from `first_row`)."""
     size = int(np.prod(target.shape))
     values = column
     while not (pa.types.is_integer(values.type) or pa.types.is_floating(values.type)):
@@ -140,12 +148,12 @@ def _tensor(column: pa.Array, target: pa.FixedShapeTensorType) -> pa.ExtensionAr
             raise SchemaError("frames column 'counts' has empty (null) frames; drop those rows or fill them with zeros")
         flat_fixed = values is column and pa.types.is_fixed_size_list(values.type) and not pa.types.is_nested(values.type.value_type)
         if flat_fixed and values.type.list_size != size:  # one length for every row: a frame size that does not fit them
-            raise _wrong_length(0, values.type.list_size, target)
+            raise _wrong_length(first_row, values.type.list_size, target)
         if not pa.types.is_fixed_size_list(values.type):
             lengths = pc.list_value_length(values).to_numpy(zero_copy_only=False)
             if len(lengths) and (lengths.min() != lengths.max() or (values is column and lengths[0] != size)):
                 bad = int(np.flatnonzero(lengths != (size if values is column else lengths[0]))[0]) if len(lengths) else 0
-                raise _wrong_length(bad, lengths[bad], target)
+                raise _wrong_length(first_row + bad, lengths[bad], target)
         values = pc.list_flatten(values)
     try:
         values = values.cast(target.value_type, safe=True)

@@ -311,8 +311,9 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
 
 
 def _conformed(batches, schema: pa.Schema, kind: str | None):
+    rows = 0
     for batch in batches:
-        batch = bridges.conform_batch(batch, schema)
+        batch, rows = bridges.conform_batch(batch, schema, rows), rows + batch.num_rows
         if kind in sch.REQUIRED:
             batch = sch.conform(batch, kind)
         if not batch.schema.equals(schema, check_metadata=False):

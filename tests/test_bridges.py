@@ -147,3 +147,31 @@ def test_fixed_size_lists_of_another_frame_size_are_refused_in_one_line(tmp_path
     monkeypatch.setenv("NEUROTAC_FRAME_SIZE", "")
     refused = CliRunner().invoke(cli, ["--frame-size", size, "info", str(tmp_path / "f.parquet")])
     assert refused.exit_code == 1 and "row 0 hold 144 values" in refused.output and "Traceback" not in refused.output
+
+
+def _flat(frames):
+    return frames.set_column(frames.schema.get_field_index("counts"), "counts",
+                             pa.array(list(counts_of(frames).reshape(len(frames), -1)), pa.list_(pa.uint16())))
+
+
+def test_a_frame_size_given_against_the_tables_own_is_refused(tmp_path, monkeypatch):
+    tables.write(str(tmp_path / "flat.arrows"), _flat(tiny_frames(trials=2, size=(6, 6))))  # 72 values: 4x9 would reshape them
+    monkeypatch.setenv("NEUROTAC_FRAME_SIZE", "9x4")
+    with pytest.raises(SchemaError, match=r"--frame-size 9x4 \(NEUROTAC_FRAME_SIZE\) contradicts the table's own frame size 6x6"):
+        tables.read([str(tmp_path / "flat.arrows")])
+    monkeypatch.setenv("NEUROTAC_FRAME_SIZE", "6x6")  # agreeing with it is no conflict
+    assert tables.read([str(tmp_path / "flat.arrows")]).num_rows == 24
+
+
+def test_flat_counts_of_mixed_sizes_name_the_first_row_of_another_size_in_a_later_batch(tmp_path, monkeypatch):
+    small, large = _flat(tiny_frames(trials=1, size=(4, 4))), _flat(tiny_frames(trials=1, size=(5, 5), seed=1))
+    import pyarrow.ipc as ipc
+
+    with pa.OSFile(str(tmp_path / "mixed.arrows"), "wb") as sink:
+        writer = ipc.new_stream(sink, small.replace_schema_metadata(None).schema)
+        for part in (small, large):
+            writer.write_table(part.replace_schema_metadata(None))
+        writer.close()
+    monkeypatch.setenv("NEUROTAC_FRAME_SIZE", "")
+    with pytest.raises(SchemaError, match=r"row 12 hold 50 values where the rows before it hold 32 \(2x4x4\): the table mixes frame sizes"):
+        tables.read([str(tmp_path / "mixed.arrows")])
