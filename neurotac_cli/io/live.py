@@ -169,7 +169,8 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
             raise InputError(f"{name}: stopped before the camera header had arrived (no table to write)")
         if not buffer:
             waited = f" after waiting {idle_timeout:g} s" if follow else ""
-            raise InputError(f"{name} is empty (0 bytes){waited}; is it the right file, and is the camera writing it?")
+            shown = name if path in (None, "-") else str(path)  # the path as given: /dev/null is not "null"
+            raise InputError(f"{shown} is empty (0 bytes){waited}; is it the right file, and is the camera writing it?")
         fmt = camera.chosen_format(name, bytes(buffer[:SNIFF_BYTES]), fmt)
         if sensor is not None:
             sensor = (int(sensor[0]), int(sensor[1]))

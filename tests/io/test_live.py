@@ -519,3 +519,11 @@ def test_a_stream_refused_after_its_decoder_is_built_leaves_no_temporary_file(tm
     with pytest.raises(FormatError, match="refuses"):
         read_events_table(fifo_of(tmp_path / "fifo", real_file("davis346_aestream.aedat4").read_bytes()))
     assert not list(tmp_path.glob(".neurotac-aedat4-*"))
+
+
+def test_an_empty_camera_file_is_named_by_its_path_as_given():
+    from neurotac_cli.errors import InputError
+
+    with pytest.raises(InputError, match=r"^/dev/null is empty \(0 bytes\)"):
+        for _ in live.open_stream("/dev/null")[1]:
+            pass
