@@ -1116,7 +1116,7 @@ def test_frames_without_a_measured_force_are_counted_as_left_out():
 
     rows = metrics.force_rows(["a"] * 4, ["holding"] * 4, [np.nan, np.nan, 1.0, 2.0], [0.5, 0.5, 1.0, 2.1])
     assert ("all", "unforced_frames", 2.0) in rows
-    assert "2 frames without a measured force (NaN) left out" in scoring.summary(rows)
+    assert "2 frames with no measured force (null in the force column) left out" in scoring.summary(rows)
     assert not any(metric == "unforced_frames" for _, metric, _ in metrics.force_rows(["a"] * 2, ["holding"] * 2, [1.0, 2.0], [1.0, 2.0]))
 
 

@@ -122,7 +122,7 @@ def _left_out_lines(rows: list, figures: dict) -> list:
     """What the figures leave out: frames without a measured force, scopes whose force does not vary."""
     lines = []
     if figures.get("unforced_frames"):
-        lines.append(f"{counted(int(figures['unforced_frames']), 'frame')} without a measured force (NaN) left out of these figures")
+        lines.append(f"{counted(int(figures['unforced_frames']), 'frame')} with no measured force (null in the force column) left out of these figures")
     flat = sorted({scope for scope, metric, value in rows if metric in ("r2", "rmse_pct_range") and not np.isfinite(value)})
     if flat:
         lines.append(f"R² and the % of the range are undefined where the measured force does not vary: {counted(len(flat), 'scope')} "
