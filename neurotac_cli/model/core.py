@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import torch
 
 from neurotac_cli import schema as sch
@@ -699,7 +700,14 @@ def gaps_note(missing: dict, runs: str = "ran") -> str | None:
 
 
 def missing_frames(table: pa.Table) -> dict:
-    """{trial: frame numbers missing between its first and last frame} of a frames table."""
+    """{trial: frame numbers missing between its first and last frame} of a frames table. A trial whose
+    t goes back is refused first, as `sequences` refuses it, so that the refusal is the only line
+    (not a warning about its frame numbers before it)."""
+    encoded = pc.dictionary_encode(table.column("trial")).combine_chunks()
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
+    frame = table.column("frame").to_numpy().astype(np.int64)
+    order = np.lexsort((frame, codes))
+    check_time_forward(codes[order], encoded.dictionary.to_pylist(), frame[order], table.column("t").to_numpy().astype(np.int64)[order])
     spans = table.select(["trial", "frame"]).group_by("trial").aggregate(
         [("frame", "min"), ("frame", "max"), ("frame", "count_distinct")]).to_pydict()
     return {trial: high - low + 1 - distinct for trial, low, high, distinct

@@ -286,3 +286,16 @@ def test_a_discriminant_refuses_a_class_with_one_training_trial_and_reports_its_
     assert messages == []  # the refusal is the only line
     trained = train_model(frames, "material-timing", {"epochs": 2}, seed=0)
     assert trained.summary.startswith("material-timing: discriminant fitted in closed form, the scale of its probabilities in ")
+
+
+def test_frames_whose_time_goes_back_are_refused_before_any_warning_about_their_gaps(frames):
+    from neurotac_cli.errors import SchemaError
+    from neurotac_cli.model.core import missing_frames
+
+    index = frames.schema.get_field_index("frame")
+    numbers = frames.column("frame").to_numpy().copy()
+    numbers[0] = 100  # t0's first frame renumbered after the others, a gap before it, its t unchanged: time goes back
+    shifted = frames.set_column(index, frames.schema.field(index), pa.array(numbers, pa.int32()))
+    assert missing_frames(frames) == {f"t{i}": 0 for i in range(8)}
+    with pytest.raises(SchemaError, match="trial 't0': t goes back"):
+        missing_frames(shifted.replace_schema_metadata(frames.schema.metadata))
