@@ -26,6 +26,25 @@ def _pyplot():
     return plt
 
 
+def drawable(text: str) -> str:
+    """`text` with each character the figures' font cannot draw written as its code (\\u4e2d): the
+    font has no glyph for it, and matplotlib would draw an empty box and warn on stderr."""
+    glyphs = _glyphs()
+    return "".join(c if ord(c) in glyphs or not c.isprintable() else c.encode("unicode_escape").decode() for c in str(text))
+
+
+_GLYPHS = []
+
+
+def _glyphs() -> set:
+    """The code points the default font draws (read once)."""
+    if not _GLYPHS:
+        from matplotlib import font_manager, ft2font
+
+        _GLYPHS.append(set(ft2font.FT2Font(font_manager.findfont(font_manager.FontProperties())).get_charmap()))
+    return _GLYPHS[0]
+
+
 def force_errors(true: np.ndarray, pred: np.ndarray) -> tuple[float, float, int]:
     """(RMSE, MAE, frames) over the frames where both are known."""
     known = np.isfinite(true) & np.isfinite(pred)
@@ -56,15 +75,15 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
             # one trace (a session): measured and estimated in two colours, which overlap for minutes;
             # several: one colour per trial, so each estimate is read against its own measurement
             measured, estimated = ("0.3", "C3") if len(chosen) == 1 else (f"C{n}", f"C{n}")
-            left.plot(t[mask], true[mask], color=measured, lw=1.5, label=f"{name} measured")
-            left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", label=f"{name} estimated (RMSE {trial_rmse:.3f} N)")
+            left.plot(t[mask], true[mask], color=measured, lw=1.5, label=f"{drawable(name)} measured")
+            left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", label=f"{drawable(name)} estimated (RMSE {trial_rmse:.3f} N)")
         left.set_xlabel("time since sync t0 (ms)")
         left.set_ylabel("force (N)")
         left.legend(loc="best", framealpha=0.85)
         shown = f" ({len(chosen)} of {count} trials)" if len(chosen) < count else ""
         left.set_title("force over time" + shown + (" (first seed)" if not first_run.all() else ""))
         _scatter(right, true, pred, phase)
-        what = f"{title}: " if title else ""
+        what = f"{drawable(title)}: " if title else ""
         seeds = ", every seed" if not first_run.all() else ""
         fig.suptitle(f"{what}estimated vs measured force, RMSE {rmse:.3f} N, MAE {mae:.3f} N "
                      f"({frames:,} frames of {counted(count, 'trial')}{seeds})")
@@ -109,11 +128,11 @@ def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
             for j in range(len(classes)):
                 axis.text(j, i, f"{matrix[i, j]}\n{100 * matrix[i, j] / totals[i, 0]:.0f}%", ha="center", va="center",
                           color="white" if matrix[i, j] > matrix.max() / 2 else "black", fontsize=8)
-        axis.set_xticks(range(len(classes)), classes, rotation=30)
-        axis.set_yticks(range(len(classes)), classes)
+        axis.set_xticks(range(len(classes)), [drawable(c) for c in classes], rotation=30)
+        axis.set_yticks(range(len(classes)), [drawable(c) for c in classes])
         axis.set_xlabel("predicted class")
         axis.set_ylabel("true class (row: trials, share of the row)")
-        axis.set_title(title or f"confusion matrix: accuracy {100 * accuracy:.1f}% of {int(matrix.sum())} trials")
+        axis.set_title(drawable(title) or f"confusion matrix: accuracy {100 * accuracy:.1f}% of {int(matrix.sum())} trials")
         fig.tight_layout()
         _save(fig, path)
         plt.close(fig)

@@ -47,3 +47,15 @@ def test_figures_are_written(tmp_path):
     for name in ("f", "c", "m"):
         with Image.open(tmp_path / f"{name}.png") as image:
             assert image.format == "PNG" and min(image.size) > 300
+
+
+def test_trial_ids_and_classes_the_font_cannot_draw_are_written_as_codes_without_a_warning(tmp_path):
+    import warnings
+
+    predictions = pa.table({"trial": ["试验-1"] * 3 + ["α-2"] * 3, "t": [0, 10_000, 20_000] * 2,
+                            "force": np.linspace(0, 2, 6), "force_pred": np.linspace(0.1, 2.1, 6), "phase": ["holding"] * 6})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plots.force_figure(predictions, str(tmp_path / "f.png"), title="tdnn")
+        plots.confusion_figure(np.array([[1, 0], [0, 1]]), ["钢", "foam"], str(tmp_path / "m.png"))
+    assert plots.drawable("试验-1 α") == "\\u8bd5\\u9a8c-1 α"
