@@ -87,7 +87,7 @@ SETTING_RANGES = {
     "layers": (0, 64, False), "units": (1, 4096, False), "delays": (0, 1000, False), "filters": (1, 1024, False),
     "kernel": (1, 64, False), "dropout": (0.0, 1.0, True), "dense": (0, 4096, False), "hidden": (1, 4096, False),
     "members": (1, 64, False), "memory_frames": (0, None, False), "layout_grid": (0, None, False), "restarts": (0, 100, False),
-    "max_points": (1, 20_000, False), "points": (2, None, False), "lr": (0.0, 1000.0, False), "beta1": (0.0, 1.0, True),
+    "max_points": (10, 20_000, False), "points": (2, None, False), "lr": (0.0, 1000.0, False), "beta1": (0.0, 1.0, True),
     "beta2": (0.0, 1.0, True), "batch_size": (1, None, False), "epochs": (1, None, False), "patience": (1, None, False),
     "weight_decay": (0.0, 1000.0, False),
 }
@@ -365,6 +365,8 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     if largest > RANGE_WARN_N and progress:  # as `sync` warns of a log
         progress(f"warning: the training frames carry forces up to {largest:.4g} N, beyond {RANGE_N:g} N (the largest "
                  "FlexiForce range): a log in another unit (mN, g)? the model will read in those units")
+    for note in filter(None, [_delays_note(config, train_set) if progress else None]):
+        progress(note)
     if val_fraction and not in_val.any() and progress:
         progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
                  "is held out for validation (early stopping follows the training loss)")
@@ -405,6 +407,16 @@ def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
 
 
 FORCE_SCALE_FLOOR_N = 1e-6  # the smallest force scale, and the least force range a model is trained on
+
+
+def _delays_note(config, train_set) -> str | None:
+    """A warning where a time-delay network's window reaches past the start of every training trial:
+    its inputs are then mostly the zeros before a trial, whatever the trial did."""
+    delays, longest = getattr(config, "delays", 0), train_set.max_length()
+    if delays and delays >= longest:
+        return (f"warning: --delays {delays} reaches past the start of every training trial (the longest has "
+                f"{counted(longest, 'frame')}): each frame's input is mostly the zeros before its trial; give fewer delays")
+    return None
 
 
 def _check_classes(data, label: str):

@@ -299,3 +299,12 @@ def test_frames_whose_time_goes_back_are_refused_before_any_warning_about_their_
     assert missing_frames(frames) == {f"t{i}": 0 for i in range(8)}
     with pytest.raises(SchemaError, match="trial 't0': t goes back"):
         missing_frames(shifted.replace_schema_metadata(frames.schema.metadata))
+
+
+def test_a_gp_of_a_handful_of_points_is_refused_and_delays_past_every_trial_are_named(frames):
+    with pytest.raises(UsageError, match="--max-points must be a finite number from 10 to 20000, got 1"):
+        models.make_spec("gp", max_points=1)
+    messages = []
+    models.train(frames, models.make_spec("tdnn", delays=12, epochs=1), seed=0, progress=messages.append)
+    assert any(m.startswith("warning: --delays 12 reaches past the start of every training trial (the longest has 12 frames)")
+               for m in messages)
