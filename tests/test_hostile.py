@@ -168,7 +168,7 @@ def test_frame_warns_when_most_events_come_before_the_sync_instant(tmp_path):
 @pytest.mark.parametrize("label", ["events=x", "trial=x", "t0=5", "counts=x", "phase=x"])
 def test_a_label_named_like_a_column_is_refused(label, tmp_path):
     code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--objects", f"steel:hex:1:{label}", "--out", str(tmp_path / "s")])
-    assert one_line(stderr, code, 1) and "label name" in stderr
+    assert one_line(stderr, code, 2) and "label name" in stderr
 
 
 @pytest.mark.parametrize("args", [["--background-rate", "nan"], ["--set", "on_threshold=nan"]])
