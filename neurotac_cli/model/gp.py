@@ -45,7 +45,7 @@ class Net(ForceNet):
         self.inputs = torch.zeros_like(tensors["inputs"])
         self.dual = torch.zeros_like(tensors["dual"])
 
-    # the optimiser's bounds on the kernel's hyperparameters (`fit`), with room for rounding
+    # the optimiser's bounds on the kernel's hyperparameters (`fit`); `implausible` allows for rounding
     BOUNDS = {"length_scale": (1e-2, 1e3), "signal_variance": (1e-3, 1e3), "noise_variance": (1e-6, 1.0)}
 
     def implausible(self, tensors) -> str | None:
@@ -102,7 +102,9 @@ class Net(ForceNet):
         mean, scale = x.mean(axis=0), x.std(axis=0)
         scale[scale == 0] = 1.0
         z = (x - mean) / scale
-        kernel = ConstantKernel(1.0, (1e-3, 1e3)) * RBF(np.ones(3), (1e-2, 1e3)) + WhiteKernel(1e-2, (1e-6, 1.0))
+        bounds = self.BOUNDS
+        kernel = (ConstantKernel(1.0, bounds["signal_variance"]) * RBF(np.ones(3), bounds["length_scale"])
+                  + WhiteKernel(1e-2, bounds["noise_variance"]))
         if progress:
             progress(f"gp: fitting {len(z)} frames, {self.config.restarts} restarts")
         gp = GaussianProcessRegressor(kernel, n_restarts_optimizer=self.config.restarts, normalize_y=False,
