@@ -24,9 +24,10 @@ def _group(cv: str) -> tuple[str, str]:
     return label, value
 
 
-def folds(data: Sequences, cv: str, rng: np.random.Generator, stratify: str | None = None) -> list:
-    """Test trials (originals only) of each fold for `loo`, `kfold:K`, `group:LABEL` or `group:LABEL=VALUE`;
-    `stratify`: a classifier's label, whose classes k-folds deal out evenly over the folds."""
+def folds(data: Sequences, cv: str, rng: np.random.Generator) -> list:
+    """Test trials (originals only) of each fold for `loo`, `kfold:K`, `group:LABEL` or `group:LABEL=VALUE`.
+    k-folds are drawn over the source trials without regard to a classifier's classes: the published
+    tables were made so (a fold that holds every trial of a class is named by `unseen_classes_note`)."""
     originals = [i for i in range(len(data)) if not data.augmented[i]]
     if not originals:
         raise ModelError("no original (non-augmented) trials to test on; keep the originals beside the augmented copies")
@@ -42,7 +43,8 @@ def folds(data: Sequences, cv: str, rng: np.random.Generator, stratify: str | No
         unique = sorted(set(sources))
         if not 2 <= k <= len(unique):
             raise (UsageError if k < 2 else ModelError)(f"--cv kfold:{k} needs 2 <= K <= {len(unique)} (the number of source trials)")
-        fold_of = _deal(unique, _classes_of(data, originals, stratify), k, rng)
+        order = rng.permutation(len(unique))
+        fold_of = {unique[j]: n % k for n, j in enumerate(order)}
         groups = [[data.trials[i] for i, s in zip(originals, sources) if fold_of[s] == f] for f in range(k)]
     elif kind == "group":
         label, value = _group(cv)
@@ -61,25 +63,6 @@ def folds(data: Sequences, cv: str, rng: np.random.Generator, stratify: str | No
     else:
         raise UsageError(f"--cv must be loo, kfold:K, group:LABEL or group:LABEL=VALUE, got {cv!r}")
     return [g for g in groups if g]
-
-
-def _classes_of(data: Sequences, originals: list, label: str | None) -> dict:
-    """{source trial: its class} where `label` is a classifier's label column, else every source in one class."""
-    values = data.labels.get(label) if label else None
-    return {data.source[i]: (values[i] if values else "") for i in originals}
-
-
-def _deal(sources: list, classes: dict, k: int, rng) -> dict:
-    """{source: fold}: each class's sources shuffled and dealt round the folds, the deal running on from
-    one class to the next, so every fold holds each class where it has K sources or more (a fold
-    without a class would score trials of a class its model never trained on)."""
-    fold_of, dealt = {}, 0
-    for value in sorted(set(classes.values()), key=str):
-        members = [s for s in sources if classes[s] == value]
-        for j in rng.permutation(len(members)):
-            fold_of[members[j]] = dealt % k
-            dealt += 1
-    return fold_of
 
 
 def unseen_classes_note(results: list, label: str) -> str | None:
@@ -184,7 +167,7 @@ def fold_tasks(data: Sequences, spec: dict, cv: str, repeats: int, seed: int, va
     if spec["model"] not in MATERIAL_MODELS:  # a held-out trial is scored, never trained on: its force is checked here
         check_force_range(np.concatenate(data.force), "the frames cross-validated")
     rng = np.random.default_rng(seed)
-    groups = folds(data, cv, rng, label if spec["model"] in MATERIAL_MODELS else None)
+    groups = folds(data, cv, rng)
     spec = resolved_spec(spec)
     tasks = []
     for repeat in range(repeats):

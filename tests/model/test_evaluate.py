@@ -156,17 +156,11 @@ def test_a_measured_force_train_would_refuse_is_not_scored_by_eval_or_a_cross_va
         evaluate(huge, model_spec="tdnn", hyperparameters={"epochs": 1}, folds=Folds("kfold:2"))
 
 
-def test_classifier_kfolds_deal_every_class_to_every_fold_and_a_class_a_fold_never_saw_is_named():
+def test_a_class_a_fold_never_trained_on_is_named():
     import pyarrow as pa
 
-    from neurotac_cli.model.cv import folds, unseen_classes_note
-    from neurotac_cli.model.data import sequences
+    from neurotac_cli.model.cv import unseen_classes_note
 
-    data = sequences(tiny_frames(trials=4))  # materials foam, steel, foam, steel
-    material = dict(zip(data.trials, data.labels["material"]))
-    for seed in range(20):
-        for fold in folds(data, "kfold:2", np.random.default_rng(seed), stratify="material"):
-            assert sorted(material[t] for t in fold) == ["foam", "steel"]
     seen = pa.table({"trial": ["t0", "t1"], "material": ["foam", "rock"], "material_pred": ["foam", "foam"],
                      "prob_foam": [1.0, 1.0], "prob_steel": [0.0, 0.0]})
     note = unseen_classes_note([(seen, {})], "material")
