@@ -195,14 +195,15 @@ def discriminant(z: np.ndarray, y: np.ndarray, classes: int) -> tuple:
 
 
 def check_discriminant_classes(values: list, name: str, label: str):
-    """Refuse a discriminant with a class of fewer than two training trials (`values`: each training
-    trial's class): that class adds no spread to the pooled covariance, and its mean sits on its one
-    grasp, so the fit is certain (probabilities exactly 0 and 1) and wrong on any other grasp of it."""
-    few = sorted((c, n) for c, n in collections.Counter(v for v in values if v is not None).items() if n < 2)
-    if few:
-        shown = ", ".join(f"{c} {n}" for c, n in few[:3]) + (", ..." if len(few) > 3 else "")
-        raise ModelError(f"{name} fits a spread within each {label} and needs at least 2 training trials of each; "
-                         f"training holds {shown}: give more trials, or hold fewer out (--val-fraction 0, --val-trials)")
+    """Refuse a discriminant where no class has two training trials (`values`: each training trial's
+    class): the covariance is pooled within classes, so then it holds no spread but the ridge, and the
+    fit is certain (probabilities exactly 0 and 1) and wrong on any other grasp. A class of one trial
+    beside classes of several is placed by its one grasp against the others' spread."""
+    counts = collections.Counter(v for v in values if v is not None)
+    if counts and max(counts.values()) < 2:
+        raise ModelError(f"{name} pools a spread within each {label} and needs a {label} with at least 2 training "
+                         f"trials; training holds one of each ({first_few(sorted(counts))}): give more trials, or hold "
+                         "fewer out (--val-fraction 0, --val-trials)")
 
 
 class Net(nn.Module):

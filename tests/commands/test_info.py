@@ -140,7 +140,7 @@ def test_a_model_file_is_described_from_its_header(tmp_path):
     from neurotac_cli import tables
     from tests.model.helpers import tiny_frames
 
-    tables.write(str(tmp_path / "f.arrows"), tiny_frames(trials=4))
+    tables.write(str(tmp_path / "f.arrows"), tiny_frames(trials=6))
     runner = CliRunner()
     trained = runner.invoke(cli, ["train", "--model", "material-timing", "-o", str(tmp_path / "m.model"), str(tmp_path / "f.arrows")])
     assert trained.exit_code == 0, trained.output

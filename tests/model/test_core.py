@@ -275,15 +275,16 @@ def test_a_force_that_varies_below_the_scale_floor_is_refused_with_its_range(fra
         models.train(tiny.replace_schema_metadata(frames.schema.metadata), models.make_spec("tdnn", **FAST), seed=0)
 
 
-def test_a_discriminant_refuses_a_class_with_one_training_trial_and_reports_its_fit_as_closed_form(frames):
+def test_a_discriminant_refuses_classes_of_one_training_trial_each_and_reports_its_fit_as_closed_form(frames):
     from neurotac_cli.model.training import train_model
 
     messages = []
-    with pytest.raises(ModelError, match=r"material-timing fits a spread within each material and needs at least 2 training "
-                                         r"trials of each; training holds foam 1, steel 1"):
+    with pytest.raises(ModelError, match=r"material-timing pools a spread within each material and needs a material with at "
+                                         r"least 2 training trials; training holds one of each \(foam, steel\)"):
         models.train(frames, models.make_spec("material-timing", epochs=2), val_trials=["t0", "t1", "t2", "t3", "t4", "t5"],
                      seed=0, progress=messages.append)
     assert messages == []  # the refusal is the only line
+    models.train(frames, models.make_spec("material-timing", epochs=2), val_trials=["t0", "t1", "t2", "t3", "t4"], seed=0)
     trained = train_model(frames, "material-timing", {"epochs": 2}, seed=0)
     assert trained.summary.startswith("material-timing: discriminant fitted in closed form, the scale of its probabilities in ")
 
