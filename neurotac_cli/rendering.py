@@ -467,23 +467,65 @@ def _write(figure, pictures, fmt: str, path: str, fps: float) -> tuple[int, int]
             first = next(images)
             first.save(temporary, format="GIF", save_all=True, append_images=images, duration=round(1000 / fps), loop=0)
             return first.size
-        return _write_mp4(pictures, temporary, fps)
+        return _write_mp4(pictures, temporary, fps, path)
 
 
-def _write_mp4(pictures, path: str, fps: float) -> tuple[int, int]:
-    """H.264 through the ffmpeg that imageio-ffmpeg ships; pictures padded with white to a multiple
-    of 16 pixels (H.264's macro block), so ffmpeg does not rescale them."""
+def _write_mp4(pictures, path: str, fps: float, name: str) -> tuple[int, int]:
+    """H.264 through the ffmpeg that imageio-ffmpeg ships, run here rather than through its
+    `write_frames`, which never looks at ffmpeg's exit: on a full disk a cut video replaced the old
+    one and the run said "wrote". Pictures are padded with white to a multiple of 16 pixels (H.264's
+    macro block), so ffmpeg does not rescale them. `name`: the output as given, for the error."""
+    import subprocess
+    import tempfile
+    from fractions import Fraction
+
     import imageio_ffmpeg
 
     pictures = iter(pictures)
     first = next(pictures)
     height, width = first.shape[:2]
     padded = (-(-width // 16) * 16, -(-height // 16) * 16)
-    writer = imageio_ffmpeg.write_frames(path, padded, fps=fps, macro_block_size=16, output_params=["-f", "mp4"])
-    writer.send(None)
-    for picture in itertools.chain([first], pictures):
-        frame = np.full((padded[1], padded[0], 3), 255, dtype=np.uint8)
-        frame[:height, :width] = picture
-        writer.send(np.ascontiguousarray(frame))
-    writer.close()
+    # imageio-ffmpeg's settings: its default quality 5 is CRF 25
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
+               "-s", f"{padded[0]}x{padded[1]}", "-r", str(Fraction(fps).limit_denominator()), "-i", "-", "-an",
+               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "25", "-f", "mp4", path]
+    with tempfile.TemporaryFile() as said:  # ffmpeg's own words, for the one line if it fails
+        encoder = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=said)
+        try:
+            for picture in itertools.chain([first], pictures):
+                frame = np.full((padded[1], padded[0], 3), 255, dtype=np.uint8)
+                frame[:height, :width] = picture
+                encoder.stdin.write(frame.tobytes())
+        except BrokenPipeError:
+            pass  # ffmpeg stopped early: its exit status and its words say why
+        except BaseException:
+            encoder.kill()  # interrupted, or a drawing failed: no video to finish
+            raise
+        finally:
+            try:
+                encoder.stdin.close()
+            except BrokenPipeError:
+                pass
+            encoder.wait()
+        said.seek(0)
+        lines = [line.strip() for line in said.read().decode("utf-8", "replace").splitlines() if line.strip()]
+    if encoder.returncode != 0:
+        raise _encoder_error(name, encoder.returncode, lines)
     return padded
+
+
+def _encoder_error(name: str, status: int, lines: list[str]) -> Exception:
+    """ffmpeg's failure as the error of writing a file where its exit or words name one (a full disk,
+    a file too large), which `atomic_file` words as every other output's; else its last line."""
+    import errno
+    import os
+    import signal
+
+    from neurotac_cli.errors import OutputError
+
+    if status == -signal.SIGXFSZ:  # a file-size limit (`ulimit -f`) kills a process that passes it
+        return OSError(errno.EFBIG, os.strerror(errno.EFBIG))
+    for number in OutputError.WHY:
+        if any(os.strerror(number) in line for line in lines):
+            return OSError(number, os.strerror(number))
+    return OutputError(f"cannot write {name} (ffmpeg failed: {lines[-1] if lines else 'no message'})")

@@ -1,6 +1,7 @@
 """`neurotac render`: every view and picture format is written, readable, and of the size it says."""
 
 import pathlib
+import subprocess
 
 import numpy as np
 import pyarrow as pa
@@ -181,3 +182,16 @@ def test_an_animation_is_laid_out_once_not_once_a_picture(tmp_path, monkeypatch)
     monkeypatch.setattr(ConstrainedLayoutEngine, "execute", lambda self, figure: layouts.append(1) or execute(self, figure))
     done = render(events_table(), str(tmp_path / "e.mp4"), RenderSpec(slices=20))
     assert (done["pictures"], len(layouts)) == (20, 1)
+
+
+def test_an_mp4_the_disk_cannot_hold_is_one_line_and_keeps_the_old_video(tmp_path):
+    # ffmpeg's failure (here a file-size limit) was not looked at: exit 0, "wrote", a cut video
+    path = write_input(tmp_path, frames_table())
+    (tmp_path / "x.mp4").write_bytes(b"old video")
+    done = subprocess.run(["bash", "-c", f"ulimit -f 2; neurotac render {path} -o x.mp4"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.count("\n") == 1 and "neurotac render: error: cannot write x.mp4" in done.stderr
+    assert "previous file is kept" in done.stderr
+    assert (tmp_path / "x.mp4").read_bytes() == b"old video"
+    assert not list(tmp_path.glob(".neurotac-*"))
