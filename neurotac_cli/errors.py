@@ -2,6 +2,7 @@
 (exit 2 for a UsageError)."""
 
 import errno
+import os
 
 
 class NeurotacError(Exception):
@@ -59,7 +60,7 @@ class OutputError(NeurotacError):
     WHY = {
         errno.ENOSPC: ("no space left on the device", "free some space or write elsewhere"),
         errno.EDQUOT: ("disk quota exceeded", "free some space or write elsewhere"),
-        errno.EFBIG: ("file too large for its file system", "write it elsewhere, or as .parquet (compressed)"),
+        errno.EFBIG: ("file too large for its file system", "write it elsewhere"),
         errno.EROFS: ("read-only file system", "write elsewhere"),
         errno.EACCES: ("permission denied", "write elsewhere or change the folder's permissions"),
         errno.EPERM: ("operation not permitted", "write elsewhere or change the folder's permissions"),
@@ -67,14 +68,20 @@ class OutputError(NeurotacError):
         errno.EIO: ("input/output error", "check the disk or network share, and write elsewhere"),
     }
     ONLY_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}  # errors that reading never gives
+    # tables written uncompressed (tables.SUFFIXES): the same table as Parquet may fit under a size limit;
+    # a picture, a model, a camera file or a Parquet table has no smaller form to offer
+    UNCOMPRESSED_TABLES = (".arrow", ".arrows", ".feather", ".csv", ".json", ".ndjson")
 
     @classmethod
-    def why(cls, error: OSError) -> tuple[str, str]:
-        """(what went wrong, what to do) for an error writing a file."""
-        return cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
+    def why(cls, error: OSError, target: str | None = None) -> tuple[str, str]:
+        """(what went wrong, what to do) for an error writing a file (`target`, where it is known)."""
+        why, what_to_do = cls.WHY.get(error.errno, (error.strerror or str(error), "write elsewhere"))
+        if error.errno == errno.EFBIG and target and os.path.splitext(target)[1].lower() in cls.UNCOMPRESSED_TABLES:
+            what_to_do += ", or as .parquet (compressed)"
+        return why, what_to_do
 
     @classmethod
     def from_os(cls, target: str, error: OSError, kept: bool = False) -> "OutputError":
-        why, what_to_do = cls.why(error)
+        why, what_to_do = cls.why(error, target)
         previous = "; the previous file is kept" if kept else ""
         return cls(f"cannot write {target} ({why}; {what_to_do}{previous})")

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.cli import COMMANDS, cli
+from neurotac_cli.errors import OutputError
 from neurotac_cli.options import TablePath
 
 GARBAGE = b"this is not a table\n"
@@ -290,3 +291,19 @@ def test_true_slips_for_a_plain_events_stream_are_refused(files, tmp_path):
     tables.write(str(events), sch.events_table(np.array([0, 5]), np.array([1, 2]), np.array([1, 2]), np.array([0, 1]), 8, 8))
     code, stderr, _ = invoke(["frame", "--window", "1ms", "--slips", str(tmp_path / "slips.csv"), str(events)])
     assert code == 1 and "synced recordings" in stderr and stderr.count("\n") == 1, stderr
+
+
+@pytest.mark.parametrize("name, offered", [("big.arrows", True), ("big.parquet", False), ("big.png", False)])
+def test_parquet_is_offered_for_a_file_too_large_only_where_the_output_is_an_uncompressed_table(name, offered):
+    # a Parquet table, a picture or a model has no smaller form that the advice could name
+    why, what_to_do = OutputError.why(OSError(errno.EFBIG, "File too large"), name)
+    assert why == "file too large for its file system"
+    assert ("as .parquet" in what_to_do) == offered
+    assert ("as .parquet" in str(OutputError.from_os(name, OSError(errno.EFBIG, "File too large")))) == offered
+
+
+def test_a_picture_too_large_for_a_size_limit_is_not_told_to_be_parquet(files, tmp_path):
+    done = subprocess.run(["bash", "-c", f"ulimit -f 1; neurotac render {files / 'f.arrows'} -o p.png"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 1 and one_error(done.stderr) and "file too large" in done.stderr, done.stderr
+    assert ".parquet" not in done.stderr
