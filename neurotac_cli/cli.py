@@ -2,6 +2,7 @@
 
 import importlib
 import importlib.util
+import io
 import os
 import sys
 
@@ -59,10 +60,13 @@ class LazyGroup(click.Group):
         """click's own usage errors (a missing argument, a value of the wrong type, an unknown option)
         as one line, as the commands' own refusals are: a batch log shows one line per failure."""
         extra.pop("standalone_mode", None)
+        _guard_stdout()
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+            if not result:
+                sys.stdout.flush()  # exit 0 says the output is whole: its last bytes are written first
         except click.exceptions.NoArgsIsHelpError as error:  # bare `neurotac`: its help, readable through a pager
-            click.echo(error.ctx.get_help())
+            _echo_help(error.ctx.get_help())
             sys.exit(0)
         except click.UsageError as error:
             _fail_usage(error.ctx.command_path if error.ctx is not None else "neurotac", error.format_message())
@@ -71,6 +75,8 @@ class LazyGroup(click.Group):
             sys.exit(error.exit_code)
         except click.exceptions.Abort:
             _fail("neurotac: interrupted", code=130)
+        except (NeurotacError, OSError) as error:  # the root's own --help or --version, to a closed or full stdout
+            _fail_output("neurotac", error)
         sys.exit(result if isinstance(result, int) else 0)
 
     def format_commands(self, ctx, formatter):
@@ -99,7 +105,7 @@ class LazyGroup(click.Group):
         except OSError as error:  # writing to stdout (`> file` on a full disk); -o is handled by tables.atomic_file
             if error.errno not in OutputError.ONLY_WRITING:
                 raise
-            _fail(f"{_who(ctx)}: error: {OutputError.from_os(error.filename or 'the output', error)}")
+            _fail_output(_who(ctx), error)
 
 
 def _refuse_repeated_options(command, name, args, parent):
@@ -140,10 +146,27 @@ def _fail_usage(who: str, message: str):
 def _fail(message: str, code: int = 1):
     try:
         sys.stdout.flush()
-    except BrokenPipeError:
+    except (OSError, NeurotacError):  # a reader gone, a full disk, a closed stdout: the error line matters now
         _redirect_stdout_to_devnull()
     click.echo(_one_line(message), err=True)
     sys.exit(code)
+
+
+def _fail_output(who: str, error: Exception):
+    """Stdout that cannot take the output: one line, exit 1."""
+    if isinstance(error, OSError) and not isinstance(error, NeurotacError):
+        if error.errno not in OutputError.WHY:
+            raise error
+        error = OutputError.from_os(error.filename or "the output", error)
+    _fail(f"{who}: error: {error}")
+
+
+def _echo_help(text: str):
+    """The root's help for a bare `neurotac`, to a stdout that may be closed or full."""
+    try:
+        click.echo(text)
+    except (NeurotacError, OSError) as error:
+        _fail_output("neurotac", error)
 
 
 def _one_line(message: str) -> str:
@@ -158,7 +181,87 @@ def _one_line(message: str) -> str:
 
 def _redirect_stdout_to_devnull():
     devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, sys.stdout.fileno())
+    os.dup2(devnull, 1)
+    if isinstance(sys.stdout, _ClosedStdout):
+        return
+    try:  # what is still buffered goes to /dev/null now, not to the interpreter's last flush
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        pass
+
+
+def _guard_stdout():
+    """Stdout for the whole run: each write carried to its last byte, or an error. A closed one
+    (`>&-`) is an error when written, not a silent success."""
+    if sys.stdout is None:
+        # fd 1 closed: /dev/null holds it, so no file this run opens takes fd 1 and is written as stdout
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        if devnull != 1:
+            os.dup2(devnull, 1)
+            os.close(devnull)
+        sys.stdout = _ClosedStdout()
+        return
+    buffer = getattr(sys.stdout, "buffer", None)
+    raw = getattr(buffer, "raw", buffer)
+    if not isinstance(raw, io.FileIO) or isinstance(raw, _WholeRaw):
+        return  # not the process's own stdout (a test runner's), or guarded already
+    sys.stdout.flush()
+    whole = _WholeRaw(raw)
+    # unbuffered stdout (PYTHONUNBUFFERED) stays unbuffered: tables._WholeWrites gathers its writes
+    sys.stdout = io.TextIOWrapper(whole if buffer is raw else io.BufferedWriter(whole), encoding=sys.stdout.encoding,
+                                  errors=sys.stdout.errors, line_buffering=sys.stdout.line_buffering,
+                                  write_through=buffer is raw)
+
+
+class _WholeRaw(io.RawIOBase):
+    """Stdout's file, each write carried to its last byte. Python's buffered stdout takes a short
+    write (a file reaching `ulimit -f`, a disk filling) as whole and drops the rest without a word:
+    `info --json > x` under a size limit exited 0 with a cut JSON. Written on, the next write fails
+    with the error that says why."""
+
+    def __init__(self, raw: io.FileIO):
+        super().__init__()
+        self._raw = raw
+
+    def writable(self):
+        return True
+
+    def fileno(self):
+        return self._raw.fileno()
+
+    def isatty(self):
+        return self._raw.isatty()
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        done = 0
+        while done < len(view):
+            moved = self._raw.write(view[done:])
+            if moved is None:  # a non-blocking stdout that is full: what was moved, as a raw file says it
+                return done or None
+            done += moved
+        return done
+
+
+class _ClosedStdout(io.TextIOBase):
+    """Stands for a stdout closed at the start (`>&-`), which Python leaves as None and click's echo
+    then skips without a word: a write, text or binary, is one error line."""
+
+    def writable(self):
+        return True
+
+    def write(self, text):
+        raise OutputError("cannot write the output: stdout is closed (`>&-`); redirect it to a file or give -o")
+
+    @property
+    def buffer(self):
+        return self.write("")
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
 
 
 def _quiet_exit():

@@ -1,5 +1,6 @@
 """The root command: help, version, exits."""
 
+import json
 import subprocess
 
 from click.testing import CliRunner
@@ -78,3 +79,51 @@ def test_an_error_naming_a_path_with_a_newline_or_bytes_not_utf8_is_one_line(tmp
         done = subprocess.run([b"neurotac", b"info", os.fsencode(tmp_path) + b"/" + name], capture_output=True)
         assert done.returncode == 1 and done.stderr.count(b"\n") == 1, done.stderr
         assert done.stderr.decode() == f"neurotac info: error: {tmp_path}/{shown}: no such file\n"
+
+
+def small_frames(folder) -> str:
+    """A tiny frames table on disk, of trials enough that its info, text or JSON, is over 1 KiB."""
+    import numpy as np
+    import pyarrow as pa
+
+    from neurotac_cli import schema as sch, tables
+
+    n = 30
+    counts = np.random.default_rng(0).poisson(0.3, (3 * n, 2, 8, 8)).astype(np.uint16)
+    table = pa.Table.from_pydict({"trial": [f"trial-{i:02d}" for i in range(n) for _ in range(3)],
+                                  "frame": pa.array([0, 1, 2] * n, pa.int32()), "t": pa.array([0, 10_000, 20_000] * n, pa.int64()),
+                                  "counts": sch.counts_array(counts), "force": pa.array([0.0, 1.0, 2.0] * n, pa.float32()),
+                                  "phase": ["grasping", "holding", "releasing"] * n}, schema=sch.frames_schema(8, 8, window_us=10_000))
+    tables.write(str(folder / "f.arrows"), table)
+    return str(folder / "f.arrows")
+
+
+def shell(command: str, cwd):
+    return subprocess.run(["bash", "-c", command], capture_output=True, text=True, cwd=cwd)
+
+
+def one_error_line(done, who: str) -> bool:
+    return done.returncode == 1 and done.stderr.count("\n") == 1 and done.stderr.startswith(f"{who}: error: cannot write")
+
+
+def test_text_on_a_stdout_that_fills_is_one_error_line_not_a_cut_success(tmp_path):
+    # Python's buffered stdout took the file-size limit's short write as whole and dropped the rest
+    frames = small_frames(tmp_path)
+    for command, who in [(f"neurotac info {frames} --json", "neurotac info"), (f"neurotac info {frames} --all", "neurotac info"),
+                         ("neurotac --help", "neurotac"), ("neurotac train --help", "neurotac train")]:
+        done = shell(f"ulimit -f 1; {command} > out.txt", tmp_path)
+        assert one_error_line(done, who), (command, done.returncode, done.stderr)
+        assert "file too large" in done.stderr
+    done = shell(f"ulimit -f 64; neurotac info {frames} --json > out.txt", tmp_path)
+    assert done.returncode == 0 and json.loads((tmp_path / "out.txt").read_text())["kind"] == "frames"
+
+
+def test_a_closed_stdout_is_one_error_line_for_tables_text_and_help(tmp_path):
+    frames = small_frames(tmp_path)
+    for command, who in [(f"neurotac select --where true {frames}", "neurotac select"), (f"neurotac info {frames} --all", "neurotac info"),
+                         (f"neurotac crop --pool 2x2 {frames}", "neurotac crop"), ("neurotac --help", "neurotac"),
+                         ("neurotac", "neurotac")]:
+        done = shell(f"{command} >&-", tmp_path)
+        assert one_error_line(done, who) and "stdout is closed" in done.stderr, (command, done.returncode, done.stderr)
+    done = shell(f"neurotac select --where true -o kept.arrows {frames} >&-", tmp_path)  # stdout not needed: no error
+    assert done.returncode == 0 and (tmp_path / "kept.arrows").stat().st_size > 0, done.stderr
