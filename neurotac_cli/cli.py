@@ -153,7 +153,9 @@ def _fail(message: str, code: int = 1):
 
 
 def _fail_output(who: str, error: Exception):
-    """Stdout that cannot take the output: one line, exit 1."""
+    """Stdout that cannot take the output: one line, exit 1 (a reader gone away: exit 0, silently)."""
+    if isinstance(error, BrokenPipeError):
+        _quiet_exit()
     if isinstance(error, OSError) and not isinstance(error, NeurotacError):
         if error.errno not in OutputError.WHY:
             raise error

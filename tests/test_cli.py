@@ -127,3 +127,13 @@ def test_a_closed_stdout_is_one_error_line_for_tables_text_and_help(tmp_path):
         assert one_error_line(done, who) and "stdout is closed" in done.stderr, (command, done.returncode, done.stderr)
     done = shell(f"neurotac select --where true -o kept.arrows {frames} >&-", tmp_path)  # stdout not needed: no error
     assert done.returncode == 0 and (tmp_path / "kept.arrows").stat().st_size > 0, done.stderr
+
+
+def test_help_to_a_reader_that_has_gone_is_quiet():
+    import os
+
+    read, write = os.pipe()
+    os.close(read)
+    done = subprocess.run(["neurotac"], stdout=write, capture_output=False, stderr=subprocess.PIPE, text=True)
+    os.close(write)
+    assert (done.returncode, done.stderr) == (0, "")
