@@ -61,6 +61,7 @@ class LazyGroup(click.Group):
         as one line, as the commands' own refusals are: a batch log shows one line per failure."""
         extra.pop("standalone_mode", None)
         _guard_stdout()
+        _check_working_folder()
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
             if not result:
@@ -190,6 +191,17 @@ def _redirect_stdout_to_devnull():
         sys.stdout.flush()
     except (OSError, ValueError):
         pass
+
+
+def _check_working_folder():
+    """A working folder deleted under the shell (`rmdir` from another terminal) fails every relative
+    path and some libraries deep inside (DuckDB blamed the SQL, MKL exited 2): said once, first."""
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        name = next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
+        _fail(f"neurotac{' ' + name if name else ''}: error: the working folder no longer exists (it was deleted or "
+              "moved); cd into a folder that exists and run it again")
 
 
 def _guard_stdout():

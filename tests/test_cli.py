@@ -137,3 +137,11 @@ def test_help_to_a_reader_that_has_gone_is_quiet():
     done = subprocess.run(["neurotac"], stdout=write, capture_output=False, stderr=subprocess.PIPE, text=True)
     os.close(write)
     assert (done.returncode, done.stderr) == (0, "")
+
+
+def test_a_deleted_working_folder_is_said_in_one_line_before_any_work(tmp_path):
+    frames = small_frames(tmp_path)
+    done = shell(f"mkdir gone && cd gone && rmdir ../gone && neurotac select --where true {frames} -o {tmp_path / 'k.arrows'}", tmp_path)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("neurotac select: error: the working folder no longer exists")
+    assert not (tmp_path / "k.arrows").exists()
