@@ -484,7 +484,8 @@ def atomic_file(path: str):
     gets (mkstemp's are 0600). A missing, full, read-only or vanished folder is one clear error.
     A pipe or device (`is_special`: /dev/null, a shell's `>(...)`) is never renamed over: the
     finished file's bytes are copied into it, and the temporary file sits in the temporary folder
-    (the device's folder, /dev, is not one to write in)."""
+    (the device's folder, /dev, is not one to write in). Within `together()` the replacing waits
+    for the end of that block."""
     check_folder(path)
     special = is_special(path)
     folder = tempfile.gettempdir() if special else os.path.dirname(os.path.abspath(path))
@@ -496,24 +497,96 @@ def atomic_file(path: str):
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(temporary, 0o666 & ~umask)
+    held = False
     try:
         yield temporary
-        if special:
+        finish = _Finish(path, temporary, special, umask, folder)
+        if _held is not None:
+            _held.append(finish)
+            held = True
+        else:
+            finish()
+    except OSError as error:
+        raise _output_error(error, path, folder) from None
+    finally:
+        if not held and os.path.exists(temporary):
+            os.unlink(temporary)
+
+
+def _output_error(error: OSError, path: str, folder: str) -> Exception:
+    """An error of writing `path` as its one line; any other (the block also pulls the input) as it is."""
+    if error.errno not in OutputError.WHY or (error.errno == errno.ENOENT and os.path.isdir(folder)):
+        return error
+    return OutputError.from_os(path, error, kept=os.path.exists(path))
+
+
+@dataclass
+class _Finish:
+    """What puts a finished temporary file in its place: renamed over `path`, or copied into a pipe."""
+
+    path: str
+    temporary: str
+    special: bool
+    umask: int
+    folder: str
+
+    def __call__(self):
+        if self.special:
             import shutil
 
-            with open(temporary, "rb") as finished, open_special(path) as sink:
+            with open(self.temporary, "rb") as finished, open_special(self.path) as sink:
                 shutil.copyfileobj(finished, sink)
         else:
-            os.chmod(temporary, 0o666 & ~umask)  # again: writers that replace the file (safetensors) make it 0600
-            os.replace(temporary, path)
-    except OSError as error:
-        # the block also pulls the input: only an error of writing here is ours to describe
-        if error.errno not in OutputError.WHY or (error.errno == errno.ENOENT and os.path.isdir(folder)):
-            raise
-        raise OutputError.from_os(path, error, kept=os.path.exists(path)) from None
+            os.chmod(self.temporary, 0o666 & ~self.umask)  # again: writers that replace the file (safetensors) make it 0600
+            os.replace(self.temporary, self.path)
+
+
+_held: list[_Finish] | None = None  # within `together()`: the outputs finished and not yet put in place
+
+
+@contextmanager
+def together():
+    """The outputs of one run (`atomic_file`, so every `write` to a path) put in place together: each
+    is finished into its temporary file, and all are renamed when the block ends without an error,
+    none when it fails. One output replaced and the next not mixes runs: a split's training table new
+    and its test table old puts a trial on both sides; metrics of this run beside a plot of the last.
+    A reader of stdout that went away is success (cli.py): the files are put in place then too.
+    A block within a block is part of the outer one."""
+    global _held
+    if _held is not None:
+        yield
+        return
+    _held = []
+    try:
+        yield
+    except BrokenPipeError:
+        _put_in_place(_release())
+        raise
+    except BaseException:
+        for finish in _release():
+            if os.path.exists(finish.temporary):
+                os.unlink(finish.temporary)
+        raise
+    _put_in_place(_release())
+
+
+def _release() -> list[_Finish]:
+    global _held
+    held, _held = _held, None
+    return held
+
+
+def _put_in_place(held: list[_Finish]):
+    try:
+        for finish in held:
+            try:
+                finish()
+            except OSError as error:
+                raise _output_error(error, finish.path, finish.folder) from None
     finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+        for finish in held:
+            if os.path.exists(finish.temporary):
+                os.unlink(finish.temporary)
 
 
 def write(output: str | None, data, step=None, schema: pa.Schema | None = None, flush_each: bool = False):

@@ -1,5 +1,6 @@
 """The table layer: sniffing, streams, concatenation, atomic writes, history, errors at the door."""
 
+import errno
 import io
 import os
 import subprocess
@@ -439,3 +440,34 @@ def test_a_frames_sensor_that_contradicts_the_counts_or_a_fractional_window_is_r
     pq.write_table(half, tmp_path / "half.parquet")
     with pytest.raises(SchemaError, match=r"window_us is 0.5, not a whole number of µs, 1 or more"):
         tables.read([str(tmp_path / "half.parquet")], kind="frames")
+
+
+def test_outputs_written_together_are_all_replaced_or_none(tmp_path):
+    # one output replaced and the next not mixes two runs (a split's trial on both sides)
+    first, second = tmp_path / "a.arrows", tmp_path / "b.arrows"
+    first.write_bytes(b"old a")
+    second.write_bytes(b"old b")
+    with pytest.raises(OSError):
+        with tables.together():
+            with tables.atomic_file(str(first)) as temporary:
+                open(temporary, "wb").write(b"new a")
+            with tables.atomic_file(str(second)):
+                raise OSError(errno.EBADF, "a failure that is no output's")
+    assert (first.read_bytes(), second.read_bytes()) == (b"old a", b"old b")
+    assert sorted(os.listdir(tmp_path)) == ["a.arrows", "b.arrows"]
+    with tables.together():
+        for path, text in ((first, b"new a"), (second, b"new b")):
+            with tables.atomic_file(str(path)) as temporary:
+                open(temporary, "wb").write(text)
+        assert first.read_bytes() == b"old a"  # nothing is replaced before the block ends
+    assert (first.read_bytes(), second.read_bytes()) == (b"new a", b"new b")
+    assert sorted(os.listdir(tmp_path)) == ["a.arrows", "b.arrows"]
+
+
+def test_outputs_written_together_are_kept_when_stdout_s_reader_goes_away(tmp_path):
+    with pytest.raises(BrokenPipeError):
+        with tables.together():
+            with tables.atomic_file(str(tmp_path / "a.arrows")) as temporary:
+                open(temporary, "wb").write(b"new a")
+            raise BrokenPipeError(errno.EPIPE, "the reader went away")  # success, as cli.py counts it
+    assert (tmp_path / "a.arrows").read_bytes() == b"new a" and os.listdir(tmp_path) == ["a.arrows"]

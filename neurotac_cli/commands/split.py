@@ -37,8 +37,10 @@ def command(paths, train_path, test_path, fraction, per, expression, seed):
     train, test, report = split(table, fraction=fraction, where=expression, per=per, seed=seed)
     args = {"fraction": fraction, "per": per, "where": expression, "seed": seed, **report}
     parts = [(train_path, train, "train"), (test_path, test, "test")]
-    # the file before stdout: a reader that stops early (`| head`) must not cost the other table
-    for path, part, name in sorted(parts, key=lambda item: item[0] == "-"):
-        tables.write(path, part, step=("split", dict(args, part=name)))
+    # the file before stdout: a reader that stops early (`| head`) must not cost the other table;
+    # both or neither replaced, so no trial is on both sides of an old and a new split
+    with tables.together():
+        for path, part, name in sorted(parts, key=lambda item: item[0] == "-"):
+            tables.write(path, part, step=("split", dict(args, part=name)))
     click.echo(f"neurotac split: {report['train_trials']} trials ({report['train_rows']:,} rows) to {train_path}, "
                f"{report['test_trials']} ({report['test_rows']:,} rows) to {test_path}", err=True)

@@ -186,3 +186,19 @@ def test_concat_refuses_events_tables_whose_clocks_would_run_on_as_one(tmp_path)
     result = CliRunner().invoke(cli, ["concat", path, path, "-o", str(tmp_path / "both.arrows")])
     assert result.exit_code == 1 and "one recording on one clock" in result.stderr and not (tmp_path / "both.arrows").exists()
     assert CliRunner().invoke(cli, ["concat", path, "-o", str(tmp_path / "one.arrows")]).exit_code == 0
+
+
+def test_split_replaces_neither_table_when_the_second_cannot_be_written(tmp_path):
+    # the training table used to be replaced before the test table failed: a trial on both sides of a split
+    tables.write(str(tmp_path / "in.arrows"), tiny_frames(trials=8))
+    (tmp_path / "train.arrows").write_bytes(b"old train")
+    (tmp_path / "test.arrows").write_bytes(b"old test")
+    size = (tmp_path / "in.arrows").stat().st_size
+    limit_kb = size // 2 // 1024  # the training eighth fits, the test seven eighths do not
+    done = subprocess.run(["bash", "-c", f"ulimit -f {limit_kb}; neurotac split --fraction 0.875 --seed 1 "
+                           "--train train.arrows --test test.arrows in.arrows"], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert "cannot write test.arrows" in done.stderr
+    assert (tmp_path / "train.arrows").read_bytes() == b"old train"
+    assert (tmp_path / "test.arrows").read_bytes() == b"old test"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.arrows", "test.arrows", "train.arrows"]
