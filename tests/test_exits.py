@@ -307,3 +307,14 @@ def test_a_picture_too_large_for_a_size_limit_is_not_told_to_be_parquet(files, t
                           capture_output=True, text=True)
     assert done.returncode == 1 and one_error(done.stderr) and "file too large" in done.stderr, done.stderr
     assert ".parquet" not in done.stderr
+
+
+def test_eval_replaces_neither_metrics_nor_plot_when_the_plot_cannot_be_written(files, tmp_path):
+    # the metrics were replaced before the plot failed: metrics of this run beside a plot of the last
+    (tmp_path / "m.parquet").write_bytes(b"old metrics")
+    (tmp_path / "p.png").write_bytes(b"old plot")
+    done = subprocess.run(["bash", "-c", f"ulimit -f 24; neurotac eval --model {files / 'm.model'} {files / 'f.arrows'} "
+                           "--metrics m.parquet --plot p.png -o pred.arrows"], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 1 and one_error(done.stderr) and "cannot write p.png" in done.stderr, done.stderr
+    assert (tmp_path / "m.parquet").read_bytes() == b"old metrics" and (tmp_path / "p.png").read_bytes() == b"old plot"
+    assert sorted(os.listdir(tmp_path)) == ["m.parquet", "p.png"]

@@ -77,11 +77,12 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     unused = (() if cv else ("repeats", "val_fraction", "val_per", "seed")) + (
         ("label",) if "force_pred" in result.predictions.column_names else ())
     step = history(spec=result.spec, unused=unused)
-    if metrics_path:
-        tables.write(metrics_path, result.metrics, step=step)
-    if plot:
-        plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
-    tables.write(output, result.predictions, step=step)
+    with tables.together():  # a run's metrics, plot and predictions replace the last run's all, or none
+        if metrics_path:
+            tables.write(metrics_path, result.metrics, step=step)
+        if plot:
+            plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
+        tables.write(output, result.predictions, step=step)
 
 
 def _checked_model(table, model_path: str | None, model_spec: str | None, label: str) -> str:

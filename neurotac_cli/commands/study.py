@@ -59,6 +59,7 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
         runner=evaluate.Runner(jobs, scheduler, cache), progress=progress_printer("study"))
     click.echo(result.summary, err=True)
     step = history()
-    if metrics_path:
-        tables.write(metrics_path, result.metrics, step=step)
-    tables.write(output, result.predictions, step=step)
+    with tables.together():  # metrics and predictions of one study, never of two
+        if metrics_path:
+            tables.write(metrics_path, result.metrics, step=step)
+        tables.write(output, result.predictions, step=step)

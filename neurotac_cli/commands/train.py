@@ -89,10 +89,11 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
                           progress=progress_printer("train"), contacts=contacts)
     if contacts:
         echo_lines("train", filter(None, [session.one_contact_note(trained.model.training.get("contacts", {}))]), "warning: ")
-    models.save(trained.model, output)
+    with tables.together():  # the model, its curve and its plot are one training's, or the last one's
+        models.save(trained.model, output)
+        if curve:
+            tables.write(curve, trained.curve, step=history())
+        if plot:
+            curve_figure(member_curves(trained.model.training), plot, title=f"{model_name} training curve", loss=trained.loss)
     if trained.summary:
         click.echo(f"{trained.summary}; wrote {output}", err=True)
-    if curve:
-        tables.write(curve, trained.curve, step=history())
-    if plot:
-        curve_figure(member_curves(trained.model.training), plot, title=f"{model_name} training curve", loss=trained.loss)
