@@ -137,7 +137,8 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
         from neurotac_cli.sim.session import write_sessions
 
         notes = []
-        write_sessions(config, seed, grasps, out_dir, sessions, variation, duration or 0, _progress_printer(), notes=notes)
+        with tables.together():  # a folder of one run's sessions and manifest, never of two
+            write_sessions(config, seed, grasps, out_dir, sessions, variation, duration or 0, _progress_printer(), notes=notes)
         echo_lines("simulate", notes, "warning: ")
         return
     if synced and output in (None, "-"):
@@ -150,10 +151,11 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     if out_dir:
         prepare_folder(out_dir)
     simulation = simulate(config, seed=seed, trials=trials, progress=_progress_printer(), variation=variation, rigs=rigs or 0)
-    if out_dir:
-        write_dataset(simulation, out_dir)
-    if synced:
-        tables.write(output, recordings(simulation, keep_led=keep_led), step=history(preset=preset or "ch4", unused=SESSION_ONLY))
+    with tables.together():  # the folder's files and the table are one simulation's, or the last one's
+        if out_dir:
+            write_dataset(simulation, out_dir)
+        if synced:
+            tables.write(output, recordings(simulation, keep_led=keep_led), step=history(preset=preset or "ch4", unused=SESSION_ONLY))
 
 
 def _overrides(settings, groups, mixed_pool, gripper, illumination_drift, force_range, hold, force_sensor,

@@ -204,21 +204,25 @@ def force_csv(trial: Trial) -> str:
 
 
 def write_dataset(simulation: Simulation, folder: str) -> list[str]:
-    """Write every trial's camera file and force log, the still recording and manifest.csv; returns the paths."""
+    """Write every trial's camera file and force log, the still recording and manifest.csv; returns the
+    paths. All are put in place together once all are written: a run that fails part-way over an
+    earlier one's folder left files of both runs beside a manifest of one."""
     from neurotac_cli.io.writers import write_aedat2
+    from neurotac_cli.tables import together
 
     config = simulation.config
     prepare_folder(folder)
     written = []
-    for trial in simulation.trials:
-        path = os.path.join(folder, f"{trial.grasp.trial}.aedat")
-        write_aedat2(path, trial.t, trial.x, trial.y, trial.p, config.sensor_width, config.sensor_height)
-        force_path = os.path.join(folder, f"{trial.grasp.trial}_force.csv")
-        _write_text(force_path, force_csv(trial))
-        written += [path, force_path]
-    still = os.path.join(folder, "still.aedat")
-    write_aedat2(still, *simulation.still, config.sensor_width, config.sensor_height)
-    manifest = write_csv(os.path.join(folder, "manifest.csv"), manifest_rows(simulation))
+    with together():
+        for trial in simulation.trials:
+            path = os.path.join(folder, f"{trial.grasp.trial}.aedat")
+            write_aedat2(path, trial.t, trial.x, trial.y, trial.p, config.sensor_width, config.sensor_height)
+            force_path = os.path.join(folder, f"{trial.grasp.trial}_force.csv")
+            _write_text(force_path, force_csv(trial))
+            written += [path, force_path]
+        still = os.path.join(folder, "still.aedat")
+        write_aedat2(still, *simulation.still, config.sensor_width, config.sensor_height)
+        manifest = write_csv(os.path.join(folder, "manifest.csv"), manifest_rows(simulation))
     return written + [still, manifest]
 
 
@@ -251,7 +255,9 @@ def prepare_folder(folder: str) -> None:
 
 
 def _write_text(path, text):
-    with open(path, "w", encoding="utf-8", newline="") as sink:
+    from neurotac_cli.tables import atomic_file
+
+    with atomic_file(path) as temporary, open(temporary, "w", encoding="utf-8", newline="") as sink:
         sink.write(text)
 
 

@@ -181,3 +181,21 @@ def test_the_bounds_the_help_states_are_those_the_simulator_keeps():
     from neurotac_cli.sim.config import SESSION_REST_FLOOR_US
 
     assert (MAX_GRASPS, MAX_FORCE_N) == (AEDAT2_LAST_US // SESSION_REST_FLOOR_US, RANGE_N)
+
+
+def test_a_run_failing_part_way_over_a_folder_leaves_the_earlier_run_whole(dataset, tmp_path):
+    # the files written before the failure replaced the earlier run's: a folder of two seeds under one manifest
+    other = tmp_path / "other"
+    subprocess.run(["neurotac", "simulate", *SMALL, "--seed", "8", "--out", str(other)], check=True, capture_output=True)
+    with open(other / "manifest.csv") as manifest:
+        written_first = next(csv.DictReader(manifest))["events"]
+    limit_kb = -(-(other / written_first).stat().st_size // 1024)
+    assert max(path.stat().st_size for path in other.glob("*.aedat")) > limit_kb * 1024, \
+        "the first camera file written must fit under the limit and a later one not"
+    folder = tmp_path / "sim"
+    subprocess.run(["cp", "-r", str(dataset), str(folder)], check=True)
+    before = {path.name: path.read_bytes() for path in folder.iterdir()}
+    done = subprocess.run(["bash", "-c", f"ulimit -f {limit_kb}; neurotac simulate {' '.join(SMALL)} --seed 8 --out {folder}"],
+                          capture_output=True, text=True)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1 and "file too large" in done.stderr, done.stderr
+    assert {path.name: path.read_bytes() for path in folder.iterdir()} == before
