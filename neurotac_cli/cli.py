@@ -158,7 +158,7 @@ def _fail_output(who: str, error: Exception):
     if isinstance(error, BrokenPipeError):
         _quiet_exit()
     if isinstance(error, OSError) and not isinstance(error, NeurotacError):
-        if error.errno not in OutputError.WHY:
+        if error.errno not in OutputError.ONLY_WRITING:  # not a write's: a bug, whose traceback is wanted
             raise error
         error = OutputError.from_os(error.filename or "the output", error)
     _fail(f"{who}: error: {error}")
