@@ -12,7 +12,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, cannot_open
 from neurotac_cli.units import counted
 
 TRIALS_SHOWN = 20
@@ -529,8 +529,11 @@ def _is_model(path: str) -> bool:
     """A safetensors file (8 bytes of header length, then its JSON header): what `neurotac train` writes.
     A `.model` file is taken for one whatever it holds, so a damaged one is named as a damaged model,
     not as an unknown camera format."""
-    with open(path, "rb") as handle:
-        head = handle.read(10)
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(10)
+    except OSError as error:  # unreadable (permissions): said as every verb says it of an input
+        raise cannot_open(path, error) from None
     return (len(head) == 10 and head[8:10] == b'{"') or str(path).endswith(".model")
 
 

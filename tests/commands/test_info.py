@@ -151,3 +151,19 @@ def test_a_model_file_is_described_from_its_header(tmp_path):
     (tmp_path / "cut.model").write_bytes((tmp_path / "m.model").read_bytes()[:8])
     cut = runner.invoke(cli, ["info", str(tmp_path / "cut.model")])
     assert cut.exit_code == 1 and "is not a neurotac model file" in cut.output and "camera format" not in cut.output
+
+
+def test_a_file_that_cannot_be_read_is_one_line(tmp_path, monkeypatch):
+    # the model sniffing opened it first, and a permission error went up as a traceback
+    import neurotac_cli.describe as describe_module
+
+    path = tmp_path / "locked.arrows"
+    path.write_bytes(b"whatever")
+
+    def refused(name, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(name))
+
+    monkeypatch.setattr(describe_module, "open", refused, raising=False)
+    result = CliRunner().invoke(cli, ["info", str(path)])
+    assert result.exit_code == 1, result.exception
+    assert result.stderr == f"neurotac info: error: {path}: permission denied\n"
