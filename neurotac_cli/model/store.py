@@ -25,7 +25,22 @@ def save(model, path: str):
                          "nothing written (lower --lr, or check the training data)")
     header = json.dumps({**model.header(), DIGEST_KEY: weights_digest(tensors)}, sort_keys=True, default=_json_default)
     with atomic_file(path) as temporary:
-        save_file(tensors, temporary, metadata={HEADER_KEY: header})
+        try:
+            save_file(tensors, temporary, metadata={HEADER_KEY: header})
+        except Exception as error:  # safetensors' own error type, from Rust: a full disk is not an OSError there
+            raise _as_os_error(error) from None
+
+
+def _as_os_error(error: Exception) -> Exception:
+    """safetensors' error of writing ("I/O error: File too large (os error 27)") as the OSError it
+    wraps, which `atomic_file` words as every output's; any other error as it is."""
+    import re
+
+    found = re.search(r"\(os error (\d+)\)", str(error))
+    if type(error).__name__ != "SafetensorError" or not found:
+        return error
+    number = int(found.group(1))
+    return OSError(number, os.strerror(number))
 
 
 DIGEST_KEY = "weights_sha256"  # files written before it have none, and are checked for finite weights only

@@ -4,7 +4,7 @@ import sys
 import numpy as np
 import pytest
 
-from neurotac_cli import model as models
+from neurotac_cli import model as models, tables
 from neurotac_cli.errors import ModelError
 from tests.model.helpers import tiny_frames, write_stream
 
@@ -173,3 +173,16 @@ def test_progress_off_a_terminal_shows_the_first_epoch_every_25th_and_a_slow_one
     lines = capsys.readouterr().err.splitlines()
     assert [line.split()[4] for line in lines[:-1]] == ["1", "25"]
     assert lines[-1] == "neurotac train: warning: the training frames carry forces up to 900 N"
+
+
+def test_a_model_file_the_disk_cannot_hold_is_one_line_and_keeps_the_old_file(tmp_path):
+    # safetensors says a full disk in its own error type, which went up as a traceback
+    frames = tmp_path / "f.arrows"
+    tables.write(str(frames), tiny_frames(trials=4))
+    (tmp_path / "m.model").write_bytes(b"old model")
+    done = subprocess.run(["bash", "-c", f"ulimit -f 2; neurotac train --model gp -o m.model {frames}"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.splitlines()[-1].startswith("neurotac train: error: cannot write m.model (file too large")
+    assert (tmp_path / "m.model").read_bytes() == b"old model"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.arrows", "m.model"]
