@@ -66,6 +66,7 @@ class OutputError(NeurotacError):
         errno.EPERM: ("operation not permitted", "write elsewhere or change the folder's permissions"),
         errno.ENOENT: ("its folder vanished while writing", "make the folder again and re-run"),
         errno.EIO: ("input/output error", "check the disk or network share, and write elsewhere"),
+        errno.ENAMETOOLONG: ("its name is too long for the file system", "give it a shorter name"),
     }
     ONLY_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}  # errors that reading never gives
     # tables written uncompressed (tables.SUFFIXES): the same table as Parquet may fit under a size limit;

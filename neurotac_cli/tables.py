@@ -464,6 +464,16 @@ def check_folder(*paths) -> None:
         if not is_special(path) and not os.access(directory, os.W_OK | os.X_OK):
             read_only = os.statvfs(directory).f_flag & os.ST_RDONLY
             raise OutputError.from_os(path, OSError(errno.EROFS if read_only else errno.EACCES, "cannot write"))
+        if len(os.fsencode(os.path.basename(path))) > _longest_name(directory):  # else found at the rename, after the work
+            raise OutputError.from_os(path, OSError(errno.ENAMETOOLONG, "name too long"))
+
+
+def _longest_name(directory: str) -> int:
+    """The longest file name, in bytes, the folder's file system takes (255 on most)."""
+    try:
+        return os.pathconf(directory, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
 
 
 def _folders_up(directory: str) -> Iterator[str]:

@@ -318,3 +318,14 @@ def test_eval_replaces_neither_metrics_nor_plot_when_the_plot_cannot_be_written(
     assert done.returncode == 1 and one_error(done.stderr) and "cannot write p.png" in done.stderr, done.stderr
     assert (tmp_path / "m.parquet").read_bytes() == b"old metrics" and (tmp_path / "p.png").read_bytes() == b"old plot"
     assert sorted(os.listdir(tmp_path)) == ["m.parquet", "p.png"]
+
+
+def test_an_output_name_too_long_for_the_file_system_is_one_line(files, tmp_path):
+    # found at the final rename, after the work, as an OSError traceback
+    name = "a" * 300 + ".arrows"
+    code, stderr, _ = invoke(["select", "--where", "true", "-o", str(tmp_path / name), str(files / "f.arrows")])
+    assert code == 1 and stderr.count("\n") == 1 and "its name is too long for the file system" in stderr, stderr
+    assert os.listdir(tmp_path) == []
+    code, stderr, _ = invoke(["split", "--fraction", "0.5", "--train", str(tmp_path / "t.arrows"), "--test", str(tmp_path / name),
+                              str(files / "f.arrows")])
+    assert code == 1 and "its name is too long" in stderr and os.listdir(tmp_path) == []
