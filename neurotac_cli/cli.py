@@ -62,6 +62,7 @@ class LazyGroup(click.Group):
         extra.pop("standalone_mode", None)
         _guard_stdout()
         _check_working_folder()
+        _end_on_sigterm()
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
             if not result:
@@ -74,8 +75,9 @@ class LazyGroup(click.Group):
         except click.ClickException as error:
             error.show()
             sys.exit(error.exit_code)
-        except click.exceptions.Abort:
-            _fail("neurotac: interrupted", code=130)
+        except click.exceptions.Abort as error:  # click's word for an interrupt while it parses
+            terminated = isinstance(error.__context__, Terminated)
+            _fail(f"neurotac: {'terminated' if terminated else 'interrupted'}", code=143 if terminated else 130)
         except (NeurotacError, OSError) as error:  # the root's own --help or --version, to a closed or full stdout
             _fail_output("neurotac", error)
         sys.exit(result if isinstance(result, int) else 0)
@@ -95,6 +97,8 @@ class LazyGroup(click.Group):
             _fail(f"{_who(ctx)}: error: {error}")
         except BrokenPipeError:
             _quiet_exit()
+        except Terminated:
+            _fail(f"{_who(ctx)}: terminated", code=143)
         except KeyboardInterrupt:
             _fail(f"{_who(ctx)}: interrupted", code=130)
         except MemoryError:
@@ -191,6 +195,24 @@ def _redirect_stdout_to_devnull():
         sys.stdout.flush()
     except (OSError, ValueError):
         pass
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what `timeout`, make and SLURM send), raised where the run is, as Ctrl-C's interrupt
+    is: the same blocks clean up (an output's `.neurotac-*.part` temporary is removed), then exit 143.
+    Left to its default, the signal ended the process where it stood and left the temporary behind."""
+
+
+def _end_on_sigterm():
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _terminate)
+
+
+def _terminate(number, frame):
+    raise Terminated()
 
 
 def _check_working_folder():

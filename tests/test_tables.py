@@ -471,3 +471,30 @@ def test_outputs_written_together_are_kept_when_stdout_s_reader_goes_away(tmp_pa
                 open(temporary, "wb").write(b"new a")
             raise BrokenPipeError(errno.EPIPE, "the reader went away")  # success, as cli.py counts it
     assert (tmp_path / "a.arrows").read_bytes() == b"new a" and os.listdir(tmp_path) == ["a.arrows"]
+
+
+def test_sigterm_removes_the_part_file_and_exits_143(tmp_path):
+    # SIGTERM (timeout, make, SLURM) ended the process where it stood: the .part temporary stayed behind
+    import signal
+    import time
+
+    stream = io.BytesIO()
+    table = events(n=20_000)
+    with pa.ipc.new_stream(stream, table.schema) as writer:
+        writer.write_table(table, max_chunksize=1000)
+    data = stream.getvalue()
+    process = subprocess.Popen(["neurotac", "crop", "--pool", "2x2", "-o", str(tmp_path / "out.arrows")],
+                               stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path)
+    try:
+        process.stdin.write(data[: len(data) // 2])  # half the stream: crop streams, and waits on the rest with its output open
+        process.stdin.flush()
+        deadline = time.monotonic() + 20
+        while not list(tmp_path.glob(".neurotac-*.part")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert list(tmp_path.glob(".neurotac-*.part")), "the output's temporary file was never made"
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert process.returncode == 143 and stderr.decode() == "neurotac crop: terminated\n", stderr
+    assert os.listdir(tmp_path) == []
