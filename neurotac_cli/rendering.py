@@ -226,18 +226,13 @@ def _force_strip(axis, steps: Steps):
 
 
 def _patch(colour):
-    import matplotlib.pyplot as plt
-
-    return plt.Rectangle((0, 0), 1, 1, color=colour)
+    return _pyplot().Rectangle((0, 0), 1, 1, color=colour)
 
 
 def _pyplot():
-    import matplotlib
+    from neurotac_cli.model.plots import pyplot  # the one place that imports matplotlib, quietly
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return pyplot()
 
 
 # ---------------------------------------------------------------- views

@@ -195,3 +195,15 @@ def test_an_mp4_the_disk_cannot_hold_is_one_line_and_keeps_the_old_video(tmp_pat
     assert "previous file is kept" in done.stderr
     assert (tmp_path / "x.mp4").read_bytes() == b"old video"
     assert not list(tmp_path.glob(".neurotac-*"))
+
+
+def test_an_unwritable_matplotlib_config_folder_leaves_stderr_to_our_own_line(tmp_path):
+    # matplotlib said so in two paragraphs of warnings, though it works on with a temporary folder
+    import os
+
+    path = write_input(tmp_path, frames_table())
+    blocked = tmp_path / "not-a-folder"
+    blocked.write_text("")
+    env = dict(os.environ, HOME=str(blocked), MPLCONFIGDIR=str(blocked / "mpl"))
+    done = subprocess.run(["neurotac", "render", path, "-o", "m.png"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert done.returncode == 0 and done.stderr.startswith("neurotac render: wrote m.png") and done.stderr.count("\n") == 1, done.stderr

@@ -17,12 +17,22 @@ STYLE = {"font.size": 8, "axes.titlesize": 9, "axes.labelsize": 8, "legend.fonts
          "axes.spines.top": False, "axes.spines.right": False, "savefig.dpi": 110}
 
 
-def _pyplot():
-    import matplotlib
+def pyplot():
+    """pyplot on the Agg backend. Where matplotlib's config folder cannot be written (a read-only
+    HOME, a bad MPLCONFIGDIR) it works on in a temporary one, and says so in two paragraphs on
+    stderr at import: quieted, so stderr holds our lines alone."""
+    import logging
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    said = logging.getLogger("matplotlib")
+    level = said.level
+    said.setLevel(logging.ERROR)
+    try:
+        import matplotlib
 
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    finally:
+        said.setLevel(level)
     return plt
 
 
@@ -56,7 +66,7 @@ def force_errors(true: np.ndarray, pred: np.ndarray) -> tuple[float, float, int]
 
 def force_figure(predictions, path: str, trials=None, title: str = ""):
     """Left: force traces of chosen trials (default: the first three); right: estimate vs measured, per phase."""
-    plt = _pyplot()
+    plt = pyplot()
     trial = np.asarray(predictions.column("trial").to_pylist(), dtype=object)
     t = predictions.column("t").to_numpy() / 1000.0
     true = predictions.column("force").to_numpy(zero_copy_only=False).astype(float)
@@ -118,7 +128,7 @@ def _scatter(axis, true, pred, phase):
 
 
 def confusion_figure(matrix: np.ndarray, classes, path: str, title: str = ""):
-    plt = _pyplot()
+    plt = pyplot()
     accuracy = np.trace(matrix) / max(matrix.sum(), 1)
     with plt.rc_context({**STYLE, "axes.grid": False}):
         fig, axis = plt.subplots(figsize=(4.8, 4.4))
@@ -168,7 +178,7 @@ def evaluation_figure(predictions, path: str, *, name: str, label: str = "materi
 def curve_figure(curves, path: str, title: str = "", loss: str = "loss"):
     """Training and validation loss by epoch, and the epoch whose weights were kept. `curves`: one
     curve, or {member label: curve} for a model of several members (each drawn, the title the first's)."""
-    plt = _pyplot()
+    plt = pyplot()
     curves = curves if isinstance(curves, dict) else {"": curves}
     first = next(iter(curves.values()), [])
     kept = best_epoch(first)

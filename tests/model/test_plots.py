@@ -18,7 +18,7 @@ def test_restored_epoch_is_the_first_lowest_validation_loss():
 
 
 def test_a_log_axis_within_one_decade_has_several_labelled_ticks(tmp_path):
-    plt = plots._pyplot()
+    plt = plots.pyplot()
     figure, axis = plt.subplots()
     values = [0.071, 0.09, 0.2, 0.31]
     axis.plot(range(4), values)
