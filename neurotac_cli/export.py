@@ -13,6 +13,7 @@ AEDAT 4.0 writes) is written from the 2^24 µs loop of its first event instead, 
 earlier by whole loops (`shift_us` in the report). Events must be in time order, as EVT 3.0 cannot go back in time.
 """
 
+import io
 import os
 import struct
 
@@ -150,7 +151,11 @@ def write_hdf5(path: str, t, x, y, p, width: int, height: int) -> bool:
     offset = int(t.min()) if len(t) else 0
     ordered = not len(t) or bool(np.all(np.diff(t) >= 0))
     chunked = {"chunks": True, "compression": "gzip", "compression_opts": 4, "shuffle": True} if len(t) else {}
-    with h5py.File(path, "w") as handle:
+    # built in memory (compressed, it is smaller than the arrays) and written to disk here: HDF5 that
+    # meets a full disk fails again in each of its objects' clean-up, a dozen "Exception ignored"
+    # tracebacks and then a segmentation fault
+    image = io.BytesIO()
+    with h5py.File(image, "w") as handle:
         group = handle.create_group("events")
         group.create_dataset("x", data=np.asarray(x, dtype=np.uint16), **chunked)
         group.create_dataset("y", data=np.asarray(y, dtype=np.uint16), **chunked)
@@ -161,6 +166,8 @@ def write_hdf5(path: str, t, x, y, p, width: int, height: int) -> bool:
             _write_ms_to_idx(handle, t - offset)
         handle.attrs["width"], handle.attrs["height"] = int(width), int(height)
         handle.attrs["geometry"] = f"{int(width)}x{int(height)}"
+    with open(path, "wb") as sink:
+        sink.write(image.getbuffer())
     return ordered
 
 

@@ -140,3 +140,17 @@ def test_hdf5_is_dsecs_layout_as_its_readers_take_it(tmp_path):
     result = CliRunner().invoke(cli, ["export", "-o", str(tmp_path / "s.h5"), str(tmp_path / "s.parquet")])
     assert result.exit_code == 0 and "no ms_to_idx index was written" in result.stderr
     assert np.array_equal(read_events_table(tmp_path / "s.h5").column("t").to_numpy(), shuffled.column("t").to_numpy())
+
+
+def test_hdf5_the_disk_cannot_hold_is_one_line_and_keeps_the_old_file(tmp_path):
+    # HDF5 met the size limit inside its own writes: a dozen "Exception ignored" tracebacks, then a segfault
+    import subprocess
+
+    tables.write(str(tmp_path / "e.arrows"), events(n=20_000))
+    (tmp_path / "x.h5").write_bytes(b"old")
+    done = subprocess.run(["bash", "-c", "ulimit -f 16; neurotac export e.arrows -o x.h5"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 1, (done.returncode, done.stderr[-500:])
+    assert done.stderr.startswith("neurotac export: error: cannot write x.h5 (file too large") and done.stderr.count("\n") == 1
+    assert (tmp_path / "x.h5").read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.arrows", "x.h5"]
