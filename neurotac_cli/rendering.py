@@ -23,6 +23,7 @@ import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
+from neurotac_cli.units import counted
 
 FORMATS = {".png": "png", ".gif": "gif", ".mp4": "mp4"}
 VIEWS = ("montage", "crop", "augmented")
@@ -71,7 +72,8 @@ class Steps:
         if self.what == "frame":
             phase = self.phase[k] if self.phase and self.phase[k] else ""
             return f"frame {self.numbers[k]}" + (f": {phase}" if phase else "")
-        return f"{self.starts_ms[k]:.1f}-{self.starts_ms[k] + self.step_ms:.1f} ms"
+        digits = 1 if self.step_ms >= 0.1 else 3  # slices of a few µs: "0.0-0.0 ms" would name none apart
+        return f"{self.starts_ms[k]:.{digits}f}-{self.starts_ms[k] + self.step_ms:.{digits}f} ms"
 
 
 def output_format(path: str) -> str:
@@ -156,7 +158,7 @@ def _slice_steps(trial, t, x, y, p, sensor, spec: RenderSpec) -> Steps:
     if spec.slice_us:
         window, n = spec.slice_us, (last - first) // spec.slice_us + 1
     else:
-        n = spec.slices
+        n = min(spec.slices, last - first + 1)  # a span of a few µs holds no more slices of a whole µs
         window = max((last - first) // n + 1, 1)
     if n * 2 * height * width * 2 > MAX_SLICE_BYTES:  # a huge gap in the times, or a slice far too short for the span
         raise NeurotacError(f"trial {trial!r} spans {(last - first) / 1e6:,.3f} s: {n:,} slices of {window / 1000:g} ms would take "
@@ -200,8 +202,23 @@ def _colour_bars(figure, axes, top: float, unit: str):
         bar.ax.tick_params(labelsize=6)
 
 
-def _image_axis(axis, image, title: str, extent=None):
-    axis.imshow(image, interpolation="nearest", extent=extent)
+def _image_axis(axis, image, title: str):
+    """`image` (H, W, 3) drawn in sensor pixel coordinates; where the tile has fewer screen pixels than
+    the image, each block of sensor pixels shows its darkest (busiest) pixel: a plain downsample skips
+    whole rows and columns, and an isolated event with them."""
+    height, width = image.shape[:2]
+    figure = axis.figure
+    across = max(int(0.9 * axis.get_position().width * figure.get_figwidth() * figure.dpi), 16)
+    factor = -(-width // across)
+    if factor > 1:
+        padded = np.ones((-(-height // factor) * factor, -(-width // factor) * factor, 3))
+        padded[:height, :width] = image
+        image = padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor, 3).min(axis=(1, 3))
+        axis.imshow(image, interpolation="nearest", extent=(-0.5, padded.shape[1] - 0.5, padded.shape[0] - 0.5, -0.5))
+        axis.set_xlim(-0.5, width - 0.5)
+        axis.set_ylim(height - 0.5, -0.5)
+    else:
+        axis.imshow(image, interpolation="nearest")
     axis.set_title(title, fontsize=7, pad=2)
     axis.set_xticks([])
     axis.set_yticks([])
@@ -216,10 +233,17 @@ def _force_strip(axis, steps: Steps):
                 colour = PHASE_COLOURS.get(steps.phase[start] or "", "#ffffff")
                 axis.axvspan(steps.starts_ms[start], steps.starts_ms[k - 1] + steps.step_ms, color=colour, lw=0)
                 start = k
-        handles = [_patch(colour) for colour in PHASE_COLOURS.values()]
-        axis.legend(handles, list(PHASE_COLOURS), loc="upper right", fontsize=6, ncol=3)
+        present = [name for name in PHASE_COLOURS if name in steps.phase]  # the legend names what is shaded
+        if present:
+            axis.legend([_patch(PHASE_COLOURS[name]) for name in present], present, loc="upper right", fontsize=6, ncol=3)
     axis.plot(steps.force_t_ms, steps.force_n, "k.-" if steps.what == "frame" else "k-", lw=1, ms=2)
-    axis.set_xlim(steps.starts_ms[0], steps.starts_ms[-1] + steps.step_ms)
+    start, end = steps.starts_ms[0], steps.starts_ms[-1] + steps.step_ms
+    margin = 0.02 * (end - start)  # a force sampled at the last window's close is drawn whole, not on the frame
+    axis.set_xlim(start - margin, end + margin)
+    force = np.asarray(steps.force_n, dtype=float)
+    if np.isfinite(force).any() and np.ptp(force[np.isfinite(force)]) < 0.01:  # a flat force: a scale of 1e-3 N says nothing
+        middle = float(np.nanmean(force))
+        axis.set_ylim(middle - 0.5, middle + 0.5)
     axis.set_xlabel("time from the trial's zero t0 (ms)", fontsize=7)
     axis.set_ylabel("force (N)", fontsize=7)
     axis.tick_params(labelsize=6)
@@ -279,7 +303,7 @@ def montage(steps: Steps, spec: RenderSpec, animated: bool):
         for k in [] if animated else shown:
             axis.axvline(steps.starts_ms[k] + steps.step_ms / 2, color="#777777", lw=0.5, ls=":")
         cursor = axis.axvline(steps.starts_ms[shown[0]], color="black", lw=1.2) if animated else None
-    what = f"{steps.step_ms:g} ms frames" if steps.what == "frame" else f"{len(steps.counts)} slices of {steps.step_ms:.1f} ms"
+    what = f"{steps.step_ms:g} ms frames" if steps.what == "frame" else f"{counted(len(steps.counts), 'slice')} of {steps.step_ms:.3g} ms"
     part = f", every {spec.every}" if spec.every > 1 else ""
     part += f", the first {len(shown)} of {len(steps.counts)}" if len(shown) * spec.every < len(steps.counts) else ""
     figure.suptitle(f"{steps.trial}: {what}{part} (ON red, OFF blue)" + (" and force" if strip else ""), fontsize=9)

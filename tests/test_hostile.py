@@ -1029,6 +1029,15 @@ def test_plot_trials_the_input_lacks_are_named_and_without_a_plot_are_a_usage_er
     assert one_line(stderr, code, 1) and "no trial 'nosuch'" in stderr and not (tmp_path / "p.png").exists()
     code, stderr, _ = invoke([*args, "--plot-trials", "nosuch"])
     assert code == 2 and "give --plot" in stderr
+    code, stderr, _ = invoke([*args, "--plot", str(tmp_path / "p.png"), "--plot-trials", ""])  # not the default trials
+    assert code == 2 and "names no trial" in stderr
+
+
+def test_plot_trials_named_twice_are_drawn_once():
+    from neurotac_cli.commands.eval import _plotted_trials
+    from tests.model.helpers import tiny_frames
+
+    assert _plotted_trials(tiny_frames(trials=3), "t1,t1, t0") == ["t1", "t0"]
 
 
 @pytest.mark.parametrize("args", [["eval", "--model", "{d}/m.model", "--metrics", "{t}/x.arrows"],

@@ -207,3 +207,27 @@ def test_an_unwritable_matplotlib_config_folder_leaves_stderr_to_our_own_line(tm
     env = dict(os.environ, HOME=str(blocked), MPLCONFIGDIR=str(blocked / "mpl"))
     done = subprocess.run(["neurotac", "render", path, "-o", "m.png"], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert done.returncode == 0 and done.stderr.startswith("neurotac render: wrote m.png") and done.stderr.count("\n") == 1, done.stderr
+
+
+def test_a_tile_smaller_than_the_sensor_keeps_every_isolated_event():
+    """Nearest-neighbour shrinking skipped whole rows and columns: a 240x180 sensor in a 150 px tile lost
+    half of 690 isolated events."""
+    from neurotac_cli.model.plots import pyplot
+    from neurotac_cli.rendering import _image_axis
+
+    counts = np.zeros((2, 180, 240))
+    counts[1, 3::8, 3::8] = 1
+    figure, axis = pyplot().subplots(figsize=(1.5, 1.2), dpi=100)
+    _image_axis(axis, rgb(counts, 1.0), "")
+    shown = axis.images[0].get_array()
+    assert shown.shape[1] < 240 and (shown.min(axis=2) < 0.5).sum() == counts[1].sum() == 690
+    assert axis.get_xlim() == (-0.5, 239.5) and axis.get_ylim() == (179.5, -0.5)
+    pyplot().close(figure)
+
+
+def test_a_span_of_a_few_microseconds_is_cut_into_no_more_slices_than_it_holds():
+    from neurotac_cli.rendering import steps_of
+
+    one = sch.events_table(np.array([5]), np.array([3]), np.array([4]), np.array([1]), width=20, height=16)
+    steps = steps_of(one, None, RenderSpec(slices=8))
+    assert len(steps.counts) == 1 and steps.caption(0) == "0.000-0.001 ms"

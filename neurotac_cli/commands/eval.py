@@ -23,7 +23,8 @@ from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_l
 @click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
 @click.option("--per-trial/--no-per-trial", default=True, show_default=True, help="Add one metrics scope per trial.")
 @click.option("--plot", type=PlotPath(), default=None,
-              help="PNG: force traces and per-phase scatter (force models), or the confusion matrix (classifiers).")
+              help="An image (PNG; PDF, SVG or JPEG by the suffix): force traces and per-phase scatter (force models), "
+              "or the confusion matrix (classifiers).")
 @click.option("--plot-trials", default=None, metavar="ID,ID,...", help="Trials drawn in the force traces (default: the first three).")
 @threads_option(2)
 @study_options
@@ -54,7 +55,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
     cv_only = typed_options("repeats", "val_fraction", "val_per", "seed", "jobs", "scheduler", "cache") if model_path else []
     if cv_only:
         raise UsageError(f"{', '.join(cv_only)} apply to --cv only: a model file is scored as it is, with no training")
-    if plot_trials and not plot:
+    if plot_trials is not None and not plot:
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
     if nonzero and _classifier(model_path, model_spec):
         raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
@@ -81,7 +82,7 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         if metrics_path:
             tables.write(metrics_path, result.metrics, step=step)
         if plot:
-            plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials)
+            plots.evaluation_figure(result.predictions, plot, name=result.name, label=label, trials=trials, nonzero=nonzero)
         tables.write(output, result.predictions, step=step)
 
 
@@ -114,11 +115,11 @@ def _classifier(model_path, model_spec) -> bool:
 
 def _plotted_trials(table, plot_trials: str | None) -> list | None:
     """The trial ids of --plot-trials, each one the input holds (None: the plot's default)."""
-    if not plot_trials:
+    if plot_trials is None:
         return None
     from neurotac_cli.rendering import pick_trial
 
-    chosen = [name.strip() for name in plot_trials.split(",") if name.strip()]
+    chosen = list(dict.fromkeys(name.strip() for name in plot_trials.split(",") if name.strip()))  # a trial drawn once
     if not chosen:
         raise UsageError(f"--plot-trials {plot_trials!r} names no trial")
     return [pick_trial(table, name) for name in chosen]

@@ -64,8 +64,9 @@ def force_errors(true: np.ndarray, pred: np.ndarray) -> tuple[float, float, int]
     return float(np.sqrt(np.mean(error ** 2))), float(np.mean(np.abs(error))), int(known.sum())
 
 
-def force_figure(predictions, path: str, trials=None, title: str = ""):
-    """Left: force traces of chosen trials (default: the first three); right: estimate vs measured, per phase."""
+def force_figure(predictions, path: str, trials=None, title: str = "", nonzero: bool = False):
+    """Left: force traces of chosen trials (default: the first three); right: estimate vs measured, per
+    phase. `nonzero`: the scatter and the errors of the frames `eval --nonzero` scores (the traces whole)."""
     plt = pyplot()
     trial = np.asarray(predictions.column("trial").to_pylist(), dtype=object)
     t = predictions.column("t").to_numpy() / 1000.0
@@ -75,7 +76,8 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
     chosen = list(trials) if trials else list(dict.fromkeys(trial))[:3]
     # cross-validation repeats hold every frame once per seed: traces show the first seed's run
     first_run = predictions.column("repeat").to_numpy() == 0 if "repeat" in predictions.column_names else np.ones(len(trial), bool)
-    rmse, mae, frames = force_errors(true, pred)
+    scored = true != 0 if nonzero else np.ones(len(true), bool)
+    rmse, mae, frames = force_errors(true[scored], pred[scored])
     count = len(set(trial.tolist()))
     with plt.rc_context(STYLE):
         fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
@@ -85,18 +87,20 @@ def force_figure(predictions, path: str, trials=None, title: str = ""):
             # one trace (a session): measured and estimated in two colours, which overlap for minutes;
             # several: one colour per trial, so each estimate is read against its own measurement
             measured, estimated = ("0.3", "C3") if len(chosen) == 1 else (f"C{n}", f"C{n}")
-            left.plot(t[mask], true[mask], color=measured, lw=1.5, label=f"{drawable(name)} measured")
-            left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", label=f"{drawable(name)} estimated (RMSE {trial_rmse:.3f} N)")
+            marker = "o" if mask.sum() < 2 else None  # a trace of one frame is a point, which a line alone does not draw
+            left.plot(t[mask], true[mask], color=measured, lw=1.5, marker=marker, label=f"{drawable(name)} measured")
+            left.plot(t[mask], pred[mask], color=estimated, lw=1.2, ls="--", marker=marker,
+                      label=f"{drawable(name)} estimated (RMSE {trial_rmse:.3f} N)")
         left.set_xlabel("time since sync t0 (ms)")
         left.set_ylabel("force (N)")
         left.legend(loc="best", framealpha=0.85)
         shown = f" ({len(chosen)} of {count} trials)" if len(chosen) < count else ""
         left.set_title("force over time" + shown + (" (first seed)" if not first_run.all() else ""))
-        _scatter(right, true, pred, phase)
+        _scatter(right, true[scored], pred[scored], phase[scored])
         what = f"{drawable(title)}: " if title else ""
         seeds = ", every seed" if not first_run.all() else ""
         fig.suptitle(f"{what}estimated vs measured force, RMSE {rmse:.3f} N, MAE {mae:.3f} N "
-                     f"({frames:,} frames of {counted(count, 'trial')}{seeds})")
+                     f"({counted(frames, ('non-zero force frame' if nonzero else 'frame'))} of {counted(count, 'trial')}{seeds})")
         fig.tight_layout()
         _save(fig, path)
         plt.close(fig)
@@ -162,11 +166,12 @@ def log_ticks(axis, values) -> None:
     axis.yaxis.set_minor_formatter(NullFormatter())
 
 
-def evaluation_figure(predictions, path: str, *, name: str, label: str = "material", trials=None):
+def evaluation_figure(predictions, path: str, *, name: str, label: str = "material", trials=None, nonzero: bool = False):
     """`neurotac eval --plot`: force traces and per-phase scatter of a force model's predictions
-    (`trials`: ids drawn, default the first three), or a classifier's confusion matrix."""
+    (`trials`: ids drawn, default the first three; `nonzero`: as `--nonzero` scores them), or a
+    classifier's confusion matrix."""
     if "force_pred" in predictions.schema.names:
-        force_figure(predictions, path, trials, title=name)
+        force_figure(predictions, path, trials, title=name, nonzero=nonzero)
         return
     from neurotac_cli.metrics import confusion
 

@@ -59,3 +59,16 @@ def test_trial_ids_and_classes_the_font_cannot_draw_are_written_as_codes_without
         plots.force_figure(predictions, str(tmp_path / "f.png"), title="tdnn")
         plots.confusion_figure(np.array([[1, 0], [0, 1]]), ["钢", "foam"], str(tmp_path / "m.png"))
     assert plots.drawable("试验-1 α") == "\\u8bd5\\u9a8c-1 α"
+
+
+def test_the_force_figure_of_nonzero_frames_scores_and_scatters_those_only(tmp_path, monkeypatch):
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda figure, path: figures.append(figure))
+    predictions = pa.table({"trial": ["a"] * 4, "t": [0, 10_000, 20_000, 30_000], "force": [0.0, 1.0, 2.0, 0.0],
+                            "force_pred": [0.5, 1.0, 2.0, 0.5], "phase": ["grasping", "holding", "holding", None]})
+    plots.evaluation_figure(predictions, str(tmp_path / "f.png"), name="tdnn", nonzero=True)
+    plots.evaluation_figure(predictions, str(tmp_path / "g.png"), name="tdnn")
+    nonzero, every = (figure._suptitle.get_text() for figure in figures)
+    assert "RMSE 0.000 N" in nonzero and "(2 non-zero force frames of 1 trial)" in nonzero
+    assert "RMSE 0.354 N" in every and "(4 frames of 1 trial)" in every
+    assert sum(len(c.get_offsets()) for c in figures[0].axes[1].collections) == 2
