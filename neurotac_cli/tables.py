@@ -162,16 +162,16 @@ def _source_batches(path: str) -> Iterator[tuple[pa.Schema, Iterator[pa.RecordBa
     """Yield (schema, batches) for each table in one source (several for concatenated IPC streams)."""
     name = "stdin" if path in (None, "-") else path
     source = open_binary(path)
-    head = _read_exactly(source, 8)
-    fmt = sniff(head)
-    if fmt is None:
-        if not head:
-            raise InputError(f"{name} is empty; did the command before it fail?")
-        raise InputError(
-            f"{name} is not an Arrow or Parquet table (for camera files use `neurotac import`; "
-            "tables are Arrow IPC streams, Arrow files or Parquet)"
-        )
-    try:
+    try:  # from here on the file is closed however this ends, a refusal of its first bytes included
+        head = _read_exactly(source, 8)
+        fmt = sniff(head)
+        if fmt is None:
+            if not head:
+                raise InputError(f"{name} is empty; did the command before it fail?")
+            raise InputError(
+                f"{name} is not an Arrow or Parquet table (for camera files use `neurotac import`; "
+                "tables are Arrow IPC streams, Arrow files or Parquet)"
+            )
         if fmt == "stream":
             stream = _Prepend(head, source)
             first = True
@@ -267,6 +267,17 @@ def open_input(paths, kind=None, allow_empty=False) -> Input:
             opened.append((next(tables), tables))
         except StopIteration:
             raise InputError(f"{path}: no table in it") from None
+    return _checked_input(opened, paths, kind, allow_empty)
+
+
+def open_table(table: pa.Table, kind=None, allow_empty=False) -> Input:
+    """A table in memory (the Python API's input) checked as `open_input` checks a file at the door:
+    header, kind, columns, nulls, a trial or frame given twice, no rows."""
+    return _checked_input([((table.schema, iter(table.to_batches())), iter(()))], [], kind, allow_empty)
+
+
+def _checked_input(opened: list, paths: list, kind, allow_empty: bool) -> Input:
+    """The opened tables ((schema, batches), further tables on the same source) as one checked Input."""
     for (other, _), _ in opened:
         sch.check_header(other)
     (schema, first_batches), first_rest = opened[0]
