@@ -15,6 +15,7 @@ tile, played at --fps. matplotlib, Pillow and imageio-ffmpeg are imported only h
 """
 
 import itertools
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,10 +24,11 @@ import pyarrow.compute as pc
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
-from neurotac_cli.units import counted
+from neurotac_cli.units import counted, is_whole
 
 FORMATS = {".png": "png", ".gif": "gif", ".mp4": "mp4"}
 VIEWS = ("montage", "crop", "augmented")
+MAX_SLICES, MAX_COLUMNS, FPS = 1000, 60, (0.1, 120.0)  # `render`'s option ranges
 PHASE_COLOURS = {"grasping": "#f4c27a", "holding": "#9fd3a0", "releasing": "#a8c3e8"}
 DPI = 100
 MAX_TILES = 60
@@ -48,10 +50,35 @@ class RenderSpec:
     def __post_init__(self):
         if self.view not in VIEWS:
             raise NeurotacError(f"unknown view {self.view!r} (use {', '.join(VIEWS)})")
-        if self.slices < 1 or self.columns < 1 or self.every < 1 or self.fps <= 0:
-            raise NeurotacError("--slices, --columns and --every must be at least 1 and --fps above 0")
-        if self.slice_us is not None and self.slice_us <= 0:
-            raise NeurotacError(f"--slice must be a positive duration, got {self.slice_us} µs")
+        # the command line's ranges (its click types), checked here too for the library, which passes anything
+        for name, least, most in (("slices", 1, MAX_SLICES), ("columns", 1, MAX_COLUMNS), ("every", 1, None)):
+            value = getattr(self, name)
+            if not is_whole(value) or value < least or (most is not None and value > most):
+                within = f"from {least} to {most}" if most else f"{least} or more"
+                raise UsageError(f"--{name} must be a whole number {within}, got {value!r}")
+        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not FPS[0] <= self.fps <= FPS[1]:
+            raise UsageError(f"--fps must be a number from {FPS[0]:g} to {FPS[1]:g}, got {self.fps!r}")
+        if self.slice_us is not None and (not is_whole(self.slice_us) or self.slice_us <= 0):
+            raise UsageError(f"--slice must be a positive duration, got {self.slice_us!r} µs")
+
+
+def check_options(path: str, view: str, given: set) -> None:
+    """Refuse options that do nothing here, as the command line does (exit 2): `given` names those
+    set by the caller (fps, box, size, center), not left at their defaults."""
+    if output_format(path) == "png" and "fps" in given:
+        raise UsageError("--fps sets the pace of a GIF or MP4; a PNG is one picture (write -o NAME.gif to animate)")
+    boxed = [f"--{name}" for name in ("box", "size", "center") if name in given]
+    if boxed and view != "crop":
+        raise UsageError(f"{', '.join(boxed)} draw{'s' if len(boxed) == 1 else ''} a box with --view crop; "
+                         f"--view {view} draws the whole frame")
+
+
+def check_slicing(kind: str, given: set) -> None:
+    """Refuse --slices and --slice (in `given`) for frames, which are drawn as they are."""
+    sliced = [flag for flag, name in (("--slices", "slices"), ("--slice", "slice_us")) if name in given]
+    if sliced and kind == "frames":
+        raise UsageError(f"{' and '.join(sliced)} cut{'s' if len(sliced) == 1 else ''} events or recordings into time "
+                         "slices; frames are drawn as they are (use --every to draw fewer)")
 
 
 @dataclass

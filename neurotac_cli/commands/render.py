@@ -43,19 +43,12 @@ def command(paths, output, view, trial, slices, slice_us, columns, every, fps, b
 
     ctx = click.get_current_context()
     given = {name for name in ("fps", "slices", "slice_us") if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT}
-    if rd.output_format(output) == "png" and "fps" in given:
-        raise click.UsageError("--fps sets the pace of a GIF or MP4; a PNG is one picture (write -o NAME.gif to animate)")
-    boxed = [flag for flag, value in (("--box", box), ("--size", size), ("--center", center)) if value is not None]
-    if boxed and view != "crop":
-        raise click.UsageError(f"{', '.join(boxed)} draw{'s' if len(boxed) == 1 else ''} a box with --view crop; "
-                               f"--view {view} draws the whole frame")
+    given |= {name for name, value in (("box", box), ("size", size), ("center", center)) if value is not None}
+    rd.check_options(output, view, given)
     crop = CropSpec(box=box, size=size, center=center) if box or size else None
     spec = rd.RenderSpec(view=view, trial=trial, slices=slices, slice_us=slice_us, columns=columns, every=every, fps=fps, crop=crop)
     table = tables.read(paths, kind=("frames", "recordings", "events"))
-    sliced = [flag for flag, name in (("--slices", "slices"), ("--slice", "slice_us")) if name in given]
-    if sliced and sch.table_kind(table.schema) == "frames":
-        raise click.UsageError(f"{' and '.join(sliced)} cut{'s' if len(sliced) == 1 else ''} events or recordings into time "
-                               "slices; frames are drawn as they are (use --every to draw fewer)")
+    rd.check_slicing(sch.table_kind(table.schema), given)
     done = rd.render(table, output, spec)
     click.echo(f"neurotac render: wrote {output}: {done['view']} of trial {done['trial']!r}, {done['pictures']} "
                f"picture{'s' if done['pictures'] > 1 else ''} of {done['width']}x{done['height']} pixels", err=True)
