@@ -9,6 +9,11 @@ class NeurotacError(Exception):
     """A problem with the user's input or request: say what, why, and what to do."""
 
 
+class NeurotacWarning(UserWarning):
+    """What the command line writes on stderr as a warning (events lost, a huge output), raised with
+    `warnings.warn` by the Python API (neurotac_cli.api), which has no stderr of its own."""
+
+
 class UsageError(NeurotacError):
     """Options that cannot work together or a value an option cannot take, found past click's own
     parsing: exit 2, as click's usage errors."""

@@ -3,6 +3,7 @@
 import dataclasses
 import importlib
 import math
+import numbers
 
 import numpy as np
 import pyarrow as pa
@@ -67,12 +68,13 @@ def _typed(key: str, value, default):
     option = "--" + key.replace("_", "-")
     if isinstance(default, bool) or default is None or isinstance(value, bool):
         return value
+    # numbers.Integral and Real hold numpy's scalars too (np.float32 is no float), as a notebook passes them
     if isinstance(default, int):
-        if isinstance(value, int) or (isinstance(value, float) and value.is_integer()):
+        if isinstance(value, numbers.Integral) or (isinstance(value, numbers.Real) and float(value).is_integer()):
             return int(value)
         raise UsageError(f"{option} takes a whole number, got {value!r}")
     if isinstance(default, float):
-        if isinstance(value, (int, float)):
+        if isinstance(value, numbers.Real):
             return float(value)
         raise UsageError(f"{option} takes a number, got {value!r}")
     return value

@@ -660,7 +660,12 @@ def augment(frames: pa.Table, request: Augmentation, noise: pa.Table | None = No
     pool = tuple(noise_pool(noise, frames.schema)) if noise is not None else None
     table, counted = augment_frames(frames, request.methods(pool), copies=request.copies, combine=request.combine,
                                     keep_original=request.keep_original, seed=request.seed, where=list(request.where))
-    warnings = [f"{name} pushed {entry.get('events_lost', 0)} of {entry['events_in']} events out of the frames"
-                for name, entry in counted.items()
-                if entry["events_in"] and entry.get("events_lost", 0) > LOSS_WARNING * entry["events_in"]]
-    return table, counted, warnings
+    return table, counted, loss_warnings(counted)
+
+
+def loss_warnings(counted: dict) -> list[str]:
+    """Warnings for the methods that pushed more than LOSS_WARNING of their events out of the frames
+    (`counted`: what `augment_frames` counted per method)."""
+    return [f"{name} pushed {entry.get('events_lost', 0)} of {entry['events_in']} events out of the frames"
+            for name, entry in counted.items()
+            if entry["events_in"] and entry.get("events_lost", 0) > LOSS_WARNING * entry["events_in"]]
