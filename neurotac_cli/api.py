@@ -13,29 +13,45 @@ with the message the command line would print. Nothing here prints or exits.
 """
 
 import dataclasses
+import numbers
+import os
+import warnings
 
 import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError
-from neurotac_cli.units import MAX_SIDE, is_whole, parse_ints
+from neurotac_cli.errors import NeurotacError, NeurotacWarning, UsageError
+from neurotac_cli.units import MAX_SIDE, is_whole, parse_ints, parse_size
 from neurotac_cli.ops.augment import EventShift, FrameShift, Noise, Resize, Rotate  # noqa: F401  (augment's methods)
 
-TONIC_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", np.int8)])
+# x and y as a wider signed type than tonic's int16 datasets: sensor coordinates reach 65535, and
+# tonic's transforms subtract from them (flips, shifts), which an unsigned type would wrap
+TONIC_DTYPE = np.dtype([("x", np.int32), ("y", np.int32), ("t", np.int64), ("p", np.int8)])
 
 
-def _kind(table, *kinds) -> str:
-    """The kind of `table`, checked as a pyarrow Table of one of `kinds` (the commands check theirs at the door)."""
+def _input(table, *kinds):
+    """`table` opened as a command opens its input (tables.Input): kind, columns, nulls, a trial or
+    frame given twice and an empty table are refused with the command line's words."""
+    from neurotac_cli import tables
+
     if not isinstance(table, pa.Table):
-        raise NeurotacError(f"expected a pyarrow Table ({' or '.join(kinds)}), got {type(table).__name__}")
-    return sch.validate(table.schema, kinds)
+        raise UsageError(f"expected a pyarrow Table ({' or '.join(kinds)}), got {type(table).__name__}")
+    return tables.open_table(table, kinds)
 
 
 def _table(table, *kinds) -> pa.Table:
-    """`table`, checked as `_kind` checks it."""
-    _kind(table, *kinds)
-    return table
+    """`table`, checked as `_input` checks it."""
+    return _input(table, *kinds).read_all()
+
+
+def _warn(lines, marked: bool = False) -> None:
+    """The command line's stderr warnings for the same input, as NeurotacWarning: a library has no
+    stderr of its own, and a notebook shows warnings (a script can turn them into errors).
+    `marked`: of `lines`, only those starting `warning: ` (the others are counts for a person)."""
+    for line in filter(None, lines):
+        if not marked or line.startswith("warning: "):
+            warnings.warn(line.removeprefix("warning: "), NeurotacWarning, stacklevel=3)
 
 
 def _model(model):
@@ -44,38 +60,103 @@ def _model(model):
 
     if not isinstance(model, Model):
         hint = " (load it with api.load_model(path))" if isinstance(model, (str, bytes)) else ""
-        raise NeurotacError(f"expected a model from api.train or api.load_model, got {type(model).__name__}{hint}")
+        raise UsageError(f"expected a model from api.train or api.load_model, got {type(model).__name__}{hint}")
     return model
 
 
 def _whole(value, what: str, least: int = 0, most: int = 2**63 - 1) -> int:
     """`value` checked as a whole number from `least` to `most` (the command line's types check theirs)."""
     if not is_whole(value) or not least <= value <= most:
-        raise NeurotacError(f"{what} must be a whole number {f'>= {least}' if most == 2**63 - 1 else f'from {least} to {most}'}, got {value!r}")
+        raise UsageError(f"{what} must be a whole number {f'>= {least}' if most == 2**63 - 1 else f'from {least} to {most}'}, got {value!r}")
     return int(value)
+
+
+def _flag(value, what: str) -> bool:
+    """A yes/no setting: True or False only ("no" is a true string, 1 may be meant as a number)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise UsageError(f"{what} is a flag: give True or False, got {value!r}")
+    return bool(value)
+
+
+def _plain(value):
+    """numpy scalars and arrays as Python's numbers and tuples, so they pass the checks Python's do."""
+    if isinstance(value, np.ndarray):
+        return tuple(value.tolist())
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def _numbers(value, what: str, count: int, parse):
+    """(count) whole numbers given as a tuple, list or numpy array, or as the command line writes
+    them (`parse`: "60x60", "100,90"); anything else is left to the core's own check."""
+    if isinstance(value, str) and value != "all" and value != "auto":
+        try:
+            return parse(value)
+        except NeurotacError as error:
+            raise UsageError(f"{what}: {error}") from None
+    value = _plain(value)
+    return tuple(_plain(v) for v in value) if isinstance(value, (tuple, list)) and len(value) == count else value
+
+
+def _path(path, what: str = "path") -> str:
+    """A file path given as text (or os.PathLike), not empty and not a folder."""
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise UsageError(f"{what} must be a file path, got {path!r}")
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise UsageError(f"{path} is a folder; give a file path in it")
+    return path
 
 
 def _trial(trial) -> str:
     """A trial id: a string (the trial column is text), not a number that could never match."""
     if not isinstance(trial, str):
-        raise NeurotacError(f"trial must be a trial id (a string), got {trial!r}")
+        raise UsageError(f"trial must be a trial id (a string), got {trial!r}")
     return trial
 
 
-def _us(duration) -> int:
+def _us(duration, what: str = "duration") -> int:
+    """Microseconds: a whole number (not a bool), or a duration with its unit ("10ms")."""
     from neurotac_cli.units import parse_duration_us
 
-    return int(duration) if isinstance(duration, (int, np.integer)) else parse_duration_us(str(duration))
+    if is_whole(duration):
+        return int(duration)
+    if not isinstance(duration, str):
+        raise UsageError(f"{what} must be whole microseconds or a duration with its unit (\"10ms\"), got {duration!r}")
+    try:
+        return parse_duration_us(duration)
+    except NeurotacError as error:
+        raise UsageError(f"{what}: {error}") from None
+
+
+def _sensor(value, what: str, polarities: bool = False) -> tuple[int, int]:
+    """(width, height) from a tuple, list or array (tonic's (W, H, 2) where `polarities`) or "WxH"."""
+    if isinstance(value, str):
+        try:
+            return parse_size(value)
+        except NeurotacError as error:
+            raise UsageError(f"{what}: {error}") from None
+    value = _plain(value) if isinstance(value, np.ndarray) else value
+    sides = tuple(value)[:2] if isinstance(value, (tuple, list)) and len(value) in ((2, 3) if polarities else (2,)) else ()
+    if len(sides) != 2 or not all(is_whole(v) and 1 <= v <= MAX_SIDE for v in sides):
+        shape = "(width, height, polarities)" if polarities else "(width, height)"
+        raise UsageError(f"{what} must be {shape}, whole sides from 1 to {MAX_SIDE}, or \"WxH\"; got {value!r}")
+    return int(sides[0]), int(sides[1])
 
 
 # ---------------------------------------------------------------- tables in and out
 
 
 def read(*paths: str, kind=None) -> pa.Table:
-    """Tables (Arrow IPC stream or file, Parquet) read as one, checked as `kind` when given."""
+    """Tables (Arrow IPC stream or file, Parquet) read as one, checked as `kind` when given (one of
+    events, recordings, frames, predictions, metrics, or a tuple of them). "-" reads stdin."""
     from neurotac_cli import tables
 
-    return tables.read(list(paths), kind=kind)
+    if not paths:  # stdin would be read: in a notebook that waits for ever
+        raise UsageError('give the paths of the tables to read ("-" reads stdin)')
+    kinds = (kind,) if isinstance(kind, str) else kind
+    if kinds is not None and (not isinstance(kinds, tuple) or not kinds or not set(kinds) <= set(sch.KINDS)):
+        raise UsageError(f"kind must be one of {', '.join(sch.KINDS)} (or a tuple of them), got {kind!r}")
+    return tables.read([path if path == "-" else _path(path) for path in paths], kind=kind)
 
 
 def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
@@ -84,23 +165,19 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
     from neurotac_cli import tables
 
     if path in (None, "-"):
-        raise NeurotacError("give a file path: the library does not write binary tables to stdout")
+        raise UsageError("give a file path: the library does not write binary tables to stdout")
     if not isinstance(table, pa.Table):
-        raise NeurotacError(f"expected a pyarrow Table to write, got {type(table).__name__}")
-    tables.write(path, table, step=step)
+        raise UsageError(f"expected a pyarrow Table to write, got {type(table).__name__}")
+    tables.write(_path(path), table, step=step)
 
 
 def import_camera(path: str, sensor: tuple[int, int] | None = None) -> pa.Table:
-    """A camera file (AEDAT, EVT 2.0/2.1/3.0, DAT, ES, HDF5, CSV, text) as an events table, timestamps as written."""
+    """A camera file (AEDAT, EVT 2.0/2.1/3.0, DAT, ES, HDF5, CSV, text) as an events table, timestamps
+    as written; "-" reads stdin."""
     from neurotac_cli.io.events import read_events_table
-    from neurotac_cli.units import parse_size
 
-    if isinstance(sensor, str):
-        sensor = parse_size(sensor)
-    elif sensor is not None and not (isinstance(sensor, (tuple, list)) and len(sensor) == 2
-                                     and all(is_whole(v) and 1 <= v <= MAX_SIDE for v in sensor)):
-        raise NeurotacError(f"sensor must be (width, height), whole numbers from 1 to {MAX_SIDE}, or \"WxH\"; got {sensor!r}")
-    return read_events_table(path, sensor=sensor)
+    sensor = None if sensor is None else _sensor(sensor, "sensor")
+    return read_events_table(path if path == "-" else _path(path, "the camera file"), sensor=sensor)
 
 
 def simulate(preset: str = "ch4", trials: int | None = None, seed: int = 0, **overrides) -> pa.Table:
@@ -121,9 +198,11 @@ def sync(camera, force: str, method: str = "led", trial: str | None = None, labe
     events = import_camera(camera) if isinstance(camera, str) else _table(camera, "events")
     name = trial or (trial_name(camera) if isinstance(camera, str) else "trial")
     if labels is not None and not isinstance(labels, dict):
-        raise NeurotacError(f"labels must be a dict of label names to values, e.g. {{'material': 'foam'}}, got {labels!r}")
-    source = Source(trial=name, events=events, force=ForceOptions().read(force), labels=dict(labels or {}))
-    return sy.sync_sources([source], sy.sync_method(method))
+        raise UsageError(f"labels must be a dict of label names to values, e.g. {{'material': 'foam'}}, got {labels!r}")
+    source = Source(trial=name, events=events, force=ForceOptions().read(_path(force, "force")), labels=dict(labels or {}))
+    recordings, lines = sy.sync([source], sy.sync_method(method))
+    _warn(lines)
+    return recordings
 
 
 # ---------------------------------------------------------------- frames
@@ -131,45 +210,62 @@ def sync(camera, force: str, method: str = "led", trial: str | None = None, labe
 
 def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     """Frames of a recordings table (per trial, from t0) or an events table (one trial, from its first
-    event). `options` as `neurotac frame`'s: partial, pad_to, force_at, phases, accumulate, dtype."""
+    event). `options` as `neurotac frame`'s: partial, pad_to, force_at, phases, accumulate, dtype,
+    scale, max_frames; start_us, trial, sort for an events table. Warns (NeurotacWarning) where
+    the command line warns."""
+    from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.ops import frame as fr
 
-    known = {field.name for field in dataclasses.fields(fr.Framing)} - {"window_us"}
+    known = {field.name for field in dataclasses.fields(fr.Framing)} - {"window_us", "slips", "frame_options"}
     if set(options) - known:
-        raise NeurotacError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
-    if _kind(table, "recordings", "events") == "recordings":
+        raise UsageError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
+    options = {name: _plain(value) for name, value in options.items()}
+    for name in ("accumulate", "sort"):
+        if name in options:
+            options[name] = _flag(options[name], name)
+    window_us = _us(window, "window")
+    source = _input(table, "recordings", "events")
+    if source.kind == "recordings":
         events_only = sorted({"start_us", "trial", "sort"} & set(options))
         if events_only:  # a recordings table's trials keep their ids and start at their sync instant
-            raise NeurotacError(f"frame() takes {', '.join(events_only)} for a plain events table only, not a recordings table")
-        return fr.frame_recordings(table, _us(window), **options)
-    return fr.frames_from_events_table(table, _us(window), **options)
+            raise UsageError(f"frame() takes {', '.join(events_only)} for a plain events table only, not a recordings table")
+    else:
+        options.setdefault("trial", camera_file_stem(source.schema) or "events")
+    schema, batches, report, _ = fr.frame(source, fr.Framing(window_us=window_us, **options))
+    _warn([fr.size_note(schema, report.frames)])
+    frames = pa.Table.from_batches(list(batches), schema=schema)
+    _warn(report.messages(lead_in_expected=source.kind == "recordings"), marked=True)
+    return frames
 
 
 def crop(table: pa.Table, box=None, size=None, center=None, pool=None) -> pa.Table:
-    """Crop and sum-pool frames, recordings or events: box=(x, y, w, h), or size=(w, h) with
-    center=(x, y) or "auto"; pool=(k, l) or "all"."""
+    """Crop and sum-pool frames, recordings or events: box=(x, y, w, h) or "X,Y,W,H", or size=(w, h)
+    or "WxH" with center=(x, y), "X,Y" or "auto"; pool=(k, l), "KxL" or "all". Numpy arrays and
+    scalars are taken as the tuples and numbers they hold."""
     from neurotac_cli.ops import crop as cr
 
-    _table(table, "frames", "recordings", "events")
-    if isinstance(center, str) and center != "auto":  # "X,Y", as the command line writes it
-        try:
-            center = parse_ints(center, 2)
-        except NeurotacError:
-            raise NeurotacError("center must be (x, y), \"X,Y\" or \"auto\"") from None
-    return cr.crop_table(table, cr.CropSpec(box=box, size=size, center=center, pool=pool))
+    spec = cr.CropSpec(box=_numbers(box, "box", 4, lambda text: parse_ints(text, 4)),
+                       size=_numbers(size, "size", 2, parse_size), center=_numbers(center, "center", 2, lambda text: parse_ints(text, 2)),
+                       pool=_numbers(pool, "pool", 2, parse_size))
+    source = _input(table, "frames", "recordings", "events")
+    schema, cropped, report = cr.crop(source.schema, source.batches, spec)
+    out = cropped if isinstance(cropped, pa.Table) else pa.Table.from_batches(list(cropped), schema=schema)
+    _warn(report.warnings(0.9))  # `crop --warn-above`'s default
+    return out
 
 
 def augment(frames: pa.Table, *methods, copies: int = 1, combine: str = "independent", seed: int = 0,
             keep_original: bool = True) -> pa.Table:
-    """Augmented copies of every trial, e.g. augment(frames, api.Rotate(0, 45), api.FrameShift(-1))."""
-    from neurotac_cli.ops.augment import augment_frames
+    """Augmented copies of every trial, e.g. augment(frames, api.Rotate(0, 45), api.FrameShift(-1)).
+    Warns (NeurotacWarning) where a method pushes most events out of the frames, as the command does."""
+    from neurotac_cli.ops.augment import augment_frames, loss_warnings
 
-    if not _table(frames, "frames").num_rows:
-        raise NeurotacError("the frames table is empty: nothing to augment")
+    frames = _table(frames, "frames")
     if not methods or not all(isinstance(method, (Rotate, Resize, FrameShift, EventShift, Noise)) for method in methods):
-        raise NeurotacError("give augmentation methods as objects, e.g. api.Rotate(0, 45), api.FrameShift(-1)")
-    table, _ = augment_frames(frames, list(methods), copies=_whole(copies, "copies", 1), combine=combine,
-                              keep_original=keep_original, seed=_whole(seed, "seed"))
+        raise UsageError("give augmentation methods as objects, e.g. api.Rotate(0, 45), api.FrameShift(-1)")
+    table, counted = augment_frames(frames, list(methods), copies=_whole(copies, "copies", 1), combine=combine,
+                                    keep_original=_flag(keep_original, "keep_original"), seed=_whole(seed, "seed"))
+    _warn(loss_warnings(counted))
     return table
 
 
@@ -177,7 +273,7 @@ def counts(frames: pa.Table, trial: str | None = None) -> np.ndarray:
     """The counts of all frames, or of one trial in frame order, as (frames, 2, H, W) numpy."""
     import pyarrow.compute as pc
 
-    _table(frames, "frames")
+    frames = _table(frames, "frames")
     if trial is not None:
         frames = frames.filter(pc.equal(frames.column("trial"), _trial(trial)))
         if not frames.num_rows:
@@ -189,14 +285,22 @@ def counts(frames: pa.Table, trial: str | None = None) -> np.ndarray:
 # ---------------------------------------------------------------- models
 
 
+def _progress_warnings(line: str) -> None:
+    """A training or scoring progress callback that passes on the command line's warnings alone."""
+    _warn([line], marked=True)
+
+
 def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: float | None = 0.1, **options):
     """Train a model (`neurotac train --model NAME`); `options` are its hyperparameters (epochs, layers, ...)."""
     from neurotac_cli import model as models
 
-    _table(frames, "frames")
-    if val_fraction is not None and not 0 <= val_fraction < 1:
-        raise NeurotacError(f"val_fraction must lie in [0, 1), got {val_fraction}")
-    return models.train(frames, models.make_spec(model, **options), val_fraction=val_fraction, seed=_whole(seed, "seed"))
+    frames = _table(frames, "frames")
+    if val_fraction is not None and (isinstance(val_fraction, bool) or not isinstance(val_fraction, numbers.Real)
+                                     or not 0 <= val_fraction < 1):
+        raise UsageError(f"val_fraction must be a number in [0, 1), got {val_fraction!r}")
+    spec = models.make_spec(model, **{name: _plain(value) for name, value in options.items()})
+    return models.train(frames, spec, val_fraction=None if val_fraction is None else float(val_fraction),
+                        seed=_whole(seed, "seed"), progress=_progress_warnings)
 
 
 def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, pa.Table]:
@@ -204,20 +308,27 @@ def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, 
     from neurotac_cli.metrics import metrics_table
     from neurotac_cli.model import evaluate as ev
 
-    predictions, rows = ev.evaluate_model(_model(model), _table(frames, "frames"), nonzero=nonzero)
+    model, nonzero = _model(model), _flag(nonzero, "nonzero")
+    if nonzero and model.task == "material":  # as `eval --nonzero` refuses it
+        raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
+    notes = []
+    predictions, rows = ev.evaluate_model(model, _table(frames, "frames"), nonzero=nonzero, notes=notes)
+    _warn(notes)
     return predictions, metrics_table(rows, model.name)
 
 
 def load_model(path: str):
+    """A model file written by `neurotac train` or `save_model`."""
     from neurotac_cli import model as models
 
-    return models.load(path)
+    return models.load(_path(path, "the model file"))
 
 
 def save_model(model, path: str) -> None:
+    """Write a model file (atomically), as `neurotac train -o PATH`."""
     from neurotac_cli import model as models
 
-    models.save(_model(model), path)
+    models.save(_model(model), _path(path, "the model file"))
 
 
 class Stepper:
@@ -238,9 +349,17 @@ class Stepper:
         counts = np.asarray(counts)
         shape = (2, self.model.input_spec["height"], self.model.input_spec["width"])
         if counts.shape[-3:] != shape or counts.ndim not in (3, 4):
-            raise NeurotacError(f"expected frames of shape {shape} (or (n, {', '.join(map(str, shape))})), got {counts.shape}")
+            raise UsageError(f"expected frames of shape {shape} (or (n, {', '.join(map(str, shape))})), got {counts.shape}")
         many = counts.ndim == 4
-        t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
+        t = np.asarray(t_us)
+        if many and not len(counts):
+            raise UsageError("no frames to step: give one frame (2, H, W) or several (n, 2, H, W)")
+        if t.dtype == bool or not np.issubdtype(t.dtype, np.integer) or t.ndim != int(many):
+            want = "a 1-d array of whole µs, one per frame" if many else "one whole number of µs"
+            raise UsageError(f"t_us must be the frames' start times, {want}; got {t_us!r}"[:300])
+        t = np.atleast_1d(t.astype(np.int64))
+        if len(t) != (len(counts) if many else 1):
+            raise UsageError(f"{len(counts)} frames need as many start times, got {len(t)}")
         force, self.state = self.model.step(counts[None] if many else counts[None, None], t[None], self.state)
         return force[0] if many else force[0, 0]
 
@@ -264,9 +383,9 @@ def from_tonic(array: np.ndarray, sensor_size: tuple) -> pa.Table:
     """A tonic structured array (t in µs, p 0/1 or -1/1 or bool) as an events table; sensor_size is
     tonic's (W, H, polarities)."""
     if getattr(array, "dtype", None) is None or array.dtype.names is None or not {"t", "x", "y", "p"} <= set(array.dtype.names):
-        raise NeurotacError("expected a tonic structured array with fields t, x, y, p")
+        raise UsageError("expected a tonic structured array with fields t, x, y, p")
+    width, height = _sensor(sensor_size, "sensor_size", polarities=True)
     x, y, p = np.asarray(array["x"]), np.asarray(array["y"]), np.asarray(array["p"])
-    width, height = int(sensor_size[0]), int(sensor_size[1])
     if len(x) and (x.min() < 0 or y.min() < 0 or x.max() >= width or y.max() >= height):
         raise NeurotacError(f"events lie outside the {width}x{height} sensor (x {x.min()}..{x.max()}, y {y.min()}..{y.max()})")
     return sch.events_table(np.asarray(array["t"], np.int64), x.astype(np.uint16), y.astype(np.uint16),
@@ -291,15 +410,28 @@ def events_of(recordings: pa.Table, trial: str) -> pa.Table:
     return sch.events_table(*found[1], width=sensor[0], height=sensor[1])
 
 
-def render(table: pa.Table, path: str, **spec) -> dict:
-    """Draw a table into a PNG, GIF or MP4, as `neurotac render` (spec: view, trial, slices, every, ...)."""
+def render(table: pa.Table, path: str, view: str = "montage", trial: str | None = None, slices: int | None = None,
+           slice_us=None, columns: int = 8, every: int = 1, fps: float | None = None, box=None, size=None, center=None,
+           **unknown) -> dict:
+    """Draw a table into a PNG, GIF or MP4, as `neurotac render` (its options by name; slice_us a
+    duration; box, size, center as `crop` takes them, for view="crop"). Options that would do
+    nothing are refused, as the command line refuses them."""
     from neurotac_cli import rendering as rd
+    from neurotac_cli.ops.crop import CropSpec
 
-    _table(table, "frames", "recordings", "events")
-    if not table.num_rows:
-        raise NeurotacError("the table is empty: nothing to draw")
-    try:
-        made = rd.RenderSpec(**spec)
-    except TypeError as error:
-        raise NeurotacError(f"render: {error}") from None
-    return rd.render(table, path, made)
+    if unknown:
+        raise UsageError(f"render() has no option {sorted(unknown)[0]!r}")
+    path = _path(path, "the picture")
+    given = {name for name, value in (("slices", slices), ("slice_us", slice_us), ("fps", fps), ("box", box),
+                                      ("size", size), ("center", center)) if value is not None}
+    rd.check_options(path, view, given)
+    box = _numbers(box, "box", 4, lambda text: parse_ints(text, 4))
+    size = _numbers(size, "size", 2, parse_size)
+    center = _numbers(center, "center", 2, lambda text: parse_ints(text, 2))
+    spec = rd.RenderSpec(view=view, trial=None if trial is None else _trial(trial), slices=8 if slices is None else _plain(slices),
+                         slice_us=None if slice_us is None else _us(slice_us, "slice_us"), columns=_plain(columns),
+                         every=_plain(every), fps=10.0 if fps is None else _plain(fps),
+                         crop=CropSpec(box=box, size=size, center=center) if box is not None or size is not None else None)
+    table = _table(table, "frames", "recordings", "events")
+    rd.check_slicing(sch.table_kind(table.schema), given)
+    return rd.render(table, path, spec)

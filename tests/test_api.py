@@ -85,7 +85,7 @@ def test_odd_arguments_give_a_neurotac_error(tmp_path):
         lambda: api.augment(frames, api.FrameShift(1), seed="a"),
         lambda: api.crop(frames, size=(0, 0), center="auto"),
         lambda: api.crop(frames, size=(-5, 5), center="auto"),
-        lambda: api.crop(frames, size="6x6", center="auto"),
+        lambda: api.crop(frames, size="6by6", center="auto"),
         lambda: api.crop(frames, size=(6, 6), center=(1, 2, 3)),
         lambda: api.counts(frames, trial=5),
         lambda: api.counts(frames, trial="no such trial"),
@@ -122,3 +122,127 @@ def test_sync_pairs_a_camera_file_with_its_force_log(tmp_path):
     assert sch.kind_of(recordings.schema) == "recordings" and recordings.num_rows == 1
     with pytest.raises(NeurotacError, match="labels must be a dict"):
         api.sync(str(camera), str(camera.with_name(camera.stem + "_force.csv")), labels=["material=foam"])
+
+
+@pytest.fixture(scope="module")
+def small():
+    """One simulated trial: its recordings, small frames of it and a one-epoch model of them."""
+    from neurotac_cli import api
+
+    recordings = api.simulate("ch4", trials=1, seed=1)
+    frames = api.crop(api.frame(recordings, "10ms"), size=(30, 30), center="auto", pool=(3, 3))
+    return recordings, frames, api.train(frames, "tdnn", epochs=1, val_fraction=None)
+
+
+def test_a_trial_given_twice_or_no_rows_is_refused_as_the_command_line_refuses_it(small, tmp_path):
+    import pyarrow as pa
+
+    from neurotac_cli import api
+    from neurotac_cli.errors import InputError, SchemaError
+
+    recordings, frames, model = small
+    api.write(frames, str(tmp_path / "f.arrows"))
+    for call in (lambda: api.counts(pa.concat_tables([frames, frames])), lambda: api.evaluate(model, pa.concat_tables([frames, frames])),
+                 lambda: api.crop(api.read(str(tmp_path / "f.arrows"), str(tmp_path / "f.arrows")), pool="all")):
+        with pytest.raises(SchemaError, match="appears twice"):
+            call()
+    for call in (lambda: api.frame(recordings.slice(0, 0), "10ms"), lambda: api.crop(frames.slice(0, 0), pool="all"),
+                 lambda: api.evaluate(model, frames.slice(0, 0))):
+        with pytest.raises(InputError, match="has no rows"):
+            call()
+
+
+def test_the_command_lines_warnings_reach_the_library_as_neurotac_warnings(small):
+    from neurotac_cli import api
+    from neurotac_cli.errors import NeurotacWarning
+
+    recordings, frames, _ = small
+    with pytest.warns(NeurotacWarning, match="fs pushed"):
+        api.augment(frames, api.FrameShift(1000))
+    with pytest.warns(NeurotacWarning, match="lie outside the frames"):
+        api.frame(recordings, "10ms", pad_to=2)
+    huge = recordings.replace_schema_metadata({**recordings.schema.metadata, b"neurotac:sensor": b'{"width": 20000, "height": 20000}'})
+    import warnings
+
+    with warnings.catch_warnings():  # as an error: raised before the frames are made, not after 60 GB
+        warnings.simplefilter("error", NeurotacWarning)
+        with pytest.raises(NeurotacWarning, match="GB"):
+            api.frame(huge, "10ms")
+
+
+def test_the_stepper_checks_its_times(small):
+    import numpy as np
+
+    from neurotac_cli import api
+    from neurotac_cli.errors import UsageError
+
+    _, frames, model = small
+    counts, t = api.counts(frames)[:3], frames["t"].to_numpy()[:3]
+    stepper = api.Stepper(model)
+    for args in ((counts, t[:2]), (counts[0], None), (counts[0], "10ms"), (counts[:0], t[:0]), (counts, t.astype(float))):
+        with pytest.raises(UsageError):
+            stepper.step(*args)
+    assert stepper.step(counts, t).shape == (3,) and np.isfinite(stepper.step(counts[0], int(t[0])))
+
+
+def test_odd_paths_strings_and_flags_are_refused_in_one_line(small, tmp_path):
+    import warnings
+
+    from neurotac_cli import api
+    from neurotac_cli.errors import InputError, UsageError
+
+    recordings, frames, model = small
+    picture = str(tmp_path / "x.png")
+    calls = [lambda: api.train(frames, "tdnn", epochs=1, val_fraction="0.1"), lambda: api.save_model(model, None),
+             lambda: api.save_model(model, str(tmp_path)), lambda: api.load_model(None), lambda: api.render(frames, None),
+             lambda: api.render(frames, picture, every="2"), lambda: api.render(recordings, picture, slice_us=True),
+             lambda: api.render(frames, picture, slices=3), lambda: api.render(frames, picture, fps=3),
+             lambda: api.render(frames, picture, columns=1000), lambda: api.render(recordings, picture, slices=5000),
+             lambda: api.render(frames, picture, size="6x6", center="auto"), lambda: api.read(),
+             lambda: api.import_camera(None), lambda: api.read(picture, kind="bogus"), lambda: api.frame(recordings, True),
+             lambda: api.evaluate(model, frames, nonzero="no"), lambda: api.frame(recordings, "10ms", accumulate=1)]
+    for call in calls:
+        with pytest.raises(UsageError):
+            call()
+    (tmp_path / "p.csv").write_text("trial,force\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ResourceWarning)
+        with pytest.raises(InputError, match="not an Arrow"):
+            api.read(str(tmp_path / "p.csv"))
+        import gc
+
+        gc.collect()
+
+
+def test_numpy_numbers_and_the_command_lines_text_are_taken_alike(small):
+    import numpy as np
+
+    from neurotac_cli import api
+
+    recordings, frames, _ = small
+    by_tuple = api.crop(frames, size=(6, 6), center=(5, 5), pool=(2, 2))
+    for size, center, pool in ((np.array([6, 6]), np.array([5, 5]), np.array([2, 2])), ("6x6", "5,5", "2x2")):
+        assert api.crop(frames, size=size, center=center, pool=pool).equals(by_tuple)
+    assert api.train(frames, "tdnn", epochs=np.int64(1), lr=np.float32(1e-3), val_fraction=None).name == "tdnn"
+
+
+def test_render_takes_the_crop_box_as_crop_does(small, tmp_path):
+    from neurotac_cli import api
+
+    _, frames, _ = small
+    assert api.render(frames, str(tmp_path / "c.png"), view="crop", size="6x6", center="auto")["view"] == "crop"
+
+
+def test_tonic_arrays_keep_every_coordinate_of_a_16_bit_sensor():
+    import numpy as np
+
+    from neurotac_cli import api
+    from neurotac_cli.errors import NeurotacError, UsageError
+
+    events = np.zeros(3, np.dtype([("x", np.int32), ("y", np.int32), ("t", np.int64), ("p", np.int8)]))
+    events["x"], events["t"] = [0, 40000, 5], [0, 1, 2]
+    assert api.to_tonic(api.from_tonic(events, (50000, 10, 2)))["x"].tolist() == [0, 40000, 5]
+    assert api.from_tonic(events, "50000x10").num_rows == 3
+    for sensor in ((100000, 10, 2), (-5, -5, 2), None, "240x180"):
+        with pytest.raises(UsageError if sensor != "240x180" else NeurotacError):
+            api.from_tonic(events, sensor)
