@@ -101,16 +101,21 @@ def read_table(path: str) -> pa.Table:
 
 def _without_comments(data: bytes) -> bytes:
     """A CSV log from its header on: loggers write `#` or `%` lines (firmware, date, settings) and blank
-    lines above it, as camera text files do."""
+    lines above it, as camera text files do. Where numbers follow them, the last of those lines is the
+    header (numpy's `savetxt(header=...)` writes `# t_ms,force_N`)."""
     data = data.removeprefix(b"\xef\xbb\xbf")
-    start = 0
+    start, last_comment = 0, None
     while start < len(data):
         end = data.find(b"\n", start)
         end = len(data) if end < 0 else end + 1
         line = data[start:end].strip()
         if line and line[:1] not in (b"#", b"%"):
             break
+        if line:
+            last_comment = line
         start = end
+    if last_comment is not None and start < len(data) and data[start] in b"0123456789+-." and re.search(rb"[A-Za-z]", last_comment):
+        return last_comment.lstrip(b"#% \t") + b"\n" + data[start:]
     return data[start:]
 
 

@@ -105,6 +105,14 @@ def test_force_log_errors_say_what_to_do(tmp_path):
     assert "'furlongs' is no force unit" in read_force_log(str(path))[0].notes[0]
 
 
+def test_a_commented_header_over_numbers_is_the_header(tmp_path):
+    """numpy's `savetxt(header=...)` writes `# t_ms,force_N` above the numbers."""
+    path = tmp_path / "np.csv"
+    np.savetxt(path, np.c_[np.arange(0, 40, 2), np.linspace(0, 1, 20)], delimiter=",", header="t_ms,force_N")
+    log = read_force_log(str(path))[0]
+    assert list(log.t[:3]) == [0, 2000, 4000] and log.value[-1] == pytest.approx(1.0)
+
+
 def test_a_log_at_the_largest_range_is_not_taken_for_another_unit():
     """A sensor at full range reads a little past it; a log in mN reads a thousand times past it."""
     from neurotac_cli.ops.forcelog import plausibility_warnings
