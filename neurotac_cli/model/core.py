@@ -95,6 +95,10 @@ SETTING_RANGES = {
 }
 
 
+# settings of the fit alone (the GP's subset and restarts): a loaded model never uses them again
+FIT_ONLY = ("max_points", "restarts")
+
+
 RECURRENT_LAYERS = ("lstm", "convlstm", "deform-gru")  # their layers are recurrent ones: at least one
 
 

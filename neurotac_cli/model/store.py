@@ -189,7 +189,7 @@ def load(path: str):
     """Read a model file written by `save`."""
     from safetensors.torch import load_file
 
-    from neurotac_cli.model.core import Model, _check_setting, _module
+    from neurotac_cli.model.core import FIT_ONLY, Model, _check_setting, _module
 
     header = read_header(path)
     name = header["model"]
@@ -201,7 +201,8 @@ def load(path: str):
         settings = {**getattr(module, "ABSENT_MEANS", {}), **header["architecture"]}
         config = config_type(**{k: v for k, v in settings.items() if k in known})
         for key, value in dataclasses.asdict(config).items():  # the bounds `train` holds its options to
-            _check_setting(key, value, name)
+            if key not in FIT_ONLY:  # bounds that moved since a model was fitted do not unmake it
+                _check_setting(key, value, name)
         if header["task"] == "material":
             net = module.Net(config, len(header["classes"]))
         else:

@@ -309,3 +309,21 @@ def test_a_gp_of_a_handful_of_points_is_refused_and_delays_past_every_trial_are_
     models.train(frames, models.make_spec("tdnn", delays=12, epochs=1), seed=0, progress=messages.append)
     assert any(m.startswith("warning: --delays 12 reaches past the start of every training trial (the longest has 12 frames)")
                for m in messages)
+
+
+def test_a_gp_fitted_on_fewer_points_than_today_s_least_still_loads(frames, tmp_path):
+    """--max-points now starts at 10; a model fitted on 5 before that is no less a model."""
+    import json
+
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    from neurotac_cli.model.store import DIGEST_KEY, HEADER_KEY
+
+    models.save(models.train(frames, models.make_spec("gp", restarts=0, max_points=50), seed=0), str(tmp_path / "m.model"))
+    with safe_open(str(tmp_path / "m.model"), "pt") as handle:
+        header = json.loads(handle.metadata()[HEADER_KEY])
+    header["architecture"]["max_points"] = 5
+    del header[DIGEST_KEY]
+    save_file(load_file(str(tmp_path / "m.model")), str(tmp_path / "old.model"), metadata={HEADER_KEY: json.dumps(header)})
+    assert models.load(str(tmp_path / "old.model")).config.max_points == 5
