@@ -230,25 +230,33 @@ def _colour_bars(figure, axes, top: float, unit: str):
 
 
 def _image_axis(axis, image, title: str):
-    """`image` (H, W, 3) drawn in sensor pixel coordinates; where the tile has fewer screen pixels than
-    the image, each block of sensor pixels shows its darkest (busiest) pixel: a plain downsample skips
-    whole rows and columns, and an isolated event with them."""
+    """`image` (H, W, 3) drawn in sensor pixel coordinates (`_on_screen`)."""
     height, width = image.shape[:2]
-    figure = axis.figure
-    across = max(int(0.9 * axis.get_position().width * figure.get_figwidth() * figure.dpi), 16)
-    factor = -(-width // across)
-    if factor > 1:
-        padded = np.ones((-(-height // factor) * factor, -(-width // factor) * factor, 3))
-        padded[:height, :width] = image
-        image = padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor, 3).min(axis=(1, 3))
-        axis.imshow(image, interpolation="nearest", extent=(-0.5, padded.shape[1] - 0.5, padded.shape[0] - 0.5, -0.5))
-        axis.set_xlim(-0.5, width - 0.5)
-        axis.set_ylim(height - 0.5, -0.5)
-    else:
-        axis.imshow(image, interpolation="nearest")
+    shown = _on_screen(axis, image)
+    factor = -(-width // shown.shape[1])
+    axis.imshow(shown, interpolation="nearest", extent=(-0.5, shown.shape[1] * factor - 0.5, shown.shape[0] * factor - 0.5, -0.5))
+    axis.set_xlim(-0.5, width - 0.5)
+    axis.set_ylim(height - 0.5, -0.5)
     axis.set_title(title, fontsize=7, pad=2)
     axis.set_xticks([])
     axis.set_yticks([])
+
+
+def _on_screen(axis, image: np.ndarray) -> np.ndarray:
+    """`image` as the tile shows it: where the tile has fewer screen pixels than the image, each block
+    of sensor pixels shows its darkest (busiest) pixel per colour, since a plain downsample skips whole
+    rows and columns, and an isolated event with them. Every picture of an animation goes through it."""
+    height, width = image.shape[:2]
+    factor = getattr(axis, "neurotac_pool", None)  # chosen at the first picture: the later ones fill its extent
+    if factor is None:
+        figure = axis.figure
+        across = max(int(0.9 * axis.get_position().width * figure.get_figwidth() * figure.dpi), 16)
+        factor = axis.neurotac_pool = -(-width // across)
+    if factor <= 1:
+        return image
+    padded = np.ones((-(-height // factor) * factor, -(-width // factor) * factor, 3))
+    padded[:height, :width] = image
+    return padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor, 3).min(axis=(1, 3))
 
 
 def _force_strip(axis, steps: Steps):
@@ -337,7 +345,7 @@ def montage(steps: Steps, spec: RenderSpec, animated: bool):
 
     def update(i):
         k = shown[i]
-        axes[0].images[0].set_data(rgb(steps.counts[k], top))
+        axes[0].images[0].set_data(_on_screen(axes[0], rgb(steps.counts[k], top)))
         axes[0].set_title(steps.caption(k), fontsize=7, pad=2)
         if cursor is None:
             return [axes[0]]
@@ -383,7 +391,7 @@ def crop_view(table: pa.Table, steps: Steps, spec: RenderSpec, animated: bool):
     figure.suptitle(f"{steps.trial}: crop box {w}x{h}, {how}; it keeps {100 * inside:.0f}% of the trial's events", fontsize=9)
 
     def update(i):
-        axis.images[0].set_data(rgb(steps.counts[shown[i]], top))
+        axis.images[0].set_data(_on_screen(axis, rgb(steps.counts[shown[i]], top)))
         axis.set_title(steps.caption(shown[i]), fontsize=7, pad=2)
         return [axis]
 
@@ -435,7 +443,7 @@ def augmented_view(table: pa.Table, spec: RenderSpec, animated: bool):
 
     def update(i):
         for axis, steps in zip(axes, pair):
-            axis.images[0].set_data(rgb(steps.counts[shown[i]], top))
+            axis.images[0].set_data(_on_screen(axis, rgb(steps.counts[shown[i]], top)))
             axis.set_title(f"{'source' if steps is pair[0] else what}, {steps.caption(shown[i])}", fontsize=7, pad=2)
         return axes
 

@@ -231,3 +231,23 @@ def test_a_span_of_a_few_microseconds_is_cut_into_no_more_slices_than_it_holds()
     one = sch.events_table(np.array([5]), np.array([3]), np.array([4]), np.array([1]), width=20, height=16)
     steps = steps_of(one, None, RenderSpec(slices=8))
     assert len(steps.counts) == 1 and steps.caption(0) == "0.000-0.001 ms"
+
+
+def test_every_picture_of_an_animation_keeps_its_isolated_event():
+    """The pictures after the first are set by the animation's update: they are pooled as the first."""
+    from neurotac_cli import rendering as rd
+
+    positions = [(101 + 7 * i, 333 + 11 * i) for i in range(6)]
+    counts = np.zeros((len(positions), 2, 720, 1280), np.uint16)
+    for k, (y, x) in enumerate(positions):
+        counts[k, 1, y, x] = 5
+    steps = rd.Steps("t", counts, np.arange(len(positions)) * 10.0, 10.0, "frame", np.arange(len(positions)))
+    figure, update, _, _ = rd.montage(steps, RenderSpec(), animated=True)
+    axis = figure.axes[0]
+    for k in range(len(positions)):
+        update(k)
+        figure.canvas.draw()
+        pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3].astype(int)
+        box = axis.get_window_extent()
+        inside = pixels[int(pixels.shape[0] - box.y1) + 2:int(pixels.shape[0] - box.y0) - 2, int(box.x0) + 2:int(box.x1) - 2]
+        assert (inside.min(axis=-1) < 200).any(), k
