@@ -211,6 +211,10 @@ def _run_pool(function, pending: dict, shared: dict, workers: int, retries: int,
                 if broken:
                     break
         except BaseException:
+            # the workers run on otherwise: a SIGTERM (`kill`, a driver's terminate()) reaches this
+            # process alone, and its exit would wait for every task already running
+            for process in list((pool._processes or {}).values()):
+                process.terminate()
             pool.shutdown(wait=False, cancel_futures=True)
             raise
         pool.shutdown(wait=not broken, cancel_futures=True)

@@ -521,3 +521,22 @@ def test_a_grid_range_whose_steps_pass_over_its_end_is_refused_not_cut_short(spe
 
     with pytest.raises(UsageError, match="give an end the steps reach"):
         parse_grid([spec])
+
+
+def test_sigterm_ends_a_pool_without_waiting_for_its_running_tasks(tmp_path):
+    """`kill PID` reaches the main process alone; its exit waited for every task already running."""
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "slow_pool.py").write_text(
+        "import sys, time\nfrom neurotac_cli import cli, study\n\n\ndef slow(**task):\n    time.sleep(60)\n\n\n"
+        "if __name__ == '__main__':\n    cli._end_on_sigterm()\n    try:\n"
+        "        study._run_pool(slow, {'a': {}, 'b': {}}, {}, 2, 0, lambda key, value: None)\n"
+        "    except cli.Terminated:\n        sys.exit(143)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen([sys.executable, str(tmp_path / "slow_pool.py")], env=env)
+    time.sleep(4)  # the workers started and inside their tasks
+    started = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=30) == 143 and time.monotonic() - started < 10
