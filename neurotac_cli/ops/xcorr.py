@@ -48,6 +48,7 @@ XCORR_SIGNED_LAGS_US = (0, 1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 
 XCORR_SLOW_FALL_US = 15_000  # a sensor this slow to unload is aligned on the signed rate (OFF - ON) instead
 XCORR_NEAR = 0.02  # offsets whose correlation is this close to the best span the reported uncertainty
 XCORR_UNCERTAIN_US = 5_000  # sync warns about trials whose uncertainty is larger
+XCORR_COARSE_US = 20_000  # a log's sample period whose square over this is its least uncertainty (see xcorr_instant)
 # below this best correlation sync warns that camera and force log may not belong together; a warning,
 # not a refusal, because matched and mismatched simulated pairs overlap (docs/journal.md)
 XCORR_MIN_CORRELATION = 0.5
@@ -87,11 +88,12 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
     shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
     t0 = origin + (lags[best] + shift + 0.5) * bin_us - int(force_t[0]) - method.response_us
-    # between two samples the log is a straight line, so the plateau of the correlation alone does not
-    # cover the error of a coarse log (50 Hz logs: up to 16.5 ms off beside a plateau of ±5.5 ms):
-    # the offset is not known better than one sample period (docs/journal.md)
+    # between two samples the log is a straight line, whose error grows with the square of their spacing:
+    # the plateau of the correlation alone does not cover a coarse log's error (12 ch4 trials: 50 Hz up
+    # to 16.6 ms off beside plateaus of ±2.3-5.5 ms; 100 Hz up to 2.7 ms). At least half a period, and
+    # a period's square over 20 ms (a whole period at 50 Hz, half of one at 100 Hz; docs/journal.md)
     period = float(np.median(np.diff(force_t)))
-    uncertainty = max(int((high - low) * bin_us // 2), int(period))
+    uncertainty = max(int((high - low) * bin_us // 2), int(max(period / 2, period * period / XCORR_COARSE_US)))
     return Instant(
         t0=int(round(t0)),
         score=round(peak, 3),

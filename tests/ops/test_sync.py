@@ -490,8 +490,8 @@ def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(pres
 
 
 def test_sync_warns_when_xcorr_is_uncertain_and_only_then(presets):
-    """The uncertainty is half the span of offsets within 0.02 of the best correlation (at least the
-    log's 2 ms sample period): ±2.0-2.6 ms on
+    """The uncertainty is half the span of offsets within 0.02 of the best correlation (at least half
+    the log's 2 ms sample period): ±1.5-2.6 ms on
     every ch4/ch5 trial at seeds 3 and 4, ±3.4-14.6 ms on ch3, where it covered the error of 87 of 96 trials
     (examples/sync_accuracy.py)."""
     slow = run(["sync", "--manifest", str(presets["ch3"] / "manifest.csv"), "--method", "xcorr", "-o", str(presets["ch3"] / "s.arrows")])
