@@ -25,18 +25,22 @@ def in_region(x, y, region):
     return (x >= rx) & (x < rx + rw) & (y >= ry) & (y < ry + rh)
 
 
+BACKGROUND_BINS = 51  # the running median that is a spike's background, in bins
+
+
 def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> list[Instant]:
     """The strongest LED-off spikes, `count` and up to `spare` more, in time order; SyncError when
     fewer than `count` stand out."""
     times, off_x, off_y = _off_events(t, x, y, p, method.region)
     bin_us = method.bin_us
-    # binned over the whole recording: a quiet --region holds OFF events only in its blink, and bins
-    # from its first to its last OFF event would make the blink its own background
-    origin = int(t.min())
-    counts = np.bincount((times - origin) // bin_us, minlength=int((t.max() - origin) // bin_us) + 1).astype(np.float64)
+    # a median's width of empty bins either side: a quiet --region holds OFF events only in its blink,
+    # and bins from its first to its last OFF event alone would make the blink its own background
+    origin = int(times.min()) - BACKGROUND_BINS * bin_us
+    counts = np.bincount((times - origin) // bin_us, minlength=int((times.max() - origin) // bin_us) + 1 + BACKGROUND_BINS)
+    counts = counts.astype(np.float64)
     from scipy.ndimage import median_filter
 
-    background = median_filter(counts, size=51, mode="nearest")
+    background = median_filter(counts, size=BACKGROUND_BINS, mode="nearest")
     pair = counts + np.concatenate([counts[1:], [0.0]])  # a spike spreads over up to ~1.5 ms
     z = (pair - 2 * background) / np.sqrt(2 * background + 1)
     pixels = _pixels_seen(x, y, sensor, method.region)
