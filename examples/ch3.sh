@@ -27,8 +27,8 @@ if [[ $MODE == full || $MODE == standard ]]; then
     PROTOCOL="Protocol: standard (\`make reproduce\`): all 48 grasps, the thesis's grids and early stopping; leave-one-out for force, the GP on 500 frames with 1 restart (thesis: Bayesian-optimised on all), the material grid in 8 folds instead of leave-one-out, the chosen classifiers over $SEEDS seeds."
   fi
 elif [[ $MODE == tiny ]]; then
-  # 4 grasps per material in 4 folds: each fold's classifiers keep 2 training grasps of every
-  # material after one is drawn for early stopping (a discriminant pools the spread within them)
+  # 4 grasps per material in 4 folds: each fold trains on at least 2 grasps of every material before
+  # one is drawn for early stopping (a discriminant needs a material of 2 to pool a spread within)
   TRIALS=(--trials 16)
   TDNN_LAYERS=(1); TDNN_UNITS=(5)
   DNN_LAYERS=(1); DNN_UNITS=(5)
@@ -39,7 +39,7 @@ elif [[ $MODE == tiny ]]; then
   SEEDS=1
   PROTOCOL="Protocol: tiny (one grid point, two epochs: a check that the script runs, not a result)."
 else
-  TRIALS=(--trials 16)                       # four grasps per material: two left to train on in every fold
+  TRIALS=(--trials 16)                       # four grasps per material, as in the tiny run
   TDNN_LAYERS=(1 4); TDNN_UNITS=(5 40)
   DNN_LAYERS=(1 2); DNN_UNITS=(10 30)
   FIT=(--epochs 30 --patience 5)

@@ -206,9 +206,9 @@ def export(table: pa.Table, path: str, trial: str | None = None) -> dict:
     sch.check_events(t, x, y, p, (width, height), sorted_time=False)  # a camera file cannot hold them as they are
     from neurotac_cli.io.hdf5 import LARGEST_US
 
-    if len(t) and np.abs(t).max() >= LARGEST_US:  # `import` refuses such a time as damage: the file would not read back
-        raise NeurotacError(f"a time of {int(np.abs(t).max())} µs is not one a camera writes (beyond about 146,000 years); "
-                            "`neurotac import` would refuse the file")
+    if len(t) and max(-int(t.min()), int(t.max())) >= LARGEST_US:  # `import` refuses such a time: the file would not read back
+        raise NeurotacError(f"a time of {max(-int(t.min()), int(t.max()))} µs is not one a camera writes (beyond about "
+                            "146,000 years); `neurotac import` would refuse the file")
     if fmt == "hdf5":
         with atomic_file(path) as temporary:
             indexed = write_hdf5(temporary, t, x, y, p, width, height)

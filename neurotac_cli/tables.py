@@ -482,9 +482,10 @@ def check_folder(*paths) -> None:
 def _longest_name(directory: str) -> int:
     """The longest file name, in bytes, the folder's file system takes (255 on most)."""
     try:
-        return os.pathconf(directory, "PC_NAME_MAX")
+        longest = os.pathconf(directory, "PC_NAME_MAX")
     except (OSError, ValueError):
         return 255
+    return longest if longest > 0 else 255  # -1: the file system states no limit
 
 
 def _folders_up(directory: str) -> Iterator[str]:
@@ -569,7 +570,8 @@ _held: list[_Finish] | None = None  # within `together()`: the outputs finished 
 def together():
     """The outputs of one run (`atomic_file`, so every `write` to a path) put in place together: each
     is finished into its temporary file, and all are renamed when the block ends without an error,
-    none when it fails. One output replaced and the next not mixes runs: a split's training table new
+    none when it fails in the block (a rename failing among the renames at its end, which a written
+    temporary in the output's own folder hardly does, leaves those before it in place). One output replaced and the next not mixes runs: a split's training table new
     and its test table old puts a trial on both sides; metrics of this run beside a plot of the last.
     A reader of stdout that went away is success (cli.py): the files are put in place then too.
     A block within a block is part of the outer one."""
@@ -598,12 +600,19 @@ def _release() -> list[_Finish]:
 
 
 def _put_in_place(held: list[_Finish]):
+    """Files renamed first (a rename hardly fails once its temporary is written), pipes last; a pipe
+    whose reader went away does not keep the outputs after it from their places."""
+    gone = None
     try:
-        for finish in held:
+        for finish in sorted(held, key=lambda finish: finish.special):
             try:
                 finish()
+            except BrokenPipeError as error:
+                gone = error
             except OSError as error:
                 raise _output_error(error, finish.path, finish.folder) from None
+        if gone is not None:
+            raise gone
     finally:
         for finish in held:
             if os.path.exists(finish.temporary):

@@ -473,6 +473,19 @@ def test_outputs_written_together_are_kept_when_stdout_s_reader_goes_away(tmp_pa
     assert (tmp_path / "a.arrows").read_bytes() == b"new a" and os.listdir(tmp_path) == ["a.arrows"]
 
 
+def test_a_pipe_whose_reader_went_away_keeps_no_file_of_the_run_from_its_place(tmp_path):
+    class GonePipe(tables._Finish):
+        def __call__(self):
+            raise BrokenPipeError(errno.EPIPE, "the reader went away")
+
+    temporary = tmp_path / ".neurotac-x.part"
+    temporary.write_bytes(b"new")
+    held = [GonePipe("pipe", "", True, 0o022, str(tmp_path)), tables._Finish(str(tmp_path / "m.arrows"), str(temporary), False, 0o022, str(tmp_path))]
+    with pytest.raises(BrokenPipeError):
+        tables._put_in_place(held)
+    assert (tmp_path / "m.arrows").read_bytes() == b"new"
+
+
 def test_sigterm_removes_the_part_file_and_exits_143(tmp_path):
     # SIGTERM (timeout, make, SLURM) ended the process where it stood: the .part temporary stayed behind
     import signal

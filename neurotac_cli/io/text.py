@@ -126,11 +126,11 @@ def _refuse_whole_seconds(rows: list[str], column: int, name: str) -> None:
     """A plain `t` in whitespace text is in seconds (the public datasets' `events.txt`, whose times
     carry decimals); whole numbers under it are more likely a CSV's µs written with tabs or spaces,
     which read as seconds would be a million times too late."""
-    first = next((row.split() for row in rows if row.strip() and row.lstrip()[:1] not in ("#", "%")), None)
-    if first is None or len(first) <= column:
-        return
-    value = first[column]
-    if _is_number(value) and not any(mark in value.lower() for mark in (".", "e")):
+    read = [row.split() for row in rows[:50] if row.strip() and row.lstrip()[:1] not in ("#", "%")]
+    values = [fields[column] for fields in read if len(fields) > column]
+    whole = [value for value in values if _is_number(value) and not any(mark in value.lower() for mark in (".", "e"))]
+    if values and len(whole) == len(values):  # every row read so far: a seconds file's first time may be a plain 0
+        value = whole[-1]
         raise FormatError(f"whitespace text whose column {name!r} holds whole numbers ({value}): a plain {name!r} here is "
                           "seconds, which whole numbers rarely are; name the column t_us, t_ms or t_s (or write the file "
                           "with commas, where a plain t is µs)")

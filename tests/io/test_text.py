@@ -65,6 +65,7 @@ def test_whole_numbers_under_a_plain_t_in_whitespace_text_are_refused(tmp_path, 
     with pytest.raises(FormatError, match="name the column t_us, t_ms or t_s"):
         read_events_table(write(tmp_path, "events.csv", text))
     assert read_events_table(write(tmp_path, "e.txt", "t x y p\n0.5 1 2 1\n"))["t"].to_pylist() == [500_000]
+    assert read_events_table(write(tmp_path, "g.txt", "t x y p\n0 1 2 1\n0.001 3 4 0\n"))["t"].to_pylist() == [0, 1000]  # %g
     assert read_events_table(write(tmp_path, "f.txt", "t_us x y p\n1000 1 2 1\n"))["t"].to_pylist() == [1000]
 
 
