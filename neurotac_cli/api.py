@@ -305,12 +305,11 @@ def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: fl
 
 def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, pa.Table]:
     """(predictions, metrics) of a model on frames, as `neurotac eval --model`."""
-    from neurotac_cli.metrics import metrics_table
+    from neurotac_cli.metrics import check_nonzero, metrics_table
     from neurotac_cli.model import evaluate as ev
 
     model, nonzero = _model(model), _flag(nonzero, "nonzero")
-    if nonzero and model.task == "material":  # as `eval --nonzero` refuses it
-        raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
+    check_nonzero(nonzero, model.task == "material")
     notes = []
     predictions, rows = ev.evaluate_model(model, _table(frames, "frames"), nonzero=nonzero, notes=notes)
     _warn(notes)

@@ -20,10 +20,16 @@ hundred frames, and it keeps a compiled dependency out of the install.
 
 import numpy as np
 
-from neurotac_cli.errors import NeurotacError
+from neurotac_cli.errors import NeurotacError, UsageError
 
 PHASES = ("grasping", "holding", "releasing")
 
+
+
+def check_nonzero(nonzero: bool, classifier: bool) -> None:
+    """`--nonzero` scores a force model's frames of non-zero force; a classifier has none to leave out."""
+    if nonzero and classifier:
+        raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
 
 def regression(true, pred) -> dict:
     true, pred = np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)

@@ -57,8 +57,9 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
         raise UsageError(f"{', '.join(cv_only)} apply to --cv only: a model file is scored as it is, with no training")
     if plot_trials is not None and not plot:
         raise UsageError("--plot-trials chooses the trials --plot draws; give --plot FILE.png too")
-    if nonzero and _classifier(model_path, model_spec):
-        raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
+    from neurotac_cli.metrics import check_nonzero
+
+    check_nonzero(nonzero, _classifier(model_path, model_spec))
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     trials = _plotted_trials(table, plot_trials)
     label = _checked_model(table, model_path, model_spec, label)
