@@ -238,15 +238,19 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     return frames
 
 
+def _crop_numbers(box, size, center) -> dict:
+    """A crop's box, size and centre as tuples, from tuples, numpy or the command line's text forms."""
+    return {"box": _numbers(box, "box", 4, lambda text: parse_ints(text, 4)), "size": _numbers(size, "size", 2, parse_size),
+            "center": _numbers(center, "center", 2, lambda text: parse_ints(text, 2))}
+
+
 def crop(table: pa.Table, box=None, size=None, center=None, pool=None) -> pa.Table:
     """Crop and sum-pool frames, recordings or events: box=(x, y, w, h) or "X,Y,W,H", or size=(w, h)
     or "WxH" with center=(x, y), "X,Y" or "auto"; pool=(k, l), "KxL" or "all". Numpy arrays and
     scalars are taken as the tuples and numbers they hold."""
     from neurotac_cli.ops import crop as cr
 
-    spec = cr.CropSpec(box=_numbers(box, "box", 4, lambda text: parse_ints(text, 4)),
-                       size=_numbers(size, "size", 2, parse_size), center=_numbers(center, "center", 2, lambda text: parse_ints(text, 2)),
-                       pool=_numbers(pool, "pool", 2, parse_size))
+    spec = cr.CropSpec(**_crop_numbers(box, size, center), pool=_numbers(pool, "pool", 2, parse_size))
     source = _input(table, "frames", "recordings", "events")
     schema, cropped, report = cr.crop(source.schema, source.batches, spec)
     out = cropped if isinstance(cropped, pa.Table) else pa.Table.from_batches(list(cropped), schema=schema)
@@ -424,13 +428,10 @@ def render(table: pa.Table, path: str, view: str = "montage", trial: str | None 
     given = {name for name, value in (("slices", slices), ("slice_us", slice_us), ("fps", fps), ("box", box),
                                       ("size", size), ("center", center)) if value is not None}
     rd.check_options(path, view, given)
-    box = _numbers(box, "box", 4, lambda text: parse_ints(text, 4))
-    size = _numbers(size, "size", 2, parse_size)
-    center = _numbers(center, "center", 2, lambda text: parse_ints(text, 2))
     spec = rd.RenderSpec(view=view, trial=None if trial is None else _trial(trial), slices=8 if slices is None else _plain(slices),
                          slice_us=None if slice_us is None else _us(slice_us, "slice_us"), columns=_plain(columns),
                          every=_plain(every), fps=10.0 if fps is None else _plain(fps),
-                         crop=CropSpec(box=box, size=size, center=center) if box is not None or size is not None else None)
+                         crop=CropSpec(**_crop_numbers(box, size, center)) if box is not None or size is not None else None)
     table = _table(table, "frames", "recordings", "events")
     rd.check_slicing(sch.table_kind(table.schema), given)
     return rd.render(table, path, spec)

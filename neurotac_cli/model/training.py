@@ -46,11 +46,10 @@ def train_model(frames: pa.Table, name: str, hyperparameters: dict, *, val_trial
     curve = model.training.get("curve", [])
     best = best_epoch(curve)
     summary = ""
+    held_out = "" if not best else f", validation {best['val_loss']:.4g}" if best["val_loss"] == best["val_loss"] else "; no validation trials"
     if best and not getattr(model.net, "trained_by_gradient", True):  # fitted in closed form: no epochs to speak of
-        held_out = f", validation {best['val_loss']:.4g}" if best["val_loss"] == best["val_loss"] else "; no validation trials"
         summary = f"{name}: fitted in closed form (train {best['train_loss']:.4g}{held_out})"
     elif best and getattr(model.config, "head", None) == "lda":  # the discriminant is closed-form; epochs fit its temperature only
-        held_out = f", validation {best['val_loss']:.4g}" if best["val_loss"] == best["val_loss"] else "; no validation trials"
         summary = (f"{name}: discriminant fitted in closed form, the scale of its probabilities in {len(curve)} epochs "
                    f"(train {best['train_loss']:.4g}{held_out})")
     elif best and best["val_loss"] == best["val_loss"]:
