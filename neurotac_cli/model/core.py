@@ -353,7 +353,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     if name in MATERIAL_MODELS:
         _check_classes(data, label)
     else:
-        data = _with_force(data, unit, progress)
+        data = _with_force(data, unit, progress, val_trials)
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
     in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng)
@@ -393,7 +393,7 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     return _train_force(name, config, fit_config, data, splits, train_set, input_spec, training, generator, rng, progress, largest)
 
 
-def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
+def _with_force(data: Sequences, unit: str, progress=None, val_trials=None) -> Sequences:
     """A force model's sequences less those with no measured force at all (null on every frame):
     they give nothing to learn from, and a validation trial without one would score 0 and stop
     training at its first epoch. Frames without force inside the others are masked out of every
@@ -402,6 +402,10 @@ def _with_force(data: Sequences, unit: str, progress=None) -> Sequences:
     empty = [trial for trial, n in zip(data.trials, known) if n == 0]
     if len(empty) == len(data):
         return data  # refused by _check_training_set, in the words of a table without force
+    asked = [trial for trial in empty if trial in set(val_trials or ())]
+    if asked:
+        raise ModelError(f"validation trial {asked[0]!r} has no measured force (null on every frame), so nothing to score; "
+                         "check --val-trials, or the trial's force log")
     frames = sum(len(f) for f, n in zip(data.force, known) if n) - sum(known)
     if empty and progress:
         progress(f"warning: {counted(len(empty), unit)} without a measured force (null on every frame) left out of "

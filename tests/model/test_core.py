@@ -222,6 +222,8 @@ def test_trials_without_any_force_are_left_out_of_training_and_validation_and_co
     assert not {"t1", "t3", "t5", "t7"} & set(held["train"] + held["validation"])
     assert any("4 trials without a measured force" in m and "left out of training and validation" in m for m in messages)
     assert all(row["val_loss"] != 0 for row in model.training["curve"])  # nothing is never scored as a perfect 0
+    with pytest.raises(ModelError, match="validation trial 't3' has no measured force"):
+        models.train(blind, models.make_spec(name, **options), val_trials=["t3"], seed=1)
 
 
 def _flip_weights(path):
