@@ -262,11 +262,12 @@ def augment(frames: pa.Table, *methods, copies: int = 1, combine: str = "indepen
             keep_original: bool = True) -> pa.Table:
     """Augmented copies of every trial, e.g. augment(frames, api.Rotate(0, 45), api.FrameShift(-1)).
     Warns (NeurotacWarning) where a method pushes most events out of the frames, as the command does."""
-    from neurotac_cli.ops.augment import augment_frames, loss_warnings
+    from neurotac_cli.ops.augment import augment_frames, check_changes, loss_warnings
 
     frames = _table(frames, "frames")
     if not methods or not all(isinstance(method, (Rotate, Resize, FrameShift, EventShift, Noise)) for method in methods):
         raise UsageError("give augmentation methods as objects, e.g. api.Rotate(0, 45), api.FrameShift(-1)")
+    check_changes([repr(method) for method in methods if getattr(method, "unchanged", False)], len(methods), combine)
     table, counted = augment_frames(frames, list(methods), copies=_whole(copies, "copies", 1), combine=combine,
                                     keep_original=_flag(keep_original, "keep_original"), seed=_whole(seed, "seed"))
     _warn(loss_warnings(counted))

@@ -246,3 +246,17 @@ def test_tonic_arrays_keep_every_coordinate_of_a_16_bit_sensor():
     for sensor in ((100000, 10, 2), (-5, -5, 2), None, "240x180"):
         with pytest.raises(UsageError if sensor != "240x180" else NeurotacError):
             api.from_tonic(events, sensor)
+
+
+@pytest.mark.parametrize("kind, args", [("FrameShift", (0,)), ("EventShift", (0, 0.5)), ("EventShift", (-2, 0.0)), ("Resize", (1.0,)),
+                                        ("Rotate", (360,))])
+def test_a_method_that_changes_nothing_is_refused_as_the_command_refuses_it(kind, args):
+    from neurotac_cli import api
+    from neurotac_cli.errors import UsageError
+    from tests.model.helpers import tiny_frames
+
+    method = getattr(api, kind)(*args)
+
+    with pytest.raises(UsageError, match="changes nothing"):
+        api.augment(tiny_frames(trials=2), method)
+    assert api.augment(tiny_frames(trials=2), method, api.FrameShift(1), combine="hybrid").num_rows > 0

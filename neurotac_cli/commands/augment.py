@@ -58,8 +58,7 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
                                          ("--resize 1", resize == 1))
                  if same]
     methods = sum(value is not None for value in (rotate, rotate_range, resize, fs, tes, noise))
-    if unchanged and not (combine == "hybrid" and methods > len(unchanged)):  # in a hybrid, the other methods change the copies
-        raise click.UsageError(f"{unchanged[0]} changes nothing: its copies would equal the trials they come from")
+    augment.check_changes(unchanged, methods, combine)
     request = augment.Augmentation(rotate=rotate, rotate_range=rotate_range or None, resize=resize,
                                    preserve_total=preserve_total, fs=fs, tes=tes, combine=combine, copies=copies,
                                    where=where, keep_original=not only_augmented, seed=seed, noise=noise)

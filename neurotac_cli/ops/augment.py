@@ -308,6 +308,13 @@ def add_noise(counts: np.ndarray, pool: list[np.ndarray], rng: np.random.Generat
 # ---------------------------------------------------------------- the methods
 
 
+def check_changes(unchanged: list[str], methods: int, combine: str) -> None:
+    """Refuse methods (named in `unchanged`) whose copies would equal their sources; in a hybrid, the
+    other methods change the copies."""
+    if unchanged and not (combine == "hybrid" and methods > len(unchanged)):
+        raise UsageError(f"{unchanged[0]} changes nothing: its copies would equal the trials they come from")
+
+
 @dataclasses.dataclass(frozen=True)
 class Rotate:
     """Rotate every frame of a trial by one angle about its contact centre; a range draws the angle per trial."""
@@ -322,6 +329,10 @@ class Rotate:
             raise UsageError(f"rotation angles must be finite numbers of degrees, got {self.low!r}, {self.high!r}")
         if self.high is not None and self.high < self.low:
             raise UsageError(f"rotation range {self.low:g}..{self.high:g} is empty (give the smaller angle first)")
+
+    @property
+    def unchanged(self) -> bool:
+        return (self.high is None or self.high == self.low) and self.low % 360 == 0
 
     def __call__(self, counts, rng):
         angle = self.low if self.high is None else float(rng.uniform(self.low, self.high))
@@ -344,6 +355,10 @@ class Resize:
         if not (_finite(self.beta) and self.beta > 0):
             raise UsageError(f"resize factor must be a finite number above 0, got {self.beta!r} (the thesis uses 1.25 and 0.83)")
 
+    @property
+    def unchanged(self) -> bool:
+        return self.beta == 1
+
     def __call__(self, counts, rng):
         label = f"resize({_number(self.beta)})"
         if self.beta == 1:
@@ -361,6 +376,10 @@ class FrameShift:
 
     def __post_init__(self):
         _check_shift(self.shift, "FS")
+
+    @property
+    def unchanged(self) -> bool:
+        return self.shift == 0
 
     def __call__(self, counts, rng):
         result = frame_shift(counts, self.shift)
@@ -380,6 +399,10 @@ class EventShift:
         _check_shift(self.shift, "TES")
         if not (_finite(self.zeta) and 0 <= self.zeta <= 1):
             raise UsageError(f"TES fraction must lie in [0, 1], got {self.zeta!r} (the thesis uses 0.25, 0.5, 0.75)")
+
+    @property
+    def unchanged(self) -> bool:
+        return self.shift == 0 or self.zeta == 0
 
     def __call__(self, counts, rng):
         result, moved, lost = temporal_event_shift(counts, self.shift, self.zeta, rng)
