@@ -304,19 +304,22 @@ def train(frames: pa.Table, model: str = "tdnn", seed: int = 0, val_fraction: fl
                                      or not 0 <= val_fraction < 1):
         raise UsageError(f"val_fraction must be a number in [0, 1), got {val_fraction!r}")
     spec = models.make_spec(model, **{name: _plain(value) for name, value in options.items()})
+    _warn(models.training_input_notes(frames, spec["model"] in models.FORCE_MODELS), marked=True)
     return models.train(frames, spec, val_fraction=None if val_fraction is None else float(val_fraction),
                         seed=_whole(seed, "seed"), progress=_progress_warnings)
 
 
 def evaluate(model, frames: pa.Table, nonzero: bool = False) -> tuple[pa.Table, pa.Table]:
     """(predictions, metrics) of a model on frames, as `neurotac eval --model`."""
+    from neurotac_cli import model as models
     from neurotac_cli.metrics import check_nonzero, metrics_table
     from neurotac_cli.model import evaluate as ev
 
     model, nonzero = _model(model), _flag(nonzero, "nonzero")
     check_nonzero(nonzero, model.task == "material")
-    notes = []
-    predictions, rows = ev.evaluate_model(model, _table(frames, "frames"), nonzero=nonzero, notes=notes)
+    frames = _table(frames, "frames")
+    notes = models.scoring_input_notes(model.input_spec, model.training, model.task, frames)
+    predictions, rows = ev.evaluate_model(model, frames, nonzero=nonzero, notes=notes)
     _warn(notes)
     return predictions, metrics_table(rows, model.name)
 

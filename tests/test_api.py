@@ -260,3 +260,23 @@ def test_a_method_that_changes_nothing_is_refused_as_the_command_refuses_it(kind
     with pytest.raises(UsageError, match="changes nothing"):
         api.augment(tiny_frames(trials=2), method)
     assert api.augment(tiny_frames(trials=2), method, api.FrameShift(1), combine="hybrid").num_rows > 0
+
+
+def test_the_warnings_train_and_eval_give_about_their_frames_reach_the_library():
+    import warnings
+
+    import pyarrow.compute as pc
+
+    from neurotac_cli import api, schema as sch
+    from neurotac_cli.errors import NeurotacWarning
+    from tests.model.helpers import tiny_frames
+
+    frames = tiny_frames(trials=4)
+    frames = frames.replace_schema_metadata({k: v for k, v in frames.schema.metadata.items() if k.decode() != sch.WINDOW})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NeurotacWarning)
+        model = api.train(frames, "tdnn", epochs=1, val_fraction=None)
+        api.evaluate(model, frames.filter(pc.not_equal(frames.column("frame"), 3)))
+    said = [str(w.message) for w in caught if issubclass(w.category, NeurotacWarning)]
+    assert any(m.startswith("the frames do not record their window") for m in said), said
+    assert any("missing inside" in m for m in said), said

@@ -90,21 +90,18 @@ def command(paths, output, model_path, cv, model_spec, grid, repeats, val_fracti
 def _checked_model(table, model_path: str | None, model_spec: str | None, label: str) -> str:
     """The label scored (a model file's classifier's own), with a warning on stderr for each way the
     frames do not fit the model: a window they do not state, sessions given to a model of whole trials."""
-    from neurotac_cli.model.session import CONTACT_KEY, whole_trials_note
+    from neurotac_cli.model.session import whole_trials_note
 
     if model_spec:
         refuse_label_for_force(model_spec)
         echo_lines("eval", filter(None, [model_spec in FORCE_MODELS and whole_trials_note(table.schema, "cross-validation")]), "warning: ")
         return label
-    from neurotac_cli.model.core import gaps_note, input_notes, missing_frames
+    from neurotac_cli.model.session import scoring_input_notes
     from neurotac_cli.model.store import read_header
 
     header = read_header(model_path)
     label = _model_label(header, label)
-    whole = header["task"] != "material" and CONTACT_KEY not in (header["input"] or {})
-    notes = input_notes(header["input"], (header.get("training") or {}).get("data_history"), table.schema)
-    echo_lines("eval", filter(None, [*notes, whole and whole_trials_note(table.schema, "a model trained without --contacts")]), "warning: ")
-    echo_lines("eval", filter(None, [whole and gaps_note(missing_frames(table), "runs")]))
+    echo_lines("eval", scoring_input_notes(header["input"], header.get("training"), header["task"], table))
     return label
 
 

@@ -58,7 +58,6 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
           | neurotac crop --size 115x115 --center auto | neurotac train --model deform-gru -o force.model
     """
     from neurotac_cli import model as models
-    from neurotac_cli import schema as sch
     from neurotac_cli import tables
     from neurotac_cli.model.curve import member_curves
     from neurotac_cli.model.plots import curve_figure
@@ -71,19 +70,12 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     table = tables.read(paths, kind="frames")  # an empty input fails before torch's seconds of import
     import torch
 
-    from neurotac_cli.model.core import gaps_note, missing_frames
+    from neurotac_cli.model import session
     from neurotac_cli.model.training import train_model
 
     torch.set_num_threads(max(1, threads))
     use_device(device)
-    from neurotac_cli.model import session
-
-    if not sch.get_meta(table.schema, sch.WINDOW):
-        echo_lines("train", [f"the frames do not record their window (metadata {sch.WINDOW}): the model cannot check the "
-                             "window of the frames it reads later"], "warning: ")
-    if not contacts and model_name in FORCE_MODELS:
-        echo_lines("train", filter(None, [session.whole_trials_note(table.schema, "training without --contacts")]), "warning: ")
-        echo_lines("train", filter(None, [gaps_note(missing_frames(table), "runs")]))
+    echo_lines("train", session.training_input_notes(table, model_name in FORCE_MODELS, contacts))
     trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer("train"), contacts=contacts)

@@ -11,7 +11,9 @@ Public API (used by the train, eval, classify and predict commands, and by studi
   in a stream lies beyond the model's training data, counted as it passes.
 - `check_input(model, schema)`: refuse frames whose window, crop or channels differ from training;
   `input_notes(input_spec, training_history, schema)`: warnings where the frames may differ from the
-  training frames in what `check_input` cannot compare (a window not recorded, a box elsewhere).
+  training frames in what `check_input` cannot compare (a window not recorded, a box elsewhere);
+  `training_input_notes`, `scoring_input_notes`: every warning `train` and `eval --model` give about
+  their frames before they run, for the command's stderr and the library's warnings alike.
 
 The names are loaded when first used, so a command can list the model names (`model.names`)
 for its --help without importing torch.
@@ -22,6 +24,7 @@ import importlib
 _HOMES = {
     "FORCE_MODELS": "names", "MATERIAL_MODELS": "names",
     "Model": "core", "check_input": "core", "classify_table": "core", "make_spec": "core", "input_notes": "core",
+    "training_input_notes": "session", "scoring_input_notes": "session",
     "Outside": "predict", "predict_table": "predict", "stream": "predict", "train": "core",
     "load": "store", "save": "store",
 }

@@ -467,3 +467,31 @@ def summary_lines(figures: dict) -> list[str]:
     elif "contact_f1" in figures:
         lines.append("slips: not scored (the frames have no `slip` truth column: `neurotac frame --slips CSV` adds one)")
     return lines
+
+
+def training_input_notes(table: pa.Table, force_model: bool, contacts: bool = False) -> list[str]:
+    """The warnings about its frames that training gives before it starts (`train` on stderr, the
+    library as NeurotacWarning), each starting `warning: `."""
+    from neurotac_cli.model.core import gaps_note, missing_frames
+
+    notes = []
+    if not sch.get_meta(table.schema, sch.WINDOW):
+        notes.append(f"warning: the frames do not record their window (metadata {sch.WINDOW}): the model cannot check the "
+                     "window of the frames it reads later")
+    if force_model and not contacts:
+        whole = whole_trials_note(table.schema, "training without --contacts")
+        notes += [whole and f"warning: {whole}", gaps_note(missing_frames(table), "runs")]
+    return [note for note in notes if note]
+
+
+def scoring_input_notes(input_spec: dict, training: dict | None, task: str, table: pa.Table) -> list[str]:
+    """The warnings about frames scored by a trained model (`eval --model` on stderr, the library as
+    NeurotacWarning), each starting `warning: `: frames unlike the training's, sessions given to a
+    model of whole trials, frames missing inside its trials."""
+    from neurotac_cli.model.core import gaps_note, input_notes, missing_frames
+
+    notes = [f"warning: {note}" for note in input_notes(input_spec, (training or {}).get("data_history"), table.schema)]
+    if task != "material" and CONTACT_KEY not in (input_spec or {}):
+        whole = whole_trials_note(table.schema, "a model trained without --contacts")
+        notes += [whole and f"warning: {whole}", gaps_note(missing_frames(table), "runs")]
+    return [note for note in notes if note]
