@@ -7,15 +7,14 @@ import numbers
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.compute as pc
 import torch
 
 from neurotac_cli import schema as sch
 from neurotac_cli.errors import InputError, ModelError, UsageError
 from neurotac_cli.ops.forcelog import RANGE_N, RANGE_WARN_N
 from neurotac_cli.model.curve import best_epoch
-from neurotac_cli.model.data import (Sequences, already_accumulated, check_time_forward, choose_validation, padded, parse_where,
-                                     sequences)
+from neurotac_cli.model.data import (Sequences, already_accumulated, check_time_forward, choose_validation, ordered_trials,
+                                     padded, parse_where, sequences)
 from neurotac_cli.model.fit import FitConfig, fit, training_device
 from neurotac_cli.model.names import FORCE_MODELS, FORMAT_VERSION, MATERIAL_MODELS
 from neurotac_cli.units import counted, first_few
@@ -725,11 +724,7 @@ def missing_frames(table: pa.Table) -> dict:
     """{trial: frame numbers missing between its first and last frame} of a frames table. A trial whose
     t goes back is refused first, as `sequences` refuses it, so that the refusal is the only line
     (not a warning about its frame numbers before it)."""
-    encoded = pc.dictionary_encode(table.column("trial")).combine_chunks()
-    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
-    frame = table.column("frame").to_numpy().astype(np.int64)
-    order = np.lexsort((frame, codes))
-    check_time_forward(codes[order], encoded.dictionary.to_pylist(), frame[order], table.column("t").to_numpy().astype(np.int64)[order])
+    ordered_trials(table)
     spans = table.select(["trial", "frame"]).group_by("trial").aggregate(
         [("frame", "min"), ("frame", "max"), ("frame", "count_distinct")]).to_pydict()
     return {trial: high - low + 1 - distinct for trial, low, high, distinct

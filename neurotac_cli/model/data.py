@@ -54,22 +54,15 @@ def sequences(table: pa.Table) -> Sequences:
     """Group a frames table into per-trial sequences (vectorised: one sort, one split)."""
     if table.num_rows == 0:
         raise ModelError("the frames table is empty (no rows); did the command before it fail?")
-    encoded = pc.dictionary_encode(table.column("trial")).combine_chunks()
-    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
-    names = encoded.dictionary.to_pylist()
-    frame = table.column("frame").to_numpy().astype(np.int64)
-    order = np.lexsort((frame, codes))
-    codes = codes[order]
+    codes, names, order, frame, t = ordered_trials(table)
     bounds = np.flatnonzero(np.diff(codes)) + 1
     starts = np.concatenate([[0], bounds])
     counts = sch.counts_numpy(table.column("counts"))[order]
-    t = table.column("t").to_numpy().astype(np.int64)[order]
-    check_time_forward(codes, names, frame[order], t)
     force_column = table.column("force").cast(pa.float32())
     sch.check_force(pc.drop_null(force_column).to_numpy(), "the frames' force column")  # null = unknown; NaN is an error
     force = force_column.fill_null(np.nan).to_numpy(zero_copy_only=False)[order]
     phase = np.asarray(table.column("phase").to_pylist(), dtype=object)[order]
-    frames = frame[order].astype(np.int32)
+    frames = frame.astype(np.int32)
     split = lambda values: np.split(values, bounds)  # noqa: E731
     trials = [names[c] for c in codes[starts]]
     label_names = sch.label_columns(table.schema)
@@ -90,6 +83,19 @@ def sequences(table: pa.Table) -> Sequences:
         trials=trials, counts=split(counts), t=split(t), frame=split(frames), force=split(force),
         phase=split(phase), labels=labels, source=source, augmented=augmented,
     )
+
+
+def ordered_trials(table: pa.Table) -> tuple:
+    """(each row's trial code, the trial names, the order, frame and t), rows in trial-then-frame
+    order; a trial whose time goes back is refused (`check_time_forward`)."""
+    encoded = pc.dictionary_encode(table.column("trial")).combine_chunks()
+    codes = encoded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
+    names = encoded.dictionary.to_pylist()
+    frame = table.column("frame").to_numpy().astype(np.int64)
+    order = np.lexsort((frame, codes))
+    codes, frame, t = codes[order], frame[order], table.column("t").to_numpy().astype(np.int64)[order]
+    check_time_forward(codes, names, frame, t)
+    return codes, names, order, frame, t
 
 
 def check_time_forward(codes: np.ndarray, names, frame: np.ndarray, t: np.ndarray) -> None:
