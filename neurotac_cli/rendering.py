@@ -244,8 +244,10 @@ def _image_axis(axis, image, title: str):
 
 def _on_screen(axis, image: np.ndarray) -> np.ndarray:
     """`image` as the tile shows it: where the tile has fewer screen pixels than the image, each block
-    of sensor pixels shows its darkest (busiest) pixel per colour, since a plain downsample skips whole
-    rows and columns, and an isolated event with them. Every picture of an animation goes through it."""
+    of sensor pixels shows its darkest (busiest) pixel, in that pixel's own colour, since a plain
+    downsample skips whole rows and columns, and an isolated event with them (a darkest value per
+    colour would mix a block's ON and OFF pixels into a grey no pixel has). Every picture of an
+    animation goes through it."""
     height, width = image.shape[:2]
     factor = getattr(axis, "neurotac_pool", None)  # chosen at the first picture: the later ones fill its extent
     if factor is None:
@@ -256,7 +258,10 @@ def _on_screen(axis, image: np.ndarray) -> np.ndarray:
         return image
     padded = np.ones((-(-height // factor) * factor, -(-width // factor) * factor, 3))
     padded[:height, :width] = image
-    return padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor, 3).min(axis=(1, 3))
+    rows, columns = padded.shape[0] // factor, padded.shape[1] // factor
+    blocks = padded.reshape(rows, factor, columns, factor, 3).transpose(0, 2, 1, 3, 4).reshape(rows, columns, factor * factor, 3)
+    darkest = blocks.sum(axis=3).argmin(axis=2)
+    return np.take_along_axis(blocks, darkest[..., None, None], axis=2)[:, :, 0]
 
 
 def _force_strip(axis, steps: Steps):

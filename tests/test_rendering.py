@@ -251,3 +251,20 @@ def test_every_picture_of_an_animation_keeps_its_isolated_event():
         box = axis.get_window_extent()
         inside = pixels[int(pixels.shape[0] - box.y1) + 2:int(pixels.shape[0] - box.y0) - 2, int(box.x0) + 2:int(box.x1) - 2]
         assert (inside.min(axis=-1) < 200).any(), k
+
+
+def test_a_block_of_on_and_off_pixels_shows_one_of_them_in_its_own_colour():
+    """A darkest value per colour mixed a block's ON and OFF pixels into a grey no pixel has."""
+    from neurotac_cli.model.plots import pyplot
+    from neurotac_cli.rendering import _image_axis
+
+    counts = np.zeros((2, 180, 240))
+    counts[1, 0::4, 0::4] = 1  # ON
+    counts[0, 1::4, 1::4] = 1  # OFF, beside each ON pixel
+    figure, axis = pyplot().subplots(figsize=(1.5, 1.2), dpi=100)
+    image = rgb(counts, 1.0)
+    _image_axis(axis, image, "")
+    shown = axis.images[0].get_array().reshape(-1, 3)
+    pure = {tuple(image[0, 0]), tuple(image[1, 1])}
+    assert {tuple(pixel) for pixel in shown} <= pure | {(1.0, 1.0, 1.0)} and len(pure) == 2
+    pyplot().close(figure)
