@@ -506,7 +506,7 @@ def describe_csv(path: str) -> dict | None:
     names, _ = text.column_names(next(csv.reader([first]), []))
     if text.names_events(names):
         return None
-    table = read_table(path)
+    table = read_table(path, "CSV file")
     info = {"kind": "csv", "file": path, "rows": table.num_rows,
             "columns": [f"{field.name}: {field.type}" for field in table.schema]}
     try:

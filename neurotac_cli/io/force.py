@@ -59,21 +59,23 @@ def force_unit_of(name: str) -> str | None:
     return suffix.lower() if suffix.lower() in FORCE_UNITS_N else None
 
 
-def read_table(path: str) -> pa.Table:
+def read_table(path: str, what: str = "force log") -> pa.Table:
     """A force log's columns as written (CSV, Parquet or Arrow, told from the first bytes), before any is chosen.
-    Read once, into memory (a log is small), so a pipe such as bash's `<(...)` serves as well as a file."""
+    Read once, into memory (a log is small), so a pipe such as bash's `<(...)` serves as well as a file.
+    `what` names the file in errors (`info` reads any CSV file with it)."""
+    expected = "; expected CSV, Parquet or Arrow with a header such as t_ms,force_N" if what == "force log" else ""
     if os.path.isdir(path):
-        raise InputError(f"{path}: is a folder, not a force log")
+        raise InputError(f"{path}: is a folder, not a {what}")
     if not os.path.exists(path):
-        raise InputError(f"{path}: no such force log")
-    refuse_device(path, "a force log")
+        raise InputError(f"{path}: no such {what}")
+    refuse_device(path, f"a {what}")
     try:
         with open(path, "rb") as handle:
             data = handle.read()
     except OSError as error:
-        raise InputError(f"{path}: cannot read the force log ({error.strerror or error})") from None
+        raise InputError(f"{path}: cannot read the {what} ({error.strerror or error})") from None
     if not data:
-        raise FormatError(f"{path}: the force log is empty; expected CSV, Parquet or Arrow with a header such as t_ms,force_N")
+        raise FormatError(f"{path}: the {what} is empty{expected}")
     try:
         if data[:4] == b"PAR1":
             import pyarrow.parquet as pq
@@ -82,8 +84,7 @@ def read_table(path: str) -> pa.Table:
         elif data.startswith((b"ARROW1", b"\xff\xff\xff\xff")):  # Arrow (Feather) from another tool
             table = _arrow_log(data, path)
         elif b"\0" in data[:4096]:
-            raise FormatError(f"{path}: holds binary data, not a force log (a camera file?); expected CSV, Parquet or Arrow "
-                              "with a header such as t_ms,force_N")
+            raise FormatError(f"{path}: holds binary data, not a {what} (a camera file?){expected}")
         else:
             import pyarrow.csv as csv
 
@@ -91,11 +92,11 @@ def read_table(path: str) -> pa.Table:
             first = data.split(b"\n", 1)[0].decode(errors="replace")
             table = csv.read_csv(pa.BufferReader(data), parse_options=csv.ParseOptions(delimiter=_delimiter(first)))
     except (pa.ArrowInvalid, OSError) as error:
-        raise FormatError(f"{path}: cannot read the force log ({str(error).splitlines()[0]}; expected CSV, Parquet or Arrow with a header such as t_ms,force_N)") from None
+        raise FormatError(f"{path}: cannot read the {what} ({str(error).splitlines()[0]}{expected})") from None
     names = table.column_names
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
-        raise FormatError(f"{path}: the force log names column {repeated[0]!r} more than once; give each column its own name")
+        raise FormatError(f"{path}: the {what} names column {repeated[0]!r} more than once; give each column its own name")
     return table
 
 

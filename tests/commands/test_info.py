@@ -167,3 +167,9 @@ def test_a_file_that_cannot_be_read_is_one_line(tmp_path, monkeypatch):
     result = CliRunner().invoke(cli, ["info", str(path)])
     assert result.exit_code == 1, result.exception
     assert result.stderr == f"neurotac info: error: {path}: permission denied\n"
+
+
+def test_a_text_file_that_is_no_csv_is_not_called_a_force_log(tmp_path):
+    (tmp_path / "notes.md").write_text("# Notes\n\nA line, with a comma.\nAnother line without one\n")
+    result = CliRunner().invoke(cli, ["info", str(tmp_path / "notes.md")])
+    assert result.exit_code == 1 and "cannot read the CSV file (" in result.output and "force log" not in result.output
