@@ -1137,6 +1137,15 @@ def test_rotations_of_whole_turns_or_beyond_one_turn_are_usage_errors(files, tmp
     assert one_line(stderr, code, 2) and said in stderr
 
 
+def test_a_tes_of_nothing_in_a_hybrid_is_one_method_that_the_other_changes(files, tmp_path):  # noqa: F811
+    """Its J 0 and ZETA 0 counted as two methods that change nothing, so the hybrid was refused."""
+    code, stderr, _ = invoke(["augment", "--fs", "1", "--tes", "0", "0", "--combine", "hybrid", "-o", str(tmp_path / "a.arrows"),
+                              f"{files}/f.arrows"])
+    assert code == 0, stderr
+    code, stderr, _ = invoke(["augment", "--tes", "0", "0", "-o", str(tmp_path / "b.arrows"), f"{files}/f.arrows"])
+    assert one_line(stderr, code, 2) and "--tes with J 0 changes nothing" in stderr
+
+
 @pytest.mark.parametrize("option, said", [(["--latency", "-5ms"], "--latency is a delay"),
                                           (["--method", "offset", "--offset", "0ms", "--latency", "1ms"], "--latency is the camera's delay"),
                                           (["--method", "xcorr", "--keep-led"], "--keep-led keeps the LED blink's burst"),

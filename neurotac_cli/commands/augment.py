@@ -53,9 +53,9 @@ def command(paths, output, rotate, rotate_range, resize, preserve_total, noise, 
     angles = [rotate] if rotate is not None else list(rotate_range or ())
     rotation = f"--rotate {rotate:g}" if rotate is not None else "--rotate-range " + " ".join(f"{a:g}" for a in angles)
     whole_turns = bool(angles) and min(angles) == max(angles) and angles[0] % 360 == 0  # 0, 360 or -360 degrees
-    unchanged = [name for name, same in (("--fs 0", fs == 0), ("--tes with J 0", tes is not None and tes[0] == 0),
-                                         ("--tes with ZETA 0", tes is not None and tes[1] == 0), (rotation, whole_turns),
-                                         ("--resize 1", resize == 1))
+    tes_said = None if tes is None else "--tes with J 0" if tes[0] == 0 else "--tes with ZETA 0"  # one method, one entry
+    unchanged = [name for name, same in (("--fs 0", fs == 0), (tes_said, tes is not None and 0 in (tes[0], tes[1])),
+                                         (rotation, whole_turns), ("--resize 1", resize == 1))
                  if same]
     methods = sum(value is not None for value in (rotate, rotate_range, resize, fs, tes, noise))
     augment.check_changes(unchanged, methods, combine)
