@@ -185,9 +185,7 @@ def test_the_stepper_checks_its_times(small):
     assert stepper.step(counts, t).shape == (3,) and np.isfinite(stepper.step(counts[0], int(t[0])))
 
 
-def test_odd_paths_strings_and_flags_are_refused_in_one_line(small, tmp_path):
-    import warnings
-
+def test_odd_paths_strings_and_flags_are_refused_in_one_line(small, tmp_path, monkeypatch):
     from neurotac_cli import api
     from neurotac_cli.errors import InputError, UsageError
 
@@ -205,13 +203,14 @@ def test_odd_paths_strings_and_flags_are_refused_in_one_line(small, tmp_path):
         with pytest.raises(UsageError):
             call()
     (tmp_path / "p.csv").write_text("trial,force\n")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ResourceWarning)
-        with pytest.raises(InputError, match="not an Arrow"):
-            api.read(str(tmp_path / "p.csv"))
-        import gc
+    from neurotac_cli import tables
 
-        gc.collect()
+    opened = []
+    original = tables.open_binary
+    monkeypatch.setattr(tables, "open_binary", lambda path: opened.append(original(path)) or opened[-1])
+    with pytest.raises(InputError, match="not an Arrow"):
+        api.read(str(tmp_path / "p.csv"))
+    assert opened and all(handle.closed for handle in opened)  # a file refused by its first bytes is closed
 
 
 def test_numpy_numbers_and_the_command_lines_text_are_taken_alike(small):

@@ -473,17 +473,24 @@ def test_outputs_written_together_are_kept_when_stdout_s_reader_goes_away(tmp_pa
     assert (tmp_path / "a.arrows").read_bytes() == b"new a" and os.listdir(tmp_path) == ["a.arrows"]
 
 
-def test_a_pipe_whose_reader_went_away_keeps_no_file_of_the_run_from_its_place(tmp_path):
+def test_a_pipe_whose_reader_went_away_keeps_no_other_output_of_the_run_from_its_place(tmp_path):
+    filled = []
+
     class GonePipe(tables._Finish):
         def __call__(self):
             raise BrokenPipeError(errno.EPIPE, "the reader went away")
 
+    class Pipe(tables._Finish):
+        def __call__(self):
+            filled.append(self.path)
+
     temporary = tmp_path / ".neurotac-x.part"
     temporary.write_bytes(b"new")
-    held = [GonePipe("pipe", "", True, 0o022, str(tmp_path)), tables._Finish(str(tmp_path / "m.arrows"), str(temporary), False, 0o022, str(tmp_path))]
+    held = [GonePipe("gone", "", True, 0o022, str(tmp_path)), Pipe("open", "", True, 0o022, str(tmp_path)),
+            tables._Finish(str(tmp_path / "m.arrows"), str(temporary), False, 0o022, str(tmp_path))]
     with pytest.raises(BrokenPipeError):
         tables._put_in_place(held)
-    assert (tmp_path / "m.arrows").read_bytes() == b"new"
+    assert (tmp_path / "m.arrows").read_bytes() == b"new" and filled == ["open"]
 
 
 def test_sigterm_removes_the_part_file_and_exits_143(tmp_path):
