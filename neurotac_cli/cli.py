@@ -108,8 +108,6 @@ class LazyGroup(click.Group):
                 raise
             _fail(f"{_who(ctx)}: error: out of memory (process the input in smaller pieces, or a smaller model)")
         except OSError as error:  # writing to stdout (`> file` on a full disk); -o is handled by tables.atomic_file
-            if error.errno not in OutputError.ONLY_WRITING:
-                raise
             _fail_output(_who(ctx), error)
 
 

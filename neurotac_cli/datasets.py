@@ -112,5 +112,4 @@ def _unpaired_force_logs(folder: str, paired: set) -> str:
                 if name not in paired and any(name.endswith(end) and len(name) > len(end) for end in patterns)]
     if not unpaired:
         return ""
-    listed = ", ".join(unpaired[:3]) + (", ..." if len(unpaired) > 3 else "")
-    return f"; {len(unpaired)} force log(s) have no camera file of their name and were left out ({listed})"
+    return f"; {len(unpaired)} force log(s) have no camera file of their name and were left out ({first_few(unpaired)})"

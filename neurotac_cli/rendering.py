@@ -233,7 +233,7 @@ def _image_axis(axis, image, title: str):
     """`image` (H, W, 3) drawn in sensor pixel coordinates (`_on_screen`)."""
     height, width = image.shape[:2]
     shown = _on_screen(axis, image)
-    factor = -(-width // shown.shape[1])
+    factor = axis.neurotac_pool
     axis.imshow(shown, interpolation="nearest", extent=(-0.5, shown.shape[1] * factor - 0.5, shown.shape[0] * factor - 0.5, -0.5))
     axis.set_xlim(-0.5, width - 0.5)
     axis.set_ylim(height - 0.5, -0.5)

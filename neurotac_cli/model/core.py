@@ -370,8 +370,9 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
     if largest > RANGE_WARN_N and progress:  # as `sync` warns of a log
         progress(f"warning: the training frames carry forces up to {largest:.4g} N, beyond {RANGE_N:g} N (the largest "
                  "FlexiForce range): a log in another unit (mN, g)? the model will read in those units")
-    for note in filter(None, [_delays_note(config, train_set) if progress else None]):
-        progress(note)
+    delays = progress and _delays_note(config, train_set)
+    if delays:
+        progress(delays)
     if val_fraction and not in_val.any() and progress:
         progress(f"warning: --val-fraction {val_fraction:g}: no {per} value has two source trials to draw from, so no trial "
                  "is held out for validation (early stopping follows the training loss)")
@@ -519,8 +520,6 @@ def _fit_member(net, member, members, data, in_val, features, force_scale, fit_c
             group["features"] = features[indices, : part.max_length()]
         groups.append({key: value.to(device) for key, value in group.items()})
     tensors, val_tensors = groups
-    if val_tensors is not None and not float(val_tensors["mask"].sum()):
-        val_tensors = None  # no measured force to score: a loss of 0 would stop training at its first epoch
     chosen = member if members > 1 else None
 
     def run(group, indices=slice(None)):
