@@ -225,11 +225,8 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
             options[name] = _flag(options[name], name)
     window_us = _us(window, "window")
     source = _input(table, "recordings", "events")
-    if source.kind == "recordings":
-        events_only = sorted({"start_us", "trial", "sort"} & set(options))
-        if events_only:  # a recordings table's trials keep their ids and start at their sync instant
-            raise UsageError(f"frame() takes {', '.join(events_only)} for a plain events table only, not a recordings table")
-    else:
+    fr.check_for_kind(source.kind, sorted({"start_us", "trial", "sort"} & set(options)), options.get("phases"))
+    if source.kind == "events":
         options.setdefault("trial", camera_file_stem(source.schema) or "events")
     schema, batches, report, _ = fr.frame(source, fr.Framing(window_us=window_us, **options))
     _warn([fr.size_note(schema, report.frames)])

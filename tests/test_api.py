@@ -279,3 +279,16 @@ def test_the_warnings_train_and_eval_give_about_their_frames_reach_the_library()
     said = [str(w.message) for w in caught if issubclass(w.category, NeurotacWarning)]
     assert any(m.startswith("the frames do not record their window") for m in said), said
     assert any("missing inside" in m for m in said), said
+
+
+def test_frame_refuses_for_a_table_s_kind_what_the_command_refuses(small):
+    """`--phases session` on plain events was refused by the command and framed by the library."""
+    from neurotac_cli import api
+    from neurotac_cli.errors import UsageError
+
+    recordings, _, _ = small
+    events = api.events_of(recordings, recordings["trial"][0].as_py())
+    with pytest.raises(UsageError, match="--phases session reads each grasp from the force log"):
+        api.frame(events, "10ms", phases="session")
+    with pytest.raises(UsageError, match="trial is for plain events tables"):
+        api.frame(recordings, "10ms", trial="x")

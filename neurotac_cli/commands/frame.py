@@ -122,7 +122,6 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
             | neurotac frame --window 10ms --phases session --slips s/grasps.csv
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import UsageError
     from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.io.slips import read_slips
     from neurotac_cli.ops import frame as fr
@@ -132,14 +131,7 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         phases = tuple(parse_ranges(phases))
     source = tables.open_input(paths, kind=("recordings", "events"))
     events_only = [flag for flag, given in (("--start", start is not None), ("--trial", trial is not None), ("--sort", sort)) if given]
-    if source.kind == "recordings" and events_only:
-        one = len(events_only) == 1
-        raise UsageError(f"{', '.join(events_only)} {'is' if one else 'are'} for plain events tables (from `neurotac import`); "
-                         "a recordings table's trials keep their ids and are framed from their sync instant t0: leave "
-                         f"{'it' if one else 'them'} out")
-    if source.kind == "events" and phases == "session":
-        raise UsageError("--phases session reads each grasp from the force log, and a plain events table has none: "
-                         "sync it with its log first (`neurotac sync`), or frame it without --phases session")
+    fr.check_for_kind(source.kind, events_only, phases)
     framing = fr.Framing(
         window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
         dtype=dtype, scale=scale, start_us=start, trial=(camera_file_stem(source.schema) or "events") if trial is None else trial,

@@ -928,6 +928,19 @@ def _string_labels(table: pa.Table, report: FramingReport) -> pa.Table:
     return table
 
 
+def check_for_kind(kind: str, events_only: list[str], phases) -> None:
+    """Refuse what a table of this kind cannot take: `events_only` (the options given, as their caller
+    names them) are for plain events tables; `--phases session` reads a force log, which they have not."""
+    if kind == "recordings" and events_only:
+        one = len(events_only) == 1
+        raise UsageError(f"{', '.join(events_only)} {'is' if one else 'are'} for plain events tables (from `neurotac import`); "
+                         "a recordings table's trials keep their ids and are framed from their sync instant t0: leave "
+                         f"{'it' if one else 'them'} out")
+    if kind == "events" and phases == "session":
+        raise UsageError("--phases session reads each grasp from the force log, and a plain events table has none: "
+                         "sync it with its log first (`neurotac sync`), or frame it without --phases session")
+
+
 def frame(source, framing: Framing, sensor=None):
     """Frame an opened `recordings` or `events` input (tables.Input): (frames schema, batches, report,
     the settings as history records them). A recordings table is read whole and framed trial by
