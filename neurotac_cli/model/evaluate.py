@@ -106,8 +106,9 @@ def evaluate_model(model, table: pa.Table, *, nonzero=False, per_trial=True, not
     if "force" not in table.column_names or not np.isfinite(table.column("force").to_numpy(zero_copy_only=False).astype(np.float64)).any():
         raise InputError("no frame has a true force to score the estimates against (the force column is empty); "
                          "`neurotac predict` gives the estimates alone")
-    sch.check_force(table.column("force").drop_null().to_numpy(zero_copy_only=False), "the frames' force column")
-    sch.check_force_range(table.column("force").drop_null().to_numpy(zero_copy_only=False), "the frames scored")
+    measured = table.column("force").drop_null().to_numpy(zero_copy_only=False)
+    sch.check_force(measured, "the frames' force column")
+    sch.check_force_range(measured, "the frames scored")
     predictions = predict_table(model, table)
     return predictions, score(predictions, nonzero=nonzero, per_trial=per_trial)
 
