@@ -228,7 +228,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         )
         entry = {"t0": instant.t0, "score": instant.score}
         entry.update(instant.details)
-        if method.method != "xcorr":  # xcorr reports its own correlation
+        if method.method != "xcorr" and "agreement" not in entry:  # xcorr reports its own; a spike chosen by it, too
             entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True)
         if log.notes:
             entry["notes"] = log.notes
@@ -253,6 +253,7 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     if any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN or ranked[0][0] - ranked[1][0] < AGREE_MARGIN:
         raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures})")
     spike = ranked[0][1]
+    spike.details["agreement"] = ranked[0][0]
     spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
                                  f"was taken, where the force log moves with the events ({figures})"]
     return [spike]
