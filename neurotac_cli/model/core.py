@@ -723,11 +723,12 @@ def missing_frames(table: pa.Table) -> dict:
     """{trial: frame numbers missing between its first and last frame} of a frames table. A trial whose
     t goes back is refused first, as `sequences` refuses it, so that the refusal is the only line
     (not a warning about its frame numbers before it)."""
-    ordered_trials(table)
-    spans = table.select(["trial", "frame"]).group_by("trial").aggregate(
-        [("frame", "min"), ("frame", "max"), ("frame", "count_distinct")]).to_pydict()
-    return {trial: high - low + 1 - distinct for trial, low, high, distinct
-            in zip(spans["trial"], spans["frame_min"], spans["frame_max"], spans["frame_count_distinct"])}
+    codes, names, _, frame, _ = ordered_trials(table)  # rows by trial, then frame
+    starts = np.flatnonzero(np.r_[True, np.diff(codes) != 0])
+    ends = np.r_[starts[1:], len(codes)] - 1
+    new = np.r_[True, (np.diff(frame) != 0) | (np.diff(codes) != 0)]  # a frame number not seen just before in its trial
+    distinct = np.add.reduceat(new.astype(np.int64), starts)
+    return {names[code]: int(high - low + 1 - count) for code, low, high, count in zip(codes[starts], frame[starts], frame[ends], distinct)}
 
 
 def _in_order(trial: str, last: tuple | None, frames: np.ndarray, t: np.ndarray) -> tuple:

@@ -302,6 +302,10 @@ def test_frames_whose_time_goes_back_are_refused_before_any_warning_about_their_
     assert missing_frames(frames) == {f"t{i}": 0 for i in range(8)}
     with pytest.raises(SchemaError, match="trial 't0': t goes back"):
         missing_frames(shifted.replace_schema_metadata(frames.schema.metadata))
+    gapped = frames.filter(pa.array([not (trial == "t1" and frame in (3, 4)) for trial, frame
+                                     in zip(frames.column("trial").to_pylist(), frames.column("frame").to_pylist())]))
+    twice = pa.concat_tables([gapped, gapped.slice(0, 2)])  # a frame given twice is one frame, not a gap filled
+    assert missing_frames(gapped) == missing_frames(twice) == {**{f"t{i}": 0 for i in range(8)}, "t1": 2}
 
 
 def test_a_gp_of_a_handful_of_points_is_refused_and_delays_past_every_trial_are_named(frames):
