@@ -10,6 +10,7 @@ import click
 
 from neurotac_cli import __version__
 from neurotac_cli.errors import NeurotacError, OutputError, UsageError
+from neurotac_cli.whole import write_whole
 
 # name -> (module under neurotac_cli.commands, one-line help). Modules are imported only when run,
 # so `neurotac --help` needs neither pyarrow nor torch.
@@ -248,10 +249,10 @@ def _guard_stdout():
 
 
 class _WholeRaw(io.RawIOBase):
-    """Stdout's file, each write carried to its last byte. Python's buffered stdout takes a short
-    write (a file reaching `ulimit -f`, a disk filling) as whole and drops the rest without a word:
-    `info --json > x` under a size limit exited 0 with a cut JSON. Written on, the next write fails
-    with the error that says why."""
+    """Stdout's file, each write carried to its last byte (`whole.write_whole`). Python's buffered
+    stdout takes a short write (a file reaching `ulimit -f`, a disk filling) as whole and drops the
+    rest without a word, so a cut JSON would exit 0; carried on, the next write fails with the error
+    that says why."""
 
     def __init__(self, raw: io.FileIO):
         super().__init__()
@@ -268,13 +269,8 @@ class _WholeRaw(io.RawIOBase):
 
     def write(self, data) -> int:
         view = memoryview(data).cast("B")
-        done = 0
-        while done < len(view):
-            moved = self._raw.write(view[done:])
-            if moved is None:  # a non-blocking stdout that is full: what was moved, as a raw file says it
-                return done or None
-            done += moved
-        return done
+        write_whole(self._raw, view)
+        return len(view)
 
 
 class _ClosedStdout(io.TextIOBase):

@@ -24,6 +24,7 @@ import pyarrow.ipc as ipc
 
 from neurotac_cli import __version__, bridges, schema as sch
 from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, UsageError, cannot_open, empty_path
+from neurotac_cli.whole import write_whole
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -686,14 +687,14 @@ def _write_stream(raw, schema: pa.Schema, batches, flush_each: bool):
 
 
 class _WholeWrites:
-    """stdout for Arrow's writer, each write carried to its last byte. A pipe's write that a signal
-    interrupts (the Ctrl-C a live pipe ends on, whose handler only asks the stream to stop) returns
-    the bytes it moved so far, and Arrow takes every write as whole: the rest of a batch was lost and
-    the stream ended mid-table.
+    """stdout for Arrow's writer, each write carried to its last byte (`whole.write_whole`): Arrow
+    takes every write as whole, so a pipe's write that a signal interrupts (the Ctrl-C a live pipe
+    ends on, whose handler only asks the stream to stop) or a full non-blocking stdout would end the
+    stream mid-table.
 
     An unbuffered stdout (PYTHONUNBUFFERED, which many containers set) is buffered here: Arrow writes
-    a batch in a score of pieces (its metadata, each buffer, the padding), and each was a system call
-    that woke the reader at the pipe's other end; now a batch leaves in one write when flushed."""
+    a batch in a score of pieces (its metadata, each buffer, the padding), and a system call for each
+    would wake the reader at the pipe's other end as often; a batch leaves in one write when flushed."""
 
     def __init__(self, sink):
         self.sink, self.position = sink, 0
@@ -707,7 +708,7 @@ class _WholeWrites:
         view = memoryview(data).cast("B")
         size = len(view)
         if self.pending is None:
-            self._whole(view)
+            write_whole(self.sink, view)
         else:
             self.pending += view
             if len(self.pending) >= STREAM_BUFFER:
@@ -715,15 +716,10 @@ class _WholeWrites:
         self.position += size
         return size
 
-    def _whole(self, view):
-        while len(view):
-            moved = self.sink.write(view)
-            view = view[len(view) if moved is None else moved:]
-
     def _drain(self):
         if self.pending:
             pending, self.pending = self.pending, bytearray()
-            self._whole(memoryview(pending))
+            write_whole(self.sink, memoryview(pending))
 
     def flush(self):
         if self.pending is not None:

@@ -81,14 +81,13 @@ def test_an_error_naming_a_path_with_a_newline_or_bytes_not_utf8_is_one_line(tmp
         assert done.stderr.decode() == f"neurotac info: error: {tmp_path}/{shown}: no such file\n"
 
 
-def small_frames(folder) -> str:
+def small_frames(folder, n: int = 30) -> str:
     """A tiny frames table on disk, of trials enough that its info, text or JSON, is over 1 KiB."""
     import numpy as np
     import pyarrow as pa
 
     from neurotac_cli import schema as sch, tables
 
-    n = 30
     counts = np.random.default_rng(0).poisson(0.3, (3 * n, 2, 8, 8)).astype(np.uint16)
     table = pa.Table.from_pydict({"trial": [f"trial-{i:02d}" for i in range(n) for _ in range(3)],
                                   "frame": pa.array([0, 1, 2] * n, pa.int32()), "t": pa.array([0, 10_000, 20_000] * n, pa.int64()),
@@ -127,6 +126,31 @@ def test_a_closed_stdout_is_one_error_line_for_tables_text_and_help(tmp_path):
         assert one_error_line(done, who) and "stdout is closed" in done.stderr, (command, done.returncode, done.stderr)
     done = shell(f"neurotac select --where true -o kept.arrows {frames} >&-", tmp_path)  # stdout not needed: no error
     assert done.returncode == 0 and (tmp_path / "kept.arrows").stat().st_size > 0, done.stderr
+
+
+def read_after_a_pause(command: list[str], tmp_path) -> tuple[int, bytes]:
+    """Run `command` with stdout a non-blocking pipe read only after it has filled."""
+    import fcntl
+    import os
+    import time
+
+    read, write = os.pipe()
+    fcntl.fcntl(write, fcntl.F_SETFL, fcntl.fcntl(write, fcntl.F_GETFL) | os.O_NONBLOCK)
+    process = subprocess.Popen(command, stdout=write, stderr=subprocess.DEVNULL, cwd=tmp_path)
+    os.close(write)
+    time.sleep(1.5)
+    data = b"".join(iter(lambda: os.read(read, 1 << 16), b""))
+    os.close(read)
+    return process.wait(timeout=60), data
+
+
+def test_a_non_blocking_stdout_that_fills_gets_every_byte(tmp_path):
+    # a full non-blocking pipe's write moves nothing and says so with None: the table was cut at
+    # the pipe's 64 KiB, exit 0
+    frames = small_frames(tmp_path, n=400)
+    for command in (["neurotac", "select", "--where", "true", frames], ["neurotac", "info", frames, "--all"]):
+        expected = subprocess.run(command, capture_output=True, cwd=tmp_path).stdout
+        assert read_after_a_pause(command, tmp_path) == (0, expected), command
 
 
 def test_help_to_a_reader_that_has_gone_is_quiet():
