@@ -85,14 +85,19 @@ def _plain(value):
     return value.item() if isinstance(value, np.generic) else value
 
 
+def _parsed(parse, text: str, what: str):
+    """`text` read as the command line reads it; its error named after the argument."""
+    try:
+        return parse(text)
+    except NeurotacError as error:
+        raise UsageError(f"{what}: {error}") from None
+
+
 def _numbers(value, what: str, count: int, parse):
     """(count) whole numbers given as a tuple, list or numpy array, or as the command line writes
     them (`parse`: "60x60", "100,90"); anything else is left to the core's own check."""
     if isinstance(value, str) and value != "all" and value != "auto":
-        try:
-            return parse(value)
-        except NeurotacError as error:
-            raise UsageError(f"{what}: {error}") from None
+        return _parsed(parse, value, what)
     value = _plain(value)
     return tuple(_plain(v) for v in value) if isinstance(value, (tuple, list)) and len(value) == count else value
 
@@ -122,19 +127,13 @@ def _us(duration, what: str = "duration") -> int:
         return int(duration)
     if not isinstance(duration, str):
         raise UsageError(f"{what} must be whole microseconds or a duration with its unit (\"10ms\"), got {duration!r}")
-    try:
-        return parse_duration_us(duration)
-    except NeurotacError as error:
-        raise UsageError(f"{what}: {error}") from None
+    return _parsed(parse_duration_us, duration, what)
 
 
 def _sensor(value, what: str, polarities: bool = False) -> tuple[int, int]:
     """(width, height) from a tuple, list or array (tonic's (W, H, 2) where `polarities`) or "WxH"."""
     if isinstance(value, str):
-        try:
-            return parse_size(value)
-        except NeurotacError as error:
-            raise UsageError(f"{what}: {error}") from None
+        return _parsed(parse_size, value, what)
     value = _plain(value) if isinstance(value, np.ndarray) else value
     sides = tuple(value)[:2] if isinstance(value, (tuple, list)) and len(value) in ((2, 3) if polarities else (2,)) else ()
     if len(sides) != 2 or not all(is_whole(v) and 1 <= v <= MAX_SIDE for v in sides):
