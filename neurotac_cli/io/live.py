@@ -37,6 +37,8 @@ IDLE_POLL_S = 0.002  # ... and this often once nothing has arrived for IDLE_AFTE
 IDLE_AFTER_S = 0.1
 WAKE_S = 0.05  # a reader blocked on a pipe looks at the stop request this often
 READ_BYTES = 1 << 20  # at most this much is decoded into one batch
+TAIL_BYTES = 64  # a followed file's last bytes read, compared before each read to find a rewrite
+REWRITE_FROM = 4096  # bytes: past every format's header, which some writers update in place at the end
 SNIFF_BYTES = 1 << 16
 REPLAY_SLICE_US = 1000  # a replay releases the events of each millisecond of camera time together
 
@@ -81,6 +83,8 @@ class Feed:
         self.last = time.monotonic()
         self.ended = False
         self.shrunk = None  # (bytes read, bytes left) where a followed file was cut shorter while read
+        self.rewritten = False  # a followed file's bytes already read changed under the offset
+        self.tail = b""  # the last bytes read from a followed file, checked before each read
         self.replaced = False  # a followed file's name came to name another file (one renamed over it)
         # every read lands in this one buffer: os.read(fd, READ_BYTES) asks malloc for READ_BYTES each
         # time and shrinks it to the few kB that came; glibc carves those requests out of its heap, and
@@ -92,6 +96,9 @@ class Feed:
         if self.ended or self.stop():
             return None
         if self.regular:
+            if self.follow and self._rewritten():
+                self.rewritten, self.ended = True, True
+                return None
             data = self._read()
             if not data and self.follow:
                 # a file cut shorter than what was read (rewritten, or truncated to start afresh) would
@@ -136,9 +143,25 @@ class Feed:
             return False
         return (named.st_ino, named.st_dev) != (mine.st_ino, mine.st_dev)
 
+    def _rewritten(self) -> bool:
+        """True when the bytes just before the offset are no longer those read there: the file was
+        truncated and written again past the offset between two polls, which its size alone shows as
+        growth (the new recording's middle would be decoded as the old one's continuation). Looked at
+        past the first 4 KiB only, where a writer that updates its header in place does not write."""
+        if len(self.tail) < TAIL_BYTES:
+            return False
+        at = os.lseek(self.fd, 0, os.SEEK_CUR)
+        if at <= REWRITE_FROM:
+            return False
+        there = os.pread(self.fd, TAIL_BYTES, at - TAIL_BYTES)
+        return len(there) == TAIL_BYTES and there != self.tail  # fewer: the file shrank, said as such
+
     def _read(self) -> bytes:
         count = os.readv(self.fd, [self.chunk])
-        return bytes(memoryview(self.chunk)[:count])
+        data = bytes(memoryview(self.chunk)[:count])
+        if self.follow and count:
+            self.tail = data[-TAIL_BYTES:] if count >= TAIL_BYTES else (self.tail + data)[-TAIL_BYTES:]
+        return data
 
 
 def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False, idle_timeout: float = 2.0,
@@ -392,6 +415,9 @@ def _batches(name, fmt, feed: Feed, pending: bytearray, decoder, sensor, schema,
             notes.append(f"{name}: the file shrank from {feed.shrunk[0]:,} to {feed.shrunk[1]:,} bytes while it was followed "
                          "(rewritten or truncated by another program); the events read before were kept and the rest "
                          "left out: import the new file on its own")
+        if feed.rewritten:
+            notes.append(f"{name}: the file was rewritten while it was followed (the bytes already read changed); the "
+                         "events read before were kept and the rest left out: import the new file on its own")
         if feed.replaced:
             notes.append(f"{name}: another file was renamed over it while it was followed; the events of the file first "
                          "opened were kept and the new file's left out: import the new file on its own")

@@ -67,7 +67,7 @@ class Reads:
     """A feed that gives these reads, then ends."""
 
     shrunk = None
-    replaced = False
+    replaced = rewritten = False
 
     def __init__(self, *reads):
         self.reads = list(reads)
@@ -165,6 +165,18 @@ def test_a_followed_file_cut_shorter_while_read_ends_with_a_note(tmp_path):
     stream, rows, waited = _followed_then(tmp_path, lambda path, data: path.write_bytes(data[:1_000]))  # a new recording begun
     assert waited < 4 and rows > 0  # ended when seen, not after the idle timeout
     assert any("shrank from 400,002 to 1,000 bytes while it was followed" in note for note in stream.notes), stream.notes
+
+
+def test_a_followed_file_rewritten_past_what_was_read_ends_with_a_note(tmp_path):
+    """Truncated and written again beyond the offset between two polls, the file only ever looks
+    larger: its new bytes must not be decoded as the first recording's continuation."""
+    def rewrite(path, data):
+        with open(path, "r+b") as handle:  # in place and at once, so no poll sees it shorter
+            handle.write(data[:1_000] + data[100_000:700_000])
+            handle.truncate()
+    stream, rows, waited = _followed_then(tmp_path, rewrite)
+    assert waited < 4 and rows > 0
+    assert any("rewritten while it was followed" in note for note in stream.notes), stream.notes
 
 
 def test_a_followed_file_replaced_by_another_ends_with_a_note_and_one_renamed_away_is_followed_on(tmp_path):
