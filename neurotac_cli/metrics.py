@@ -207,7 +207,7 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
 #   contacts, `contact_f1`), its onset latency the frames from the true onset (`contact_onset_frames_*`,
 #   `contact_within_2`: the share of hits within 2 frames); `contact_frame_f1` per frame;
 # - slip (where the table has a `slip` truth column): the same for runs of `slip` and `slip_pred`,
-#   latency in ms (`slip_latency_ms_*`, from frame starts: frames x window; `slip_within_20`).
+#   latency in ms (`slip_latency_ms_*`, between the frames' start times `t`; `slip_within_20`).
 
 REST_PHASES = (None, "none")
 
@@ -232,17 +232,20 @@ def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
 
 
 def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, suffix="frames",
-                      tolerance: float = 2.0) -> dict:
-    """F1 over runs, onset latency (in frames x `unit`; the share of hits within `tolerance` of the true
-    onset), and F1 over frames, pooled over sessions."""
+                      tolerance: float = 2.0, clocks_per_session=None) -> dict:
+    """F1 over runs, onset latency (in frames x `unit`, or, with `clocks_per_session`, in each frame's
+    clock reading x `unit`; the share of hits within `tolerance` of the true onset), and F1 over frames,
+    pooled over sessions."""
     hits = n_true = n_found = 0
     latency, tp_frames, true_frames, found_frames = [], 0, 0, 0
-    for truth, found in zip(true_flags_per_session, found_flags_per_session):
+    clocks_per_session = clocks_per_session if clocks_per_session is not None else [None] * len(true_flags_per_session)
+    for truth, found, clock in zip(true_flags_per_session, found_flags_per_session, clocks_per_session):
         truth, found = np.asarray(truth, dtype=bool), np.asarray(found, dtype=bool)
+        clock = np.arange(len(truth)) if clock is None else np.asarray(clock, dtype=np.float64)
         true_runs, found_runs = runs(truth), runs(found)
         pairs = match_runs(true_runs, found_runs)
         hits, n_true, n_found = hits + len(pairs), n_true + len(true_runs), n_found + len(found_runs)
-        latency += [(found_runs[j][0] - true_runs[i][0]) * unit for i, j in pairs]
+        latency += [(clock[found_runs[j][0]] - clock[true_runs[i][0]]) * unit for i, j in pairs]
         tp_frames += int((truth & found).sum())
         true_frames += int(truth.sum())
         found_frames += int(found.sum())
@@ -257,8 +260,7 @@ def detection_figures(true_flags_per_session, found_flags_per_session, name: str
     return figures
 
 
-def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_pred=None, slip=None, slip_pred=None,
-                 window_us=None) -> list:
+def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_pred=None, slip=None, slip_pred=None) -> list:
     """(scope, metric, value) rows scoring sessions (see the block comment above); scope `all`, `grasp:...`."""
     trial, phase = np.asarray(trial, dtype=object), np.asarray(phase, dtype=object)
     t_us, true, pred = np.asarray(t_us, dtype=np.float64), np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
@@ -299,7 +301,8 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     if slip is not None and slip_pred is not None:
         slip, slip_pred = np.asarray(slip, dtype=bool), np.asarray(slip_pred, dtype=bool)
         figures.update(detection_figures([slip[idx] for idx in sessions], [slip_pred[idx] for idx in sessions], "slip",
-                                         unit=(window_us or 0) / 1000, suffix="latency_ms", tolerance=20.0))
+                                         unit=1 / 1000, suffix="latency_ms", tolerance=20.0,
+                                         clocks_per_session=[t_us[idx] for idx in sessions]))
     rows[:0] = [("all", name, float(value)) for name, value in figures.items()]
     return rows
 

@@ -432,7 +432,7 @@ def session_rows(predictions: pa.Table) -> list:
     return metrics.session_rows(
         predictions.column("trial").to_pylist(), column("frame"), column("t"), predictions.column("phase").to_pylist(),
         column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),
-        slip=slip, slip_pred=column("slip_pred"), window_us=sch.get_meta(predictions.schema, sch.WINDOW),
+        slip=slip, slip_pred=column("slip_pred"),
     )
 
 

@@ -551,6 +551,22 @@ def test_detection_f1_counts_misses_and_false_alarms():
     assert figures["slip_latency_ms_mean"] == 10.0 and figures["slip_within_20"] == 1.0
 
 
+def test_slip_latency_is_read_from_the_frames_times_whatever_the_metadata_says():
+    """The latency in ms comes from the frames' `t`: predictions that do not record their window
+    (a warning, not a refusal) read every slip as flagged at once (0 ms, all within 20 ms)."""
+    frame = np.arange(10)
+    slip = np.array([0, 0, 1, 1, 1, 0, 0, 0, 1, 1], bool)
+    slip_pred = np.array([0, 0, 0, 0, 1, 1, 0, 0, 0, 1], bool)
+    rows = metrics.session_rows(["s"] * 10, frame, frame * 10_000, ["holding"] * 10, np.ones(10), np.ones(10),
+                                contact_pred=np.ones(10, bool), slip=slip, slip_pred=slip_pred)
+    figures = {m: v for s, m, v in rows if s == "all"}
+    assert figures["slip_latency_ms_mean"] == pytest.approx(15.0) and figures["slip_latency_ms_max"] == pytest.approx(20.0)
+    assert figures["slip_within_20"] == 1.0
+    rows = metrics.session_rows(["s"] * 10, frame, frame * 20_000, ["holding"] * 10, np.ones(10), np.ones(10),
+                                contact_pred=np.ones(10, bool), slip=slip, slip_pred=slip_pred)
+    assert {m: v for s, m, v in rows if s == "all"}["slip_within_20"] == 0.5  # 40 ms and 20 ms late at 20 ms frames
+
+
 def test_eval_of_a_stream_model_reports_session_figures(trained):
     table, _ = tiny_session(grasps=4, seed=12, trial="test")
     _, rows = evaluate.evaluate_model(trained, table)
