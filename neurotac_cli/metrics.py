@@ -137,7 +137,8 @@ def classification_rows(true, pred, classes) -> list:
         rows += [(f"unknown:{name}", "n", float(np.sum(true == name))) for name in dict.fromkeys(true[unknown].tolist())]
     if unlabelled.any():
         rows.append(("all", "unlabelled", float(unlabelled.sum())))
-    for name in classes:
+    # a class the classifier cannot name has a recall too (0): a fold's mean over folds must not skip the folds that lack it
+    for name in list(classes) + list(dict.fromkeys(true[unknown].tolist())):
         mine = true == name
         if mine.any():
             rows.append((f"class:{name}", "recall", float(np.mean(pred[mine] == name))))

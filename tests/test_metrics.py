@@ -93,3 +93,25 @@ def test_a_phase_whose_distances_are_all_undefined_gives_nan_without_a_numpy_war
         warnings.simplefilter("error")
         rows = metrics.force_rows(["a"] * 3, ["holding"] * 3, [1.0, 2.0, 3.0], [np.nan] * 3)
     assert np.isnan(dict(((s, m), v) for s, m, v in rows)[("phase:holding", "dtw")])
+
+
+def test_recall_over_folds_counts_a_fold_whose_model_never_learnt_the_class():
+    """A fold whose model never trained on class c reads its c trials as something else: recall 0
+    there, so c's mean recall over folds is 0.5, not the 1.0 of the one fold that knew it."""
+    import pyarrow as pa
+
+    from neurotac_cli import schema as sch
+    from neurotac_cli.model.scoring import score_folds
+
+    def fold(trials, true, pred, classes):
+        columns = {"trial": pa.array(trials), "material": pa.array(true), "material_pred": pa.array(pred)}
+        columns.update({f"prob_{c}": pa.array([float(p == c) for p in pred], pa.float32()) for c in classes})
+        table = pa.table(columns)
+        return table.replace_schema_metadata(sch.set_meta(table.schema, kind="predictions").metadata), {}
+
+    results = [fold(["t1", "t2"], ["a", "c"], ["a", "a"], ["a", "b"]), fold(["t3", "t4"], ["c", "b"], ["c", "b"], ["a", "b", "c"])]
+    figures = {(s, m): v for s, m, v in score_folds(results, 2)[1]}
+    assert figures[("class:c", "recall")] == 0.5
+    assert figures[("class:c", "recall_fold_mean")] == 0.5
+    rows = metrics.classification_rows(["a", "c"], ["a", "a"], ["a", "b"])
+    assert dict(((s, m), v) for s, m, v in rows)[("class:c", "recall")] == 0.0
