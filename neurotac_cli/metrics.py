@@ -6,10 +6,10 @@ Definitions (all forces in newtons):
 - σ, as the thesis's tables give it: `mse_sd` = standard deviation of the squared errors, `mae_sd` =
   standard deviation of the absolute errors; `error_sd` = standard deviation of the signed error.
 - DTW distance (thesis Table 4.5, D_W): dynamic time warping between the measured and estimated force
-  of one trial within one phase, cost |a_i - b_j| summed along the optimal warping path (steps
+  of one trial (one grasp of a session) within one phase, cost |a_i - b_j| summed along the optimal warping path (steps
   (1,0), (0,1), (1,1), no window); averaged over trials.
 - Bhattacharyya distance (D_B): between the distributions of measured and estimated force values of
-  one trial within one phase, each taken as a normal distribution:
+  one trial (one grasp of a session) within one phase, each taken as a normal distribution:
   D_B = ¼·ln(¼·(σ₁²/σ₂² + σ₂²/σ₁² + 2)) + ¼·(μ₁-μ₂)²/(σ₁²+σ₂²), variances floored at 1e-4 N² (a 0.01 N resolution), so a flat phase does not blow up; averaged
   over trials.
 - `--nonzero` (thesis 4.6): only frames whose measured force is not zero are scored.

@@ -115,3 +115,23 @@ def test_recall_over_folds_counts_a_fold_whose_model_never_learnt_the_class():
     assert figures[("class:c", "recall_fold_mean")] == 0.5
     rows = metrics.classification_rows(["a", "c"], ["a", "a"], ["a", "b"])
     assert dict(((s, m), v) for s, m, v in rows)[("class:c", "recall")] == 0.0
+
+
+def test_a_sessions_grasps_are_separate_series_for_dtw_and_bhattacharyya():
+    """A session is one trial of many grasps: each grasp's phase is a series of its own, as each
+    grasp is when cut into trials, not the holds of every grasp strung together."""
+    import pyarrow as pa
+
+    from neurotac_cli.model.scoring import score
+
+    true = np.array([0.0, 1.0, 2.0, 2.0, 0.0, 0.0, 3.0, 4.0, 4.0, 0.0])
+    pred = np.array([0.0, 1.5, 2.5, 1.5, 0.0, 0.0, 3.0, 4.5, 3.5, 0.0])
+    phase = [None, "holding", "holding", "holding", None] * 2
+    grasp = [-1, 0, 0, 0, -1, -1, 1, 1, 1, -1]
+    table = pa.table({"trial": ["s"] * 10, "frame": pa.array(range(10), pa.int32()), "phase": phase,
+                      "force": pa.array(true, pa.float32()), "force_pred": pa.array(pred, pa.float32()),
+                      "grasp": pa.array(grasp, pa.int32())})
+    figures = {(s, m): v for s, m, v in score(table)}
+    grasps = [slice(1, 4), slice(6, 9)]
+    assert np.isclose(figures[("phase:holding", "dtw")], np.mean([naive_dtw(true[g], pred[g]) for g in grasps]))
+    assert np.isclose(figures[("phase:holding", "bhattacharyya")], np.mean([metrics.bhattacharyya(true[g], pred[g]) for g in grasps]))

@@ -16,9 +16,7 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
         rows = metrics.force_rows(
             predictions.column("trial").to_pylist(), predictions.column("phase").to_pylist(),
             predictions.column("force").to_numpy(zero_copy_only=False), predictions.column("force_pred").to_numpy(zero_copy_only=False),
-            nonzero=nonzero, per_trial=per_trial, whole=whole,
-            series=[f"{r}/{t}" for r, t in zip(predictions.column("repeat").to_pylist(), predictions.column("trial").to_pylist())]
-            if "repeat" in names else None,
+            nonzero=nonzero, per_trial=per_trial, whole=whole, series=_series(predictions),
         )
         if "contact_pred" in names:  # a model run on streams: rest, drift, contact and per-grasp figures
             from neurotac_cli.model.session import session_rows
@@ -33,6 +31,16 @@ def score(predictions: pa.Table, *, nonzero=False, per_trial=True, classes=None,
     pred = predictions.column(f"{label}_pred").to_pylist()
     classes = classes or [n[len("prob_"):] for n in names if n.startswith("prob_")]
     return metrics.classification_rows(true, pred, classes)
+
+
+def _series(predictions: pa.Table) -> list | None:
+    """Which frames form one time series for DTW and D_B: a trial, once per cross-validation repeat,
+    and within a session (a `grasp` column) each grasp, so the holds of a session's grasps are not
+    strung into one series (None: the trial)."""
+    names = [name for name in ("repeat", "trial", "grasp") if name in predictions.schema.names]
+    if names == ["trial"]:
+        return None
+    return ["/".join(map(str, key)) for key in zip(*(predictions.column(name).to_pylist() for name in names))]
 
 
 def score_folds(results: list, folds: int, *, nonzero=False, per_trial=True, label="material"):
