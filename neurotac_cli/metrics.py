@@ -162,13 +162,21 @@ def confusion(true, pred, classes) -> np.ndarray:
     return matrix
 
 
+# counts a fold's rows hold only where they are not 0: a fold without one counts 0 in their mean over folds
+COUNTED_WHERE_FOUND = ("unforced_frames", "unknown_class", "unlabelled")
+
+
 def fold_summary(rows_per_fold: list, scopes=("all",) + tuple(f"phase:{p}" for p in PHASES)) -> list:
-    """Mean and σ over folds of every (scope, metric) found in all folds: rows (scope, metric+'_mean'|'_fold_sd', value)."""
+    """Mean and σ over the folds that have it of every (scope, metric) (a count of `COUNTED_WHERE_FOUND`:
+    over every fold): rows (scope, metric+'_fold_mean'|'_fold_sd', value)."""
     values = {}
     for rows in rows_per_fold:
         for scope, metric, value in rows:
             if scope in scopes or scope.startswith("class:") or scope == "all":
                 values.setdefault((scope, metric), []).append(value)
+    for (scope, metric), found in values.items():
+        if metric in COUNTED_WHERE_FOUND:
+            found += [0.0] * (len(rows_per_fold) - len(found))
     out = []
     for (scope, metric), found in values.items():
         found = np.asarray(found, dtype=np.float64)

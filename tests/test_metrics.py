@@ -135,3 +135,11 @@ def test_a_sessions_grasps_are_separate_series_for_dtw_and_bhattacharyya():
     grasps = [slice(1, 4), slice(6, 9)]
     assert np.isclose(figures[("phase:holding", "dtw")], np.mean([naive_dtw(true[g], pred[g]) for g in grasps]))
     assert np.isclose(figures[("phase:holding", "bhattacharyya")], np.mean([metrics.bhattacharyya(true[g], pred[g]) for g in grasps]))
+
+
+def test_a_count_that_only_some_folds_report_is_averaged_over_every_fold():
+    """`unknown_class` (like `unforced_frames`) is written only where it is not 0: its mean over two
+    folds, one with a trial of an unknown class, is 0.5, not 1."""
+    rows = [[("all", "accuracy", 0.5), ("all", "unknown_class", 1.0)], [("all", "accuracy", 1.0)]]
+    figures = {(s, m): v for s, m, v in metrics.fold_summary(rows)}
+    assert figures[("all", "unknown_class_fold_mean")] == 0.5 and figures[("all", "accuracy_fold_mean")] == 0.75
