@@ -72,3 +72,14 @@ def test_the_force_figure_of_nonzero_frames_scores_and_scatters_those_only(tmp_p
     assert "RMSE 0.000 N" in nonzero and "(2 non-zero force frames of 1 trial)" in nonzero
     assert "RMSE 0.354 N" in every and "(4 frames of 1 trial)" in every
     assert sum(len(c.get_offsets()) for c in figures[0].axes[1].collections) == 2
+
+
+def test_the_confusion_figures_accuracy_is_the_metrics_one(tmp_path, monkeypatch):
+    """A trial of a class the model cannot name lies outside the matrix, and the metrics count it as
+    wrong: the title's accuracy is 2 of 3 trials, not the matrix's 2 of 2."""
+    titles = []
+    monkeypatch.setattr(plots, "confusion_figure", lambda matrix, classes, path, title="": titles.append(title))
+    predictions = pa.table({"trial": ["a", "b", "c"], "material": ["foam", "steel", "glass"],
+                            "material_pred": ["foam", "steel", "foam"], "prob_foam": [1.0, 0.0, 1.0], "prob_steel": [0.0, 1.0, 0.0]})
+    plots.evaluation_figure(predictions, str(tmp_path / "m.png"), name="material-timing")
+    assert titles == ["material-timing: accuracy 66.7% of 3 trials"]
