@@ -12,7 +12,8 @@ Definitions (all forces in newtons):
   one trial (one grasp of a session) within one phase, each taken as a normal distribution:
   D_B = ¼·ln(¼·(σ₁²/σ₂² + σ₂²/σ₁² + 2)) + ¼·(μ₁-μ₂)²/(σ₁²+σ₂²), variances floored at 1e-4 N² (a 0.01 N resolution), so a flat phase does not blow up; averaged
   over trials.
-- `--nonzero` (thesis 4.6): only frames whose measured force is not zero are scored.
+- `--nonzero` (thesis 4.6): only frames whose measured force is not exactly zero are scored (the thesis
+  pads trials with zero frames to the longest one); rest frames of a noisy log stay.
 
 DTW is a small vectorised implementation (anti-diagonal sweep): the phases are at most a few
 hundred frames, and it keeps a compiled dependency out of the install.

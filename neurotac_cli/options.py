@@ -356,6 +356,9 @@ HYPERPARAMETERS = [
     ("--weight-decay", "weight_decay", float, "Adam weight decay (default 0)."),
 ]
 
+NONZERO_HELP = ("Score only frames whose measured force is not exactly zero (thesis 4.6: the zero padding to the "
+                "longest trial is left out); a noisy log's rest frames stay: to score frames in contact only, "
+                "`neurotac select --where \"phase <> 'none'\"` first.")
 GRID_HELP = ("Hyperparameters to vary, as train's option names with _ for -: layers=1..5, units=5,10,...,40, "
              "lr=1e-3,1e-2 (A..B inclusive, A..B:STEP, A,B,...,Z continues the step). Repeat it or put several "
              "in one quoted argument; a single value fixes a parameter (epochs=30), as does its option (--epochs 30).")

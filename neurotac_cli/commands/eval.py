@@ -2,7 +2,7 @@ import click
 
 from neurotac_cli.errors import UsageError
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_label_for_force, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, NONZERO_HELP, checked_grid, label_given, refuse_label_for_force, PlotPath, TablePath, device_option, echo_lines, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, threads_option, typed_options, use_device)
 
 
@@ -20,7 +20,7 @@ from neurotac_cli.options import (GRID_HELP, checked_grid, label_given, refuse_l
               "(metrics get one column per grid parameter; stderr one line per point). " + GRID_HELP)
 @fold_options(prefix="With --cv: ")
 @click.option("--metrics", "metrics_path", type=TablePath(), default=None, help="Write the metrics table (scope, metric, value, model) to this file.")
-@click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
+@click.option("--nonzero", is_flag=True, help=NONZERO_HELP)
 @click.option("--per-trial/--no-per-trial", default=True, show_default=True, help="Add one metrics scope per trial.")
 @click.option("--plot", type=PlotPath(), default=None,
               help="An image (PNG; PDF, SVG or JPEG by the suffix): force traces and per-phase scatter (force models), "

@@ -5,7 +5,7 @@
 import click
 
 from neurotac_cli.model.names import FORCE_MODELS, MATERIAL_MODELS
-from neurotac_cli.options import (GRID_HELP, checked_grid, refuse_label_for_force, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
+from neurotac_cli.options import (GRID_HELP, NONZERO_HELP, checked_grid, refuse_label_for_force, TablePath, device_option, fold_options, history, hyperparameter_options, hyperparameters, input_paths,
                                   output_option, progress_printer, seed_option, study_options, use_device)
 
 
@@ -19,7 +19,7 @@ from neurotac_cli.options import (GRID_HELP, checked_grid, refuse_label_for_forc
 @click.option("--cv", default="loo", show_default=True, metavar="loo|kfold:K|group:LABEL[=VALUE]",
               help="Folds, as in `neurotac eval --cv`.")
 @fold_options()
-@click.option("--nonzero", is_flag=True, help="Score only frames whose measured force is not zero (thesis 4.6).")
+@click.option("--nonzero", is_flag=True, help=NONZERO_HELP)
 @click.option("--per-trial/--no-per-trial", default=False, show_default=True, help="Add one metrics scope per trial and point.")
 @click.option("--metrics", "metrics_path", type=TablePath(), default=None,
               help="Write the metrics of every grid point to this file: scope, metric, value, model, and one column "
