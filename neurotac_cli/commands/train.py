@@ -32,8 +32,9 @@ def _model_file(path: str) -> str:
 @click.option("--contacts", is_flag=True,
               help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
               "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
-              "reading zero between contacts; the detector keeps its durations and event rates at the frames' window "
-              "(docs/design.md, \"Sessions\").")
+              "reading zero between contacts; the detector keeps its durations and event rates at the frames' window, "
+              "reads presses in the polarity the training presses make most of, and is run on the training sessions "
+              "first, with a warning where it finds their contacts or slips poorly (docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file; a model of several members writes each one's, named in the model column.")
 @click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG (every member's, the first drawn full).")
@@ -80,7 +81,8 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
                           val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                           progress=progress_printer("train"), contacts=contacts)
     if contacts:
-        echo_lines("train", filter(None, [session.one_contact_note(trained.model.training.get("contacts", {}))]), "warning: ")
+        found = trained.model.training.get("contacts", {})
+        echo_lines("train", filter(None, [session.one_contact_note(found), session.detection_note(found)]), "warning: ")
     with tables.together():  # the model, its curve and its plot are one training's, or the last one's
         models.save(trained.model, output)
         if curve:

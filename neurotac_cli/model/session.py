@@ -63,6 +63,29 @@ def one_contact_note(summary: dict) -> str | None:
     return None
 
 
+DETECTION_WARN_F1 = 0.9  # the detector's F1 on its own training sessions under which `train --contacts` warns
+
+
+def detection_note(summary: dict) -> str | None:
+    """A warning where the detector, run on the training sessions with their true force ending
+    contacts (`detection_check`), finds their contacts or slips poorly: it will do no better at run time."""
+    check = summary.get("detection")
+    if not check:
+        return None
+    poor = []
+    if check["true"] and check["f1"] < DETECTION_WARN_F1:
+        poor.append(f"finds {check['hits']:g} of their {counted(int(check['true']), 'contact')}, {check['found']:g} in all "
+                    f"(F1 {check['f1']:.2f}; a contact that runs on through a rest merges grasps)")
+    if check.get("slip_true") and check["slip_f1"] < DETECTION_WARN_F1:
+        poor.append(f"flags {counted(int(check['slip_found']), 'slip')} for their {check['slip_true']:g} ({check['slip_hits']:g} "
+                    f"of them found, F1 {check['slip_f1']:.2f})")
+    if not poor:
+        return None
+    return ("the event detector, run on the training sessions with their true force ending contacts, " + " and ".join(poor)
+            + ": this sensor's events do not show its presses and releases as the detector reads them (a press darkening "
+            "the membrane, a release brightening it back; docs/design.md), and at run time it does no better")
+
+
 def is_session_model(model) -> bool:
     return CONTACT_KEY in (model.input_spec or {})
 
@@ -127,7 +150,8 @@ class Stream:
         Frame by frame the detector says whether the frame is in a contact; the force model runs on
         the frames of a contact, in one call per run of them until a release burst makes the end of
         the contact possible, then frame by frame until its estimate says the contact is over."""
-        off, on, separation = detector.frame_stats(counts)
+        seen = detector.oriented(self.config, counts)  # the detector's view; the force model reads `counts`
+        off, on, separation = detector.frame_stats(seen)
         self.distances = np.full(len(counts), np.nan)  # feature distances of the frames the network read (model.predict.Outside)
         force = np.zeros(len(counts), dtype=np.float32)
         phases = np.empty(len(counts), dtype=object)
@@ -137,7 +161,7 @@ class Stream:
         for k in range(len(counts)):
             touching = self.contact.phase != detector.NONE
             before = self.contact.onsets
-            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True, frame=counts[k])
+            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True, frame=seen[k])
             if self.contact.onsets != before or phase == detector.NONE:
                 self._run(pending, counts, t_us, force)
                 self.inner = None
@@ -223,30 +247,34 @@ class Stream:
 MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for training
 
 
-def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict]:
-    """The frames of every contact, one trial per contact (`STREAM@FRAME`), and what was found:
-    {"sessions", "contacts", "frames", "frames_in_contacts", "from"}.
+def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict, list]:
+    """The frames of every contact, one trial per contact (`STREAM@FRAME`), what was found:
+    {"sessions", "contacts", "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
+    "release_on"}, and per stream what `detection_check` reads (None without phases).
 
     Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
     of frames whose phase is not none, with the detector's `lead_frames` of rest before it (the
     frames the model reads before an onset at run time: the detector finds onsets within a frame or
     two) and MARGIN_AFTER after it (the model learns to read zero once released, which ends the
-    contact at run time); without phases, the runs the detector finds, with the same lead."""
+    contact at run time), and the polarity the presses make most of is measured
+    (`detector.press_polarity`); without phases, the runs the detector finds, with the same lead."""
     sch.validate(table.schema, "frames")
     data = shaping.sequences(table)
     labelled = any(p not in (None, "none") for phases in data.phase for p in phases)
     row_of = {(t, int(f)): i for i, (t, f) in enumerate(zip(table.column("trial").to_pylist(), table.column("frame").to_numpy().tolist()))}
-    rows, names, streams = [], [], []
-    for trial, counts, frames, phases in zip(data.trials, data.counts, data.frame, data.phase):
+    polarity, streams = config.press_polarity, []
+    for counts, phases in zip(data.counts, data.phase):
         off, on = detector.frame_sums(counts)
-        if labelled:
-            touching = metrics.runs(np.asarray([p not in (None, "none") for p in phases]))
-        else:
-            touching = metrics.runs(detector.detect(config, off, on)[0] != detector.NONE)
+        touching = (metrics.runs(np.asarray([p not in (None, "none") for p in phases])) if labelled
+                    else metrics.runs(detector.detect(config, off, on)[0] != detector.NONE))
         streams.append((off, on, touching))
-        after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
-        runs = _widened(touching, len(frames), config.lead_frames, after)
-        for begin, end in runs:
+    if labelled:
+        polarity = detector.press_polarity(streams, config.warmup_frames)
+        streams = [(on, off, touching) if polarity == "on" else (off, on, touching) for off, on, touching in streams]
+    rows, names = [], []
+    after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
+    for trial, frames, (_, _, touching) in zip(data.trials, data.frame, streams):
+        for begin, end in _widened(touching, len(frames), config.lead_frames, after):
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
     if not rows:
@@ -257,8 +285,38 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     press_off, release_on = detector.rig_peaks(streams, config.warmup_frames)
     summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
-               "press_off": press_off, "release_on": release_on}
-    return found, summary
+               "press_polarity": polarity, "press_off": press_off, "release_on": release_on}
+    return found, summary, _truths(table, data, row_of) if labelled else None
+
+
+def _truths(table: pa.Table, data, row_of: dict) -> list:
+    """Per stream: its frames, true force (0 where unknown), touching and slip truth (None without a
+    `slip` column), for `detection_check`."""
+    slip = table.column("slip").to_numpy(zero_copy_only=False) if "slip" in table.schema.names else None
+    out = []
+    for trial, counts, frames, force, phases in zip(data.trials, data.counts, data.frame, data.force, data.phase):
+        truth = None if slip is None else slip[[row_of[(trial, int(f))] for f in frames]].astype(bool)
+        out.append((counts, np.nan_to_num(force), np.asarray([p not in (None, "none") for p in phases]), truth))
+    return out
+
+
+def detection_check(config: detector.ContactConfig, slip: detector.SlipConfig, truths: list) -> dict:
+    """The detector over the training streams, each frame's true force standing in for the model's
+    estimate (the best a model can do): how many of their contacts, and of their slips where the
+    frames say, it finds. A sensor whose events the rules do not read (presses and releases of both
+    polarities, releases too faint to see) shows here, before a model runs on it."""
+    found, slips = [], []
+    for counts, force, _, _ in truths:
+        off, on, separation = detector.frame_stats(counts)
+        phases, _, flags, _ = detector.detect(config, off, on, separation=separation, slip=slip, force=force, counts=counts)
+        found.append(phases != detector.NONE)
+        slips.append(flags)
+    figures = metrics.detection_figures([t[2] for t in truths], found, "contact", suffix="onset_frames")
+    check = {name: figures[f"contact_{name}"] for name in ("f1", "true", "found", "hits")}
+    if all(t[3] is not None for t in truths):
+        figures = metrics.detection_figures([t[3] for t in truths], slips, "slip", suffix="onset_frames")
+        check.update({f"slip_{name}": figures[f"slip_{name}"] for name in ("f1", "true", "found", "hits")})
+    return check
 
 
 def _widened(runs: list, length: int, before: int, after: int) -> list:
@@ -283,16 +341,20 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     config = config or detector.at_window(detector.ContactConfig(release_force_n=release_force(table)), window)
     if spec["model"] == "deform-gru":
         spec = {"memory_frames": detector.frames_at(DEFAULT_MEMORY_FRAMES, window), **spec}
-    found, summary = contacts_table(table, config)
+    found, summary, truths = contacts_table(table, config)
     if summary["frames_in_contacts"] >= summary["frames"]:  # nothing at rest: no zero to learn, no background to detect from
         raise ModelError(f"every one of the {summary['frames']:,} training frames lies inside a contact: --contacts learns from "
                          "sessions with rests between grasps (`frame --phases session`); trials of one grasp each train without --contacts")
+    config = dataclasses.replace(config, press_polarity=summary["press_polarity"])
     slip = slip or detector.at_window(detector.slip_for(summary["press_off"], summary["release_on"]), window)
+    if truths is not None:
+        summary["detection"] = detection_check(config, slip, truths)
     progress = options.get("progress")
     if progress:
+        pressed = "ON" if config.press_polarity == "on" else "OFF"
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
-                 f"{summary['frames_in_contacts']} of {summary['frames']} frames; slips flagged at "
-                 f"{slip.min_events:g} OFF and {slip.on_events:g} ON events above the background")
+                 f"{summary['frames_in_contacts']} of {summary['frames']} frames, pressed as {pressed} events; slips flagged at "
+                 f"{slip.min_events:g} {pressed} and {slip.on_events:g} {'OFF' if pressed == 'ON' else 'ON'} events above the background")
     if options.get("val_trials"):
         options = dict(options, val_trials=_contacts_of(found, options["val_trials"]))
     model = core.train(found, spec, unit="contact", **options)

@@ -75,6 +75,7 @@ class ContactConfig:
     background_on: float = 10.0
     warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them (0: none)
     lead_frames: int = 2  # the force model reads this many frames before the onset it is started at (training keeps as many)
+    press_polarity: str = "off"  # the polarity most of a press's events have ("on": pressing brightens; `press_polarity`)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -112,6 +113,17 @@ def at_window(config, window_us: int | None):
     return replace(config, **{name: type(getattr(config, name))(value) for name, value in {**frames, **events}.items()})
 
 
+POLARITIES = ("off", "on")
+
+
+def oriented(config: ContactConfig, counts: np.ndarray) -> np.ndarray:
+    """Frames (T, 2, H, W) as the rules here read them, channel 0 the polarity a press makes most of:
+    they are written for a membrane that darkens where pressed (a dark object: OFF) and brightens back
+    on release; where pressing brightens it (a bright object, a membrane lit from behind:
+    `press_polarity` "on") the channels are read swapped. The force model reads the frames as given."""
+    return counts[:, ::-1] if config.press_polarity == "on" else counts
+
+
 MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
 MAY_BE_ZERO = ("lead_frames", "warmup_frames", "follow_presses")  # counts of frames or presses that may be 0
 
@@ -126,6 +138,10 @@ def checked(config):
     for setting in fields(config):
         value = getattr(config, setting.name)
         if value is None and setting.default is None:
+            continue
+        if setting.name == "press_polarity":
+            if value not in POLARITIES:
+                raise ValueError(f"press_polarity={value!r} is not one of {', '.join(POLARITIES)}")
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise ValueError(f"{setting.name}={value!r} is not a finite number >= 0")
@@ -353,6 +369,8 @@ def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: Contac
     with `counts` (the frames, (T, 2, H, W)) slips are judged on the footprint, as `Stream` does.
 
     Returns (phase array of str, onset flags (a contact begins at this frame), slip flags, the state after)."""
+    if config.press_polarity == "on":  # the rules read a press's polarity as OFF (`oriented`)
+        off, on, counts = on, off, None if counts is None else oriented(config, counts)
     state = state or ContactState.start(config)
     phases = np.empty(len(off), dtype=object)
     onsets = np.zeros(len(off), dtype=bool)
@@ -446,6 +464,20 @@ def release_peaks(on: np.ndarray, contacts, warmup_frames: int = ContactConfig.w
     stream's background."""
     before, after = RELEASE_FRAMES
     return _peaks(on, [(end - before, end + after) for _, end in contacts], warmup_frames)
+
+
+ONSET_FRAMES = 3  # a contact's first frames by its force, in which its press's first events are looked for (`press_polarity`)
+
+
+def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames) -> str:
+    """"on" where the presses of `streams` (triples of OFF per frame, ON per frame, contacts) make more
+    ON than OFF events above the background, else "off" (also where there is no contact): the median
+    over the contacts of each polarity's peak from two frames before the onset to ONSET_FRAMES after
+    (a short contact's release falls inside PRESS_FRAMES)."""
+    spans = [[(begin - 2, begin + ONSET_FRAMES) for begin, _ in contacts] for _, _, contacts in streams]
+    off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
+    on_peaks = [peak for (_, on, _), mine in zip(streams, spans) for peak in _peaks(on, mine, warmup_frames)]
+    return "on" if off_peaks and np.median(on_peaks) > np.median(off_peaks) else "off"
 
 
 def rig_peaks(streams, warmup_frames: int = ContactConfig.warmup_frames) -> tuple:

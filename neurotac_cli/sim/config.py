@@ -105,7 +105,7 @@ class SimConfig:
     pixel_pitch_mm: float = 0.2  # 0.04 mm^2 per pixel on the membrane (thesis 3.6)
     sensor_width: int = 240
     sensor_height: int = 180
-    object_contrast: float = 0.85  # a black object on the lit membrane: 1 - I_contact / I_membrane
+    object_contrast: float = 0.85  # a black object on the lit membrane: 1 - I_contact / I_membrane (below 0: a bright object, contact brightens)
     vignetting: float = 0.3  # brightness lost at the corners
     texture: float = 0.03  # fixed-pattern brightness variation of the membrane (relative s.d.)
     dark_level: float = 0.01  # dark current, relative to the lit membrane
@@ -272,10 +272,10 @@ BOUNDS = {
     **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share"), _SHARE),
     **dict.fromkeys(("creep", "vignetting", "threshold_mismatch", "illumination_drift"), _BELOW_ONE),
     "on_threshold": (1e-3, 10.0, False, False), "off_threshold": (1e-3, 10.0, False, False),
-    "object_contrast": (0.0, 1.0, True, True), "membrane_poisson": (0.0, 0.5, False, False),
+    "object_contrast": (-4.0, 1.0, False, True), "membrane_poisson": (0.0, 0.5, False, False),
 }
 WHY = {"on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "
-       "pixels have 0.1-0.5", "object_contrast": "at 0 the camera cannot see the object", "membrane_poisson": "0.5: incompressible"}
+       "pixels have 0.1-0.5", "object_contrast": "at 0 the camera cannot see the object; below 0 the object is brighter than the membrane", "membrane_poisson": "0.5: incompressible"}
 RANGES = ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_s", "slip_us", "slip_force_drop",
           "contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us")
 
@@ -332,6 +332,8 @@ def validate(config: SimConfig):
     if config.force_sensor not in ("nano17", "flexiforce"):
         problems.append(f"force_sensor={config.force_sensor!r} (use nano17 or flexiforce)")
     problems += [_out_of_bounds(name, getattr(config, name), *bounds) for name, bounds in BOUNDS.items()]
+    if config.object_contrast == 0:
+        problems.append(f"object_contrast must not be 0 ({WHY['object_contrast']})")
     for name in RANGES:
         low, high = getattr(config, name)
         if not 0 <= low <= high:

@@ -1,5 +1,6 @@
 """Sessions: the event-driven contact detector, force models run on unbounded streams, session scores."""
 
+import dataclasses
 import pathlib
 import re
 import subprocess
@@ -290,6 +291,41 @@ def test_a_slip_drowned_in_the_frames_background_stands_out_of_the_contacts_foot
     assert state.footprint.cells.sum() == 36
 
 
+def inverted(table: pa.Table) -> pa.Table:
+    """The same frames with their channels swapped: a sensor whose presses brighten the membrane."""
+    counts = sch.counts_numpy(table.column("counts"))[:, ::-1]
+    index = table.schema.get_field_index("counts")
+    return table.set_column(index, table.schema.field(index), sch.counts_array(np.ascontiguousarray(counts)))
+
+
+def test_the_detector_reads_a_sensor_whose_presses_brighten_with_its_polarities_swapped(sessions):
+    frames = sch.counts_numpy(sessions.column("counts"))
+    off, on = contact.frame_sums(frames)
+    config = contact.ContactConfig(release_force_n=0.3)
+    force = sessions.column("force").to_numpy()
+    darkening = contact.detect(config, off, on, force=force, counts=frames)[0]
+    swapped = contact.detect(dataclasses.replace(config, press_polarity="on"), on, off, force=force, counts=frames[:, ::-1])[0]
+    unswapped = contact.detect(config, on, off, force=force, counts=frames[:, ::-1])[0]
+    assert (darkening != contact.NONE).sum() > 100
+    assert (swapped == darkening).all() and (unswapped != darkening).any()
+
+
+def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_on_its_sessions(sessions, trained):
+    flipped = session.train(inverted(sessions), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    assert session.contact_config(trained).press_polarity == "off" and session.contact_config(flipped).press_polarity == "on"
+    mine, theirs = trained.training["contacts"], flipped.training["contacts"]
+    assert (theirs["press_off"], theirs["release_on"]) == (mine["press_off"], mine["release_on"])  # each on the polarity that presses
+    assert theirs["detection"] == mine["detection"] and mine["detection"]["f1"] >= 0.9 and mine["detection"]["true"] == 18
+    assert session.detection_note(mine) is None
+    poor = {"detection": {"f1": 0.76, "true": 24.0, "found": 19.0, "hits": 16.0, "slip_f1": 0.2, "slip_true": 2.0,
+                          "slip_found": 18.0, "slip_hits": 2.0}}
+    note = session.detection_note(poor)
+    assert "finds 16 of their 24 contacts, 19 in all (F1 0.76" in note and "flags 18 slips for their 2 (2 of them found" in note
+    with pytest.raises(ModelError, match="press_polarity='up' is not one of off, on"):
+        flipped.input_spec[session.CONTACT_KEY]["press_polarity"] = "up"
+        session.contact_config(flipped)
+
+
 def test_training_on_contacts_sets_the_slip_bar_from_the_training_presses(sessions, trained):
     summary = trained.training["contacts"]
     assert summary["press_off"] > 0
@@ -488,7 +524,7 @@ def test_a_model_file_without_a_later_setting_keeps_its_duration_at_the_files_wi
 
 def test_training_contacts_begin_as_many_frames_before_the_true_onset_as_the_model_reads(sessions):
     config = contact.ContactConfig()
-    found, summary = session.contacts_table(sessions, config)
+    found, summary, _ = session.contacts_table(sessions, config)
     first = {}
     for trial, frame in zip(found.column("trial").to_pylist(), found.column("frame").to_pylist()):
         first.setdefault(trial, frame)
@@ -767,7 +803,7 @@ def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_strea
 
 
 def test_a_session_given_for_validation_holds_out_every_contact_found_in_it(sessions):
-    found, _ = session.contacts_table(sessions, contact.ContactConfig())
+    found, _, _ = session.contacts_table(sessions, contact.ContactConfig())
     chosen = session._contacts_of(found, ["s1"])
     assert chosen and all(name.split("@")[0] == "s1" for name in chosen)
     assert len(chosen) == len({t for t in found.column("trial").to_pylist() if t.startswith("s1@")})

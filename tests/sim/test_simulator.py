@@ -61,6 +61,17 @@ def test_off_events_during_loading_grow_with_the_force_increase():
     assert counts[0] < counts[1] < counts[2]
 
 
+def test_a_bright_object_makes_its_press_of_on_events():
+    """object_contrast below 0: the contact brightens (a white object, a membrane lit from behind)."""
+    def loading(trial, polarity):
+        g = trial.grasp
+        rel = trial.t - g.led_off_camera_us
+        return int(((trial.p == polarity) & (rel >= g.contact_us) & (rel < g.loaded_us + 10_000)).sum())
+    dark, bright = (one_grasp("steel:bolt12:1", 2.0, 2.0, object_contrast=c)[0] for c in (0.85, -1.0))
+    assert loading(dark, 0) > 3 * loading(dark, 1)
+    assert loading(bright, 1) > 3 * loading(bright, 0)
+
+
 def test_the_membrane_saturates_beyond_about_5_newtons():
     counts = {f: loading_off_events(one_grasp("steel:bolt12:1", f, f)[0]) for f in (1.0, 2.0, 5.0, 10.0)}
     assert counts[2.0] / counts[1.0] > 1.5
