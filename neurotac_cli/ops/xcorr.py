@@ -23,7 +23,9 @@ two signals and are modelled rather than ignored:
   (finer tau grid, no tie rule, no saturation weighting) and kept when its sensor is slow to
   unload (tau_fall >= 15 ms): with a FlexiForce under a cover (simulated ch3) it cuts the error
   from max 20.3 / mean 7.9 ms to max 12.8 / mean 2.4 ms; with a fast cell the unsigned rate is
-  better (the signed fit sees tau_fall <= 5 ms there and is not used). Details: `signal`.
+  better (the signed fit sees tau_fall <= 5 ms there and is not used). A bright object brightens the
+  membrane as it presses: the signed rate is fitted with both signs and the better kept (its signal
+  then "signed, pressed as ON"). Details: `signal`.
 Among the offsets that keep the force log inside the recording (20 ms of slack at either end),
 the one of the highest Pearson correlation, refined by a parabola, less the camera's response
 delay `response_us` (the event rate follows the force ~1.6 ms late on the simulated rig:
@@ -81,9 +83,14 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
         # the signed rate, OFF - k ON on the pixels that darken and recover, follows signed dF/dt, where
         # loading (darkening) and unloading (brightening) cannot be mistaken for each other; it is kept
         # when it sees a sensor slow to unload (measured better there, worse with a fast cell)
-        signed_fit = _xcorr_fit(gaussian_filter1d(signed_rate, smooth), force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0, signed=True)
+        # a press darkens the membrane where the object is darker than it and brightens it where the
+        # object is brighter (`simulate --set object_contrast=-1.5`): both signs are fitted, the better kept
+        signed_rate = gaussian_filter1d(signed_rate, smooth)
+        signed_fit, pressed = max(((_xcorr_fit(sign * signed_rate, force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0,
+                                                signed=True), name) for sign, name in ((1.0, "OFF"), (-1.0, "ON"))),
+                                  key=lambda fit: fit[0][0])
         if signed_fit[2] >= XCORR_SLOW_FALL_US:
-            fit, signal = signed_fit, "signed"
+            fit, signal = signed_fit, "signed" if pressed == "OFF" else "signed, pressed as ON"
     peak, rise, fall, best, corr, lags, valid = fit
     shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag

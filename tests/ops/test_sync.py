@@ -472,6 +472,16 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
     assert all(entry["signal"] == "signed" and entry["sensor_fall_us"] >= xcorr.XCORR_SLOW_FALL_US for entry in info.values())
 
 
+def test_xcorr_of_a_bright_object_reads_its_press_as_on_events(tmp_path_factory):
+    """A bright object brightens the membrane as it presses: the signed rate runs the other way, and
+    read as OFF - ON it put every ch3 trial 80-115 ms early."""
+    folder = simulate_folders(tmp_path_factory, "bright", {"ch3": ["--preset", "ch3", "--trials", str(XCORR_PRESET_TRIALS),
+                                                                   "--seed", "1", "--set", "object_contrast=-1.5"]})["ch3"]
+    errors, info = xcorr_errors(folder)
+    assert all(abs(error) <= 25_000 for error in errors.values()), errors
+    assert all(entry["signal"] == "signed, pressed as ON" for entry in info.values()), info
+
+
 def test_the_ch3_force_log_pins_the_offset_once_the_sensor_play_is_modelled(presets):
     """examples/sync_bound.py hands each trial's true force to a sensor model fitted with the offset:
     with the FlexiForce's play among the models the log is within 1 ms, with a lag only the slowly
