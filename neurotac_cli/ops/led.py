@@ -10,11 +10,14 @@ photoreceptor needs time to cross its OFF threshold: ~170 µs for the simulated 
 membrane; measure it once on a real rig, or use `trigger`).
 """
 
+import math
+
 import numpy as np
 
 from neurotac_cli.errors import SyncError
 from neurotac_cli.ops.instant import Instant
 
+SMALL_LED_Z = 5  # a rejected burst this many times over the z bar is named as a small LED's, with its box
 LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
 
 
@@ -56,7 +59,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         taken[max(0, i - gap): i + gap + 1] = True
         if not (z[i] >= method.min_z and coverage >= method.min_coverage):
-            rejected.append((float(z[i]), coverage, lo))
+            rejected.append((float(z[i]), coverage, lo, _box(off_x[a:b], off_y[a:b])))
             continue
         # the spike may start in the bin before the best pair: take its neighbours too
         c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
@@ -68,6 +71,16 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     if len(chosen) < count:
         raise _no_spike(len(chosen), count, max(rejected, default=None), method)
     return sorted(chosen, key=lambda instant: instant.t0)
+
+
+def _box(x: np.ndarray, y: np.ndarray):
+    """(x0, y0, x1, y1) about most of a burst's events (the 5-95% of each coordinate, widened by a tenth
+    each way: the background's events fall all over the view); None without events."""
+    if len(x) == 0:
+        return None
+    (x0, x1), (y0, y1) = np.percentile(x, [5, 95]), np.percentile(y, [5, 95])
+    wide, tall = 0.1 * (x1 - x0) + 1, 0.1 * (y1 - y0) + 1
+    return int(max(x0 - wide, 0)), int(max(y0 - tall, 0)), int(x1 + wide), int(y1 + tall)
 
 
 def _off_events(t, x, y, p, region):
@@ -101,14 +114,20 @@ def _spike_instant(spike: np.ndarray, z: float, coverage: float, end_us: int, la
 
 
 def _no_spike(found: int, count: int, best, method) -> SyncError:
-    """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time) of the best rejected burst."""
+    """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time, OFF events' box
+    (x0, y0, x1, y1)) of the best rejected burst. A burst far above the bar in z over too few pixels
+    may be a small LED's (one in a corner of the view): the error gives its box as a --region."""
     found_text = f"found {found} of {count}; " if count > 1 else ""
     detail = (f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
               if best else "no OFF burst at all")
+    advice = "check the LED is in view, give --region, or use --method xcorr, trigger or offset"
+    if best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
+        x0, y0, x1, y1 = best[3]
+        advice = (f"if that burst is a small LED's (one in a corner of the view), give its box, --region {x0},{y0},"
+                  f"{x1 - x0 + 1},{y1 - y0 + 1}, or --min-coverage {math.floor(1000 * best[1] / 2) / 1000:g} (half its share: other trials' blinks vary)")
     return SyncError(
         f"no LED-off spike stands out ({found_text}{detail}; a spike needs z >= {method.min_z:g} over "
-        f">= {100 * method.min_coverage:g}% of the pixels); check the LED is in view, give --region, "
-        "or use --method xcorr, trigger or offset"
+        f">= {100 * method.min_coverage:g}% of the pixels); {advice}"
     )
 
 

@@ -312,7 +312,10 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
                 f"recording of trial {source.trial} is {found[0]}x{found[1]}, the others {sensor[0]}x{sensor[1]}; "
                 "sync recordings of one sensor together"
             )
-        made, details = sync_source(source, method)
+        try:
+            made, details = sync_source(source, method)
+        except SyncError as error:
+            raise SyncError(f"trial {source.trial}: {error}") from None
         for trial in made:
             if trial["trial"] in info:
                 raise NeurotacError(f"trial {trial['trial']!r} appears twice; give each trial its own name")

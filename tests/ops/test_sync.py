@@ -4,6 +4,7 @@ import csv
 import json
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
@@ -165,6 +166,23 @@ def test_led_in_a_quiet_region_that_holds_only_the_blink(tmp_path):
     table = sy.sync_sources(manifest.manifest_sources(str(tmp_path / "lb" / "manifest.csv"), manifest.ForceOptions()),
                             sy.SyncMethod(region=(0, 0, 10, 10)))
     assert abs(table.column("t0")[0].as_py() - int(row["true_t0_us"])) <= 200
+
+
+def test_a_small_led_is_refused_with_its_box_as_the_region_that_syncs_it(tmp_path):
+    """A corner LED lights a few percent of the view: under the coverage bar, its burst's box is
+    offered as the --region, which then syncs, and the error names the trial."""
+    done = run(["simulate", "--trials", "2", "--seed", "0", "--set", "led_box=200,0,30,30", "--out", str(tmp_path / "lb")])
+    assert done.returncode == 0, done.stderr
+    sources = lambda: manifest.manifest_sources(str(tmp_path / "lb" / "manifest.csv"), manifest.ForceOptions())
+    with pytest.raises(SyncError) as caught:
+        sy.sync_sources(sources(), sy.SyncMethod())
+    said = re.search(r"^trial (\S+): no LED-off spike .* --region (\d+),(\d+),(\d+),(\d+), or --min-coverage", str(caught.value))
+    assert said, caught.value
+    x, y, w, h = map(int, said.groups()[1:])
+    assert x <= 200 and y <= 0 and x + w >= 229 and y + h >= 29 and w * h <= 4 * 30 * 30, said.groups()
+    table = sy.sync_sources(sources(), sy.SyncMethod(region=(x, y, w, h)))
+    truth = true_instants(tmp_path / "lb")
+    assert all(abs(t0 - truth[trial]) <= 200 for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()))
 
 
 def test_no_led_fails_with_one_clear_message():
@@ -403,7 +421,7 @@ def test_sync_command_without_an_led_fails_with_one_line(tmp_path):
     force.write_text("t_ms,force_N\n" + "\n".join(f"{i * 2},0.1" for i in range(100)) + "\n")
     done = run(["sync", str(path), "--force", str(force)])
     assert done.returncode == 1
-    assert done.stderr.decode().count("\n") == 1 and done.stderr.decode().startswith("neurotac sync: error: no LED-off spike")
+    assert done.stderr.decode().count("\n") == 1 and done.stderr.decode().startswith("neurotac sync: error: trial still: no LED-off spike")
 
 
 def test_sync_command_needs_a_force_log_or_a_manifest(tmp_path):
