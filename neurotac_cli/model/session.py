@@ -189,8 +189,9 @@ class Stream:
         if gain.bars is None:
             return None
         presses = "its one press" if len(gain.presses) == 1 else f"the median of its last {len(gain.presses)} presses"
-        return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} OFF / {gain.bars.on_events:g} ON events, from "
-                f"{presses} ({np.median(gain.presses):.0f} events); the model's bars {model.min_events:g} / {model.on_events:g}")
+        pressed, released = ("ON", "OFF") if self.config.press_polarity == "on" else ("OFF", "ON")
+        return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} {pressed} / {gain.bars.on_events:g} {released} events, "
+                f"from {presses} ({np.median(gain.presses):.0f} events); the model's bars {model.min_events:g} / {model.on_events:g}")
 
     def open_contact_note(self, trial: str) -> str | None:
         """With a material model, a line naming the material of a contact the stream ended inside (its
