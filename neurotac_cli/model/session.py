@@ -286,7 +286,8 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     press_off, release_on = detector.rig_peaks(streams, config.warmup_frames)
     summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
-               "press_polarity": polarity, "press_off": press_off, "release_on": release_on}
+               "press_polarity": polarity, "dominance": detector.dominance_for(config, streams) if labelled else config.dominance,
+               "press_off": press_off, "release_on": release_on}
     return found, summary, _truths(table, data, row_of) if labelled else None
 
 
@@ -346,7 +347,7 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     if summary["frames_in_contacts"] >= summary["frames"]:  # nothing at rest: no zero to learn, no background to detect from
         raise ModelError(f"every one of the {summary['frames']:,} training frames lies inside a contact: --contacts learns from "
                          "sessions with rests between grasps (`frame --phases session`); trials of one grasp each train without --contacts")
-    config = dataclasses.replace(config, press_polarity=summary["press_polarity"])
+    config = dataclasses.replace(config, press_polarity=summary["press_polarity"], dominance=summary["dominance"])
     slip = slip or detector.at_window(detector.slip_for(summary["press_off"], summary["release_on"]), window)
     if truths is not None:
         summary["detection"] = detection_check(config, slip, truths)
@@ -354,7 +355,8 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     if progress:
         pressed = "ON" if config.press_polarity == "on" else "OFF"
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
-                 f"{summary['frames_in_contacts']} of {summary['frames']} frames, pressed as {pressed} events; slips flagged at "
+                 f"{summary['frames_in_contacts']} of {summary['frames']} frames, pressed as {pressed} events, released at "
+                 f"{config.dominance:g} times as many {'OFF' if pressed == 'ON' else 'ON'}; slips flagged at "
                  f"{slip.min_events:g} {pressed} and {slip.on_events:g} {'OFF' if pressed == 'ON' else 'ON'} events above the background")
     if options.get("val_trials"):
         options = dict(options, val_trials=_contacts_of(found, options["val_trials"]))

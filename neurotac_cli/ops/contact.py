@@ -10,7 +10,8 @@ is the history: pressing darkens the membrane (a burst of OFF events), releasing
   the rim a little as it lets go, in the same frames as its ON burst: no press);
 - grasping -> holding once the OFF count above the background falls under `settled_share` of the
   peak's (a later OFF burst, a re-grasp, goes back to grasping);
-- touching -> releasing on an ON-dominated burst (`dominance` times more ON than OFF events);
+- touching -> releasing on an ON-dominated burst (`dominance` times more ON than OFF events; a
+  sensor whose training releases fail that bar gets its own, `dominance_for`);
 - releasing -> rest: with a force model (`end_by_force`), once its estimate has stayed under
   `release_force_n` for `low_frames` frames after such a burst (a re-grasp loosens the grip and
   tightens it some frames later, so the first low frame is not yet the end), or once the OFF
@@ -478,6 +479,36 @@ def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames) ->
     off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
     on_peaks = [peak for (_, on, _), mine in zip(streams, spans) for peak in _peaks(on, mine, warmup_frames)]
     return "on" if off_peaks and np.median(on_peaks) > np.median(off_peaks) else "off"
+
+
+RELEASE_MISS_SHARE = 0.1  # the release bar moves where more of the training releases' burst frames than this fall under it
+DOMINANCE_FLOOR = 1.05  # ... but not to 1: a frame of as many ON as OFF events brightens nothing
+
+
+def dominance_for(config: ContactConfig, streams) -> float:
+    """The ON/OFF ratio at which a frame reads as a release burst (`dominance`) for the sensor of
+    `streams` (triples of OFF per frame, ON per frame, contacts, oriented: a press's polarity first):
+    the config's where at most RELEASE_MISS_SHARE of the training releases' burst frames (ON above the
+    background as an onset's OFF must be, from 5 frames before a contact's end to 10 after) fall under
+    it; else the geometric mean of the presses' 90th and the releases' 10th percentile of the ratio
+    (presses' frames: OFF above the background, in ONSET_FRAMES about each onset), within
+    DOMINANCE_FLOOR and the config's. A membrane whose releases also darken some of it (printed
+    markers lit from one side) makes releases of 1.2-2 times more ON than OFF: under the bar, their
+    end went unseen and the release's OFF began a contact that ran through the rest."""
+    presses, releases = [], []
+    before, after = RELEASE_FRAMES
+    for off, on, contacts in streams:
+        off, on = np.asarray(off, dtype=np.float64), np.asarray(on, dtype=np.float64)
+        quiet_off, quiet_on = (float(np.median(c[:max(config.warmup_frames, 1)])) if len(c) else 0.0 for c in (off, on))
+        for begin, end in contacts:
+            span = slice(max(0, begin - 2), begin + ONSET_FRAMES)
+            presses += [b / max(a, 1.0) for a, b in zip(off[span], on[span]) if _above(config, a, quiet_off)]
+            span = slice(max(0, end - before), end + after)
+            releases += [b / max(a, 1.0) for a, b in zip(off[span], on[span]) if _above(config, b, quiet_on)]
+    if not presses or not releases or np.mean(np.asarray(releases) < config.dominance) <= RELEASE_MISS_SHARE:
+        return config.dominance
+    bar = np.sqrt(np.quantile(presses, 0.9) * np.quantile(releases, 0.1))
+    return round(float(min(config.dominance, max(DOMINANCE_FLOOR, bar))), 2)
 
 
 def rig_peaks(streams, warmup_frames: int = ContactConfig.warmup_frames) -> tuple:

@@ -310,12 +310,37 @@ def test_the_detector_reads_a_sensor_whose_presses_brighten_with_its_polarities_
     assert (swapped == darkening).all() and (unswapped != darkening).any()
 
 
+def mixed_release_stream(grasps=4, ratio=1.5):
+    """OFF and ON per frame and the true force of grasps whose releases make `ratio` times as many ON
+    as OFF events (a membrane that partly darkens as it lets go); presses make OFF, with a few ON."""
+    off, on, force = [5.0] * 30, [5.0] * 30, [0.0] * 30
+    for _ in range(grasps):
+        off += [150.0, 120.0, 40.0] + [5.0] * 30 + [60.0, 60.0] + [5.0] * 40
+        on += [15.0, 12.0, 5.0] + [5.0] * 30 + [60.0 * ratio, 60.0 * ratio] + [5.0] * 40
+        force += [1.0, 2.0, 2.0] + [2.0] * 30 + [0.5, 0.0] + [0.0] * 40
+    return np.asarray(off), np.asarray(on), np.asarray(force)
+
+
+def test_a_sensor_whose_releases_also_darken_gets_a_release_bar_between_its_presses_and_releases():
+    off, on, force = mixed_release_stream()
+    touching = metrics.runs(force > 0)
+    config = contact.ContactConfig(release_force_n=0.2)
+    bar = contact.dominance_for(config, [(off, on, touching)])
+    assert contact.DOMINANCE_FLOOR <= bar < 1.5
+    found = {dominance: metrics.runs(contact.detect(dataclasses.replace(config, dominance=dominance), off, on, force=force)[0] != contact.NONE)
+             for dominance in (config.dominance, bar)}
+    assert len(found[bar]) == 4 and len(found[config.dominance]) < 4  # at the fixed bar, a release's OFF began a contact
+    clear_off, clear_on, _ = mixed_release_stream(ratio=20.0)
+    assert contact.dominance_for(config, [(clear_off, clear_on, touching)]) == config.dominance
+
+
 def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_on_its_sessions(sessions, trained):
     flipped = session.train(inverted(sessions), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
     assert session.contact_config(trained).press_polarity == "off" and session.contact_config(flipped).press_polarity == "on"
     mine, theirs = trained.training["contacts"], flipped.training["contacts"]
     assert (theirs["press_off"], theirs["release_on"]) == (mine["press_off"], mine["release_on"])  # each on the polarity that presses
     assert theirs["detection"] == mine["detection"] and mine["detection"]["f1"] >= 0.9 and mine["detection"]["true"] == 18
+    assert theirs["dominance"] == mine["dominance"] == session.contact_config(trained).dominance
     assert session.detection_note(mine) is None
     poor = {"detection": {"f1": 0.76, "true": 24.0, "found": 19.0, "hits": 16.0, "slip_f1": 0.2, "slip_true": 2.0,
                           "slip_found": 18.0, "slip_hits": 2.0}}
