@@ -26,7 +26,7 @@ from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import LED_LATENCY_US, extra_spike, led_spikes
-from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, uncertainty_warnings,
+from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
 from neurotac_cli.units import counted
 
@@ -119,7 +119,7 @@ def sync(sources, method: SyncMethod) -> tuple[pa.Table, list[str]]:
     # how the force log was read (a column without a unit read as newtons), once per log however many trials it feeds
     warnings += list(dict.fromkeys(note for info in trials.values() for note in info.get("notes", [])))
     if method.method == "xcorr":
-        warnings += uncertainty_warnings(trials) + unrelated_warnings(trials)
+        warnings += edge_warnings(trials) + uncertainty_warnings(trials) + unrelated_warnings(trials)
     else:
         warnings += disagreement_warnings(trials, {"led": "the LED blink", "trigger": "the trigger"}.get(method.method, "--offset"))
     return recordings, warnings

@@ -101,6 +101,12 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
     # a period's square over 20 ms (a whole period at 50 Hz, half of one at 100 Hz; docs/journal.md)
     period = float(np.median(np.diff(force_t)))
     uncertainty = max(int((high - low) * bin_us // 2), int(max(period / 2, period * period / XCORR_COARSE_US)))
+    # near-best offsets that run to the end of those that keep the log inside the recording are no
+    # peak: the correlation may go on rising past it (a membrane that lags the force by tens of ms, a
+    # log that ends where the recording does): the uncertainty reaches at least the slack
+    at_edge = not (0 < low and high < len(valid) - 1 and valid[low - 1] and valid[high + 1])
+    if at_edge:
+        uncertainty = max(uncertainty, XCORR_SLACK_US)
     return Instant(
         t0=int(round(t0)),
         score=round(peak, 3),
@@ -114,6 +120,7 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
             "sensor": "given" if method.sensor_lag_us is not None else "estimated",
             "saturation": method.saturation if signal == "rate" else 0.0,
             "signal": signal,
+            **({"at_edge": True} if at_edge else {}),
         },
     )
 
@@ -336,6 +343,16 @@ def uncertainty_warnings(trials: dict) -> list[str]:
             f"trial(s) (largest ±{wide[worst] / 1000:.1f} ms, {worst}; a slow force sensor, or a log sampled more "
             f"than {XCORR_UNCERTAIN_US / 1000:g} ms apart?); an LED blink (--method led) "
             "or a trigger aligns within 0.1 ms"]
+
+
+def edge_warnings(trials: dict) -> list[str]:
+    """One warning for the trials whose best offset lies at the end of the offsets xcorr may take."""
+    edge = [name for name, info in trials.items() if info.get("at_edge")]
+    if not edge:
+        return []
+    return [f"on {len(edge)} of {len(trials)} trial(s) ({edge[0]}{', ...' if len(edge) > 1 else ''}) xcorr's best offset is the "
+            f"last it may take (the force log reaching {XCORR_SLACK_US / 1000:g} ms past the recording's end or start), "
+            "not a peak: the true one may lie beyond; record some rest before and after each grasp, or use --method led or trigger"]
 
 
 def unrelated_warnings(trials: dict) -> list[str]:

@@ -490,6 +490,31 @@ def test_xcorr_with_a_slow_flexiforce_sees_its_lag(presets):
     assert all(entry["signal"] == "signed" and entry["sensor_fall_us"] >= xcorr.XCORR_SLOW_FALL_US for entry in info.values())
 
 
+def events_following(force_t_us, force_n, lag_us, rng):
+    """Events at a rate following |dF/dt| `lag_us` late (a membrane that lags the force), with a background."""
+    grid = np.arange(0, int(force_t_us[-1]) + 10_000, 250)  # the recording a little longer than the log
+    rate = np.abs(np.gradient(np.interp(grid - lag_us, force_t_us, force_n))) * 4000 + 0.2
+    counts = rng.poisson(rate)
+    t = np.sort(np.repeat(grid, counts) + rng.integers(0, 250, int(counts.sum())))
+    return t.astype(np.int64), rng.integers(0, 50, len(t)).astype(np.uint16), rng.integers(0, 50, len(t)).astype(np.uint16)
+
+
+def test_xcorr_says_when_its_best_offset_is_the_last_it_may_take():
+    """A log that spans the whole recording leaves xcorr 20 ms of slack either way; a membrane 35 ms
+    behind the force puts the best correlation at that end, which is no peak: it was reported at
+    ±1 ms."""
+    rng = np.random.default_rng(0)
+    force_t = np.arange(0, 600_000, 2_000)
+    force = np.clip(np.sin(np.pi * (force_t - 100_000) / 300_000), 0, None) * 2.0
+    t, x, y = events_following(force_t, force, 35_000, rng)
+    instant = xcorr.xcorr_instant(t, x, y, force_t, force, sy.SyncMethod(method="xcorr"))
+    assert instant.details.get("at_edge") and instant.details["uncertainty_us"] >= xcorr.XCORR_SLACK_US
+    assert xcorr.edge_warnings({"g": instant.details})[0].startswith("on 1 of 1 trial(s) (g) xcorr's best offset is the last")
+    t, x, y = events_following(force_t, force, 5_000, rng)
+    instant = xcorr.xcorr_instant(t, x, y, force_t, force, sy.SyncMethod(method="xcorr"))
+    assert "at_edge" not in instant.details and instant.details["uncertainty_us"] < xcorr.XCORR_UNCERTAIN_US
+
+
 def test_xcorr_of_a_bright_object_reads_its_press_as_on_events(tmp_path_factory):
     """A bright object brightens the membrane as it presses: the signed rate runs the other way, and
     read as OFF - ON it put every ch3 trial 80-115 ms early."""
