@@ -39,6 +39,11 @@ presses. The phases use
 the whole frame's totals: releases judged on the footprint end holds at their flickers (the release
 rules were chosen on the totals; docs/journal.md).
 
+A frame whose events cover most of the view (`FLASH_SHARE` of its cells) begins no contact: an LED
+blink or a lamp changes the light over the whole membrane, a press only where the object is (the
+LED sync's own test of coverage). Where the detector has no frames (`detect` given sums alone),
+only the warm-up passes over a blink.
+
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
 and one learnt only from rest frames never recovers from a first contact begun against a wrong one
@@ -261,6 +266,8 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
     touching, before = state.phase != NONE, state.onsets
+    if not touching and state.warmup is None and frame is not None and _flash(state, frame):
+        return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     phase = _step(config, state, off, on, by_force)
     # the footprint as it stood before this frame: a contact's onset frame has none yet
     state.local = state.footprint.sums(frame) if frame is not None and touching else None
@@ -270,6 +277,19 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         elif phase == GRASPING:
             state.footprint.press(config, frame, onset=state.onsets != before)
     return phase
+
+
+FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large
+# contact can hold half its cells inside it)
+
+
+def _flash(state: "ContactState", frame: np.ndarray) -> bool:
+    """A frame in which at least FLASH_SHARE of the cells hold an event more than their rest background:
+    a blink or flash that lights the whole membrane, which a press, local to the object, never does."""
+    background = state.footprint.background
+    events = np.asarray(frame, dtype=np.float32).reshape(2, -1).sum(axis=0)
+    rest = 0.0 if background is None or background.shape != np.shape(frame) else background.reshape(2, -1).sum(axis=0)
+    return float(np.mean(events >= rest + 1.0)) >= FLASH_SHARE
 
 
 def _step(config, state, off, on, by_force) -> str:

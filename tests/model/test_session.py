@@ -49,8 +49,12 @@ def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
     grasp += [-1] * (len(force) - len(grasp))
     force = np.asarray(force)
     change = np.diff(force, prepend=0.0)
-    off = rng.poisson(background + 3 * np.clip(change, 0, None)[:, None, None], (len(force), SIZE, SIZE))
-    on = rng.poisson(background + 3 * np.clip(-change, 0, None)[:, None, None], (len(force), SIZE, SIZE))
+    # a press and a release make their events where the object is (the middle 5x5 cells), as many in
+    # all as 3 per cell and newton over the frame; the background is everywhere
+    patch = np.zeros((SIZE, SIZE))
+    patch[2:7, 2:7] = SIZE * SIZE / 25
+    off = rng.poisson(background + 3 * np.clip(change, 0, None)[:, None, None] * patch, (len(force), SIZE, SIZE))
+    on = rng.poisson(background + 3 * np.clip(-change, 0, None)[:, None, None] * patch, (len(force), SIZE, SIZE))
     return frames_table(trial, np.stack([off, on], axis=1), force, phase, np.asarray(grasp)), onsets
 
 
@@ -308,6 +312,20 @@ def test_the_detector_reads_a_sensor_whose_presses_brighten_with_its_polarities_
     unswapped = contact.detect(config, on, off, force=force, counts=frames[:, ::-1])[0]
     assert (darkening != contact.NONE).sum() > 100
     assert (swapped == darkening).all() and (unswapped != darkening).any()
+
+
+def test_a_flash_over_the_whole_view_begins_no_contact():
+    """An LED blink after the warm-up lights every cell (a press lights the object's); read as a
+    press, it began a contact that ran on to the first grasp's release."""
+    table, onsets = tiny_session(3, seed=4)
+    frames = sch.counts_numpy(table.column("counts")).copy()
+    frames[20, 0] += 3  # OFF events in every cell: the LED switched off
+    off, on = contact.frame_sums(frames)
+    config = contact.ContactConfig()
+    with_frames = metrics.runs(contact.detect(config, off, on, counts=frames)[0] != contact.NONE)
+    sums_only = metrics.runs(contact.detect(config, off, on)[0] != contact.NONE)
+    assert [begin for begin, _ in with_frames] == onsets
+    assert sums_only[0][0] == 20  # the frame sums alone cannot tell a flash from a press
 
 
 def mixed_release_stream(grasps=4, ratio=1.5):
