@@ -76,21 +76,8 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
     slope = np.gradient(force)  # N per bin
     if not np.any(slope) or rate.std() == 0:
         raise SyncError("the force log or the event rate is flat: nothing to cross-correlate")
-    fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
-    signal = "rate"
     signed_rate = None if p is None else _signed_rate(bins, x[keep], y[keep], p[keep], burst)
-    if signed_rate is not None:
-        # the signed rate, OFF - k ON on the pixels that darken and recover, follows signed dF/dt, where
-        # loading (darkening) and unloading (brightening) cannot be mistaken for each other; it is kept
-        # when it sees a sensor slow to unload (measured better there, worse with a fast cell)
-        # a press darkens the membrane where the object is darker than it and brightens it where the
-        # object is brighter (`simulate --set object_contrast=-1.5`): both signs are fitted, the better kept
-        signed_rate = gaussian_filter1d(signed_rate, smooth)
-        signed_fit, pressed = max(((_xcorr_fit(sign * signed_rate, force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0,
-                                                signed=True), name) for sign, name in ((1.0, "OFF"), (-1.0, "ON"))),
-                                  key=lambda fit: fit[0][0])
-        if signed_fit[2] >= XCORR_SLOW_FALL_US:
-            fit, signal = signed_fit, "signed" if pressed == "OFF" else "signed, pressed as ON"
+    fit, signal = _chosen_fit(rate, None if signed_rate is None else gaussian_filter1d(signed_rate, smooth), force, slope, grid, method)
     peak, rise, fall, best, corr, lags, valid = fit
     shift, low, high, second = _around_the_peak(peak, best, corr, lags, valid, bin_us)
     # rate bin j covers [origin + j·bin, +bin): its centre matches force grid point j - lag
@@ -123,6 +110,24 @@ def xcorr_instant(t, x, y, force_t, force_v, method, p=None) -> Instant:
             **({"at_edge": True} if at_edge else {}),
         },
     )
+
+
+def _chosen_fit(rate, signed_rate, force, slope, grid, method) -> tuple:
+    """(the fit of `_xcorr_fit`, its signal's name): the event rate against |dF/dt|, or the signed rate
+    (OFF - k ON on the pixels that darken and recover, None where there is none) against signed dF/dt,
+    where loading and unloading cannot be mistaken for each other; the signed rate is kept when it sees
+    a sensor slow to unload (measured better there, worse with a fast cell). A press darkens the
+    membrane where the object is darker than it and brightens it where the object is brighter
+    (`simulate --set object_contrast=-1.5`): the signed rate is fitted with both signs, the better kept."""
+    fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
+    if signed_rate is None:
+        return fit, "rate"
+    signed_fit, pressed = max(((_xcorr_fit(sign * signed_rate, force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0,
+                                            signed=True), name) for sign, name in ((1.0, "OFF"), (-1.0, "ON"))),
+                              key=lambda fit: fit[0][0])
+    if signed_fit[2] >= XCORR_SLOW_FALL_US:
+        return signed_fit, "signed" if pressed == "OFF" else "signed, pressed as ON"
+    return fit, "rate"
 
 
 def _steady_rate(bins: np.ndarray, bin_us: int, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
