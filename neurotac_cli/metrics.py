@@ -164,7 +164,7 @@ def confusion(true, pred, classes) -> np.ndarray:
 
 
 # counts a fold's rows hold only where they are not 0: a fold without one counts 0 in their mean over folds
-COUNTED_WHERE_FOUND = ("unforced_frames", "unknown_class", "unlabelled")
+COUNTED_WHERE_FOUND = ("unforced_frames", "unknown_class", "unlabelled", "rest_loaded_frames", "rest_loaded_max")
 
 
 def fold_summary(rows_per_fold: list, scopes=("all",) + tuple(f"phase:{p}" for p in PHASES)) -> list:

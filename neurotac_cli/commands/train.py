@@ -33,8 +33,9 @@ def _model_file(path: str) -> str:
               help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
               "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
               "reading zero between contacts; the detector keeps its durations and event rates at the frames' window, "
-              "reads presses in the polarity the training presses make most of, and is run on the training sessions "
-              "first, with a warning where it finds their contacts or slips poorly (docs/design.md, \"Sessions\").")
+              "and, where the frames have phases, reads presses in the polarity the training presses make most of and "
+              "is run on the training sessions first, with a warning where it finds their contacts or slips poorly "
+              "(docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file; a model of several members writes each one's, named in the model column.")
 @click.option("--plot", type=PlotPath(), default=None, help="Draw the training curve to this PNG (every member's, the first drawn full).")

@@ -151,7 +151,7 @@ class Feed:
         if len(self.tail) < TAIL_BYTES:
             return False
         at = os.lseek(self.fd, 0, os.SEEK_CUR)
-        if at <= REWRITE_FROM:
+        if at - TAIL_BYTES < REWRITE_FROM:
             return False
         there = os.pread(self.fd, TAIL_BYTES, at - TAIL_BYTES)
         return len(there) == TAIL_BYTES and there != self.tail  # fewer: the file shrank, said as such

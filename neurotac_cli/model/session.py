@@ -170,7 +170,7 @@ class Stream:
                 self._lead_in()
             if phase != detector.NONE:
                 pending.append(k)
-                self.sums.append((off[k], on[k]))
+                self.sums.append((on[k], off[k]) if self.config.press_polarity == "on" else (off[k], on[k]))  # as framed
                 if self.contact.released:
                     self._run(pending, counts, t_us, force)
                     if detector.end_by_force(self.config, self.contact, float(force[k])):
@@ -294,10 +294,10 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
 def _truths(table: pa.Table, data, row_of: dict) -> list:
     """Per stream: its frames, true force (0 where unknown), touching and slip truth (None without a
     `slip` column), for `detection_check`."""
-    slip = table.column("slip").to_numpy(zero_copy_only=False) if "slip" in table.schema.names else None
+    slip = slip_truth(table)
     out = []
     for trial, counts, frames, force, phases in zip(data.trials, data.counts, data.frame, data.force, data.phase):
-        truth = None if slip is None else slip[[row_of[(trial, int(f))] for f in frames]].astype(bool)
+        truth = None if slip is None else slip[[row_of[(trial, int(f))] for f in frames]]
         out.append((counts, np.nan_to_num(force), np.asarray([p not in (None, "none") for p in phases]), truth))
     return out
 
@@ -488,12 +488,19 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
     return pa.RecordBatch.from_arrays([columns[f.name] for f in out_schema], schema=out_schema)
 
 
+def slip_truth(table: pa.Table) -> np.ndarray | None:
+    """The `slip` truth column as flags, unknown read as no slip; None without the column."""
+    if "slip" not in table.schema.names:
+        return None
+    return table.column("slip").cast(pa.bool_()).fill_null(False).to_numpy(zero_copy_only=False)
+
+
 def session_rows(predictions: pa.Table) -> list:
     """`metrics.session_rows` of a predictions table that has the detector's columns."""
     names = predictions.schema.names
     column = lambda name: predictions.column(name).to_numpy(zero_copy_only=False) if name in names else None  # noqa: E731
     grasp = predictions.column("grasp").cast(pa.float64()).fill_null(np.nan).to_numpy() if "grasp" in names else None
-    slip = predictions.column("slip").cast(pa.bool_()).fill_null(False).to_numpy(zero_copy_only=False) if "slip" in names else None
+    slip = slip_truth(predictions)
     return metrics.session_rows(
         predictions.column("trial").to_pylist(), column("frame"), column("t"), predictions.column("phase").to_pylist(),
         column("force"), column("force_pred"), grasp=grasp, contact_pred=column("contact_pred"),

@@ -39,10 +39,10 @@ presses. The phases use
 the whole frame's totals: releases judged on the footprint end holds at their flickers (the release
 rules were chosen on the totals; docs/journal.md).
 
-A frame whose events cover most of the view (`FLASH_SHARE` of its cells) begins no contact: an LED
-blink or a lamp changes the light over the whole membrane, a press only where the object is (the
-LED sync's own test of coverage). Where the detector has no frames (`detect` given sums alone),
-only the warm-up passes over a blink.
+A frame whose events cover most of the view (`FLASH_SHARE` of its cells, where it has `FLASH_CELLS`
+or more) begins no contact: an LED blink or a lamp changes the light over the whole membrane, a press
+only where the object is (the LED sync's own test of coverage). Where the detector has no frames
+(`detect` given sums alone) or frames pooled to a few cells, only the warm-up passes over a blink.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
@@ -280,12 +280,16 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
 
 
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large
-# contact can hold half its cells inside it)
+# contact can hold half its cells inside it) ...
+FLASH_CELLS = 64  # ... on frames of at least this many cells: pooled to a few (`crop --pool all`: one), a press covers them all
 
 
 def _flash(state: "ContactState", frame: np.ndarray) -> bool:
-    """A frame in which at least FLASH_SHARE of the cells hold an event more than their rest background:
-    a blink or flash that lights the whole membrane, which a press, local to the object, never does."""
+    """A frame of FLASH_CELLS cells or more in which at least FLASH_SHARE of them hold an event more than
+    their rest background: a blink or flash that lights the whole membrane, where a press lights the
+    object's cells."""
+    if np.size(frame) < 2 * FLASH_CELLS:
+        return False
     background = state.footprint.background
     events = np.asarray(frame, dtype=np.float32).reshape(2, -1).sum(axis=0)
     rest = 0.0 if background is None or background.shape != np.shape(frame) else background.reshape(2, -1).sum(axis=0)
@@ -493,8 +497,8 @@ ONSET_FRAMES = 3  # a contact's first frames by its force, in which its press's 
 def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames) -> str:
     """"on" where the presses of `streams` (triples of OFF per frame, ON per frame, contacts) make more
     ON than OFF events above the background, else "off" (also where there is no contact): the median
-    over the contacts of each polarity's peak from two frames before the onset to ONSET_FRAMES after
-    (a short contact's release falls inside PRESS_FRAMES)."""
+    over the contacts of each polarity's peak in the ONSET_FRAMES frames from the onset and the two
+    before it (a short contact's release falls inside PRESS_FRAMES)."""
     spans = [[(begin - 2, begin + ONSET_FRAMES) for begin, _ in contacts] for _, _, contacts in streams]
     off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
     on_peaks = [peak for (_, on, _), mine in zip(streams, spans) for peak in _peaks(on, mine, warmup_frames)]

@@ -10,8 +10,6 @@ photoreceptor needs time to cross its OFF threshold: ~170 µs for the simulated 
 membrane; measure it once on a real rig, or use `trigger`).
 """
 
-import math
-
 import numpy as np
 
 from neurotac_cli.errors import SyncError
@@ -59,7 +57,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         taken[max(0, i - gap): i + gap + 1] = True
         if not (z[i] >= method.min_z and coverage >= method.min_coverage):
-            rejected.append((float(z[i]), coverage, lo, _box(off_x[a:b], off_y[a:b])))
+            rejected.append((float(z[i]), coverage, lo, _box(off_x[a:b], off_y[a:b], sensor)))
             continue
         # the spike may start in the bin before the best pair: take its neighbours too
         c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
@@ -73,14 +71,16 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
-def _box(x: np.ndarray, y: np.ndarray):
+def _box(x: np.ndarray, y: np.ndarray, sensor=None):
     """(x0, y0, x1, y1) about most of a burst's events (the 5-95% of each coordinate, widened by a tenth
-    each way: the background's events fall all over the view); None without events."""
+    each way: the background's events fall all over the view), inside the sensor where its size is
+    known; None without events."""
     if len(x) == 0:
         return None
     (x0, x1), (y0, y1) = np.percentile(x, [5, 95]), np.percentile(y, [5, 95])
     wide, tall = 0.1 * (x1 - x0) + 1, 0.1 * (y1 - y0) + 1
-    return int(max(x0 - wide, 0)), int(max(y0 - tall, 0)), int(x1 + wide), int(y1 + tall)
+    right, bottom = (sensor[0] - 1, sensor[1] - 1) if sensor else (np.inf, np.inf)
+    return int(max(x0 - wide, 0)), int(max(y0 - tall, 0)), int(min(x1 + wide, right)), int(min(y1 + tall, bottom))
 
 
 def _off_events(t, x, y, p, region):
@@ -124,7 +124,7 @@ def _no_spike(found: int, count: int, best, method) -> SyncError:
     if best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
         x0, y0, x1, y1 = best[3]
         advice = (f"if that burst is a small LED's (one in a corner of the view), give its box, --region {x0},{y0},"
-                  f"{x1 - x0 + 1},{y1 - y0 + 1}, or --min-coverage {math.floor(1000 * best[1] / 2) / 1000:g} (half its share: other trials' blinks vary)")
+                  f"{x1 - x0 + 1},{y1 - y0 + 1}, or --min-coverage {best[1] / 2:.2g} (half its share: other trials' blinks vary)")
     return SyncError(
         f"no LED-off spike stands out ({found_text}{detail}; a spike needs z >= {method.min_z:g} over "
         f">= {100 * method.min_coverage:g}% of the pixels); {advice}"

@@ -315,6 +315,8 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
         try:
             made, details = sync_source(source, method)
         except SyncError as error:
+            if str(error).startswith(f"{source.trial}: "):  # the force log's checks name it already
+                raise
             raise SyncError(f"trial {source.trial}: {error}") from None
         for trial in made:
             if trial["trial"] in info:

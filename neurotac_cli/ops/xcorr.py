@@ -340,7 +340,8 @@ def _pearson_by_lag(n: np.ndarray, rise: _SensorSide, fall: _SensorSide, b: np.n
 def uncertainty_warnings(trials: dict) -> list[str]:
     """One warning for the trials (sync metadata per trial) whose offset is uncertain by more than
     XCORR_UNCERTAIN_US; none when every trial is sure enough."""
-    wide = {name: info["uncertainty_us"] for name, info in trials.items() if info.get("uncertainty_us", 0) > XCORR_UNCERTAIN_US}
+    wide = {name: info["uncertainty_us"] for name, info in trials.items()
+            if info.get("uncertainty_us", 0) > XCORR_UNCERTAIN_US and not info.get("at_edge")}  # `edge_warnings` says why
     if not wide:
         return []
     worst = max(wide, key=wide.get)

@@ -326,6 +326,12 @@ def test_a_flash_over_the_whole_view_begins_no_contact():
     sums_only = metrics.runs(contact.detect(config, off, on)[0] != contact.NONE)
     assert [begin for begin, _ in with_frames] == onsets
     assert sums_only[0][0] == 20  # the frame sums alone cannot tell a flash from a press
+    table, onsets = tiny_session(4, seed=2)
+    frames = sch.counts_numpy(table.column("counts"))
+    off, on = contact.frame_sums(frames)
+    for pooled in (frames.sum(axis=(2, 3), keepdims=True), frames[:, :, :3, :3]):  # `crop --pool all`, a few cells
+        found = contact.detect(config, off, on, counts=pooled)[1]
+        assert list(np.flatnonzero(found)) == onsets  # a press covers them all: no flash rule there
 
 
 def mixed_release_stream(grasps=4, ratio=1.5):
@@ -364,6 +370,12 @@ def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_
                           "slip_found": 18.0, "slip_hits": 2.0}}
     note = session.detection_note(poor)
     assert "finds 16 of their 24 contacts, 19 in all (F1 0.76" in note and "flags 18 slips for their 2 (2 of them found" in note
+    stream = session.Stream(flipped)  # the material model reads the frames' sums as framed, not as the detector does
+    frames = inverted(sessions).filter(pc.equal(sessions.column("trial"), "s0"))
+    counts = sch.counts_numpy(frames.column("counts"))
+    stream.step(counts, frames.column("t").to_numpy())
+    off, on = contact.frame_sums(counts)
+    assert stream.sums and all(tuple(pair) in set(zip(off.tolist(), on.tolist())) for pair in stream.sums)
     with pytest.raises(ModelError, match="press_polarity='up' is not one of off, on"):
         flipped.input_spec[session.CONTACT_KEY]["press_polarity"] = "up"
         session.contact_config(flipped)

@@ -90,4 +90,5 @@ def test_the_command_prints_each_warning_once_and_refuses_in_one_line(tmp_path):
     assert done.returncode == 0 and done.stderr.count("\n") == 1 and "warning" in done.stderr and "sign" in done.stderr
     done = subprocess.run([*args, str(tmp_path / "neg.csv"), "--offset", "1000s", "-o", str(tmp_path / "t.arrows")], capture_output=True, text=True)
     assert done.returncode == 1 and done.stderr.count("\n") == 1 and "does not overlap" in done.stderr
+    assert done.stderr.startswith("neurotac sync: error: rec: the force log"), done.stderr  # the trial named once, by the log's check
     assert not (tmp_path / "t.arrows").exists()

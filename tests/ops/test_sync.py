@@ -168,10 +168,11 @@ def test_led_in_a_quiet_region_that_holds_only_the_blink(tmp_path):
     assert abs(table.column("t0")[0].as_py() - int(row["true_t0_us"])) <= 200
 
 
-def test_a_small_led_is_refused_with_its_box_as_the_region_that_syncs_it(tmp_path):
+@pytest.mark.parametrize("box", [(200, 0, 30, 30), (210, 150, 30, 30)])  # a corner, and one touching the sensor's far edges
+def test_a_small_led_is_refused_with_its_box_as_the_region_that_syncs_it(tmp_path, box):
     """A corner LED lights a few percent of the view: under the coverage bar, its burst's box is
     offered as the --region, which then syncs, and the error names the trial."""
-    done = run(["simulate", "--trials", "2", "--seed", "0", "--set", "led_box=200,0,30,30", "--out", str(tmp_path / "lb")])
+    done = run(["simulate", "--trials", "2", "--seed", "0", "--set", "led_box=" + ",".join(map(str, box)), "--out", str(tmp_path / "lb")])
     assert done.returncode == 0, done.stderr
     sources = lambda: manifest.manifest_sources(str(tmp_path / "lb" / "manifest.csv"), manifest.ForceOptions())
     with pytest.raises(SyncError) as caught:
@@ -179,7 +180,8 @@ def test_a_small_led_is_refused_with_its_box_as_the_region_that_syncs_it(tmp_pat
     said = re.search(r"^trial (\S+): no LED-off spike .* --region (\d+),(\d+),(\d+),(\d+), or --min-coverage", str(caught.value))
     assert said, caught.value
     x, y, w, h = map(int, said.groups()[1:])
-    assert x <= 200 and y <= 0 and x + w >= 229 and y + h >= 29 and w * h <= 4 * 30 * 30, said.groups()
+    assert x <= box[0] and y <= box[1] and x + w >= box[0] + box[2] - 1 and y + h >= box[1] + box[3] - 1, said.groups()
+    assert w * h <= 4 * box[2] * box[3] and x + w <= 240 and y + h <= 180, said.groups()
     table = sy.sync_sources(sources(), sy.SyncMethod(region=(x, y, w, h)))
     truth = true_instants(tmp_path / "lb")
     assert all(abs(t0 - truth[trial]) <= 200 for trial, t0 in zip(table.column("trial").to_pylist(), table.column("t0").to_pylist()))
