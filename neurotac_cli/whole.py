@@ -10,11 +10,15 @@ import select
 
 
 def write_whole(raw, view: memoryview) -> None:
-    """Write all of `view` to the raw file `raw`, waiting where a non-blocking one is full, as a
-    blocking one would; an error (a full disk, a reader gone) is raised by the write that meets it."""
+    """Write all of `view` to the file `raw` (raw, or buffered), waiting where a non-blocking one is
+    full, as a blocking one would; an error (a full disk, a reader gone) is raised by the write that
+    meets it."""
     while len(view):
-        moved = raw.write(view)
-        if moved is None:
+        try:
+            moved = raw.write(view)
+        except BlockingIOError as error:  # a buffered file (a library caller's) takes what fits and says so
+            moved = error.characters_written
+        if not moved:
             select.select([], [raw.fileno()], [])
             continue
         view = view[moved:]

@@ -155,6 +155,38 @@ def test_a_non_blocking_stdout_that_fills_gets_every_byte(tmp_path):
         assert len(expected) > 1 << 16 and read_after_a_pause(command, tmp_path) == (0, expected), command
 
 
+def test_a_full_non_blocking_buffered_file_is_waited_on_too():
+    """A library caller's stdout is a BufferedWriter, which raises BlockingIOError when full."""
+    import fcntl
+    import io
+    import os
+    import threading
+    import time
+
+    from neurotac_cli.whole import write_whole
+
+    read, write = os.pipe()
+    fcntl.fcntl(write, fcntl.F_SETFL, fcntl.fcntl(write, fcntl.F_GETFL) | os.O_NONBLOCK)
+    data = bytes(range(256)) * 2048  # 512 KiB, eight pipes full
+    raw = io.FileIO(write, "w")
+    sink = io.BufferedWriter(raw)
+
+    def write_all():
+        try:
+            write_whole(sink, memoryview(data))
+            sink.flush()
+        finally:  # the reader's end of file, whatever happened
+            raw.close()
+
+    writer = threading.Thread(target=write_all)
+    writer.start()
+    time.sleep(0.5)
+    got = b"".join(iter(lambda: os.read(read, 1 << 16), b""))
+    writer.join(timeout=30)
+    os.close(read)
+    assert got == data
+
+
 def test_help_to_a_reader_that_has_gone_is_quiet():
     import os
 
