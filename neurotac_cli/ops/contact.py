@@ -266,7 +266,7 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
     touching, before = state.phase != NONE, state.onsets
-    if not touching and state.warmup is None and frame is not None and _flash(state, frame):
+    if not touching and state.warmup is None and frame is not None and _flash(state, frame, off + on):
         return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     phase = _step(config, state, off, on, by_force)
     # the footprint as it stood before this frame: a contact's onset frame has none yet
@@ -284,11 +284,13 @@ FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light c
 FLASH_CELLS = 64  # ... on frames of at least this many cells: pooled to a few (`crop --pool all`: one), a press covers them all
 
 
-def _flash(state: "ContactState", frame: np.ndarray) -> bool:
+def _flash(state: "ContactState", frame: np.ndarray, events: float) -> bool:
     """A frame of FLASH_CELLS cells or more in which at least FLASH_SHARE of them hold an event more than
     their rest background: a blink or flash that lights the whole membrane, where a press lights the
-    object's cells."""
-    if np.size(frame) < 2 * FLASH_CELLS:
+    object's cells. `events`: the frame's total, under which no such share can be reached (most rest
+    frames: their cells are not looked at)."""
+    cells = np.size(frame) // 2
+    if cells < FLASH_CELLS or events < FLASH_SHARE * cells:
         return False
     background = state.footprint.background
     events = np.asarray(frame, dtype=np.float32).reshape(2, -1).sum(axis=0)
