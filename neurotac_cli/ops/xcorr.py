@@ -120,14 +120,12 @@ def _chosen_fit(rate, signed_rate, force, slope, grid, method) -> tuple:
     membrane where the object is darker than it and brightens it where the object is brighter
     (`simulate --set object_contrast=-1.5`): the signed rate is fitted with both signs, the better kept."""
     fit = _xcorr_fit(rate, force, slope, grid, method, XCORR_SENSOR_LAGS_US, XCORR_TIE, method.saturation, signed=False)
-    if signed_rate is None:
-        return fit, "rate"
-    signed_fit, pressed = max(((_xcorr_fit(sign * signed_rate, force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0,
-                                            signed=True), name) for sign, name in ((1.0, "OFF"), (-1.0, "ON"))),
-                              key=lambda fit: fit[0][0])
-    if signed_fit[2] >= XCORR_SLOW_FALL_US:
-        return signed_fit, "signed" if pressed == "OFF" else "signed, pressed as ON"
-    return fit, "rate"
+    if signed_rate is not None:
+        signed_fit = _xcorr_fit(signed_rate, force, slope, grid, method, XCORR_SIGNED_LAGS_US, 0.0, 0.0, signed=True,
+                                signs=(1.0, -1.0))
+        if signed_fit[2] >= XCORR_SLOW_FALL_US:
+            return signed_fit[:7], "signed" if signed_fit[7] > 0 else "signed, pressed as ON"
+    return fit[:7], "rate"
 
 
 def _steady_rate(bins: np.ndarray, bin_us: int, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -247,10 +245,12 @@ def _signed_rate(index, x, y, p, burst):
 ACTIVE_SHARE = 0.05  # a force log's grasps: where it reads above this share of its peak
 
 
-def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturation: float, signed: bool):
+def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturation: float, signed: bool, signs=(1.0,)):
     """Every sensor model (given, or each pair of `lag_grid`) against every offset: (correlation, rise,
-    fall, best lag index, correlation by lag, lags, valid lags) of the chosen model. The target is
-    |dF/dt| (weighted by the membrane saturation) or, when `signed`, dF/dt itself."""
+    fall, best lag index, correlation by lag, lags, valid lags, sign) of the chosen model. The target is
+    |dF/dt| (weighted by the membrane saturation) or, when `signed`, dF/dt itself; each of `signs`
+    reads the correlations as they are (1) or turned over (-1: the rate negated, which the sensor's
+    lag, linear, passes on), from one grid."""
     from scipy.ndimage import gaussian_filter1d
 
     bin_us = XCORR_BIN_US
@@ -283,16 +283,17 @@ def _xcorr_fit(rate, force, slope, grid, method, lag_grid, tie: float, saturatio
         if saturation > 0:
             followed = smoothed[0] + rise * smoothed[1] + fall * smoothed[2]
             target = target / (1.0 + np.clip(followed, 0, None) / (saturation * peak_force))
-        corr = _pearson_by_lag(overlap, on_rise[rise], on_fall[fall], target)
-        corr = np.where(valid & np.isfinite(corr), corr, -np.inf)
-        best = int(np.argmax(corr))
-        fits.append((float(corr[best]), rise, fall, best, corr))
+        raw = _pearson_by_lag(overlap, on_rise[rise], on_fall[fall], target)
+        for sign in signs:
+            corr = np.where(valid & np.isfinite(raw), sign * raw, -np.inf)
+            best = int(np.argmax(corr))
+            fits.append((float(corr[best]), rise, fall, best, corr, sign))
     top = max(fit[0] for fit in fits)
     if not np.isfinite(top):
         raise SyncError("the force log's grasps span longer than the recording: no offset puts them inside it")
     # a slower sensor model also smooths, which alone lifts a correlation a little: near-ties go to the faster
-    peak, rise, fall, best, corr = min((fit for fit in fits if fit[0] >= top - tie), key=lambda fit: (fit[1] + fit[2], -fit[0]))
-    return peak, rise, fall, best, corr, lags, valid
+    peak, rise, fall, best, corr, sign = min((fit for fit in fits if fit[0] >= top - tie), key=lambda fit: (fit[1] + fit[2], -fit[0]))
+    return peak, rise, fall, best, corr, lags, valid, sign
 
 
 def _first_order_lag(signal: np.ndarray, tau_us: float, bin_us: int) -> np.ndarray:
