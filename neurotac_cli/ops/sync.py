@@ -195,7 +195,10 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     count = len(logs)
     forcelog.check_samples(logs, source.trial)
     forces = [condition_force(log, method.median_us) for log in logs]
-    instants = _instants(table, t, x, y, p, logs, forces, method)
+    try:
+        instants = _instants(table, t, x, y, p, logs, forces, method)
+    except SyncError as error:  # the force log's own checks, around this, name the trial themselves
+        raise SyncError(f"trial {source.trial}: {error}") from None
     forcelog.check_logs(t, instants, logs, source.trial)
     order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
     if order is not None:
@@ -312,12 +315,7 @@ def sync_sources(sources, method: SyncMethod) -> pa.Table:
                 f"recording of trial {source.trial} is {found[0]}x{found[1]}, the others {sensor[0]}x{sensor[1]}; "
                 "sync recordings of one sensor together"
             )
-        try:
-            made, details = sync_source(source, method)
-        except SyncError as error:
-            if str(error).startswith(f"{source.trial}: "):  # the force log's checks name it already
-                raise
-            raise SyncError(f"trial {source.trial}: {error}") from None
+        made, details = sync_source(source, method)
         for trial in made:
             if trial["trial"] in info:
                 raise NeurotacError(f"trial {trial['trial']!r} appears twice; give each trial its own name")

@@ -92,3 +92,18 @@ def test_the_command_prints_each_warning_once_and_refuses_in_one_line(tmp_path):
     assert done.returncode == 1 and done.stderr.count("\n") == 1 and "does not overlap" in done.stderr
     assert done.stderr.startswith("neurotac sync: error: rec: the force log"), done.stderr  # the trial named once, by the log's check
     assert not (tmp_path / "t.arrows").exists()
+
+
+def test_a_short_log_among_several_names_its_recording_and_trial_once():
+    from neurotac_cli import schema as sch
+    from neurotac_cli.io.force import ForceLog
+    from neurotac_cli.io.manifest import Source
+
+    t = np.arange(0, 2_000_000, 100, dtype=np.int64)
+    events = sch.events_table(t, np.zeros(len(t), np.uint16), np.zeros(len(t), np.uint16), np.ones(len(t), np.uint8),
+                              width=240, height=180)
+    good = ForceLog(t=np.arange(0, 200_000, 2000, dtype=np.int64), value=np.ones(100), trial="a")
+    short = ForceLog(t=np.arange(0, 10_000, 2000, dtype=np.int64), value=np.ones(5), trial="b")
+    with pytest.raises(SyncError) as caught:
+        sy.sync_sources([Source(trial="rec", events=events, force=[good, short], labels={})], sy.SyncMethod())
+    assert str(caught.value).startswith("rec, trial b: the force log has 5 sample(s)"), caught.value
