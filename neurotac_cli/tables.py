@@ -24,7 +24,7 @@ import pyarrow.ipc as ipc
 
 from neurotac_cli import __version__, bridges, schema as sch
 from neurotac_cli.errors import InputError, NeurotacError, OutputError, SchemaError, UsageError, cannot_open, empty_path
-from neurotac_cli.whole import write_whole
+from neurotac_cli.whole import flush_whole, write_whole
 
 STREAM_MAGIC = b"\xff\xff\xff\xff"
 FILE_MAGIC = b"ARROW1"
@@ -724,7 +724,7 @@ class _WholeWrites:
     def flush(self):
         if self.pending is not None:
             self._drain()
-        self.sink.flush()
+        flush_whole(self.sink)
 
     def tell(self) -> int:
         return self.position

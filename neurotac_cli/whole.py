@@ -22,3 +22,14 @@ def write_whole(raw, view: memoryview) -> None:
             select.select([], [raw.fileno()], [])
             continue
         view = view[moved:]
+
+
+def flush_whole(sink) -> None:
+    """Flush the buffered file `sink`, waiting where a non-blocking one is full (its flush raises
+    BlockingIOError with what it could not write still held)."""
+    while True:
+        try:
+            sink.flush()
+            return
+        except BlockingIOError:
+            select.select([], [sink.fileno()], [])

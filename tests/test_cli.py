@@ -163,7 +163,7 @@ def test_a_full_non_blocking_buffered_file_is_waited_on_too():
     import threading
     import time
 
-    from neurotac_cli.whole import write_whole
+    from neurotac_cli.whole import flush_whole, write_whole
 
     read, write = os.pipe()
     fcntl.fcntl(write, fcntl.F_SETFL, fcntl.fcntl(write, fcntl.F_GETFL) | os.O_NONBLOCK)
@@ -174,14 +174,17 @@ def test_a_full_non_blocking_buffered_file_is_waited_on_too():
     def write_all():
         try:
             write_whole(sink, memoryview(data))
-            sink.flush()
+            flush_whole(sink)
         finally:  # the reader's end of file, whatever happened
             raw.close()
 
     writer = threading.Thread(target=write_all)
     writer.start()
     time.sleep(0.5)
-    got = b"".join(iter(lambda: os.read(read, 1 << 16), b""))
+    got = b""
+    while chunk := os.read(read, 4096):  # slowly, so that the flush too meets a full pipe
+        got += chunk
+        time.sleep(0.0005)
     writer.join(timeout=30)
     os.close(read)
     assert got == data
