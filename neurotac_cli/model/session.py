@@ -150,8 +150,9 @@ class Stream:
         Frame by frame the detector says whether the frame is in a contact; the force model runs on
         the frames of a contact, in one call per run of them until a release burst makes the end of
         the contact possible, then frame by frame until its estimate says the contact is over."""
-        seen = detector.oriented(self.config, counts)  # the detector's view; the force model reads `counts`
-        off, on, separation = detector.frame_stats(seen)
+        off, on, separation = detector.frame_stats(counts)  # as framed: the material model's
+        seen = detector.oriented(self.config, counts)  # the detector's view (separation is the same); the force model reads `counts`
+        pressed, released = detector.oriented_sums(self.config, off, on)
         self.distances = np.full(len(counts), np.nan)  # feature distances of the frames the network read (model.predict.Outside)
         force = np.zeros(len(counts), dtype=np.float32)
         phases = np.empty(len(counts), dtype=object)
@@ -161,7 +162,7 @@ class Stream:
         for k in range(len(counts)):
             touching = self.contact.phase != detector.NONE
             before = self.contact.onsets
-            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True, frame=seen[k])
+            phase = detector.step(self.config, self.contact, pressed[k], released[k], by_force=True, frame=seen[k])
             if self.contact.onsets != before or phase == detector.NONE:
                 self._run(pending, counts, t_us, force)
                 self.inner = None
@@ -170,7 +171,7 @@ class Stream:
                 self._lead_in()
             if phase != detector.NONE:
                 pending.append(k)
-                self.sums.append((on[k], off[k]) if self.config.press_polarity == "on" else (off[k], on[k]))  # as framed
+                self.sums.append((off[k], on[k]))
                 if self.contact.released:
                     self._run(pending, counts, t_us, force)
                     if detector.end_by_force(self.config, self.contact, float(force[k])):
@@ -178,7 +179,7 @@ class Stream:
             if touching and phase == detector.NONE:
                 materials[k] = self._material()
             phases[k] = phase
-            slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
+            slips[k] = detector.slip_step(self.slip, self.contact, pressed[k], released[k], separation[k])
             self.lead.append((counts[k], t_us[k]))
         self._run(pending, counts, t_us, force)
         return force, phases, slips, materials
@@ -271,7 +272,8 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
         streams.append((off, on, touching))
     if labelled:
         polarity = detector.press_polarity(streams, config.warmup_frames)
-        streams = [(on, off, touching) if polarity == "on" else (off, on, touching) for off, on, touching in streams]
+        oriented = dataclasses.replace(config, press_polarity=polarity)
+        streams = [(*detector.oriented_sums(oriented, off, on), touching) for off, on, touching in streams]
     rows, names = [], []
     after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
     for trial, frames, (_, _, touching) in zip(data.trials, data.frame, streams):

@@ -130,6 +130,11 @@ def oriented(config: ContactConfig, counts: np.ndarray) -> np.ndarray:
     return counts[:, ::-1] if config.press_polarity == "on" else counts
 
 
+def oriented_sums(config: ContactConfig, off, on) -> tuple:
+    """A frame's (or frames') OFF and ON sums as `oriented` frames give them: a press's polarity first."""
+    return (on, off) if config.press_polarity == "on" else (off, on)
+
+
 MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
 MAY_BE_ZERO = ("lead_frames", "warmup_frames", "follow_presses")  # counts of frames or presses that may be 0
 
@@ -396,8 +401,8 @@ def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: Contac
     with `counts` (the frames, (T, 2, H, W)) slips are judged on the footprint, as `Stream` does.
 
     Returns (phase array of str, onset flags (a contact begins at this frame), slip flags, the state after)."""
-    if config.press_polarity == "on":  # the rules read a press's polarity as OFF (`oriented`)
-        off, on, counts = on, off, None if counts is None else oriented(config, counts)
+    off, on = oriented_sums(config, off, on)  # the rules read a press's polarity as OFF
+    counts = None if counts is None else oriented(config, counts)
     state = state or ContactState.start(config)
     phases = np.empty(len(off), dtype=object)
     onsets = np.zeros(len(off), dtype=bool)
