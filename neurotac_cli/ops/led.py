@@ -57,7 +57,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         taken[max(0, i - gap): i + gap + 1] = True
         if not (z[i] >= method.min_z and coverage >= method.min_coverage):
-            rejected.append((float(z[i]), coverage, lo, _box(off_x[a:b], off_y[a:b], sensor)))
+            rejected.append((float(z[i]), coverage, lo, a, b))
             continue
         # the spike may start in the bin before the best pair: take its neighbours too
         c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
@@ -67,7 +67,9 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         if len(chosen) >= count + spare:
             break
     if len(chosen) < count:
-        raise _no_spike(len(chosen), count, max(rejected, default=None), method)
+        best = max(rejected, default=None)  # its box only: the only one the error shows
+        best = best and (*best[:3], _box(off_x[best[3]:best[4]], off_y[best[3]:best[4]], sensor))
+        raise _no_spike(len(chosen), count, best, method)
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
