@@ -77,6 +77,11 @@ VARIANCE_FLOOR_N2 = 1e-4  # D_B's floor on each variance (a 0.01 N resolution): 
 NONZERO_N = 1e-9  # --nonzero scores only frames whose true force exceeds this
 
 
+def nonzero_frames(true) -> np.ndarray:
+    """The frames `--nonzero` scores: a measured force other than zero (NaN: none measured, not scored)."""
+    return np.abs(np.asarray(true, dtype=np.float64)) > NONZERO_N
+
+
 def bhattacharyya(a, b, floor: float = VARIANCE_FLOOR_N2) -> float:
     """Bhattacharyya distance between normal fits of two samples."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
@@ -98,7 +103,7 @@ def force_rows(trial, phase, true, pred, *, nonzero=False, per_trial=True, serie
     keep = ~np.isnan(true)
     unforced = int(np.count_nonzero(~keep))  # frames without a measured force: left out, and said (scoring.summary)
     if nonzero:
-        keep &= np.abs(true) > NONZERO_N
+        keep &= nonzero_frames(true)
         if whole and len(keep) and not keep.any():
             raise NeurotacError("--nonzero: no frame has a measured force other than zero, so nothing is left to score")
     trial, series, phase, true, pred = trial[keep], series[keep], phase[keep], true[keep], pred[keep]

@@ -67,6 +67,8 @@ def force_errors(true: np.ndarray, pred: np.ndarray) -> tuple[float, float, int]
 def force_figure(predictions, path: str, trials=None, title: str = "", nonzero: bool = False):
     """Left: force traces of chosen trials (default: the first three); right: estimate vs measured, per
     phase. `nonzero`: the scatter and the errors of the frames `eval --nonzero` scores (the traces whole)."""
+    from neurotac_cli.metrics import nonzero_frames
+
     plt = pyplot()
     trial = np.asarray(predictions.column("trial").to_pylist(), dtype=object)
     t = predictions.column("t").to_numpy() / 1000.0
@@ -76,7 +78,7 @@ def force_figure(predictions, path: str, trials=None, title: str = "", nonzero: 
     chosen = list(trials) if trials else list(dict.fromkeys(trial))[:3]
     # cross-validation repeats hold every frame once per seed: traces show the first seed's run
     first_run = predictions.column("repeat").to_numpy() == 0 if "repeat" in predictions.column_names else np.ones(len(trial), bool)
-    scored = true != 0 if nonzero else np.ones(len(true), bool)
+    scored = nonzero_frames(true) if nonzero else np.ones(len(true), bool)
     rmse, mae, frames = force_errors(true[scored], pred[scored])
     count = len(set(trial.tolist()))
     with plt.rc_context(STYLE):

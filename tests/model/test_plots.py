@@ -64,7 +64,8 @@ def test_trial_ids_and_classes_the_font_cannot_draw_are_written_as_codes_without
 def test_the_force_figure_of_nonzero_frames_scores_and_scatters_those_only(tmp_path, monkeypatch):
     figures = []
     monkeypatch.setattr(plots, "_save", lambda figure, path: figures.append(figure))
-    predictions = pa.table({"trial": ["a"] * 4, "t": [0, 10_000, 20_000, 30_000], "force": [0.0, 1.0, 2.0, 0.0],
+    # the last frame's 1e-12 N is a log's zero, as `eval --nonzero`'s metrics read it
+    predictions = pa.table({"trial": ["a"] * 4, "t": [0, 10_000, 20_000, 30_000], "force": [0.0, 1.0, 2.0, 1e-12],
                             "force_pred": [0.5, 1.0, 2.0, 0.5], "phase": ["grasping", "holding", "holding", None]})
     plots.evaluation_figure(predictions, str(tmp_path / "f.png"), name="tdnn", nonzero=True)
     plots.evaluation_figure(predictions, str(tmp_path / "g.png"), name="tdnn")
