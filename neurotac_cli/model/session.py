@@ -149,10 +149,10 @@ class Stream:
 
         Frame by frame the detector says whether the frame is in a contact; the force model runs on
         the frames of a contact, in one call per run of them until a release burst makes the end of
-        the contact possible, then frame by frame until its estimate says the contact is over."""
-        off, on, separation = detector.frame_stats(counts)  # as framed: the material model's
-        seen = detector.oriented(self.config, counts)  # the detector's view (separation is the same); the force model reads `counts`
-        pressed, released = detector.oriented_sums(self.config, off, on)
+        the contact possible, then frame by frame until its estimate says the contact is over (with
+        press_polarity "either", frame by frame throughout: its estimate alone may end a contact,
+        `detector.end_by_force`)."""
+        off, on, separation = detector.frame_stats(counts)
         self.distances = np.full(len(counts), np.nan)  # feature distances of the frames the network read (model.predict.Outside)
         force = np.zeros(len(counts), dtype=np.float32)
         phases = np.empty(len(counts), dtype=object)
@@ -162,7 +162,7 @@ class Stream:
         for k in range(len(counts)):
             touching = self.contact.phase != detector.NONE
             before = self.contact.onsets
-            phase = detector.step(self.config, self.contact, pressed[k], released[k], by_force=True, frame=seen[k])
+            phase = detector.step(self.config, self.contact, off[k], on[k], by_force=True, frame=counts[k])
             if self.contact.onsets != before or phase == detector.NONE:
                 self._run(pending, counts, t_us, force)
                 self.inner = None
@@ -172,14 +172,14 @@ class Stream:
             if phase != detector.NONE:
                 pending.append(k)
                 self.sums.append((off[k], on[k]))
-                if self.contact.released:
-                    self._run(pending, counts, t_us, force)
+                if self.contact.released or self.config.press_polarity == "either":
+                    self._run(pending, counts, t_us, force)  # frame by frame: the estimate may end the contact here
                     if detector.end_by_force(self.config, self.contact, float(force[k])):
                         phase, force[k], self.inner = detector.NONE, 0.0, None
             if touching and phase == detector.NONE:
                 materials[k] = self._material()
             phases[k] = phase
-            slips[k] = detector.slip_step(self.slip, self.contact, pressed[k], released[k], separation[k])
+            slips[k] = detector.slip_step(self.slip, self.contact, off[k], on[k], separation[k])
             self.lead.append((counts[k], t_us[k]))
         self._run(pending, counts, t_us, force)
         return force, phases, slips, materials
@@ -190,7 +190,7 @@ class Stream:
         if gain.bars is None:
             return None
         presses = "its one press" if len(gain.presses) == 1 else f"the median of its last {len(gain.presses)} presses"
-        pressed, released = ("ON", "OFF") if self.config.press_polarity == "on" else ("OFF", "ON")
+        pressed, released = detector.polarity_names(self.config.press_polarity)
         return (f"trial {trial}: slips flagged at {gain.bars.min_events:g} {pressed} / {gain.bars.on_events:g} {released} events, "
                 f"from {presses} ({np.median(gain.presses):.0f} events); the model's bars {model.min_events:g} / {model.on_events:g}")
 
@@ -252,7 +252,7 @@ MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for train
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict, list]:
     """The frames of every contact, one trial per contact (`STREAM@FRAME`), what was found:
     {"sessions", "contacts", "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
-    "release_on"}, and per stream what `detection_check` reads (None without phases).
+    "release_on", "presses_on"}, and per stream what `detection_check` reads (None without phases).
 
     Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
     of frames whose phase is not none, with the detector's `lead_frames` of rest before it (the
@@ -270,13 +270,15 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
         touching = (metrics.runs(np.asarray([p not in (None, "none") for p in phases])) if labelled
                     else metrics.runs(detector.detect(config, off, on)[0] != detector.NONE))
         streams.append((off, on, touching))
+    runs = [touching for _, _, touching in streams]
+    presses_on = None
     if labelled:
-        polarity = detector.press_polarity(streams, config.warmup_frames)
-        oriented = dataclasses.replace(config, press_polarity=polarity)
-        streams = [(*detector.oriented_sums(oriented, off, on), touching) for off, on, touching in streams]
+        polarity = detector.press_polarity(streams, config.warmup_frames, config.press_frames)
+        presses_on = sum(own == "on" for own in sum(detector.contact_polarities(streams, config.warmup_frames, config.press_frames), []))
+        streams = detector.oriented_streams(streams, polarity, config.warmup_frames, config.press_frames)
     rows, names = [], []
     after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
-    for trial, frames, (_, _, touching) in zip(data.trials, data.frame, streams):
+    for trial, frames, touching in zip(data.trials, data.frame, runs):
         for begin, end in _widened(touching, len(frames), config.lead_frames, after):
             rows += [row_of[(trial, int(f))] for f in frames[begin:end]]
             names += [f"{trial}@{int(frames[begin])}"] * (end - begin)
@@ -289,7 +291,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
                "press_polarity": polarity, "dominance": detector.dominance_for(config, streams) if labelled else config.dominance,
-               "press_off": press_off, "release_on": release_on}
+               "press_off": press_off, "release_on": release_on, "presses_on": presses_on}
     return found, summary, _truths(table, data, row_of) if labelled else None
 
 
@@ -355,11 +357,13 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
         summary["detection"] = detection_check(config, slip, truths)
     progress = options.get("progress")
     if progress:
-        pressed = "ON" if config.press_polarity == "on" else "OFF"
+        pressed, released = detector.polarity_names(config.press_polarity)
+        how = (f"pressed as {pressed} events, released at {config.dominance:g} times as many {released}" if pressed != "press" else
+               f"pressed as OFF or ON events ({summary['presses_on']} of the presses ON: each contact read by its own), "
+               f"released at {config.dominance:g} times as many of the other")
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
-                 f"{summary['frames_in_contacts']} of {summary['frames']} frames, pressed as {pressed} events, released at "
-                 f"{config.dominance:g} times as many {'OFF' if pressed == 'ON' else 'ON'}; slips flagged at "
-                 f"{slip.min_events:g} {pressed} and {slip.on_events:g} {'OFF' if pressed == 'ON' else 'ON'} events above the background")
+                 f"{summary['frames_in_contacts']} of {summary['frames']} frames, {how}; slips flagged at "
+                 f"{slip.min_events:g} {pressed} and {slip.on_events:g} {released} events above the background")
     if options.get("val_trials"):
         options = dict(options, val_trials=_contacts_of(found, options["val_trials"]))
     model = core.train(found, spec, unit="contact", **options)

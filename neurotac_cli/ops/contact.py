@@ -81,7 +81,10 @@ class ContactConfig:
     background_on: float = 10.0
     warmup_frames: int = 10  # the first frames of a stream set the background (their median); no contact begins in them (0: none)
     lead_frames: int = 2  # the force model reads this many frames before the onset it is started at (training keeps as many)
-    press_polarity: str = "off"  # the polarity most of a press's events have ("on": pressing brightens; `press_polarity`)
+    press_frames: int = 10  # press_polarity "either": the polarity of a contact's press is the one with more events above
+    # the background over this many frames from its onset (a bright object's press can begin with the dark rim about it)
+    press_polarity: str = "off"  # the polarity most of a press's events have ("on": pressing brightens; "either": read at
+    # each onset, where a sensor sees objects of both kinds; `press_polarity`)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -94,7 +97,7 @@ class ContactConfig:
 # from a few ms to 20 ms.
 REFERENCE_WINDOW_US = 10_000
 FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames",
-                                    "lead_frames"),
+                                    "lead_frames", "press_frames"),
                   "SlipConfig": ("hold_frames", "settle_frames", "level_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 
@@ -119,20 +122,20 @@ def at_window(config, window_us: int | None):
     return replace(config, **{name: type(getattr(config, name))(value) for name, value in {**frames, **events}.items()})
 
 
-POLARITIES = ("off", "on")
+POLARITIES = ("off", "on", "either")
 
 
-def oriented(config: ContactConfig, counts: np.ndarray) -> np.ndarray:
-    """Frames (T, 2, H, W) as the rules here read them, channel 0 the polarity a press makes most of:
+def oriented_sums(polarity: str, off, on) -> tuple:
+    """A frame's (or frames') OFF and ON sums as the rules here read them, a press's polarity first:
     they are written for a membrane that darkens where pressed (a dark object: OFF) and brightens back
-    on release; where pressing brightens it (a bright object, a membrane lit from behind:
-    `press_polarity` "on") the channels are read swapped. The force model reads the frames as given."""
-    return counts[:, ::-1] if config.press_polarity == "on" else counts
+    on release; where pressing brightens it (a bright object, a membrane lit from behind: `polarity`
+    "on") the channels are read swapped. The force model reads the frames as given."""
+    return (on, off) if polarity == "on" else (off, on)
 
 
-def oriented_sums(config: ContactConfig, off, on) -> tuple:
-    """A frame's (or frames') OFF and ON sums as `oriented` frames give them: a press's polarity first."""
-    return (on, off) if config.press_polarity == "on" else (off, on)
+def polarity_names(polarity: str) -> tuple:
+    """How a message names the polarity a press makes and the one a release makes."""
+    return {"on": ("ON", "OFF"), "either": ("press", "release")}.get(polarity, ("OFF", "ON"))
 
 
 MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
@@ -180,6 +183,12 @@ class Footprint:
     pressed: np.ndarray | None = None  # (H, W) OFF events above the background in the contact's pressing frames
     weights: np.ndarray | None = None  # the footprint's cells as 0/1 over the flattened frame (None before a press)
     expected: tuple = (0.0, 0.0)  # OFF and ON background over the cells (the background is still in a contact)
+
+    def turn(self):
+        """The background's polarities swapped (`ContactState.turn`); the footprint is a contact's own."""
+        if self.background is not None:
+            self.background = self.background[::-1].copy()
+        self.expected = self.expected[::-1]
 
     @property
     def cells(self) -> np.ndarray | None:
@@ -257,10 +266,24 @@ class ContactState:
     footprint: Footprint = field(default_factory=Footprint)
     local: tuple | None = None  # this frame's `Footprint.sums` inside a contact, for `slip_step` (None: the totals)
     gain: "Gain" = field(default_factory=lambda: Gain())  # the stream's own presses, for the slip bars
+    polarity: str = "off"  # how the numbers above are read: "on", every OFF / ON pair swapped (`oriented_sums`)
+    pressed_as: str | None = None  # the polarity the current contact's press made ("either": each contact's own)
+    tail: str | None = None  # the polarity of the last release while its burst lasts: no press of that polarity begins in it
+    early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
-        return cls(mean_off=config.background_off, mean_on=config.background_on, warmup=[] if config.warmup_frames > 0 else None)
+        return cls(mean_off=config.background_off, mean_on=config.background_on, warmup=[] if config.warmup_frames > 0 else None,
+                   polarity="on" if config.press_polarity == "on" else "off")
+
+    def turn(self, polarity: str):
+        """Read every OFF / ON pair kept here as `polarity` reads them (swapped where it differs from now)."""
+        if polarity == self.polarity:
+            return
+        self.polarity = polarity
+        self.mean_off, self.mean_on = self.mean_on, self.mean_off
+        self.last_excess, self.hold_level = self.last_excess[::-1], self.hold_level[::-1]
+        self.footprint.turn()
 
 
 def step(config: ContactConfig, state: ContactState, off: float, on: float, by_force: bool = False,
@@ -270,12 +293,22 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
+    either = config.press_polarity == "either"
+    if either:
+        _choose_polarity(config, state, off, on)
+        _follow_press(config, state, off, on)
+    raw = (off, on)
+    off, on = oriented_sums(state.polarity, off, on)
+    frame = frame[::-1] if frame is not None and state.polarity == "on" else frame
     touching, before = state.phase != NONE, state.onsets
     if not touching and state.warmup is None and frame is not None and _flash(state, frame, off + on):
         return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     phase = _step(config, state, off, on, by_force)
     # the footprint as it stood before this frame: a contact's onset frame has none yet
     state.local = state.footprint.sums(frame) if frame is not None and touching else None
+    if either and state.onsets != before:
+        state.early = Early()
+        state.early.add(state, *raw)
     if frame is not None:
         if phase == NONE:
             state.footprint.rest(config, frame)
@@ -287,6 +320,73 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large
 # contact can hold half its cells inside it) ...
 FLASH_CELLS = 64  # ... on frames of at least this many cells: pooled to a few (`crop --pool all`: one), a press covers them all
+
+
+def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on: float):
+    """For a sensor that sees objects of both kinds (dark ones press OFF, bright ones ON): between
+    contacts the state reads OFF as a press; a frame whose ON events rise above their background more
+    than its OFF events do, as an onset's must, turns it to read ON as the press for that contact. The
+    burst of the release that just ended a contact begins none (`tail`)."""
+    if state.phase != NONE:
+        return
+    if state.pressed_as is not None:  # the contact just ended: its release's polarity is the tail
+        state.tail, state.pressed_as = ("off" if state.pressed_as == "on" else "on"), None
+        state.turn("off")
+    if state.warmup is not None:
+        return
+    rises = {"off": _onset(config, off, on, state.mean_off, state.mean_on), "on": _onset(config, on, off, state.mean_on, state.mean_off)}
+    if state.tail is not None and not rises[state.tail]:
+        state.tail = None
+    if state.tail is not None:
+        rises[state.tail] = False
+    if rises["on"] and (not rises["off"] or on - state.mean_on > off - state.mean_off):
+        state.turn("on")
+
+
+@dataclass
+class Early:
+    """A contact's first frames, as framed (OFF, ON): events, events above the background, peaks."""
+
+    frames: int = 0
+    events: list = field(default_factory=lambda: [0.0, 0.0])
+    excess: list = field(default_factory=lambda: [0.0, 0.0])
+    peaks: list = field(default_factory=lambda: [0.0, 0.0])
+
+    def add(self, state: "ContactState", off: float, on: float):
+        means = oriented_sums(state.polarity, state.mean_off, state.mean_on)
+        for k, (count, mean) in enumerate(zip((off, on), means)):
+            self.events[k] += count
+            self.excess[k] += max(count - mean, 0.0)
+            self.peaks[k] = max(self.peaks[k], count)
+        self.frames += 1
+
+
+def _follow_press(config: ContactConfig, state: ContactState, off: float, on: float):
+    """In a contact's first `press_frames` frames, the press is read by the polarity with more events
+    above the background since the onset, this frame's included: where that is the other one, the
+    contact is read the other way from this frame on, its press's sums those of that polarity."""
+    early = state.early
+    if early is None or state.phase == NONE or early.frames >= config.press_frames:
+        state.early = None
+        return
+    early.add(state, off, on)
+    chosen = "on" if early.excess[1] > early.excess[0] else "off"
+    if chosen == state.pressed_as:
+        return
+    state.turn(chosen)
+    state.pressed_as = chosen
+    k = POLARITIES.index(chosen)
+    # this frame is added by `_step`, as every frame of the contact is
+    state.off_since, state.peak_off = early.events[k] - (on if chosen == "on" else off), early.peaks[k]
+    state.phase, state.on_run, state.released, state.held = GRASPING, 0.0, False, 0
+    state.released_on, state.quiet, state.since_release, state.low = 0.0, 0.0, 0, 0  # what was read as a release was the press
+    state.footprint.pressed = None  # the footprint starts again from this frame's press
+
+
+def _onset(config: ContactConfig, press: float, other: float, press_mean: float, other_mean: float) -> bool:
+    """A contact's first frame, `press` the polarity a press makes: above its background as an onset's
+    must be, and not a release burst of the other polarity."""
+    return _above(config, press, press_mean) and not (_above(config, other, other_mean) and other > config.dominance * press)
 
 
 def _flash(state: "ContactState", frame: np.ndarray, events: float) -> bool:
@@ -311,8 +411,8 @@ def _step(config, state, off, on, by_force) -> str:
         _warm_up(config, state, off, on)
         return state.phase
     if state.phase == NONE:
-        if _above(config, off, state.mean_off) and not _brightening(config, state, off, on):
-            state.phase, state.onsets = GRASPING, state.onsets + 1
+        if _onset(config, off, on, state.mean_off, state.mean_on) and state.tail != state.polarity:
+            state.phase, state.onsets, state.pressed_as, state.low = GRASPING, state.onsets + 1, state.polarity, 0
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
             state.peak_force, state.press_after, state.hold_level = 0.0, 0, (0.0, 0.0)
         else:
@@ -361,9 +461,15 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
     the estimate stays up, or comes back up as the grip tightens again), or once the membrane has been
     quiet for `quiet_frames` frames since the burst while the estimate is under `quiet_force_share` of
     its peak in the contact (`peak_force`, which the caller keeps) or the release was bright
-    (`quiet_release_share`)."""
-    if state.phase == NONE or not state.released:
+    (`quiet_release_share`). With press_polarity "either", `low_frames` frames in a row under
+    `release_force_n` end a contact with or without a release burst (`_unloaded`)."""
+    if state.phase == NONE:
         return False
+    if not state.released:
+        if not _unloaded(config, state, force_n):
+            return False
+        state.phase, state.on_run, state.low = NONE, 0.0, 0
+        return True
     state.low = state.low + 1 if force_n < config.release_force_n else 0
     fallen = force_n < config.quiet_force_share * state.peak_force
     large = state.released_on >= config.quiet_release_share * max(state.peak_off - state.mean_off, 1.0)
@@ -373,6 +479,19 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
         state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
         return True
     return False
+
+
+def _unloaded(config: ContactConfig, state: ContactState, force_n: float) -> bool:
+    """A contact of press_polarity "either" whose estimate has read under `release_force_n` for
+    `low_frames` frames in a row, no release burst seen: what began it may have been no press but the
+    release of a contact that ended before it (the quiet rule ends some partial releases), read as the
+    press of an object of the other kind, and no release burst of its own follows. A sensor of one
+    polarity never reads a release as a press, and waits for the release burst: an estimate that sags
+    in a hold ends nothing there."""
+    if config.press_polarity != "either":
+        return False
+    state.low = state.low + 1 if force_n < config.release_force_n else 0
+    return state.low >= config.low_frames
 
 
 def _warm_up(config, state, off, on):
@@ -401,8 +520,6 @@ def detect(config: ContactConfig, off: np.ndarray, on: np.ndarray, state: Contac
     with `counts` (the frames, (T, 2, H, W)) slips are judged on the footprint, as `Stream` does.
 
     Returns (phase array of str, onset flags (a contact begins at this frame), slip flags, the state after)."""
-    off, on = oriented_sums(config, off, on)  # the rules read a press's polarity as OFF
-    counts = None if counts is None else oriented(config, counts)
     state = state or ContactState.start(config)
     phases = np.empty(len(off), dtype=object)
     onsets = np.zeros(len(off), dtype=bool)
@@ -501,15 +618,60 @@ def release_peaks(on: np.ndarray, contacts, warmup_frames: int = ContactConfig.w
 ONSET_FRAMES = 3  # a contact's first frames by its force, in which its press's first events are looked for (`press_polarity`)
 
 
-def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames) -> str:
-    """"on" where the presses of `streams` (triples of OFF per frame, ON per frame, contacts) make more
-    ON than OFF events above the background, else "off" (also where there is no contact): the median
-    over the contacts of each polarity's peak in the ONSET_FRAMES frames from the onset and the two
-    before it (a short contact's release falls inside PRESS_FRAMES)."""
+MIXED_SHARE = 0.2  # presses of the less common polarity in more than this share of the contacts: objects of both kinds
+
+
+def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
+                   press_frames: int = ContactConfig.press_frames) -> str:
+    """"either" where more than MIXED_SHARE of the contacts of `streams` (triples of OFF per frame, ON
+    per frame, contacts) press with the less common polarity (`contact_polarities`: a sensor that sees
+    dark and bright objects); else "on" where the presses make more ON than OFF events above the
+    background (the median over the contacts of each polarity's peak in the ONSET_FRAMES frames from
+    the onset and the two before it), "off" otherwise and where there is no contact."""
+    found = [polarity for polarities in contact_polarities(streams, warmup_frames, press_frames) for polarity in polarities]
+    if not found:
+        return "off"
+    if MIXED_SHARE < np.mean([polarity == "on" for polarity in found]) < 1 - MIXED_SHARE:
+        return "either"
     spans = [[(begin - 2, begin + ONSET_FRAMES) for begin, _ in contacts] for _, _, contacts in streams]
     off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
     on_peaks = [peak for (_, on, _), mine in zip(streams, spans) for peak in _peaks(on, mine, warmup_frames)]
-    return "on" if off_peaks and np.median(on_peaks) > np.median(off_peaks) else "off"
+    return "on" if np.median(on_peaks) > np.median(off_peaks) else "off"
+
+
+def contact_polarities(streams, warmup_frames: int = ContactConfig.warmup_frames,
+                       press_frames: int = ContactConfig.press_frames) -> list[list[str]]:
+    """Per stream of `streams`, the polarity of each contact's press: the one with more events above
+    the stream's background (the median of its first `warmup_frames` frames) from two frames before
+    the onset to `press_frames` after it, within the contact, as the detector reads each contact's
+    press at run time."""
+    out = []
+    for off, on, contacts in streams:
+        off, on = np.asarray(off, dtype=np.float64), np.asarray(on, dtype=np.float64)
+        quiet = [float(np.median(c[:max(warmup_frames, 1)])) if len(c) else 0.0 for c in (off, on)]
+        mine = []
+        for begin, end in contacts:
+            span = slice(max(0, begin - 2), min(begin + press_frames, end))
+            excess = [np.clip(c[span] - q, 0.0, None).sum() for c, q in zip((off, on), quiet)]
+            mine.append("on" if excess[1] > excess[0] else "off")
+        out.append(mine)
+    return out
+
+
+def oriented_streams(streams, polarity: str, warmup_frames: int = ContactConfig.warmup_frames,
+                     press_frames: int = ContactConfig.press_frames) -> list:
+    """`streams` (triples of OFF per frame, ON per frame, contacts) with a press's polarity first, as
+    `dominance_for` and `rig_peaks` read them; with `polarity` "either", each contact by its own press
+    (a stream's bright contacts as a stream of their own, its channels swapped)."""
+    if polarity != "either":
+        return [(*oriented_sums(polarity, off, on), contacts) for off, on, contacts in streams]
+    out = []
+    for (off, on, contacts), polarities in zip(streams, contact_polarities(streams, warmup_frames, press_frames)):
+        for kind in POLARITIES[:2]:
+            mine = [contact for contact, own in zip(contacts, polarities) if own == kind]
+            if mine:
+                out.append((*oriented_sums(kind, off, on), mine))
+    return out
 
 
 RELEASE_MISS_SHARE = 0.1  # the release bar moves where more of the training releases' burst frames than this fall under it
@@ -620,7 +782,8 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     """Advance the slip flag by one frame whose phase `step` has just set. A slip starts in a hold
     that has settled; once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press). The bars follow the stream's own
-    presses (`follow_gain`)."""
+    presses (`follow_gain`). `off` and `on` as `step` takes them."""
+    off, on = oriented_sums(state.polarity, off, on)
     config = follow_gain(config, state, off)
     touching = state.phase != NONE
     if state.local is not None:  # the footprint's events above its own background (`step` with the frame)

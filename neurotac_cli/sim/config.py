@@ -145,6 +145,8 @@ class SimConfig:
     change_share: float = 0.3  # share of grasps whose force changes while held
     partial_share: float = 0.2  # share of grasps released partly before the final release
     slip_share: float = 0.3  # share of grasps in which the object slips
+    bright_share: float = 0.0  # share of grasps whose object is brighter than the membrane (a white or polished face) ...
+    bright_contrast: float = -1.5  # ... its object_contrast: the contact brightens, a press makes ON events
     slip_speed_mm_s: tuple = (5.0, 40.0)  # speed of the contact patch along the membrane during a slip
     slip_us: tuple = (50_000, 300_000)  # length of a slip
     slip_force_drop: tuple = (0.0, 0.5)  # share of the normal force lost during a slip
@@ -269,10 +271,10 @@ BOUNDS = {
                      "hot_pixels", "creep_us", "servo_settle_us", "settle_us", "still_us", "force_lag_us", "max_duration_us",
                      "duration_jitter", "texture", "dark_level", "position_jitter_px", "settle_px", "vibration_px",
                      "drift_px", "tilt_deg", "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"), _NOT_NEGATIVE),
-    **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share"), _SHARE),
+    **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share", "bright_share"), _SHARE),
     **dict.fromkeys(("creep", "vignetting", "threshold_mismatch", "illumination_drift"), _BELOW_ONE),
     "on_threshold": (1e-3, 10.0, False, False), "off_threshold": (1e-3, 10.0, False, False),
-    "object_contrast": (-4.0, 1.0, False, True), "membrane_poisson": (0.0, 0.5, False, False),
+    "object_contrast": (-4.0, 1.0, False, True), "bright_contrast": (-4.0, 0.0, False, True), "membrane_poisson": (0.0, 0.5, False, False),
 }
 WHY = {"on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "
        "pixels have 0.1-0.5", "object_contrast": "at 0 the camera cannot see the object; below 0 the object is brighter than the membrane", "membrane_poisson": "0.5: incompressible"}

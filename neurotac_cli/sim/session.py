@@ -25,7 +25,7 @@ a time; the largest thing held is one grasp's events.
 """
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -109,6 +109,10 @@ def plan_session(config: SimConfig, rng: np.random.Generator, n_grasps: int, nam
         planned = _plan_grasp(own, rng, index, material, shape, labels, offset_us=now - LEAD_US)
         if physics:
             planned.config, planned.physics = own, physics
+        if config.bright_share > 0:  # drawn only where asked: other seeds keep their bytes
+            contrast = config.bright_contrast if rng.random() < config.bright_share else own.object_contrast
+            planned.config = replace(own, object_contrast=contrast)
+            planned.physics = {**planned.physics, "object_contrast": contrast}
         grasps.append(planned)
         now = planned.offset_us + planned.grasp.released_us
     rest = int(rng.uniform(*config.session_rest_us))

@@ -27,11 +27,13 @@ SIZE = 9
 WINDOW_US = 10_000
 
 
-def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
+def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05, bright=()):
     """A session of grasp-like contacts between rests: OFF events while the force rises, ON while it
-    falls, a little activity while held, background everywhere. Returns (frames table, true onsets)."""
+    falls, a little activity while held, background everywhere; the grasps numbered in `bright` the
+    other way round (a bright object: ON as it presses, OFF as it lets go). Returns (frames table,
+    true onsets)."""
     rng = np.random.default_rng(seed)
-    force, phase, grasp, onsets = [], [], [], []
+    force, phase, grasp, onsets, swapped = [], [], [], [], []
     for g in range(grasps):
         gap = int(rng.integers(*rest))
         force += [0.0] * gap
@@ -41,6 +43,7 @@ def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
         hold = int(rng.integers(5, 30))
         onsets.append(len(force))
         shape = np.concatenate([np.linspace(peak / 4, peak, 4), np.full(hold, peak), np.linspace(peak * 0.6, 0, 3)])
+        swapped += list(range(len(force), len(force) + len(shape))) if g in bright else []
         force += shape.tolist()
         phase += ["grasping"] * 4 + ["holding"] * hold + ["releasing"] * 2 + ["none"]
         grasp += [g] * (len(shape) - 1) + [-1]
@@ -55,7 +58,9 @@ def tiny_session(grasps=4, seed=0, trial="s0", rest=(40, 80), background=0.05):
     patch[2:7, 2:7] = SIZE * SIZE / 25
     off = rng.poisson(background + 3 * np.clip(change, 0, None)[:, None, None] * patch, (len(force), SIZE, SIZE))
     on = rng.poisson(background + 3 * np.clip(-change, 0, None)[:, None, None] * patch, (len(force), SIZE, SIZE))
-    return frames_table(trial, np.stack([off, on], axis=1), force, phase, np.asarray(grasp)), onsets
+    counts = np.stack([off, on], axis=1)
+    counts[swapped] = counts[swapped, ::-1]
+    return frames_table(trial, counts, force, phase, np.asarray(grasp)), onsets
 
 
 def frames_table(trial, counts, force, phase, grasp):
@@ -333,6 +338,59 @@ def test_a_flash_over_the_whole_view_begins_no_contact():
     for pooled in (frames.sum(axis=(2, 3), keepdims=True), nine):  # `crop --pool all`, a few cells
         found = contact.detect(config, off, on, counts=pooled)[1]
         assert list(np.flatnonzero(found)) == onsets  # a press covers them all: no flash rule there
+
+
+def test_a_sensor_that_sees_dark_and_bright_objects_reads_each_contact_by_its_own_press():
+    """Dark objects press OFF and let go ON, bright ones the reverse: with press_polarity "either" each
+    contact is read by the polarity of its own onset, and the burst of a release that ended a contact
+    begins no contact of its polarity; one polarity for every contact misses or merges the others."""
+    table, onsets = tiny_session(grasps=8, seed=5, bright=(1, 2, 5))
+    frames = sch.counts_numpy(table.column("counts"))
+    off, on = contact.frame_sums(frames)
+    force = table.column("force").to_numpy()
+    truth = metrics.runs(force > 0)
+    config = contact.ContactConfig(release_force_n=0.3)
+    assert contact.press_polarity([(off, on, truth)]) == "either"
+    assert contact.contact_polarities([(off, on, truth)]) == [["on" if g in (1, 2, 5) else "off" for g in range(8)]]
+    either = dataclasses.replace(config, press_polarity="either")
+    for given in (force, None):  # ended by the force, and by the release burst alone (which then goes on for two frames)
+        phases, found, _, state = contact.detect(either, off, on, force=given, counts=frames)
+        assert list(np.flatnonzero(found)) == onsets
+        runs = metrics.runs(phases != contact.NONE)
+        assert [begin for begin, _ in runs] == onsets and all(end - begin >= 5 for begin, end in runs)
+    assert state.polarity == "off" or state.phase != contact.NONE
+    darkening = metrics.runs(contact.detect(config, off, on, force=force, counts=frames)[0] != contact.NONE)
+    assert [begin for begin, _ in darkening] != onsets
+
+
+def test_a_bright_press_that_begins_with_its_rims_off_events_is_read_as_pressing_on():
+    """A bright face through a membrane whose rim darkens about it: the press's first frames are OFF,
+    then ON overtakes them. Read as OFF to the end, its ON burst was a release and its OFF release a
+    press again; turned over, the release is one."""
+    off = [5.0] * 30 + [60.0, 80.0, 20.0, 20.0, 15.0] + [5.0] * 40 + [150.0, 150.0] + [5.0] * 40
+    on = [5.0] * 30 + [10.0, 40.0, 300.0, 250.0, 100.0] + [5.0] * 40 + [10.0, 10.0] + [5.0] * 40
+    force = [0.0] * 30 + [0.5, 1.0, 2.0, 3.0, 3.0] + [3.0] * 40 + [1.0, 0.0] + [0.0] * 40
+    config = contact.ContactConfig(release_force_n=0.3, press_polarity="either")
+    turned, first = (contact.detect(dataclasses.replace(config, press_frames=frames), np.asarray(off), np.asarray(on),
+                                    force=np.asarray(force))[0] for frames in (10, 1))  # 1: read by its onset frame alone
+    assert metrics.runs(turned != contact.NONE)[0][0] == 30 and 76 <= metrics.runs(turned != contact.NONE)[0][1] <= 100
+    assert list(turned[32:35]) == [contact.GRASPING] * 3 and list(turned[75:77]) == [contact.RELEASING] * 2
+    assert first[32] == contact.RELEASING and first[75] == contact.GRASPING
+
+
+def test_training_on_a_sensor_of_dark_and_bright_objects_reads_each_contact_by_its_own_press():
+    mixed = pa.concat_tables([tiny_session(6, seed=s, trial=f"s{s}", bright=(1, 4, s))[0] for s in range(3)])
+    model = session.train(mixed, models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    config = session.contact_config(model)
+    assert config.press_polarity == "either" and model.training["contacts"]["presses_on"] == 8
+    assert model.training["contacts"]["detection"]["f1"] >= 0.9
+    frames = mixed.filter(pc.equal(mixed.column("trial"), "s2"))
+    counts = sch.counts_numpy(frames.column("counts"))
+    off, on = contact.frame_sums(counts)
+    streamed = session.Stream(model).step(counts, frames.column("t").to_numpy())[1]
+    estimates = session.predict_table(model, frames).column("force_pred").to_numpy()
+    found = contact.detect(config, off, on, force=estimates, counts=counts)[0]
+    assert (streamed == found).all() and len(metrics.runs(found != contact.NONE)) == 6
 
 
 def mixed_release_stream(grasps=4, ratio=1.5):

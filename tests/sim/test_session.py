@@ -195,3 +195,18 @@ def test_slips_drawn_that_no_hold_can_hold_are_counted(tmp_path):
     assert done.returncode == 0 and "2 of the 3 slips drawn had no hold long enough" in done.stderr
     rows = read_csv(tmp_path / "s" / "grasps.csv")
     assert sum(1 for row in rows if row["slip_start_ms"]) == 1
+
+
+def test_a_share_of_bright_objects_presses_those_grasps_with_on_events():
+    config = preset_config("ch4", groups=("steel:bolt12:1",), bright_share=0.5, slip_share=0.0, regrasp_share=0.0,
+                           partial_share=0.0, change_share=0.0, session_hold_us=(300_000, 300_000))
+    grasps = plan_session(config, np.random.default_rng(4), 8).grasps
+    contrasts = [planned.physics["object_contrast"] for planned in grasps]
+    assert set(contrasts) == {config.object_contrast, config.bright_contrast}
+    assert len(set(contrasts[:4])) == 2
+    camera = dvs.make_camera(config, np.random.default_rng(1))
+    for planned in grasps[:4]:
+        t, _, _, p = _contact_events(config, camera, planned, np.zeros(camera.shape, np.float32))
+        pressing = (t - planned.offset_us) < planned.grasp.loaded_us
+        share_on = float(p[pressing].mean())
+        assert share_on > 0.7 if planned.physics["object_contrast"] < 0 else share_on < 0.3
