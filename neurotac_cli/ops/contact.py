@@ -618,20 +618,25 @@ def release_peaks(on: np.ndarray, contacts, warmup_frames: int = ContactConfig.w
 ONSET_FRAMES = 3  # a contact's first frames by its force, in which its press's first events are looked for (`press_polarity`)
 
 
-MIXED_SHARE = 0.2  # presses of the less common polarity in more than this share of the contacts: objects of both kinds
+MIXED_SHARE = 0.2  # contacts pressed clearly ON, and clearly OFF, each more than this share: objects of both kinds
+CLEAR_RATIO = 2.0  # ... clearly: this many times more events of one polarity than of the other above the background
 
 
 def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
                    press_frames: int = ContactConfig.press_frames) -> str:
     """"either" where more than MIXED_SHARE of the contacts of `streams` (triples of OFF per frame, ON
-    per frame, contacts) press with the less common polarity (`contact_polarities`: a sensor that sees
-    dark and bright objects); else "on" where the presses make more ON than OFF events above the
-    background (the median over the contacts of each polarity's peak in the ONSET_FRAMES frames from
-    the onset and the two before it), "off" otherwise and where there is no contact."""
-    found = [polarity for polarities in contact_polarities(streams, warmup_frames, press_frames) for polarity in polarities]
-    if not found:
+    per frame, contacts) press with CLEAR_RATIO times more ON than OFF events and more than that share
+    with as many times more OFF (`press_shares`): a sensor that sees dark and bright objects. A
+    membrane whose presses make both polarities in like numbers (printed markers lit from one side)
+    is not one: its contacts' shares gather about a half. Else "on" where the presses make more ON
+    than OFF events above the background (the median over the contacts of each polarity's peak in the
+    ONSET_FRAMES frames from the onset and the two before it), "off" otherwise and where there is no
+    contact."""
+    shares = np.asarray([share for mine in press_shares(streams, warmup_frames, press_frames) for share in mine])
+    if not len(shares):
         return "off"
-    if MIXED_SHARE < np.mean([polarity == "on" for polarity in found]) < 1 - MIXED_SHARE:
+    clear = CLEAR_RATIO / (1 + CLEAR_RATIO)
+    if np.mean(shares > clear) > MIXED_SHARE and np.mean(shares < 1 - clear) > MIXED_SHARE:
         return "either"
     spans = [[(begin - 2, begin + ONSET_FRAMES) for begin, _ in contacts] for _, _, contacts in streams]
     off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
@@ -639,12 +644,11 @@ def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
     return "on" if np.median(on_peaks) > np.median(off_peaks) else "off"
 
 
-def contact_polarities(streams, warmup_frames: int = ContactConfig.warmup_frames,
-                       press_frames: int = ContactConfig.press_frames) -> list[list[str]]:
-    """Per stream of `streams`, the polarity of each contact's press: the one with more events above
-    the stream's background (the median of its first `warmup_frames` frames) from two frames before
-    the onset to `press_frames` after it, within the contact, as the detector reads each contact's
-    press at run time."""
+def press_shares(streams, warmup_frames: int = ContactConfig.warmup_frames,
+                 press_frames: int = ContactConfig.press_frames) -> list[list[float]]:
+    """Per stream of `streams`, each contact's press: the ON share of its events above the stream's
+    background (the median of its first `warmup_frames` frames) from two frames before the onset to
+    `press_frames` after it, within the contact, as the detector reads a contact's press at run time."""
     out = []
     for off, on, contacts in streams:
         off, on = np.asarray(off, dtype=np.float64), np.asarray(on, dtype=np.float64)
@@ -652,10 +656,17 @@ def contact_polarities(streams, warmup_frames: int = ContactConfig.warmup_frames
         mine = []
         for begin, end in contacts:
             span = slice(max(0, begin - 2), min(begin + press_frames, end))
-            excess = [np.clip(c[span] - q, 0.0, None).sum() for c, q in zip((off, on), quiet)]
-            mine.append("on" if excess[1] > excess[0] else "off")
+            dark, bright = (float(np.clip(c[span] - q, 0.0, None).sum()) for c, q in zip((off, on), quiet))
+            mine.append(bright / (dark + bright) if dark + bright > 0 else 0.0)
         out.append(mine)
     return out
+
+
+def contact_polarities(streams, warmup_frames: int = ContactConfig.warmup_frames,
+                       press_frames: int = ContactConfig.press_frames) -> list[list[str]]:
+    """Per stream of `streams`, the polarity of each contact's press: the one with more of its events
+    above the background (`press_shares`)."""
+    return [["on" if share > 0.5 else "off" for share in mine] for mine in press_shares(streams, warmup_frames, press_frames)]
 
 
 def oriented_streams(streams, polarity: str, warmup_frames: int = ContactConfig.warmup_frames,

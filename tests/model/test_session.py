@@ -351,6 +351,8 @@ def test_a_sensor_that_sees_dark_and_bright_objects_reads_each_contact_by_its_ow
     truth = metrics.runs(force > 0)
     config = contact.ContactConfig(release_force_n=0.3)
     assert contact.press_polarity([(off, on, truth)]) == "either"
+    both = on + 0.8 * off, off + 0.8 * on  # presses that make both polarities in like numbers: one kind of contact
+    assert contact.press_polarity([(*both, truth)]) == "on" and contact.press_polarity([(*both[::-1], truth)]) == "off"
     assert contact.contact_polarities([(off, on, truth)]) == [["on" if g in (1, 2, 5) else "off" for g in range(8)]]
     either = dataclasses.replace(config, press_polarity="either")
     for given in (force, None):  # ended by the force, and by the release burst alone (which then goes on for two frames)
