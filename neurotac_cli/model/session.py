@@ -252,7 +252,7 @@ MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for train
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict, list]:
     """The frames of every contact, one trial per contact (`STREAM@FRAME`), what was found:
     {"sessions", "contacts", "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
-    "release_on", "presses_on"}, and per stream what `detection_check` reads (None without phases).
+    "release_on", "presses_on": [presses pressed ON, presses] (None without phases)}, and per stream what `detection_check` reads (None without phases).
 
     Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
     of frames whose phase is not none, with the detector's `lead_frames` of rest before it (the
@@ -273,9 +273,10 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     runs = [touching for _, _, touching in streams]
     presses_on = None
     if labelled:
-        polarity = detector.press_polarity(streams, config.warmup_frames, config.press_frames)
-        presses_on = sum(own == "on" for own in sum(detector.contact_polarities(streams, config.warmup_frames, config.press_frames), []))
-        streams = detector.oriented_streams(streams, polarity, config.warmup_frames, config.press_frames)
+        shares = detector.press_shares(streams, config.warmup_frames, config.press_frames)
+        polarity = detector.press_polarity(streams, shares=shares)
+        presses_on = [sum(own == "on" for mine in detector.contact_polarities(shares) for own in mine), sum(map(len, shares))]
+        streams = detector.oriented_streams(streams, polarity, shares)
     rows, names = [], []
     after = detector.frames_at(MARGIN_AFTER, sch.get_meta(table.schema, sch.WINDOW)) if labelled else 0
     for trial, frames, touching in zip(data.trials, data.frame, runs):
@@ -358,9 +359,9 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     progress = options.get("progress")
     if progress:
         pressed, released = detector.polarity_names(config.press_polarity)
-        how = (f"pressed as {pressed} events, released at {config.dominance:g} times as many {released}" if pressed != "press" else
-               f"pressed as OFF or ON events ({summary['presses_on']} of the presses ON: each contact read by its own), "
-               f"released at {config.dominance:g} times as many of the other")
+        how = (f"pressed as OFF or ON events ({summary['presses_on'][0]} of {summary['presses_on'][1]} presses ON: each contact read by "
+               f"its own), released at {config.dominance:g} times as many of the other" if config.press_polarity == "either" else
+               f"pressed as {pressed} events, released at {config.dominance:g} times as many {released}")
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames, {how}; slips flagged at "
                  f"{slip.min_events:g} {pressed} and {slip.on_events:g} {released} events above the background")

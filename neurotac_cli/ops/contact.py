@@ -135,7 +135,7 @@ def oriented_sums(polarity: str, off, on) -> tuple:
 
 def polarity_names(polarity: str) -> tuple:
     """How a message names the polarity a press makes and the one a release makes."""
-    return {"on": ("ON", "OFF"), "either": ("press", "release")}.get(polarity, ("OFF", "ON"))
+    return {"on": ("ON", "OFF"), "either": ("press-polarity", "release-polarity")}.get(polarity, ("OFF", "ON"))
 
 
 MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
@@ -178,11 +178,11 @@ class Footprint:
     background per cell (running mean of rest frames, as the detector's totals), the OFF events above
     it over the contact's presses, and the cells of the footprint."""
 
-    background: np.ndarray | None = None  # (2, H, W) events per frame at rest
+    background: np.ndarray | None = None  # (2, H, W) events per frame at rest, its polarities as the state reads them
     rest_frames: int = 0  # rest frames averaged so far (a plain mean until there are background_frames)
     pressed: np.ndarray | None = None  # (H, W) OFF events above the background in the contact's pressing frames
     weights: np.ndarray | None = None  # the footprint's cells as 0/1 over the flattened frame (None before a press)
-    expected: tuple = (0.0, 0.0)  # OFF and ON background over the cells (the background is still in a contact)
+    expected: tuple = (0.0, 0.0)  # OFF and ON background over the cells (the background is still in a contact), as read
 
     def turn(self):
         """The background's polarities swapped (`ContactState.turn`); the footprint is a contact's own."""
@@ -256,7 +256,7 @@ class ContactState:
     since_release: int = 0  # frames since the first release burst after the last press
     released_on: float = 0.0  # ON events above the background in the release bursts since the last press
     peak_force: float = 0.0  # the force model's largest estimate in this contact (set by its caller)
-    low: int = 0  # frames in a row the force estimate has been under release_force_n since the burst
+    low: int = 0  # frames in a row the force estimate has been under release_force_n (since the burst; "either": `_unloaded`)
     onsets: int = 0  # contacts begun so far (a new one resets the force model's state)
     slipping: bool = False
     slip_quiet: int = 0  # frames since the last evidence of a slip
@@ -331,7 +331,7 @@ def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on:
         return
     if state.pressed_as is not None:  # the contact just ended: its release's polarity is the tail
         state.tail, state.pressed_as = ("off" if state.pressed_as == "on" else "on"), None
-        state.turn("off")
+    state.turn("off")  # also after a frame turned for an onset that the flash rule refused
     if state.warmup is not None:
         return
     rises = {"off": _onset(config, off, on, state.mean_off, state.mean_on), "on": _onset(config, on, off, state.mean_on, state.mean_off)}
@@ -381,6 +381,10 @@ def _follow_press(config: ContactConfig, state: ContactState, off: float, on: fl
     state.phase, state.on_run, state.released, state.held = GRASPING, 0.0, False, 0
     state.released_on, state.quiet, state.since_release, state.low = 0.0, 0.0, 0, 0  # what was read as a release was the press
     state.footprint.pressed = None  # the footprint starts again from this frame's press
+    # the slip flag's numbers of this contact were read the other way: its press's peak so far is this polarity's
+    state.hold_level, state.last_excess, state.slipping, state.slip_quiet = (0.0, 0.0), (0.0, 0.0), False, 0
+    if state.gain.press_frames is not None:  # still measuring this contact's press (`follow_gain`)
+        state.gain.press_frames, state.gain.press_peak = early.frames - 1, max(early.peaks[k] - state.mean_off, 0.0)
 
 
 def _onset(config: ContactConfig, press: float, other: float, press_mean: float, other_mean: float) -> bool:
@@ -462,7 +466,7 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
     quiet for `quiet_frames` frames since the burst while the estimate is under `quiet_force_share` of
     its peak in the contact (`peak_force`, which the caller keeps) or the release was bright
     (`quiet_release_share`). With press_polarity "either", `low_frames` frames in a row under
-    `release_force_n` end a contact with or without a release burst (`_unloaded`)."""
+    `release_force_n` end a contact that has loaded, with or without a release burst (`_unloaded`)."""
     if state.phase == NONE:
         return False
     if not state.released:
@@ -482,13 +486,14 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
 
 
 def _unloaded(config: ContactConfig, state: ContactState, force_n: float) -> bool:
-    """A contact of press_polarity "either" whose estimate has read under `release_force_n` for
-    `low_frames` frames in a row, no release burst seen: what began it may have been no press but the
-    release of a contact that ended before it (the quiet rule ends some partial releases), read as the
-    press of an object of the other kind, and no release burst of its own follows. A sensor of one
+    """A contact of press_polarity "either" whose estimate, once above `release_force_n`, has read
+    under it for `low_frames` frames in a row, no release burst seen: what began it may have been no
+    press but the release of a contact that ended before it (the quiet rule ends some partial
+    releases), read as the press of an object of the other kind, and no release burst of its own
+    follows. Not before the estimate has risen: it lags a press that is still rising. A sensor of one
     polarity never reads a release as a press, and waits for the release burst: an estimate that sags
     in a hold ends nothing there."""
-    if config.press_polarity != "either":
+    if config.press_polarity != "either" or state.peak_force < config.release_force_n:
         return False
     state.low = state.low + 1 if force_n < config.release_force_n else 0
     return state.low >= config.low_frames
@@ -623,7 +628,7 @@ CLEAR_RATIO = 2.0  # ... clearly: this many times more events of one polarity th
 
 
 def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
-                   press_frames: int = ContactConfig.press_frames) -> str:
+                   press_frames: int = ContactConfig.press_frames, shares: list | None = None) -> str:
     """"either" where more than MIXED_SHARE of the contacts of `streams` (triples of OFF per frame, ON
     per frame, contacts) press with CLEAR_RATIO times more ON than OFF events and more than that share
     with as many times more OFF (`press_shares`): a sensor that sees dark and bright objects. A
@@ -631,8 +636,9 @@ def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
     is not one: its contacts' shares gather about a half. Else "on" where the presses make more ON
     than OFF events above the background (the median over the contacts of each polarity's peak in the
     ONSET_FRAMES frames from the onset and the two before it), "off" otherwise and where there is no
-    contact."""
-    shares = np.asarray([share for mine in press_shares(streams, warmup_frames, press_frames) for share in mine])
+    contact. `shares`: `press_shares` of `streams`, where they are known."""
+    shares = shares if shares is not None else press_shares(streams, warmup_frames, press_frames)
+    shares = np.asarray([share for mine in shares for share in mine])
     if not len(shares):
         return "off"
     clear = CLEAR_RATIO / (1 + CLEAR_RATIO)
@@ -662,22 +668,21 @@ def press_shares(streams, warmup_frames: int = ContactConfig.warmup_frames,
     return out
 
 
-def contact_polarities(streams, warmup_frames: int = ContactConfig.warmup_frames,
-                       press_frames: int = ContactConfig.press_frames) -> list[list[str]]:
-    """Per stream of `streams`, the polarity of each contact's press: the one with more of its events
-    above the background (`press_shares`)."""
-    return [["on" if share > 0.5 else "off" for share in mine] for mine in press_shares(streams, warmup_frames, press_frames)]
+def contact_polarities(shares: list) -> list[list[str]]:
+    """Per stream, the polarity of each contact's press: the one with more of its events above the
+    background (`press_shares`, given)."""
+    return [["on" if share > 0.5 else "off" for share in mine] for mine in shares]
 
 
-def oriented_streams(streams, polarity: str, warmup_frames: int = ContactConfig.warmup_frames,
-                     press_frames: int = ContactConfig.press_frames) -> list:
+def oriented_streams(streams, polarity: str, shares: list | None = None) -> list:
     """`streams` (triples of OFF per frame, ON per frame, contacts) with a press's polarity first, as
     `dominance_for` and `rig_peaks` read them; with `polarity` "either", each contact by its own press
-    (a stream's bright contacts as a stream of their own, its channels swapped)."""
+    (`shares`: `press_shares` of `streams`; a stream's bright contacts as a stream of their own, its
+    channels swapped)."""
     if polarity != "either":
         return [(*oriented_sums(polarity, off, on), contacts) for off, on, contacts in streams]
     out = []
-    for (off, on, contacts), polarities in zip(streams, contact_polarities(streams, warmup_frames, press_frames)):
+    for (off, on, contacts), polarities in zip(streams, contact_polarities(shares)):
         for kind in POLARITIES[:2]:
             mine = [contact for contact, own in zip(contacts, polarities) if own == kind]
             if mine:
@@ -791,7 +796,8 @@ def follow_gain(config: SlipConfig, state: ContactState, off: float) -> SlipConf
 
 def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, separation: float) -> bool:
     """Advance the slip flag by one frame whose phase `step` has just set. A slip starts in a hold
-    that has settled; once started it goes on while the evidence does, whatever phase the counts
+    that has settled, in no frame read as a release (on some membranes a release makes both
+    polarities: the patch lets go as its rim relaxes); once started it goes on while the evidence does, whatever phase the counts
     suggest (a fast slip darkens enough to look like a press). The bars follow the stream's own
     presses (`follow_gain`). `off` and `on` as `step` takes them."""
     off, on = oriented_sums(state.polarity, off, on)
@@ -818,7 +824,7 @@ def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, se
     else:
         evidence = _passes(config, excess, means, bars)
     settled = state.held_before > config.settle_frames or (state.phase == GRASPING and state.press_after > config.settle_frames)
-    starts = evidence and settled
+    starts = evidence and settled and state.phase != RELEASING
     state.slip_quiet = 0 if evidence else state.slip_quiet + 1
     state.slipping = touching and (starts or (state.slipping and (evidence or state.slip_quiet < config.hold_frames)))
     if state.phase == HOLDING:
