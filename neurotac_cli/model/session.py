@@ -81,9 +81,12 @@ def detection_note(summary: dict) -> str | None:
                     f"of them found, F1 {check['slip_f1']:.2f})")
     if not poor:
         return None
+    pressed, released = detector.polarity_names(summary.get("press_polarity", "off"))
+    reading = ("each contact's press of one polarity and its release of the other" if pressed == "press-polarity" else
+               f"a press of {pressed} events, a release of {released}")
     return ("the event detector, run on the training sessions with their true force ending contacts, " + " and ".join(poor)
-            + ": this sensor's events do not show its presses and releases as the detector reads them (a press darkening "
-            "the membrane, a release brightening it back; docs/design.md), and at run time it does no better")
+            + f": this sensor's events do not show its presses and releases as the detector reads them ({reading}; "
+            "docs/design.md), and at run time it does no better")
 
 
 def is_session_model(model) -> bool:
