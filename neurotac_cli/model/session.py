@@ -536,7 +536,8 @@ def summary_lines(figures: dict) -> list[str]:
     if "contact_f1" in figures and not get("contact_true"):  # a session without a grasp: nothing to find
         lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")
     elif "contact_f1" in figures:
-        onset = (f"onset {get('contact_onset_frames_mean'):.2g} frames late on average, {100 * get('contact_within_2'):.0f}% "
+        lag = get("contact_onset_frames_mean")
+        onset = (f"onset {abs(lag):.1f} frames {'late' if lag >= 0 else 'early'} on average, {100 * get('contact_within_2'):.0f}% "
                  "within 2 frames; " if get("contact_hits") > 0 else "")
         lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
                      f"{int(get('contact_found'))} detected), {onset}per frame F1 {get('contact_frame_f1'):.3f}")

@@ -982,3 +982,11 @@ def test_predict_names_session_frames_given_to_a_model_of_whole_trials(sessions,
     with open(tmp_path / "s.arrows", "rb") as stdin:
         done = run(["predict", "--model", str(tmp_path / "m.model"), "-o", str(tmp_path / "p.arrows")], stdin)
     assert done.returncode == 0 and b"a model trained without --contacts takes each session as one trial" in done.stderr
+
+
+def test_the_summary_says_an_early_onset_is_early():
+    figures = {"rest_frames": 0, "contact_f1": 0.8, "contact_true": 8, "contact_found": 12, "contact_hits": 8,
+               "contact_frame_f1": 0.7, "contact_within_2": 0.5}
+    early, late = ("\n".join(session.summary_lines({**figures, "contact_onset_frames_mean": lag})) for lag in (-110.4, 1.5))
+    assert "onset 110.4 frames early on average, 50% within 2 frames" in early
+    assert "onset 1.5 frames late on average" in late
