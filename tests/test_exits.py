@@ -302,6 +302,11 @@ def test_parquet_is_offered_for_a_file_too_large_only_where_the_output_is_an_unc
     assert ("as .parquet" in str(OutputError.from_os(name, OSError(errno.EFBIG, "File too large")))) == offered
 
 
+def test_the_uncompressed_tables_are_every_table_format_but_parquet():
+    # errors.py cannot import tables.py (tables imports errors): the two lists are kept in step here
+    assert set(OutputError.UNCOMPRESSED_TABLES) == {suffix for suffix, kind in tables.SUFFIXES.items() if kind != "parquet"}
+
+
 def test_a_picture_too_large_for_a_size_limit_is_not_told_to_be_parquet(files, tmp_path):
     done = subprocess.run(["bash", "-c", f"ulimit -f 1; neurotac render {files / 'f.arrows'} -o p.png"], cwd=tmp_path,
                           capture_output=True, text=True)
