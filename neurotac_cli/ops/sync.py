@@ -246,14 +246,26 @@ AGREE_MARGIN = 0.2  # the best placement's r must lead the next by this much to 
 def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     """One blink among several spikes (a fast press or a flicker can also darken a share of the
     membrane at once): the one where the force log, placed there, moves with the events, when it
-    clearly does; else the spikes are refused as before."""
+    clearly does; else the spikes are refused as before. A spike that leaves less than
+    forcelog.SHORT_OVERLAP of the log inside the recording is no candidate: its r would be read on a
+    few seconds of the log (a burst near a recording's end fitted a 40 s log's first 4 s at r 0.57)."""
     if count != 1:
         raise extra_spike(spikes, count)
-    scored = [(agreement(t, logs[0].t, forces[0], spike.t0), spike) for spike in spikes]
-    figures = ", ".join(f"{'r ' + format(r, '.2f') if r is not None else 'no r'} at {spike.details['onset_us']} µs" for r, spike in scored)
+    first, last = int(np.min(t)), int(np.max(t))
+    span = max(int(logs[0].t[-1] - logs[0].t[0]), 1)
+    scored, figures = [], []
+    for spike in spikes:
+        inside = (min(spike.t0 + int(logs[0].t[-1]), last) - max(spike.t0 + int(logs[0].t[0]), first)) / span
+        held = inside >= forcelog.SHORT_OVERLAP
+        r = agreement(t, logs[0].t, forces[0], spike.t0) if held else None
+        scored += [(r, spike)] if held else []
+        about = f"r {r:.2f}" if r is not None else "no r" if held else f"{max(inside, 0.0):.0%} of the log inside the recording"
+        figures.append(f"{about} at {spike.details['onset_us']} µs")
+    figures = ", ".join(figures)
     ranked = sorted(scored, key=lambda item: -item[0] if item[0] is not None else np.inf)
-    # every placement scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
-    if any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN or ranked[0][0] - ranked[1][0] < AGREE_MARGIN:
+    # every placement that holds the log scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
+    if (not ranked or any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN
+            or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN)):
         raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures})")
     spike = ranked[0][1]
     spike.details["agreement"] = ranked[0][0]

@@ -695,3 +695,20 @@ def test_a_session_s_blink_is_told_from_a_press_as_bright_by_where_the_force_log
     short = sy.ForceLog(t=force_t[:5_000], value=force_v[:5_000])  # 10 s of a 40 s session: coverage warned, the choice kept
     _, info = sy.sync_source(manifest.Source("s", table, [short]), sy.SyncMethod())
     assert any(line.startswith("2 LED-off spikes stand out") for line in info["s"]["warnings"]) and len(info["s"]["warnings"]) >= 2
+
+
+def test_a_spike_that_leaves_most_of_the_log_outside_the_recording_is_no_candidate(monkeypatch):
+    """A burst near a recording's end fitted the first seconds of a 40 s session log better than the
+    blink fitted the whole: the placement is refused, not taken with a warning."""
+    from neurotac_cli.io.force import ForceLog
+    from neurotac_cli.ops.instant import Instant
+
+    t = np.arange(0, 60_000_000, 1_000, dtype=np.int64)  # a 60 s recording
+    log = ForceLog(t=np.arange(0, 40_000_000, 10_000, dtype=np.int64), value=np.zeros(4_000, np.float32))
+    spikes = [Instant(t0=t0, details={"onset_us": t0}) for t0 in (4_000_000, 55_000_000)]
+    fits = {4_000_000: 0.1, 55_000_000: 0.8}
+    monkeypatch.setattr(sy, "agreement", lambda t, log_t, force, t0, **_: fits[t0])
+    with pytest.raises(SyncError, match=r"r 0.10 at 4000000 µs, 13% of the log inside the recording at 55000000 µs"):
+        sy._by_agreement(spikes, 1, t, [log], [log.value])
+    fits[4_000_000] = 0.7
+    assert sy._by_agreement(spikes, 1, t, [log], [log.value])[0].t0 == 4_000_000
