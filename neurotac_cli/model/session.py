@@ -73,20 +73,21 @@ def detection_note(summary: dict) -> str | None:
     if not check:
         return None
     poor = []
-    if check["true"] and check["f1"] < DETECTION_WARN_F1:
-        poor.append(f"finds {check['hits']:g} of their {counted(int(check['true']), 'contact')}, {check['found']:g} in all "
-                    f"(F1 {check['f1']:.2f}; a contact that runs on through a rest merges grasps)")
-    if check.get("slip_true") and check["slip_f1"] < DETECTION_WARN_F1:
-        poor.append(f"flags {counted(int(check['slip_found']), 'slip')} for their {check['slip_true']:g} ({check['slip_hits']:g} "
-                    f"of them found, F1 {check['slip_f1']:.2f})")
-    if not poor:
-        return None
     pressed, released = detector.polarity_names(summary.get("press_polarity", "off"))
     reading = ("each contact's press of one polarity and its release of the other" if pressed == "press-polarity" else
                f"a press of {pressed} events, a release of {released}")
-    return ("the event detector, run on the training sessions with their true force ending contacts, " + " and ".join(poor)
-            + f": this sensor's events do not show its presses and releases as the detector reads them ({reading}; "
-            "docs/design.md), and at run time it does no better")
+    if check["true"] and check["f1"] < DETECTION_WARN_F1:
+        poor.append(f"finds {check['hits']:g} of their {counted(int(check['true']), 'contact')}, {check['found']:g} in all "
+                    f"(F1 {check['f1']:.2f}; a contact that runs on through a rest merges grasps): this sensor's events do "
+                    f"not show its presses and releases as the detector reads them ({reading})")
+    if check.get("slip_true") and check["slip_f1"] < DETECTION_WARN_F1:
+        poor.append(f"flags {counted(int(check['slip_found']), 'slip')} for their {check['slip_true']:g} ({check['slip_hits']:g} "
+                    f"of them found, F1 {check['slip_f1']:.2f}): this sensor's holds do not show slips as the slip flag reads "
+                    "them (both polarities at once on the pressed cells, above the bars set from the training presses)")
+    if not poor:
+        return None
+    return ("the event detector, run on the training sessions with their true force ending contacts, " + "; and it ".join(poor)
+            + " (docs/design.md); at run time it does no better")
 
 
 def is_session_model(model) -> bool:

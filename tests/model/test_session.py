@@ -469,8 +469,10 @@ def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_
                           "slip_found": 18.0, "slip_hits": 2.0}}
     note = session.detection_note(poor)
     assert "finds 16 of their 24 contacts, 19 in all (F1 0.76" in note and "flags 18 slips for their 2 (2 of them found" in note
-    assert "(a press of OFF events, a release of ON;" in note
-    assert "(each contact's press of one polarity and its release of the other;" in session.detection_note({**poor, "press_polarity": "either"})
+    assert "(a press of OFF events, a release of ON); and it flags 18 slips" in note and "holds do not show slips" in note
+    assert "(each contact's press of one polarity and its release of the other)" in session.detection_note({**poor, "press_polarity": "either"})
+    slips_only = session.detection_note({"detection": {**poor["detection"], "f1": 1.0}})
+    assert "presses and releases" not in slips_only and "holds do not show slips" in slips_only
     stream = session.Stream(flipped)  # the material model reads the frames' sums as framed, not as the detector does
     frames = inverted(sessions).filter(pc.equal(sessions.column("trial"), "s0"))
     counts = sch.counts_numpy(frames.column("counts"))
