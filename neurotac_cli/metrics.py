@@ -210,7 +210,8 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
 # ---------------------------------------------------------------- sessions
 #
 # A session is one long trial of many grasps. Besides the figures above it is scored on:
-# - `contact_rmse`: RMSE over the frames whose true phase is not none (the grasps themselves);
+# - `contact_rmse`: RMSE over the frames whose true phase is not none (the grasps themselves), and
+#   `contact_rmse_constant`, that of the best constant there (their true mean: their standard deviation);
 # - rest: frames whose true phase is none (no contact, the true force zero): mean and max |estimate|
 #   (`rest_mean_abs`, `rest_max_abs`, N), and as % of the force range (`rest_mean_abs_pct_range`);
 # - drift: the least-squares slope of |estimate| at rest against time, per session, in N per minute
@@ -220,9 +221,10 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
 # - contact: true contacts are runs of frames whose phase is not none, detected ones runs of
 #   `contact_pred`; a detection that overlaps a true contact not yet matched is a hit (F1 over
 #   contacts, `contact_f1`), its onset latency the frames from the true onset (`contact_onset_frames_*`,
-#   `contact_within_2`: the share of hits within 2 frames); `contact_frame_f1` per frame;
+#   `contact_within_2`: the share of hits within 2 frames), and from its true end to the found end
+#   (`contact_end_frames_mean`, `_max`: a contact that runs on after the release); `contact_frame_f1` per frame;
 # - slip (where the table has a `slip` truth column): the same for runs of `slip` and `slip_pred`,
-#   latency in ms (`slip_latency_ms_*`, between the frames' start times `t`; `slip_within_20`).
+#   latency in ms (`slip_latency_ms_*`, between the frames' start times `t`; `slip_within_20`; `slip_end_ms_*`).
 
 REST_PHASES = (None, "none")
 
@@ -249,10 +251,11 @@ def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
 def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, suffix="frames",
                       tolerance: float = 2.0, clocks_per_session=None) -> dict:
     """F1 over runs, onset latency (in frames x `unit`, or, with `clocks_per_session`, in each frame's
-    clock reading x `unit`; the share of hits within `tolerance` of the true onset), and F1 over frames,
-    pooled over sessions."""
+    clock reading x `unit`; the share of hits within `tolerance` of the true onset), the same from the
+    true end to the found end (`{name}_end_{units}_*`, the suffix's units), and F1 over frames, pooled
+    over sessions."""
     hits = n_true = n_found = 0
-    latency, tp_frames, true_frames, found_frames = [], 0, 0, 0
+    latency, ends, tp_frames, true_frames, found_frames = [], [], 0, 0, 0
     clocks_per_session = clocks_per_session if clocks_per_session is not None else [None] * len(true_flags_per_session)
     for truth, found, clock in zip(true_flags_per_session, found_flags_per_session, clocks_per_session):
         truth, found = np.asarray(truth, dtype=bool), np.asarray(found, dtype=bool)
@@ -261,6 +264,7 @@ def detection_figures(true_flags_per_session, found_flags_per_session, name: str
         pairs = match_runs(true_runs, found_runs)
         hits, n_true, n_found = hits + len(pairs), n_true + len(true_runs), n_found + len(found_runs)
         latency += [(clock[found_runs[j][0]] - clock[true_runs[i][0]]) * unit for i, j in pairs]
+        ends += [(clock[found_runs[j][1] - 1] - clock[true_runs[i][1] - 1]) * unit for i, j in pairs]
         tp_frames += int((truth & found).sum())
         true_frames += int(truth.sum())
         found_frames += int(found.sum())
@@ -272,6 +276,8 @@ def detection_figures(true_flags_per_session, found_flags_per_session, name: str
         figures.update({f"{name}_{suffix}_mean": float(latency.mean()), f"{name}_{suffix}_max": float(latency.max()),
                         f"{name}_{suffix}_min": float(latency.min()),
                         f"{name}_within_{tolerance:g}": float(np.mean(np.abs(latency) <= tolerance))})
+        ends, units = np.asarray(ends, dtype=np.float64), suffix.split("_")[-1]
+        figures.update({f"{name}_end_{units}_mean": float(ends.mean()), f"{name}_end_{units}_max": float(ends.max())})
     return figures
 
 
@@ -301,6 +307,8 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     touching = ~rest & known
     if touching.any():  # the grasps' own frames: comparable between a session and its grasps cut into trials
         figures["contact_rmse"] = regression(true[touching], pred[touching])["rmse"]
+        # the best constant in hindsight (the true mean in contact): a model near it has learnt little
+        figures["contact_rmse_constant"] = float(np.std(true[touching]))
     if len(at_rest):
         figures.update(rest_mean_abs=float(at_rest.mean()), rest_max_abs=float(at_rest.max()),
                        rest_mean_abs_pct_range=pct(float(at_rest.mean())))

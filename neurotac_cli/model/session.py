@@ -525,11 +525,16 @@ def summary_lines(figures: dict) -> list[str]:
     # A figure without frames to measure it is left out of the line, not printed as nan.
     per_grasp = (f", per grasp {get('grasp_rmse_mean'):.3g} N (mean over {int(figures.get('grasps', 0))})"
                  if np.isfinite(get("grasp_rmse_mean")) else "")
-    contact = f"RMSE in contact {get('contact_rmse'):.3g} N{per_grasp}" if "contact_rmse" in figures else "no frame in contact"
+    constant = f" (the best constant {get('contact_rmse_constant'):.3g} N)" if "contact_rmse_constant" in figures else ""
+    contact = f"RMSE in contact {get('contact_rmse'):.3g} N{constant}{per_grasp}" if "contact_rmse" in figures else "no frame in contact"
     drift = f", drift {get('drift_n_per_min'):.3g} N/min" if np.isfinite(get("drift_n_per_min")) else ""
     rest = (f"at rest ({int(get('rest_frames'))} frames): mean |estimate| {get('rest_mean_abs'):.3g} N, max "
             f"{get('rest_max_abs'):.3g} N{drift}" if get("rest_frames") > 0 else "no frame at rest")
     lines = [f"{rest}; {contact}"]
+    if get("contact_rmse") >= get("contact_rmse_constant"):
+        lines.append(f"warning: in contact the model reads the force no better than a constant at its true mean "
+                     f"({get('contact_rmse'):.3g} N against {get('contact_rmse_constant'):.3g} N): it has not learnt this "
+                     "sensor's force (train on more of its sessions, or check the frames are the training's kind)")
     if get("rest_loaded_frames") > 0:
         lines.append(f"warning: {int(get('rest_loaded_frames'))} frames at rest by their phase carry a true force of up to "
                      f"{get('rest_loaded_max'):.3g} N, so the figures at rest include contacts: frame sessions with "
@@ -538,8 +543,9 @@ def summary_lines(figures: dict) -> list[str]:
         lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")
     elif "contact_f1" in figures:
         lag = get("contact_onset_frames_mean")
+        end = get("contact_end_frames_mean")
         onset = (f"onset {abs(lag):.1f} frames {'late' if lag >= 0 else 'early'} on average, {100 * get('contact_within_2'):.0f}% "
-                 "within 2 frames; " if get("contact_hits") > 0 else "")
+                 f"within 2 frames, end {abs(end):.1f} frames {'late' if end >= 0 else 'early'}; " if get("contact_hits") > 0 else "")
         lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
                      f"{int(get('contact_found'))} detected), {onset}per frame F1 {get('contact_frame_f1'):.3f}")
     if "slip_f1" in figures and not get("slip_true"):

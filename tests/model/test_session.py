@@ -743,6 +743,9 @@ def test_detection_f1_counts_misses_and_false_alarms():
     assert figures["slip_hits"] == 1 and figures["slip_true"] == 2 and figures["slip_found"] == 2
     assert figures["slip_f1"] == 0.5
     assert figures["slip_latency_ms_mean"] == 10.0 and figures["slip_within_20"] == 1.0
+    assert figures["slip_end_ms_mean"] == 0.0  # the hit ends where its slip ends
+    late = metrics.detection_figures(truth, [np.array([0, 1, 1, 1, 1, 0, 1, 0, 0, 0], bool)], "contact", suffix="onset_frames")
+    assert late["contact_end_frames_mean"] == 1.0 and late["contact_end_frames_max"] == 2.0  # the first 2 frames past its end, the second on time
 
 
 def test_slip_latency_is_read_from_the_frames_times_whatever_the_metadata_says():
@@ -987,8 +990,20 @@ def test_predict_names_session_frames_given_to_a_model_of_whole_trials(sessions,
 
 
 def test_the_summary_says_an_early_onset_is_early():
-    figures = {"rest_frames": 0, "contact_f1": 0.8, "contact_true": 8, "contact_found": 12, "contact_hits": 8,
+    figures = {"rest_frames": 0, "contact_f1": 0.8, "contact_true": 8, "contact_found": 12, "contact_hits": 8, "contact_end_frames_mean": 37.0,
                "contact_frame_f1": 0.7, "contact_within_2": 0.5}
     early, late = ("\n".join(session.summary_lines({**figures, "contact_onset_frames_mean": lag})) for lag in (-110.4, 1.5))
-    assert "onset 110.4 frames early on average, 50% within 2 frames" in early
+    assert "onset 110.4 frames early on average, 50% within 2 frames, end 37.0 frames late" in early
     assert "onset 1.5 frames late on average" in late
+
+
+def test_the_summary_weighs_the_error_in_contact_against_the_best_constant():
+    frame = np.arange(8)
+    true = np.array([0, 1, 3, 1, 3, 0, 0, 0], float)
+    phase = ["none", "holding", "holding", "holding", "holding", "none", "none", "none"]
+    for pred, warned in ((true, False), (np.where(true > 0, 2.0, 0.0), True)):
+        rows = metrics.session_rows(["s"] * 8, frame, frame * 10_000, phase, true, pred)
+        figures = {m: v for s, m, v in rows if s == "all"}
+        assert figures["contact_rmse_constant"] == pytest.approx(1.0)
+        lines = "\n".join(session.summary_lines(figures))
+        assert "(the best constant 1 N)" in lines and ("no better than a constant" in lines) == warned
