@@ -29,6 +29,10 @@ def in_region(x, y, region):
 BACKGROUND_BINS = 51  # the running median that is a spike's background, in bins
 
 
+STARTUP_US = 2_000  # a camera fires a burst as it starts (a Prophesee VGA recording here: 9 times its median OFF
+# rate in its first millisecond, twice it to 2 ms): no burst of a recording's first 2 ms is taken for a blink
+
+
 def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> list[Instant]:
     """The strongest LED-off spikes, `count` and up to `spare` more, in time order; SyncError when
     fewer than `count` stand out."""
@@ -45,12 +49,13 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     pair = counts + np.concatenate([counts[1:], [0.0]])  # a spike spreads over up to ~1.5 ms
     z = (pair - 2 * background) / np.sqrt(2 * background + 1)
     pixels = _pixels_seen(x, y, sensor, method.region)
+    starting = int(np.min(t)) + STARTUP_US  # pairs of bins starting before it hold no blink (the recording's, not the region's, start)
     # candidates: local maxima of z, strongest first, at least 50 ms apart
     chosen, rejected = [], []
     taken = np.zeros(len(z), dtype=bool)
     gap = max(1, 50_000 // bin_us)
     for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
-        if taken[i] or z[i] <= 0:
+        if taken[i] or z[i] <= 0 or origin + i * bin_us < starting:
             continue
         lo, hi = origin + i * bin_us, origin + (i + 2) * bin_us
         a, b = np.searchsorted(times, [lo, hi])

@@ -712,3 +712,26 @@ def test_a_spike_that_leaves_most_of_the_log_outside_the_recording_is_no_candida
         sy._by_agreement(spikes, 1, t, [log], [log.value])
     fits[4_000_000] = 0.7
     assert sy._by_agreement(spikes, 1, t, [log], [log.value])[0].t0 == 4_000_000
+
+
+def test_a_camera_s_burst_as_it_starts_is_no_blink():
+    """A camera fires a burst in its first millisecond (a Prophesee VGA recording: 9 times its median
+    OFF rate): taken for the blink, the force log was placed at the recording's start."""
+    from neurotac_cli.ops.led import led_spikes
+
+    rng = np.random.default_rng(0)
+    width, height, start = 40, 30, 5_000_000
+
+    def burst(t0, share, spread_us):
+        pixels = rng.choice(width * height, int(share * width * height), replace=False)
+        return t0 + rng.integers(0, spread_us, len(pixels)), pixels % width, pixels // width
+
+    noise = (start + rng.integers(0, 2_000_000, 4_000), rng.integers(0, width, 4_000), rng.integers(0, height, 4_000))
+    parts = [noise, burst(start, 0.9, 400), burst(start + 1_200_000, 0.5, 500)]
+    t, x, y = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(t, kind="stable")
+    t, x, y = t[order].astype(np.int64), x[order].astype(np.uint16), y[order].astype(np.uint16)
+    p = np.zeros(len(t), np.int8)
+    t, x, y, p = (np.concatenate([[start - 3], column]) for column in (t, x, y, p))  # the first event just before the burst
+    (spike,) = led_spikes(t, x, y, p, sy.SyncMethod(), 1, (width, height), spare=0)
+    assert abs(spike.details["onset_us"] - (start + 1_200_000)) < 1_000  # the blink, not the burst at the start
