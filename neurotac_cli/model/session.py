@@ -256,7 +256,8 @@ MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for train
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict, list]:
     """The frames of every contact, one trial per contact (`STREAM@FRAME`), what was found:
     {"sessions", "contacts", "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
-    "release_on", "presses_on": [presses pressed ON, presses] (None without phases)}, and per stream what `detection_check` reads (None without phases).
+    "release_on", "presses_on": [presses pressed ON, presses] (None without phases)}, and per stream
+    what `detection_check` reads (None without phases).
 
     Where the frames have phases (the force's, `frame --phases session` or `auto`), a contact is a run
     of frames whose phase is not none, with the detector's `lead_frames` of rest before it (the

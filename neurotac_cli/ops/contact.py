@@ -647,7 +647,7 @@ def press_polarity(streams, warmup_frames: int = ContactConfig.warmup_frames,
     spans = [[(begin - 2, begin + ONSET_FRAMES) for begin, _ in contacts] for _, _, contacts in streams]
     off_peaks = [peak for (off, _, _), mine in zip(streams, spans) for peak in _peaks(off, mine, warmup_frames)]
     on_peaks = [peak for (_, on, _), mine in zip(streams, spans) for peak in _peaks(on, mine, warmup_frames)]
-    return "on" if np.median(on_peaks) > np.median(off_peaks) else "off"
+    return "on" if off_peaks and np.median(on_peaks) > np.median(off_peaks) else "off"
 
 
 def press_shares(streams, warmup_frames: int = ContactConfig.warmup_frames,
@@ -797,9 +797,9 @@ def follow_gain(config: SlipConfig, state: ContactState, off: float) -> SlipConf
 def slip_step(config: SlipConfig, state: ContactState, off: float, on: float, separation: float) -> bool:
     """Advance the slip flag by one frame whose phase `step` has just set. A slip starts in a hold
     that has settled, in no frame read as a release (on some membranes a release makes both
-    polarities: the patch lets go as its rim relaxes); once started it goes on while the evidence does, whatever phase the counts
-    suggest (a fast slip darkens enough to look like a press). The bars follow the stream's own
-    presses (`follow_gain`). `off` and `on` as `step` takes them."""
+    polarities: the patch lets go as its rim relaxes); once started it goes on while the evidence
+    does, whatever phase the counts suggest (a fast slip darkens enough to look like a press). The
+    bars follow the stream's own presses (`follow_gain`). `off` and `on` as `step` takes them."""
     off, on = oriented_sums(state.polarity, off, on)
     config = follow_gain(config, state, off)
     touching = state.phase != NONE

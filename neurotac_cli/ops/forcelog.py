@@ -66,21 +66,27 @@ def plausibility_warnings(log: ForceLog, where: str) -> list[str]:
     return warnings
 
 
+def inside(t0: int, log: ForceLog, first_us: int, last_us: int) -> tuple[int, int]:
+    """(µs of the log inside the recording [first_us, last_us] once placed at t0, at most 0 where it
+    misses it; the log's span in µs, at least 1)."""
+    start, end = t0 + int(log.t[0]), t0 + int(log.t[-1])
+    return min(end, last_us) - max(start, first_us), max(end - start, 1)
+
+
 def overlap_warnings(t0: int, log: ForceLog, first_us: int, last_us: int, where: str) -> list[str]:
     """Refuse a log that does not overlap the recording [first_us, last_us] once placed at t0; warn
     when less than SHORT_OVERLAP of it does."""
     start, end = t0 + int(log.t[0]), t0 + int(log.t[-1])
-    inside = min(end, last_us) - max(start, first_us)
-    if inside <= 0:
+    inside_us, span = inside(t0, log, first_us, last_us)
+    if inside_us <= 0:
         late = f"; its time must start at the sync instant, not at {log.t[0] / 1e6:g} s" if abs(log.t[0]) > last_us - first_us else ""
         raise SyncError(
             f"{where}: the force log ({_seconds(start)}..{_seconds(end)} on the camera clock) does not overlap the "
             f"recording ({_seconds(first_us)}..{_seconds(last_us)}){late}; check --offset and that the log belongs to this recording"
         )
-    span = max(end - start, 1)
-    if inside < SHORT_OVERLAP * span:
+    if inside_us < SHORT_OVERLAP * span:
         return [
-            f"{where}: only {100 * inside / span:.0f}% of the force log ({inside / 1e6:.3g} of {span / 1e6:.3g} s) "
+            f"{where}: only {100 * inside_us / span:.0f}% of the force log ({inside_us / 1e6:.3g} of {span / 1e6:.3g} s) "
             "lies inside the recording; check the sync instant (--offset, --method) and that the log belongs to this recording"
         ]
     return []

@@ -252,10 +252,10 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     if count != 1:
         raise extra_spike(spikes, count)
     first, last = int(np.min(t)), int(np.max(t))
-    span = max(int(logs[0].t[-1] - logs[0].t[0]), 1)
     scored, figures = [], []
     for spike in spikes:
-        inside = (min(spike.t0 + int(logs[0].t[-1]), last) - max(spike.t0 + int(logs[0].t[0]), first)) / span
+        inside_us, span = forcelog.inside(spike.t0, logs[0], first, last)
+        inside = inside_us / span
         held = inside >= forcelog.SHORT_OVERLAP
         r = agreement(t, logs[0].t, forces[0], spike.t0) if held else None
         scored += [(r, spike)] if held else []
