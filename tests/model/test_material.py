@@ -165,3 +165,30 @@ def test_the_rise_times_alone_name_a_size_whose_event_amounts_training_never_saw
         predicted = core.classify_table(model, test)
         accuracy[name] = np.mean(np.asarray(predicted["material_pred"].to_pylist()) == np.asarray(predicted["material"].to_pylist()))
     assert accuracy["material-rises"] >= 0.9 and accuracy["material-timing"] <= 0.6, accuracy
+
+
+def test_a_bright_objects_grasp_reads_as_a_dark_ones_with_its_polarities_swapped():
+    """A bright object brightens the membrane as it presses (ON first, OFF as it lets go): every
+    classifier reads the polarity its press made first as the press, so one trained on dark objects
+    reads a bright one's grasp by the same features."""
+    _, counts = grasp(5, 2.0)
+    counts = counts.reshape(60, 2, -1)
+    counts[0, 1] = 0.0  # no LED spike: events before a trial's sync instant are not framed
+    bright = counts[:, ::-1]
+    for name in ("material-dnn", "material-curves", "material-timing", "material-rises"):
+        config = material.PRESETS[name]
+        dark_x, bright_x = (material._trial_features(c.reshape(60, -1), np.zeros(60), config) for c in (counts, bright))
+        np.testing.assert_allclose(dark_x, bright_x)
+    accumulated = material.Config(inputs="curves", accumulate=False)
+    dark_x, bright_x = (material._trial_features(np.cumsum(c, axis=0).reshape(60, -1), np.zeros(60), accumulated) for c in (counts, bright))
+    np.testing.assert_allclose(dark_x, bright_x)
+
+
+def test_a_material_model_written_before_the_polarity_was_read_keeps_reading_trials_as_framed(tmp_path):
+    from neurotac_cli import model as models
+    from tests.model.test_deform_gru import _without_setting
+
+    model = models.train(domain_frames({"small": 1.0}), models.make_spec("material-timing"), seed=0)
+    assert model.config.press_first
+    old = _without_setting(model, tmp_path / "old.model", "press_first")
+    assert old.config.press_first is False
