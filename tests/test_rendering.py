@@ -268,3 +268,14 @@ def test_a_block_of_on_and_off_pixels_shows_one_of_them_in_its_own_colour():
     pure = {tuple(image[0, 0]), tuple(image[1, 1])}
     assert {tuple(pixel) for pixel in shown} <= pure | {(1.0, 1.0, 1.0)} and len(pure) == 2
     pyplot().close(figure)
+
+
+def test_the_commands_option_ranges_are_the_renderers():
+    # the command states them itself, so that it starts without importing the renderer (matplotlib)
+    from neurotac_cli import rendering
+    from neurotac_cli.commands.render import command
+
+    params = {p.name: p for p in command.params}
+    assert (params["slices"].type.max, params["columns"].type.max) == (rendering.MAX_SLICES, rendering.MAX_COLUMNS)
+    assert (params["fps"].type.min, params["fps"].type.max) == rendering.FPS
+    assert tuple(params["view"].type.choices) == rendering.VIEWS
