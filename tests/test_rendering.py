@@ -270,8 +270,8 @@ def test_a_block_of_on_and_off_pixels_shows_one_of_them_in_its_own_colour():
     pyplot().close(figure)
 
 
-def test_the_commands_option_ranges_are_the_renderers():
-    # the command states them itself, so that it starts without importing the renderer (matplotlib)
+def test_the_commands_and_the_librarys_options_are_the_renderers():
+    # the command and api.render state them themselves, so that they start without importing the renderer (matplotlib)
     from neurotac_cli import rendering
     from neurotac_cli.commands.render import command
 
@@ -279,3 +279,11 @@ def test_the_commands_option_ranges_are_the_renderers():
     assert (params["slices"].type.max, params["columns"].type.max) == (rendering.MAX_SLICES, rendering.MAX_COLUMNS)
     assert (params["fps"].type.min, params["fps"].type.max) == rendering.FPS
     assert tuple(params["view"].type.choices) == rendering.VIEWS
+    import inspect
+
+    from neurotac_cli import api
+
+    spec, given = rendering.RenderSpec(), inspect.signature(api.render).parameters
+    for name in ("view", "columns", "every"):
+        assert params[name].default == given[name].default == getattr(spec, name), name
+    assert params["slices"].default == spec.slices and params["fps"].default == spec.fps  # api: None, the spec's
