@@ -194,8 +194,8 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     logs = source.force
     count = len(logs)
     forcelog.check_samples(logs, source.trial)
-    forces = [condition_force(log, method.median_us) for log in logs]
     try:
+        forces = [condition_force(log, method.median_us) for log in logs]
         instants = _instants(table, t, x, y, p, logs, forces, method)
     except SyncError as error:  # the force log's own checks, around this, name the trial themselves
         raise SyncError(f"trial {source.trial}: {error}") from None

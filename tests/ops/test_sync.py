@@ -616,7 +616,7 @@ def test_led_and_xcorr_settings_beyond_their_range_are_usage_errors(tmp_path, op
 def test_a_median_window_longer_than_half_the_force_log_is_refused():
     """A window of an hour turned the force into its rest value throughout, silently."""
     table = synthetic_recording(7, led_off=3_050_000)
-    with pytest.raises(SyncError, match=r"force median filter \(3\.6e\+06 ms.*longer than half the force log \(151 samples"):
+    with pytest.raises(SyncError, match=r"^trial g: the force median filter \(3\.6e\+06 ms.*longer than half the force log \(151 samples"):
         sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(median_us=3_600_000_000))
     trials, _ = sy.sync_source(manifest.Source("g", table, [force_log()]), sy.SyncMethod(median_us=100_000))
     assert trials[0]["force"][1].max() == pytest.approx(3.0)
