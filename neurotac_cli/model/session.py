@@ -73,8 +73,9 @@ def detection_note(summary: dict) -> str | None:
     if not check:
         return None
     poor = []
-    pressed, released = detector.polarity_names(summary.get("press_polarity", "off"))
-    reading = ("each contact's press of one polarity and its release of the other" if pressed == "press-polarity" else
+    polarity = summary.get("press_polarity", "off")
+    pressed, released = detector.polarity_names(polarity)
+    reading = ("each contact's press of one polarity and its release of the other" if polarity == "either" else
                f"a press of {pressed} events, a release of {released}")
     if check["true"] and check["f1"] < DETECTION_WARN_F1:
         poor.append(f"finds {check['hits']:g} of their {counted(int(check['true']), 'contact')}, {check['found']:g} in all "
@@ -154,8 +155,7 @@ class Stream:
         Frame by frame the detector says whether the frame is in a contact; the force model runs on
         the frames of a contact, in one call per run of them until a release burst makes the end of
         the contact possible, then frame by frame until its estimate says the contact is over (with
-        press_polarity "either", frame by frame throughout: its estimate alone may end a contact,
-        `detector.end_by_force`)."""
+        press_polarity "either", frame by frame throughout: `detector.may_end_by_force`)."""
         off, on, separation = detector.frame_stats(counts)
         self.distances = np.full(len(counts), np.nan)  # feature distances of the frames the network read (model.predict.Outside)
         force = np.zeros(len(counts), dtype=np.float32)
@@ -176,7 +176,7 @@ class Stream:
             if phase != detector.NONE:
                 pending.append(k)
                 self.sums.append((off[k], on[k]))
-                if self.contact.released or self.config.press_polarity == "either":
+                if detector.may_end_by_force(self.config, self.contact):
                     self._run(pending, counts, t_us, force)  # frame by frame: the estimate may end the contact here
                     if detector.end_by_force(self.config, self.contact, float(force[k])):
                         phase, force[k], self.inner = detector.NONE, 0.0, None
@@ -279,7 +279,7 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     presses_on = None
     if labelled:
         shares = detector.press_shares(streams, config.warmup_frames, config.press_frames)
-        polarity = detector.press_polarity(streams, shares=shares)
+        polarity = detector.press_polarity(streams, config.warmup_frames, shares=shares)
         presses_on = [sum(own == "on" for mine in detector.contact_polarities(shares) for own in mine), sum(map(len, shares))]
         streams = detector.oriented_streams(streams, polarity, shares)
     rows, names = [], []

@@ -267,7 +267,7 @@ class ContactState:
     local: tuple | None = None  # this frame's `Footprint.sums` inside a contact, for `slip_step` (None: the totals)
     gain: "Gain" = field(default_factory=lambda: Gain())  # the stream's own presses, for the slip bars
     polarity: str = "off"  # how the numbers above are read: "on", every OFF / ON pair swapped (`oriented_sums`)
-    pressed_as: str | None = None  # the polarity the current contact's press made ("either": each contact's own)
+    contact_open: bool = False  # a contact has begun since the state last read a rest frame ("either": its release is the tail)
     tail: str | None = None  # the polarity of the last release while its burst lasts: no press of that polarity begins in it
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
 
@@ -293,6 +293,8 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
+    if state.phase == NONE and state.warmup is None and frame is not None and _flash(config, state, frame, off, on):
+        return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     either = config.press_polarity == "either"
     if either:
         _choose_polarity(config, state, off, on)
@@ -301,8 +303,6 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     off, on = oriented_sums(state.polarity, off, on)
     frame = frame[::-1] if frame is not None and state.polarity == "on" else frame
     touching, before = state.phase != NONE, state.onsets
-    if not touching and state.warmup is None and frame is not None and _flash(state, frame, off + on):
-        return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     phase = _step(config, state, off, on, by_force)
     # the footprint as it stood before this frame: a contact's onset frame has none yet
     state.local = state.footprint.sums(frame) if frame is not None and touching else None
@@ -329,9 +329,9 @@ def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on:
     burst of the release that just ended a contact begins none (`tail`)."""
     if state.phase != NONE:
         return
-    if state.pressed_as is not None:  # the contact just ended: its release's polarity is the tail
-        state.tail, state.pressed_as = ("off" if state.pressed_as == "on" else "on"), None
-    state.turn("off")  # also after a frame turned for an onset that the flash rule refused
+    if state.contact_open:  # the contact just ended, read as it pressed: its release's polarity is the tail
+        state.tail, state.contact_open = ("off" if state.polarity == "on" else "on"), False
+    state.turn("off")
     if state.warmup is not None:
         return
     rises = {"off": _onset(config, off, on, state.mean_off, state.mean_on), "on": _onset(config, on, off, state.mean_on, state.mean_off)}
@@ -371,10 +371,9 @@ def _follow_press(config: ContactConfig, state: ContactState, off: float, on: fl
         return
     early.add(state, off, on)
     chosen = "on" if early.excess[1] > early.excess[0] else "off"
-    if chosen == state.pressed_as:
+    if chosen == state.polarity:
         return
     state.turn(chosen)
-    state.pressed_as = chosen
     k = POLARITIES.index(chosen)
     # this frame is added by `_step`, as every frame of the contact is
     state.off_since, state.peak_off = early.events[k] - (on if chosen == "on" else off), early.peaks[k]
@@ -390,16 +389,20 @@ def _follow_press(config: ContactConfig, state: ContactState, off: float, on: fl
 def _onset(config: ContactConfig, press: float, other: float, press_mean: float, other_mean: float) -> bool:
     """A contact's first frame, `press` the polarity a press makes: above its background as an onset's
     must be, and not a release burst of the other polarity."""
-    return _above(config, press, press_mean) and not (_above(config, other, other_mean) and other > config.dominance * press)
+    return _above(config, press, press_mean) and not _brightening(config, press, other, other_mean)
 
 
-def _flash(state: "ContactState", frame: np.ndarray, events: float) -> bool:
+def _flash(config: ContactConfig, state: "ContactState", frame: np.ndarray, off: float, on: float) -> bool:
     """A frame of FLASH_CELLS cells or more in which at least FLASH_SHARE of them hold an event more than
     their rest background: a blink or flash that lights the whole membrane, where a press lights the
-    object's cells. `events`: the frame's total, under which no such share can be reached (most rest
-    frames: their cells are not looked at)."""
+    object's cells. Its cells are looked at only where a contact could begin (a polarity's total above
+    its background) and the frame's total could reach the share: a busy camera's rest frames are not.
+    Both polarities are summed: it reads the same however the state is turned."""
     cells = np.size(frame) // 2
-    if cells < FLASH_CELLS or events < FLASH_SHARE * cells:
+    if cells < FLASH_CELLS or off + on < FLASH_SHARE * cells:
+        return False
+    means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
+    if not (_above(config, off, means[0]) or _above(config, on, means[1])):
         return False
     background = state.footprint.background
     events = np.asarray(frame, dtype=np.float32).reshape(2, -1).sum(axis=0)
@@ -416,7 +419,7 @@ def _step(config, state, off, on, by_force) -> str:
         return state.phase
     if state.phase == NONE:
         if _onset(config, off, on, state.mean_off, state.mean_on) and state.tail != state.polarity:
-            state.phase, state.onsets, state.pressed_as, state.low = GRASPING, state.onsets + 1, state.polarity, 0
+            state.phase, state.onsets, state.contact_open, state.low = GRASPING, state.onsets + 1, True, 0
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
             state.peak_force, state.press_after, state.hold_level = 0.0, 0, (0.0, 0.0)
         else:
@@ -426,7 +429,7 @@ def _step(config, state, off, on, by_force) -> str:
     if state.released:
         state.since_release += 1
         state.quiet += (off - state.quiet) / config.quiet_frames
-    if _brightening(config, state, off, on):
+    if _brightening(config, off, on, state.mean_on):
         state.on_run += on
         if not state.released:
             state.quiet, state.since_release, state.low, state.released_on = off, 0, 0, 0.0
@@ -449,9 +452,10 @@ def _step(config, state, off, on, by_force) -> str:
     return state.phase
 
 
-def _brightening(config: ContactConfig, state: ContactState, off: float, on: float) -> bool:
-    """An ON-dominated burst: the membrane brightens (a release), whatever OFF events come with it."""
-    return _above(config, on, state.mean_on) and on > config.dominance * off
+def _brightening(config: ContactConfig, off: float, on: float, mean_on: float) -> bool:
+    """An ON-dominated burst (ON above its background `mean_on`): the membrane brightens (a release),
+    whatever OFF events come with it."""
+    return _above(config, on, mean_on) and on > config.dominance * off
 
 
 def _above(config: ContactConfig, count: float, mean: float) -> bool:
@@ -469,20 +473,27 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
     `release_force_n` end a contact that has loaded, with or without a release burst (`_unloaded`)."""
     if state.phase == NONE:
         return False
-    if not state.released:
-        if not _unloaded(config, state, force_n):
-            return False
-        state.phase, state.on_run, state.low = NONE, 0.0, 0
-        return True
+    ended = _released_end(config, state, force_n) if state.released else _unloaded(config, state, force_n)
+    if ended:
+        state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
+    return ended
+
+
+def may_end_by_force(config: ContactConfig, state: ContactState) -> bool:
+    """Whether `end_by_force` may end the current contact at this frame: after a release burst, and
+    throughout a contact of press_polarity "either" (`_unloaded`). A caller that runs its force model
+    on runs of frames runs it frame by frame where this holds."""
+    return state.released or config.press_polarity == "either"
+
+
+def _released_end(config: ContactConfig, state: ContactState, force_n: float) -> bool:
+    """After a release burst: the estimate low for `low_frames` frames, or the membrane quiet since the burst."""
     state.low = state.low + 1 if force_n < config.release_force_n else 0
     fallen = force_n < config.quiet_force_share * state.peak_force
     large = state.released_on >= config.quiet_release_share * max(state.peak_off - state.mean_off, 1.0)
     quiet = (state.since_release >= config.quiet_frames and (fallen or large)
              and state.quiet < state.mean_off + config.quiet_sigma * np.sqrt(state.mean_off / (2 * config.quiet_frames)))
-    if state.low >= config.low_frames or quiet:
-        state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
-        return True
-    return False
+    return state.low >= config.low_frames or quiet
 
 
 def _unloaded(config: ContactConfig, state: ContactState, force_n: float) -> bool:
@@ -599,11 +610,17 @@ PRESS_FRAMES = 30  # a contact's press: the peak OFF frame among its first frame
 RELEASE_FRAMES = (5, 10)  # a contact's release: the peak ON frame from 5 frames before its end to 10 after
 
 
+def rest_level(counts: np.ndarray, warmup_frames: int) -> float:
+    """A stream's background count per frame, as the detector takes it: the median of its first
+    `warmup_frames` frames (0 for no frame)."""
+    return float(np.median(counts[:max(warmup_frames, 1)])) if len(counts) else 0.0
+
+
 def _peaks(counts: np.ndarray, spans, warmup_frames: int) -> list[float]:
     """The largest count in each (begin, end) span of frames, above the stream's background: the
     median of its first `warmup_frames` frames, as the detector takes it."""
     counts = np.asarray(counts, dtype=np.float64)
-    background = float(np.median(counts[:max(warmup_frames, 1)])) if len(counts) else 0.0
+    background = rest_level(counts, warmup_frames)
     return [float(counts[max(0, begin):end].max()) - background for begin, end in spans if end > max(0, begin)]
 
 
@@ -658,7 +675,7 @@ def press_shares(streams, warmup_frames: int = ContactConfig.warmup_frames,
     out = []
     for off, on, contacts in streams:
         off, on = np.asarray(off, dtype=np.float64), np.asarray(on, dtype=np.float64)
-        quiet = [float(np.median(c[:max(warmup_frames, 1)])) if len(c) else 0.0 for c in (off, on)]
+        quiet = [rest_level(c, warmup_frames) for c in (off, on)]
         mine = []
         for begin, end in contacts:
             span = slice(max(0, begin - 2), min(begin + press_frames, end))
@@ -708,7 +725,7 @@ def dominance_for(config: ContactConfig, streams) -> float:
     before, after = RELEASE_FRAMES
     for off, on, contacts in streams:
         off, on = np.asarray(off, dtype=np.float64), np.asarray(on, dtype=np.float64)
-        quiet_off, quiet_on = (float(np.median(c[:max(config.warmup_frames, 1)])) if len(c) else 0.0 for c in (off, on))
+        quiet_off, quiet_on = (rest_level(c, config.warmup_frames) for c in (off, on))
         for begin, end in contacts:
             span = slice(max(0, begin - 2), begin + ONSET_FRAMES)
             presses += [b / max(a, 1.0) for a, b in zip(off[span], on[span]) if _above(config, a, quiet_off)]
