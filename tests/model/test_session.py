@@ -457,6 +457,17 @@ def test_a_sensor_whose_releases_also_darken_gets_a_release_bar_between_its_pres
     assert contact.dominance_for(config, [(clear_off, clear_on, touching)]) == config.dominance
 
 
+def test_training_on_a_sensor_whose_releases_also_darken_keeps_its_release_bar_in_the_model():
+    off, on, force = mixed_release_stream(grasps=6)
+    counts = np.zeros((len(off), 2, SIZE, SIZE))
+    counts[:, 0, 4, 4], counts[:, 1, 4, 4] = off, on
+    phase = np.where(force > 0, "holding", "none")
+    table = frames_table("s0", counts, force, phase, np.full(len(off), -1))
+    model = session.train(table, models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    bar = session.contact_config(model).dominance
+    assert contact.DOMINANCE_FLOOR <= bar < contact.ContactConfig().dominance and model.training["contacts"]["dominance"] == bar
+
+
 def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_on_its_sessions(sessions, trained):
     flipped = session.train(inverted(sessions), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
     assert session.contact_config(trained).press_polarity == "off" and session.contact_config(flipped).press_polarity == "on"
