@@ -99,12 +99,12 @@ def _press_first(sums: np.ndarray, accumulate: bool = True) -> np.ndarray:
     other's as another material. Told by which polarity had half its events first (an independent
     generator's 96 grasps of dark and bright objects: 93 right; ours, dark: ON never first), after
     the first frame, where a trial's sync blink falls."""
-    rates = (sums if accumulate else np.diff(sums, axis=0, prepend=0.0))[1:]
-    totals = rates.sum(axis=0)
-    if len(rates) == 0 or (totals <= 0).any():
+    curve = np.cumsum(sums, axis=0) if accumulate else sums
+    curve = curve[1:] - curve[:1]
+    if len(curve) == 0 or (curve[-1] <= 0).any():
         return sums
-    half = [int(np.searchsorted(np.cumsum(rates[:, k]), totals[k] / 2)) for k in (0, 1)]
-    return sums[:, ::-1] if half[1] < half[0] else sums
+    off_half, on_half = (_crossing(curve[:, k], (0.5,))[0] for k in (0, 1))
+    return sums[:, ::-1] if on_half < off_half else sums
 
 
 DYNAMICS = 11  # features of `dynamics`
