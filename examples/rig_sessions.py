@@ -81,9 +81,8 @@ def detection(training, test):
         phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
                                                     force=s["force"], counts=s["counts"]) for s in test))
         figures[name] = metrics.detection_figures([s["slip"] for s in test], flags, "slip", unit=WINDOW_MS,
-                                                  suffix="latency_ms", tolerance=20.0)
-    figures["contact"] = metrics.detection_figures([s["touching"] for s in test], [p != detector.NONE for p in phases], "contact",
-                                                   suffix="onset_frames")
+                                                  units="ms", timing="latency", tolerance=20.0)
+    figures["contact"] = metrics.detection_figures([s["touching"] for s in test], [p != detector.NONE for p in phases], "contact")
     return figures
 
 

@@ -221,8 +221,9 @@ def metrics_table(rows, model: str, extra_meta: dict | None = None):
 # - contact: true contacts are runs of frames whose phase is not none, detected ones runs of
 #   `contact_pred`; a detection that overlaps a true contact not yet matched is a hit (F1 over
 #   contacts, `contact_f1`), its onset latency the frames from the true onset (`contact_onset_frames_*`,
-#   `contact_within_2`: the share of hits within 2 frames), and from its true end to the found end
-#   (`contact_end_frames_mean`, `_max`: a contact that runs on after the release); `contact_frame_f1` per frame;
+#   mean, median, max, min; `contact_within_2`: the share of hits within 2 frames), and from its true end
+#   to the found end (`contact_end_frames_mean`, `_median`, `_max`: a contact that runs on after the
+#   release); `contact_frame_f1` per frame;
 # - slip (where the table has a `slip` truth column): the same for runs of `slip` and `slip_pred`,
 #   latency in ms (`slip_latency_ms_*`, between the frames' start times `t`; `slip_within_20`; `slip_end_ms_*`).
 
@@ -248,12 +249,13 @@ def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
     return pairs
 
 
-def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, suffix="frames",
-                      tolerance: float = 2.0, clocks_per_session=None) -> dict:
-    """F1 over runs, onset latency (in frames x `unit`, or, with `clocks_per_session`, in each frame's
-    clock reading x `unit`; the share of hits within `tolerance` of the true onset), the same from the
-    true end to the found end (`{name}_end_{units}_*`, the suffix's units), and F1 over frames, pooled
-    over sessions."""
+def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, units="frames",
+                      timing="onset", tolerance: float = 2.0, clocks_per_session=None) -> dict:
+    """F1 over runs, onset latency (`{name}_{timing}_{units}_*`: in frames x `unit`, or, with
+    `clocks_per_session`, in each frame's clock reading x `unit`; the share of hits within `tolerance`
+    of the true onset), the same from the true end to the found end (`{name}_end_{units}_*`), and F1
+    over frames, pooled over sessions. Mean, median and extremes: one contact merged with the next
+    moves the mean by its whole length, the median not."""
     hits = n_true = n_found = 0
     latency, ends, tp_frames, true_frames, found_frames = [], [], 0, 0, 0
     clocks_per_session = clocks_per_session if clocks_per_session is not None else [None] * len(true_flags_per_session)
@@ -273,11 +275,12 @@ def detection_figures(true_flags_per_session, found_flags_per_session, name: str
     figures = {f"{name}_f1": f1(hits, n_true, n_found), f"{name}_true": n_true, f"{name}_found": n_found, f"{name}_hits": hits,
                f"{name}_frame_f1": f1(tp_frames, true_frames, found_frames)}
     if len(latency):
-        figures.update({f"{name}_{suffix}_mean": float(latency.mean()), f"{name}_{suffix}_max": float(latency.max()),
-                        f"{name}_{suffix}_min": float(latency.min()),
-                        f"{name}_within_{tolerance:g}": float(np.mean(np.abs(latency) <= tolerance))})
-        ends, units = np.asarray(ends, dtype=np.float64), suffix.split("_")[-1]
-        figures.update({f"{name}_end_{units}_mean": float(ends.mean()), f"{name}_end_{units}_max": float(ends.max())})
+        ends, stem = np.asarray(ends, dtype=np.float64), f"{name}_{timing}_{units}"
+        figures.update({f"{stem}_mean": float(latency.mean()), f"{stem}_median": float(np.median(latency)),
+                        f"{stem}_max": float(latency.max()), f"{stem}_min": float(latency.min()),
+                        f"{name}_within_{tolerance:g}": float(np.mean(np.abs(latency) <= tolerance)),
+                        f"{name}_end_{units}_mean": float(ends.mean()), f"{name}_end_{units}_median": float(np.median(ends)),
+                        f"{name}_end_{units}_max": float(ends.max())})
     return figures
 
 
@@ -319,12 +322,11 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
         figures.update(_grasp_rows(rows, trial, np.asarray(grasp, dtype=np.float64), true, pred))
     if contact_pred is not None:
         contact_pred = np.asarray(contact_pred, dtype=bool)
-        figures.update(detection_figures([~rest[idx] for idx in sessions], [contact_pred[idx] for idx in sessions], "contact",
-                                         suffix="onset_frames"))
+        figures.update(detection_figures([~rest[idx] for idx in sessions], [contact_pred[idx] for idx in sessions], "contact"))
     if slip is not None and slip_pred is not None:
         slip, slip_pred = np.asarray(slip, dtype=bool), np.asarray(slip_pred, dtype=bool)
         figures.update(detection_figures([slip[idx] for idx in sessions], [slip_pred[idx] for idx in sessions], "slip",
-                                         unit=1 / 1000, suffix="latency_ms", tolerance=20.0,
+                                         unit=1 / 1000, units="ms", timing="latency", tolerance=20.0,
                                          clocks_per_session=[t_us[idx] for idx in sessions]))
     rows[:0] = [("all", name, float(value)) for name, value in figures.items()]
     return rows

@@ -323,10 +323,10 @@ def detection_check(config: detector.ContactConfig, slip: detector.SlipConfig, t
         phases, _, flags, _ = detector.detect(config, off, on, separation=separation, slip=slip, force=force, counts=counts)
         found.append(phases != detector.NONE)
         slips.append(flags)
-    figures = metrics.detection_figures([t[2] for t in truths], found, "contact", suffix="onset_frames")
+    figures = metrics.detection_figures([t[2] for t in truths], found, "contact")
     check = {name: figures[f"contact_{name}"] for name in ("f1", "true", "found", "hits")}
     if all(t[3] is not None for t in truths):
-        figures = metrics.detection_figures([t[3] for t in truths], slips, "slip", suffix="onset_frames")
+        figures = metrics.detection_figures([t[3] for t in truths], slips, "slip")
         check.update({f"slip_{name}": figures[f"slip_{name}"] for name in ("f1", "true", "found", "hits")})
     return check
 
@@ -543,10 +543,12 @@ def summary_lines(figures: dict) -> list[str]:
     if "contact_f1" in figures and not get("contact_true"):  # a session without a grasp: nothing to find
         lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")
     elif "contact_f1" in figures:
-        lag = get("contact_onset_frames_mean")
-        end = get("contact_end_frames_mean")
-        onset = (f"onset {abs(lag):.1f} frames {'late' if lag >= 0 else 'early'} on average, {100 * get('contact_within_2'):.0f}% "
-                 f"within 2 frames, end {abs(end):.1f} frames {'late' if end >= 0 else 'early'}; " if get("contact_hits") > 0 else "")
+        # medians: a contact run on into the next grasp moves a mean by its whole length
+        lag = get("contact_onset_frames_median")
+        end = get("contact_end_frames_median")
+        onset = (f"median onset {abs(lag):g} frames {'late' if lag >= 0 else 'early'}, {100 * get('contact_within_2'):.0f}% "
+                 f"within 2 frames, median end {abs(end):g} frames {'late' if end >= 0 else 'early'}; "
+                 if get("contact_hits") > 0 else "")
         lines.append(f"contacts: F1 {get('contact_f1'):.3f} ({int(get('contact_hits'))} of {int(get('contact_true'))} found, "
                      f"{int(get('contact_found'))} detected), {onset}per frame F1 {get('contact_frame_f1'):.3f}")
     if "slip_f1" in figures and not get("slip_true"):

@@ -750,12 +750,12 @@ def test_session_scores_rest_drift_grasps_and_contacts():
 def test_detection_f1_counts_misses_and_false_alarms():
     truth = [np.array([0, 1, 1, 0, 0, 1, 1, 0, 0, 0], bool)]
     found = [np.array([0, 0, 1, 0, 0, 0, 0, 0, 1, 0], bool)]
-    figures = metrics.detection_figures(truth, found, "slip", unit=10.0, suffix="latency_ms", tolerance=20)
+    figures = metrics.detection_figures(truth, found, "slip", unit=10.0, units="ms", timing="latency", tolerance=20)
     assert figures["slip_hits"] == 1 and figures["slip_true"] == 2 and figures["slip_found"] == 2
     assert figures["slip_f1"] == 0.5
     assert figures["slip_latency_ms_mean"] == 10.0 and figures["slip_within_20"] == 1.0
     assert figures["slip_end_ms_mean"] == 0.0  # the hit ends where its slip ends
-    late = metrics.detection_figures(truth, [np.array([0, 1, 1, 1, 1, 0, 1, 0, 0, 0], bool)], "contact", suffix="onset_frames")
+    late = metrics.detection_figures(truth, [np.array([0, 1, 1, 1, 1, 0, 1, 0, 0, 0], bool)], "contact")
     assert late["contact_end_frames_mean"] == 1.0 and late["contact_end_frames_max"] == 2.0  # the first 2 frames past its end, the second on time
 
 
@@ -1001,11 +1001,23 @@ def test_predict_names_session_frames_given_to_a_model_of_whole_trials(sessions,
 
 
 def test_the_summary_says_an_early_onset_is_early():
-    figures = {"rest_frames": 0, "contact_f1": 0.8, "contact_true": 8, "contact_found": 12, "contact_hits": 8, "contact_end_frames_mean": 37.0,
+    figures = {"rest_frames": 0, "contact_f1": 0.8, "contact_true": 8, "contact_found": 12, "contact_hits": 8, "contact_end_frames_median": 37.0,
                "contact_frame_f1": 0.7, "contact_within_2": 0.5}
-    early, late = ("\n".join(session.summary_lines({**figures, "contact_onset_frames_mean": lag})) for lag in (-110.4, 1.5))
-    assert "onset 110.4 frames early on average, 50% within 2 frames, end 37.0 frames late" in early
-    assert "onset 1.5 frames late on average" in late
+    early, late = ("\n".join(session.summary_lines({**figures, "contact_onset_frames_median": lag})) for lag in (-110.5, 1.5))
+    assert "median onset 110.5 frames early, 50% within 2 frames, median end 37 frames late" in early
+    assert "median onset 1.5 frames late" in late
+
+
+def test_the_summary_gives_median_onsets_and_ends_that_one_merged_contact_does_not_move():
+    """Three contacts found on time, a fourth run on into the next grasp: the mean end moves by the
+    rest between them, the median (the summary's) reads the others."""
+    truth = [np.array([0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0], bool)]
+    found = [np.array([0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0], bool)]
+    figures = metrics.detection_figures(truth, found, "contact")
+    assert figures["contact_end_frames_mean"] == pytest.approx(11 / 4) and figures["contact_end_frames_median"] == 0.0
+    assert figures["contact_onset_frames_median"] == 0.0 and figures["contact_hits"] == 4
+    lines = session.summary_lines({"rest_frames": 0, "contact_frame_f1": 0.9, **figures})
+    assert "median onset 0 frames late, 100% within 2 frames, median end 0 frames late" in "\n".join(lines)
 
 
 def test_the_summary_weighs_the_error_in_contact_against_the_best_constant():
