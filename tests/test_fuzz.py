@@ -9,7 +9,6 @@ under `ulimit -v` that runs out of memory says so in one line. Deterministic (de
 
 import io
 import os
-import json
 import subprocess
 from pathlib import Path
 
