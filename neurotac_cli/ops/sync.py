@@ -246,9 +246,10 @@ AGREE_MARGIN = 0.2  # the best placement's r must lead the next by this much to 
 def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     """One blink among several spikes (a fast press or a flicker can also darken a share of the
     membrane at once): the one where the force log, placed there, moves with the events, when it
-    clearly does; else the spikes are refused as before. A spike that leaves less than
-    forcelog.SHORT_OVERLAP of the log inside the recording is no candidate: its r would be read on a
-    few seconds of the log (a burst near a recording's end fitted a 40 s log's first 4 s at r 0.57)."""
+    clearly does, or the one spike that leaves the log inside the recording (where the log, if it
+    can be scored, moves with the events); else the spikes are refused. A spike that leaves less than forcelog.SHORT_OVERLAP of the log inside the recording is
+    no candidate: its r would be read on a few seconds of the log (a burst near a recording's end
+    fitted a 40 s log's first 4 s at r 0.57)."""
     if count != 1:
         raise extra_spike(spikes, count)
     first, last = int(np.min(t)), int(np.max(t))
@@ -263,14 +264,20 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
         figures.append(f"{about} at {spike.details['onset_us']} µs")
     figures = ", ".join(figures)
     ranked = sorted(scored, key=lambda item: -item[0] if item[0] is not None else np.inf)
-    # every placement that holds the log scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
-    if (not ranked or any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN
+    if len(scored) == 1 and (scored[0][0] is None or scored[0][0] >= AGREE_MIN):
+        # a short grasp's release can darken as much as the blink, but the log cannot start there; a
+        # grasp too short to score is taken, one where the log does not move with the events is not
+        (r, spike), why = scored[0], "the only one that leaves the force log inside the recording"
+    # else every placement that holds the log scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
+    elif (not ranked or any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN
             or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN)):
         raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures})")
-    spike = ranked[0][1]
-    spike.details["agreement"] = ranked[0][0]
+    else:
+        (r, spike), why = ranked[0], "where the force log moves with the events"
+    if r is not None:
+        spike.details["agreement"] = r
     spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
-                                 f"was taken, where the force log moves with the events ({figures})"]
+                                 f"was taken, {why} ({figures})"]
     return [spike]
 
 

@@ -714,6 +714,23 @@ def test_a_spike_that_leaves_most_of_the_log_outside_the_recording_is_no_candida
     assert sy._by_agreement(spikes, 1, t, [log], [log.value])[0].t0 == 4_000_000
 
 
+def test_the_one_spike_that_leaves_the_log_inside_is_taken_where_the_grasp_is_too_short_to_score(monkeypatch):
+    """A single grasp of a bright object: its release darkens the membrane as much as the blink, 0.3 s
+    after it; a log placed at the release would stick out of the recording, and a 0.4 s grasp is
+    too short for an r at the blink: the blink is taken, and the warning says why."""
+    from neurotac_cli.io.force import ForceLog
+    from neurotac_cli.ops.instant import Instant
+
+    t = np.arange(0, 500_000, 100, dtype=np.int64)
+    log = ForceLog(t=np.arange(0, 400_000, 500, dtype=np.int64), value=np.zeros(800, np.float32))
+    spikes = [Instant(t0=t0, details={"onset_us": t0}) for t0 in (50_000, 380_000)]
+    monkeypatch.setattr(sy, "agreement", lambda *_, **__: None)
+    taken = sy._by_agreement(spikes, 1, t, [log], [log.value])[0]
+    assert taken.t0 == 50_000 and "agreement" not in taken.details
+    assert "was taken, the only one that leaves the force log inside the recording (no r at 50000 µs, 30% of the log" in \
+        taken.details["warnings"][0]
+
+
 def test_a_camera_s_burst_as_it_starts_is_no_blink():
     """A camera fires a burst in its first millisecond (a Prophesee VGA recording: 9 times its median
     OFF rate): taken for the blink, the force log was placed at the recording's start."""
