@@ -51,15 +51,19 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     pixels = _pixels_seen(x, y, sensor, method.region)
     starting = int(np.min(t)) + STARTUP_US  # pairs of bins starting before it hold no blink (the recording's, not the region's, start)
     # candidates: local maxima of z, strongest first, at least 50 ms apart
-    chosen, rejected = [], []
+    chosen, rejected, startup = [], [], None
     taken = np.zeros(len(z), dtype=bool)
     gap = max(1, 50_000 // bin_us)
     for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
-        if taken[i] or z[i] <= 0 or origin + i * bin_us < starting:
+        if taken[i] or z[i] <= 0:
             continue
         lo, hi = origin + i * bin_us, origin + (i + 2) * bin_us
         a, b = np.searchsorted(times, [lo, hi])
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
+        if lo < starting:  # the camera's start-up, or a blink the recording began inside: said where it matters
+            if startup is None and z[i] >= method.min_z and coverage >= method.min_coverage:
+                startup = lo
+            continue
         taken[max(0, i - gap): i + gap + 1] = True
         if not (z[i] >= method.min_z and coverage >= method.min_coverage):
             rejected.append((float(z[i]), coverage, lo, a, b))
@@ -74,8 +78,25 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     if len(chosen) < count:
         best = max(rejected, default=None)  # its box only: the only one the error shows
         best = best and (*best[:3], _box(off_x[best[3]:best[4]], off_y[best[3]:best[4]], sensor))
-        raise _no_spike(len(chosen), count, best, method)
+        raise _no_spike(len(chosen), count, best, method, startup)
+    if startup is not None:
+        _after_startup(chosen, startup)
     return sorted(chosen, key=lambda instant: instant.t0)
+
+
+def _startup_text(startup_us: int) -> str:
+    return (f"a burst as bright as a blink in the recording's first {STARTUP_US / 1000:g} ms (at {startup_us} µs) is taken for the "
+            "camera starting, not a blink: if the recording began inside the blink, start it earlier, or use --method "
+            "xcorr or offset")
+
+
+def _after_startup(chosen: list, startup_us: int):
+    """A spike taken within STARTUP_US after a start-up burst that would have passed as a blink may be
+    that blink's tail (the recording began inside it), read late: a warning on it."""
+    for instant in chosen:
+        if instant.details["onset_us"] - startup_us < 2 * STARTUP_US:
+            instant.details.setdefault("warnings", []).append(
+                f"the spike at {instant.details['onset_us']} µs may be the tail of a blink: {_startup_text(startup_us)}")
 
 
 def _box(x: np.ndarray, y: np.ndarray, sensor=None):
@@ -120,15 +141,19 @@ def _spike_instant(spike: np.ndarray, z: float, coverage: float, end_us: int, la
     )
 
 
-def _no_spike(found: int, count: int, best, method) -> SyncError:
+def _no_spike(found: int, count: int, best, method, startup: int | None = None) -> SyncError:
     """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time, OFF events' box
     (x0, y0, x1, y1)) of the best rejected burst. A burst far above the bar in z over too few pixels
-    may be a small LED's (one in a corner of the view): the error gives its box as a --region."""
+    may be a small LED's (one in a corner of the view): the error gives its box as a --region, unless
+    a blink-like burst opened the recording (`startup`, its time): then the best burst may be that
+    blink's tail, and a bar lowered to take it would read the blink late."""
     found_text = f"found {found} of {count}; " if count > 1 else ""
     detail = (f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
               if best else "no OFF burst at all")
     advice = "check the LED is in view, give --region, or use --method xcorr, trigger or offset"
-    if best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
+    if startup is not None:
+        advice = _startup_text(startup)
+    elif best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
         x0, y0, x1, y1 = best[3]
         advice = (f"if that burst is a small LED's (one in a corner of the view), give its box, --region {x0},{y0},"
                   f"{x1 - x0 + 1},{y1 - y0 + 1}, or --min-coverage {best[1] / 2:.2g} (half its share: other trials' blinks vary)")

@@ -276,8 +276,8 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
         (r, spike), why = ranked[0], "where the force log moves with the events"
     if r is not None:
         spike.details["agreement"] = r
-    spike.details["warnings"] = [f"{counted(len(spikes), 'LED-off spike')} stand out; the one at {spike.details['onset_us']} µs "
-                                 f"was taken, {why} ({figures})"]
+    spike.details.setdefault("warnings", []).append(f"{counted(len(spikes), 'LED-off spike')} stand out; the one at "
+                                                    f"{spike.details['onset_us']} µs was taken, {why} ({figures})")
     return [spike]
 
 

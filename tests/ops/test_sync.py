@@ -752,3 +752,29 @@ def test_a_camera_s_burst_as_it_starts_is_no_blink():
     t, x, y, p = (np.concatenate([[start - 3], column]) for column in (t, x, y, p))  # the first event just before the burst
     (spike,) = led_spikes(t, x, y, p, sy.SyncMethod(), 1, (width, height), spare=0)
     assert abs(spike.details["onset_us"] - (start + 1_200_000)) < 1_000  # the blink, not the burst at the start
+
+
+def test_a_recording_begun_inside_its_blink_is_said_so_not_read_late():
+    """A recording that starts inside its blink: the blink is passed over as the camera's start-up.
+    The error no longer offers a lower --min-coverage for the burst after it (which took the blink's
+    tail, 0.5 ms late, without a word); where the tail passes as a spike anyway, a warning says it
+    may be that tail."""
+    from neurotac_cli.ops.led import led_spikes
+
+    def recording(spread_us):
+        rng = np.random.default_rng(1)
+        width, height, start = 40, 30, 5_000_000
+        pixels = rng.choice(width * height, int(0.9 * width * height), replace=False)
+        blink = (start + rng.exponential(spread_us, len(pixels)).astype(np.int64), pixels % width, pixels // width)
+        noise = (start + rng.integers(0, 2_000_000, 4_000), rng.integers(0, width, 4_000), rng.integers(0, height, 4_000))
+        t, x, y = (np.concatenate(column) for column in zip(blink, noise))
+        order = np.argsort(t, kind="stable")
+        return t[order].astype(np.int64), x[order].astype(np.uint16), y[order].astype(np.uint16), np.zeros(len(t), np.int8)
+
+    # the tail after 2 ms: z 28 over 4% of the pixels, a small LED's by its z at a bar of 5
+    with pytest.raises(SyncError, match=r"in the recording's first 2 ms \(at 5000000 µs\) is taken for the camera starting, not a "
+                                        r"blink: if the recording began inside the blink, start it earlier") as refused:
+        led_spikes(*recording(700), sy.SyncMethod(min_z=5.0), 1, (40, 30), spare=0)
+    assert "--min-coverage" not in str(refused.value)
+    (tail,) = led_spikes(*recording(1_000), sy.SyncMethod(), 1, (40, 30), spare=0)
+    assert "may be the tail of a blink" in tail.details["warnings"][0]
