@@ -563,6 +563,7 @@ def describe_model(path: str) -> dict:
                      "member_best_epochs": training.get("member_best_epochs"),
                      "member_draws": _distinct_draws(trials)},
         "contacts": training.get("contacts"), "slip": spec.get("slip"),
+        "press_polarity": (spec.get("contact") or {}).get("press_polarity"),
         "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
         "history": training.get("data_history") or [],
     }
@@ -611,12 +612,24 @@ def _model_lines(info: dict) -> list:
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))
     contacts = info.get("contacts")
+    pressed, released, either = _polarities(info.get("press_polarity"))
     if isinstance(contacts, dict):
         pairs.append(("contacts", f"{contacts.get('contacts')} in {contacts.get('sessions')} session(s); median press "
-                                  f"{_compact(contacts.get('press_off'))} OFF, release {_compact(contacts.get('release_on'))} ON events"))
+                                  f"{_compact(contacts.get('press_off'))} {pressed}, release {_compact(contacts.get('release_on'))} "
+                                  f"{released} events{either}"))
     if isinstance(info.get("slip"), dict):
-        pairs.append(("slip bars", f"{info['slip'].get('min_events')} OFF / {info['slip'].get('min_events_on')} ON events"))
+        pairs.append(("slip bars", f"{info['slip'].get('min_events')} {pressed} / {info['slip'].get('min_events_on')} {released} events"))
     return pairs + [""] + _steps_lines("trained on frames made by:", info["history"])
+
+
+def _polarities(press_polarity) -> tuple:
+    """How a contacts model's lines name the polarity a press makes and a release makes, and what to
+    add where each contact is read in its own (press_polarity "either")."""
+    from neurotac_cli.ops.contact import polarity_names
+
+    if press_polarity == "either":
+        return "press", "release", " (each contact read in the polarity its press makes, ON or OFF)"
+    return (*polarity_names(press_polarity or "off"), "")
 
 
 def _exists(path) -> bool:

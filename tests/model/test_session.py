@@ -476,6 +476,19 @@ def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_
     assert theirs["detection"] == mine["detection"] and mine["detection"]["f1"] >= 0.9 and mine["detection"]["true"] == 18
     assert theirs["dominance"] == mine["dominance"] == session.contact_config(trained).dominance
     assert session.detection_note(mine) is None
+
+
+def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
+    from neurotac_cli.describe import _model_lines, describe_model
+
+    flipped = session.train(inverted(sessions), models.make_spec("deform-gru", epochs=1, hidden=4), seed=0)
+    lines = {}
+    for name, model in (("off", trained), ("on", flipped)):
+        models.save(model, str(tmp_path / f"{name}.model"))
+        lines[name] = dict(pair for pair in _model_lines(describe_model(str(tmp_path / f"{name}.model"))) if isinstance(pair, tuple))
+    assert " OFF, release " in lines["off"]["contacts"] and lines["off"]["contacts"].endswith(" ON events")
+    assert " ON, release " in lines["on"]["contacts"] and lines["on"]["contacts"].endswith(" OFF events")
+    assert lines["on"]["slip bars"].endswith(" OFF events") and " ON / " in lines["on"]["slip bars"]
     poor = {"detection": {"f1": 0.76, "true": 24.0, "found": 19.0, "hits": 16.0, "slip_f1": 0.2, "slip_true": 2.0,
                           "slip_found": 18.0, "slip_hits": 2.0}}
     note = session.detection_note(poor)
