@@ -33,8 +33,10 @@ def _model_file(path: str) -> str:
               help="Force models: train on the contacts the event-driven contact detector finds (in sessions of many "
               "grasps, or in trials); the model then runs on unbounded streams, from a fresh state at each contact and "
               "reading zero between contacts; the detector keeps its durations and event rates at the frames' window, "
-              "and, where the frames have phases, reads presses in the polarity the training presses make most of and "
-              "is run on the training sessions first, with a warning where it finds their contacts or slips poorly "
+              "and, where the frames have phases, reads presses in the polarity the training presses make most of (or, "
+              "where a fifth or more press clearly ON and a fifth clearly OFF, each contact in the polarity its own press "
+              "makes: a sensor of dark and bright objects) and is run on the training sessions first, with a warning where "
+              "it finds their contacts or slips poorly; without phases, presses are taken to darken the membrane "
               "(docs/design.md, \"Sessions\").")
 @click.option("--label", default="material", show_default=True, help="Classifiers: the label column to predict.")
 @click.option("--curve", type=TablePath(), default=None, help="Write the training curve (loss per epoch) as a metrics table to this file; a model of several members writes each one's, named in the model column.")
@@ -83,7 +85,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
                           progress=progress_printer("train"), contacts=contacts)
     if contacts:
         found = trained.model.training.get("contacts", {})
-        echo_lines("train", filter(None, [session.one_contact_note(found), session.detection_note(found)]), "warning: ")
+        echo_lines("train", filter(None, [session.one_contact_note(found), session.polarity_note(found), session.detection_note(found)]), "warning: ")
     with tables.together():  # the model, its curve and its plot are one training's, or the last one's
         models.save(trained.model, output)
         if curve:

@@ -64,6 +64,25 @@ def one_contact_note(summary: dict) -> str | None:
 
 
 DETECTION_WARN_F1 = 0.9  # the detector's F1 on its own training sessions under which `train --contacts` warns
+ASSUMED_POLARITY_RATIO = 3.0  # without phases: releases this many times the presses' events say the presses may be the other polarity
+
+
+def polarity_note(summary: dict) -> str | None:
+    """A warning where training took the presses' polarity without measuring it (frames without
+    phases: the contacts are the detector's, read as the default polarity) and the contacts' releases
+    make several times the events of their presses, as a bright object's presses and releases do when
+    read the other way round."""
+    if summary.get("from") != "detector" or not summary.get("press_off") or not summary.get("release_on"):
+        return None
+    ratio = summary["release_on"] / summary["press_off"]
+    if ratio < ASSUMED_POLARITY_RATIO:
+        return None
+    pressed, released = detector.polarity_names(summary.get("press_polarity", "off"))
+    return (f"the frames have no phases, so the presses were taken to make {pressed} events, not measured, and the contacts "
+            f"found so release {ratio:.0f} times the events they press ({summary['release_on']:g} {released} against "
+            f"{summary['press_off']:g} {pressed} at their peaks): if pressing makes {released} events on this sensor (a bright "
+            "object), these contacts run from release to press; frame the sessions with `--phases session` so that training "
+            "measures it")
 
 
 def detection_note(summary: dict) -> str | None:
@@ -366,7 +385,8 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
         pressed, released = detector.polarity_names(config.press_polarity)
         how = (f"pressed as OFF or ON events ({summary['presses_on'][0]} of {summary['presses_on'][1]} presses ON: each contact read by "
                f"its own), released at {config.dominance:g} times as many of the other" if config.press_polarity == "either" else
-               f"pressed as {pressed} events, released at {config.dominance:g} times as many {released}")
+               f"pressed as {pressed} events{'' if truths is not None else ' (taken, not measured: no phases)'}, released at "
+               f"{config.dominance:g} times as many {released}")
         progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames, {how}; slips flagged at "
                  f"{slip.min_events:g} {pressed} and {slip.on_events:g} {released} events above the background")

@@ -478,6 +478,27 @@ def test_training_measures_which_polarity_a_press_makes_and_checks_the_detector_
     assert session.detection_note(mine) is None
 
 
+def test_training_without_phases_warns_where_the_contacts_it_found_release_more_than_they_press():
+    """Frames without phases: the presses are taken to make OFF events. On a sensor whose presses
+    brighten, the contacts then run from each release to the next press, and their "releases" (the
+    presses, sharper than the releases) dwarf their "presses": said, where the same sensor's frames
+    read the right way round say nothing."""
+    pressing, releasing = [5.0] * 30, [5.0] * 30  # each grasp: the press's polarity, the release's
+    for _ in range(6):
+        pressing += [400.0, 300.0, 100.0] + [5.0] * 30 + [5.0, 5.0] + [5.0] * 40
+        releasing += [15.0, 12.0, 5.0] + [5.0] * 30 + [40.0, 40.0] + [5.0] * 40
+    notes = {}
+    for name, (off, on) in (("dark", (pressing, releasing)), ("bright", (releasing, pressing))):
+        counts = np.zeros((len(off), 2, SIZE, SIZE))
+        counts[:, 0, 4, 4], counts[:, 1, 4, 4] = off, on
+        table = frames_table("s0", counts, np.zeros(len(off)), np.full(len(off), "none"), np.full(len(off), -1))
+        _, summary, _ = session.contacts_table(table, contact.ContactConfig(release_force_n=0.3))
+        assert summary["from"] == "detector" and summary["press_polarity"] == "off"
+        notes[name] = session.polarity_note(summary)
+    assert notes["dark"] is None
+    assert "the frames have no phases, so the presses were taken to make OFF events, not measured" in notes["bright"]
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
