@@ -483,6 +483,27 @@ def test_a_session_without_time_for_its_grasps_is_refused(tmp_path, args, code_e
     assert code == code_expected and said in stderr, stderr
 
 
+@pytest.mark.parametrize("args, said", [
+    (["--set", "bright_share=1", "--set", "bright_contrast=-3"], "--set bright_share, bright_contrast: these only apply with --session"),
+    (["--set", "slip_share=0.5"], "--set slip_share: it only applies with --session"),
+    (["--illumination-drift", "0.1"], "--illumination-drift only applies with --session"),
+    (["--vary", "optics", "--set", "object_contrast=-1.5"], "--set object_contrast: --vary draws it (optics: 0.5 to 0.95), which would "
+                                                            "replace the value given"),
+    (["--vary", "all", "--set", "on_threshold=0.3"], "--set on_threshold: --vary draws it (pixels"),
+])
+def test_a_setting_that_would_change_nothing_is_refused_not_ignored(tmp_path, args, said):
+    code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", *args, "--out", str(tmp_path / "s")])
+    assert code == 2 and said in stderr, stderr
+
+
+def test_a_factor_family_is_drawn_about_the_value_set_so_that_value_is_not_replaced():
+    from neurotac_cli.sim.physics import parse_variation
+
+    variation = parse_variation("membrane,optics")
+    assert variation.replaces(["creep_us", "membrane_youngs_pa", "object_contrast", "dark_level"]) == [
+        ("object_contrast", "optics"), ("dark_level", "optics")]
+
+
 def test_frame_warns_where_the_force_log_is_sampled_more_slowly_than_the_window_and_slips_lie_outside(tmp_path):
     code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", "--synced", "-o", str(tmp_path / "r.arrows")])
     assert code == 0, stderr

@@ -94,7 +94,9 @@ MAX_FORCE_N = 450  # sim.config.validate's bound on force_max_n: the largest ran
 @click.option("--sensor", "sensor_size", type=Size(), default=None, help="Sensor size in pixels (240x180).")
 @click.option("--set", "settings", type=KeyValue(), multiple=True, callback=distinct_names,
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "
-                   "(the full list with units and sources: docs/simulator.md).")
+                   "(the full list with units and sources: docs/simulator.md). With --vary, a family's parameter drawn as a "
+                   "factor is drawn about the value set; one drawn outright, or a session's parameter without --session, is "
+                   "refused: it would change nothing.")
 @click.option("--keep-led", is_flag=True, help="With --synced: keep the LED blink's events in each trial, as `sync --keep-led` does (by default they are left out: they mark the instant, they are not touch).")
 def command(preset, session, grasps, sessions, duration, illumination_drift, gripper, vary, hold_out, unseen, rigs, trials,
             out_dir, synced, output, seed, groups, force_range, hold, force_sensor, background_rate, sensor_size, settings,
@@ -125,6 +127,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     from neurotac_cli.sim.physics import parse_variation
 
     _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift, hold, keep_led)
+    _check_settings(settings, session, vary, hold_out, unseen)
     overrides = _overrides(settings, groups, session and preset is None, gripper, illumination_drift, force_range, hold,
                            force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
@@ -211,7 +214,29 @@ def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, dura
              if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT]
     given += [flag for flag, value in (("--duration", duration), ("--illumination-drift", illumination_drift)) if value is not None]
     if given:
-        raise UsageError(f"{', '.join(given)} only apply with --session (add --session, or leave them out)")
+        raise UsageError(f"{', '.join(given)} only {'apply' if len(given) > 1 else 'applies'} with --session (add --session, or "
+                         "leave them out)")
+
+
+def _check_settings(settings, session, vary, hold_out, unseen):
+    """A --set that would change nothing is refused, not ignored: a session's parameter in a run of
+    trials, or a parameter that --vary draws outright (a factor family's is drawn about it)."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.sim.config import SESSION_PARAMETERS
+    from neurotac_cli.sim.physics import FAMILIES, parse_variation
+
+    names = [name for name, _ in settings]
+    idle = [name for name in names if name in SESSION_PARAMETERS]
+    if idle and not session:
+        raise UsageError(f"--set {', '.join(idle)}: {'these only apply' if len(idle) > 1 else 'it only applies'} with --session "
+                         "(add --session, or leave them out)")
+    variation = parse_variation(vary, hold_out, unseen)
+    replaced = variation.replaces(names) if variation is not None else []
+    if replaced:
+        name, family = replaced[0]
+        spec = FAMILIES[family][name]
+        raise UsageError(f"--set {name}: --vary draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
+                         f"replace the value given; leave {family} out of --vary, or the --set out")
 
 
 def _force_range(text):

@@ -154,6 +154,12 @@ class SimConfig:
     illumination_period_us: int = 60_000_000  # period of that drift
 
 
+# Parameters only a session simulation reads (`simulate --session`): set for trials, they would change nothing.
+SESSION_PARAMETERS = ("session_rest_us", "session_hold_us", "session_speed", "regrasp_share", "change_share", "partial_share",
+                      "slip_share", "bright_share", "bright_contrast", "slip_speed_mm_s", "slip_us", "slip_force_drop",
+                      "illumination_drift", "illumination_period_us")
+
+
 def _groups(*entries):
     return tuple(entries)
 

@@ -114,6 +114,12 @@ class Variation:
             return config, {}
         return Variation((family,), self.held_out if self.held_out == family else None, self.side).draw(config, rng)
 
+    def replaces(self, names) -> list[tuple[str, str]]:
+        """(name, family) of each of `names` that a draw of this variation sets outright (a parameter
+        drawn as a factor is drawn about the value given, so it is not replaced)."""
+        return [(name, family) for family in self.families for name, spec in FAMILIES[family].items()
+                if name in names and not spec.factor]
+
     def without(self, family: str) -> "Variation":
         """The same variation, `family` left out."""
         return Variation(tuple(f for f in self.families if f != family), None if self.held_out == family else self.held_out, self.side)
