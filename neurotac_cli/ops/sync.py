@@ -232,7 +232,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         entry = {"t0": instant.t0, "score": instant.score}
         entry.update(instant.details)
         if method.method != "xcorr" and "agreement" not in entry:  # xcorr reports its own; a spike chosen by it, too
-            entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True)
+            entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True, raw=log.value)
         if log.notes:
             entry["notes"] = log.notes
         info[name] = entry
@@ -258,7 +258,7 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
         inside_us, span = forcelog.inside(spike.t0, logs[0], first, last)
         inside = inside_us / span
         held = inside >= forcelog.SHORT_OVERLAP
-        r = agreement(t, logs[0].t, forces[0], spike.t0) if held else None
+        r = agreement(t, logs[0].t, forces[0], spike.t0, raw=logs[0].value) if held else None
         scored += [(r, spike)] if held else []
         about = f"r {r:.2f}" if r is not None else "no r" if held else f"{max(inside, 0.0):.0%} of the log inside the recording"
         figures.append(f"{about} at {spike.details['onset_us']} µs")

@@ -145,15 +145,16 @@ AGREE_LAG_US = 50_000  # the force sensor's and the membrane's lags, either way
 AGREE_MIN = 0.2  # 20 simulated sessions: their own log r 0.56-0.78; another session's 0.02-0.06
 
 
-def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False) -> float | None:
+def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False, raw=None) -> float | None:
     """How well the event rate follows |dF/dt| with the force log placed at camera time `t0` (as a
     blink or a trigger placed it): Pearson r at the best lag within AGREE_LAG_US, over the whole
-    sensor's event times `t` (an LED's --region holds no contact). None where the log does not change, or it and the
-    events share too little time to tell. `sorted_time`: `t` is in order, so the log's span is
+    sensor's event times `t` (an LED's --region holds no contact). None where the log holds no grasp (`_holds_a_grasp`
+    of `raw`, the log as read, where `force_v` is filtered: a median flattens the noise the test
+    measures), or it and the events share too little time to tell. `sorted_time`: `t` is in order, so the log's span is
     found by bisection rather than by a pass over every event."""
     from scipy.ndimage import gaussian_filter1d
 
-    if len(force_t) < 10:
+    if len(force_t) < 10 or not _holds_a_grasp(np.asarray(force_v if raw is None else raw, dtype=np.float64)):
         return None
     lo, hi = t0 + int(force_t[0]), t0 + int(force_t[-1])
     if sorted_time:
@@ -176,6 +177,18 @@ def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False) -> float 
         return None
     scores = _window_pearson(rate[lags:length - lags], slope)  # each lag's window of the slope, from -lags to +lags
     return round(float(np.nanmax(scores)), 3) if np.isfinite(scores).any() else None
+
+
+def _holds_a_grasp(values: np.ndarray) -> bool:
+    """Whether a force log rises above its rest level by 10 times its sample-to-sample noise (as
+    `frame --phases session` finds a grasp): a log of a session without a grasp is noise, and the
+    events' r with it says nothing about whose log it is."""
+    values = values[np.isfinite(values)]
+    if len(values) < 3:
+        return False
+    steps = np.diff(values)
+    noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2)
+    return float(values.max() - np.percentile(values, 5)) > 10 * noise
 
 
 def _window_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:

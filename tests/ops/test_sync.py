@@ -672,6 +672,22 @@ def test_a_force_log_placed_by_a_blink_is_checked_against_the_events_and_another
     assert len(warnings) == 1 and "on 1 of 2 trial(s) the force log, placed by the LED blink, hardly moves" in warnings[0]
 
 
+def test_a_log_of_a_session_without_a_grasp_is_not_weighed_against_the_events():
+    """A session without a grasp logs noise: its r with the events (0.02 on a simulated one) said
+    nothing about whose log it was, and warned "another recording's?". Judged on the log as read:
+    a median filter flattens the quantised noise the test measures."""
+    own_t, own_v = _session_log(1)
+    t, _, _, _ = _grasping_events(own_t, own_v, 3_000_000, seed=0)
+    rng = np.random.default_rng(3)
+    quiet = np.round(rng.normal(0.0, 0.01, len(own_t)) / 0.0125) * 0.0125  # a Nano17 at rest, 12.5 mN steps
+    assert xcorr.agreement(t, own_t, quiet, 3_000_000) is None
+    from scipy.ndimage import median_filter
+
+    filtered = median_filter(quiet, size=5, mode="nearest")
+    assert xcorr.agreement(t, own_t, filtered, 3_000_000, raw=quiet) is None
+    assert xcorr.agreement(t, own_t, own_v + quiet, 3_000_000, raw=own_v + quiet) > 0.6
+
+
 def _blink(at_us, seed, width=240, height=180):
     """An LED-off spike over the whole sensor (or a press that darkens as much of it at once)."""
     rng = np.random.default_rng(seed)
