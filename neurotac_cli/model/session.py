@@ -600,10 +600,14 @@ def training_input_notes(table: pa.Table, force_model: bool, contacts: bool = Fa
 def scoring_input_notes(input_spec: dict, training: dict | None, task: str, table: pa.Table) -> list[str]:
     """The warnings about frames scored by a trained model (`eval --model` on stderr, the library as
     NeurotacWarning), each starting `warning: `: frames unlike the training's, sessions given to a
-    model of whole trials, frames missing inside its trials."""
+    model of whole trials, frames missing inside its trials, frames without slip truth."""
     from neurotac_cli.model.core import gaps_note, input_notes, missing_frames
 
     notes = [f"warning: {note}" for note in input_notes(input_spec, (training or {}).get("data_history"), table.schema)]
+    unknown = table.column("slip").null_count if "slip" in table.schema.names else 0
+    if unknown and CONTACT_KEY in (input_spec or {}):
+        notes.append(f"warning: {counted(unknown, 'frame')} of {table.num_rows:,} have no slip truth (null in column slip): "
+                     "scored as no slip, which splits a slip they fall inside (`frame --slips CSV` writes every frame's)")
     if task != "material" and CONTACT_KEY not in (input_spec or {}):
         whole = whole_trials_note(table.schema, "a model trained without --contacts")
         notes += [whole and f"warning: {whole}", gaps_note(missing_frames(table), "runs")]

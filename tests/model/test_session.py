@@ -499,6 +499,16 @@ def test_training_without_phases_warns_where_the_contacts_it_found_release_more_
     assert "the frames have no phases, so the presses were taken to make OFF events, not measured" in notes["bright"]
 
 
+def test_scoring_names_frames_without_slip_truth(sessions, trained):
+    slip = [False] * sessions.num_rows
+    with_nulls = sessions.append_column("slip", pa.array([None if i % 50 == 0 else flag for i, flag in enumerate(slip)], pa.bool_()))
+    notes = session.scoring_input_notes(trained.input_spec, trained.training, "force", with_nulls)
+    said = [note for note in notes if "have no slip truth" in note]
+    assert len(said) == 1 and f"{(sessions.num_rows + 49) // 50} frames of {sessions.num_rows:,} have no slip truth" in said[0]
+    whole = sessions.append_column("slip", pa.array(slip, pa.bool_()))
+    assert not [note for note in session.scoring_input_notes(trained.input_spec, trained.training, "force", whole) if "slip" in note]
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
