@@ -169,8 +169,9 @@ def check_no_leak(data: Sequences, in_val: np.ndarray, what: str = "validation")
 
 
 def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None, per="object",
-                      rng: np.random.Generator | None = None) -> np.ndarray:
+                      rng: np.random.Generator | None = None, unit: str = "trial") -> np.ndarray:
     """A boolean mask of validation trials: by ids, by a label value, or a fraction drawn per `per` label.
+    `unit`: what one sequence is, as the errors name it (a trial, or a session's contact).
 
     Validation always holds whole source groups; explicit choices that split a group are refused.
     """
@@ -196,7 +197,9 @@ def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None
     else:
         mask = np.zeros(n, dtype=bool)
     if mask.all():
-        raise ModelError("every trial would be in validation, leaving none to train on; choose fewer validation trials")
+        where_from = " (--val-trials names a session for all of its contacts)" if unit == "contact" and trials else ""
+        raise ModelError(f"every {unit} would be in validation, leaving none to train on{where_from}; choose fewer validation "
+                         f"{unit}s")
     return mask
 
 

@@ -509,6 +509,13 @@ def test_scoring_names_frames_without_slip_truth(sessions, trained):
     assert not [note for note in session.scoring_input_notes(trained.input_spec, trained.training, "force", whole) if "slip" in note]
 
 
+def test_a_validation_session_that_holds_every_contact_is_refused_in_contacts():
+    table, _ = tiny_session(6, seed=0, trial="s0")
+    with pytest.raises(ModelError, match=r"every contact would be in validation, leaving none to train on \(--val-trials names a "
+                                         r"session for all of its contacts\)"):
+        session.train(table, models.make_spec("deform-gru", epochs=1, hidden=4), val_trials=["s0"], seed=0)
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
