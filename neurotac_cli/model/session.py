@@ -274,7 +274,8 @@ MARGIN_AFTER = 30  # 10 ms frames of rest kept after each true contact for train
 
 def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.Table, dict, list]:
     """The frames of every contact, one trial per contact (`STREAM@FRAME`), what was found:
-    {"sessions", "contacts", "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
+    {"sessions", "contacts" (training sequences: a contact and the next one within its margin are one),
+    "found" (contacts), "merge_frames" (that margin), "frames", "frames_in_contacts", "from", "press_polarity", "press_off",
     "release_on", "presses_on": [presses pressed ON, presses] (None without phases)}, and per stream
     what `detection_check` reads (None without phases).
 
@@ -313,7 +314,8 @@ def contacts_table(table: pa.Table, config: detector.ContactConfig) -> tuple[pa.
     found = table.take(pa.array(rows, pa.int64()))
     found = found.set_column(found.schema.get_field_index("trial"), found.schema.field("trial"), pa.array(names, pa.string()))
     press_off, release_on = detector.rig_peaks(streams, config.warmup_frames)
-    summary = {"sessions": len(data), "contacts": len(set(names)), "frames": table.num_rows,
+    summary = {"sessions": len(data), "contacts": len(set(names)), "found": sum(map(len, runs)),
+               "merge_frames": after + config.lead_frames, "frames": table.num_rows,
                "frames_in_contacts": len(rows), "from": "phases" if labelled else "detector",
                "press_polarity": polarity, "dominance": detector.dominance_for(config, streams) if labelled else config.dominance,
                "press_off": press_off, "release_on": release_on, "presses_on": presses_on}
@@ -387,7 +389,9 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
                f"its own), released at {config.dominance:g} times as many of the other" if config.press_polarity == "either" else
                f"pressed as {pressed} events{'' if truths is not None else ' (taken, not measured: no phases)'}, released at "
                f"{config.dominance:g} times as many {released}")
-        progress(f"contacts: {summary['contacts']} in {counted(summary['sessions'], 'stream')}, "
+        merged = (f" (of {summary['found']} found: one ending within {summary['merge_frames']} frames of the next trains with it)"
+                  if summary["found"] != summary["contacts"] else "")
+        progress(f"contacts: {summary['contacts']}{merged} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames, {how}; slips flagged at "
                  f"{slip.min_events:g} {pressed} and {slip.on_events:g} {released} events above the background")
     if options.get("val_trials"):

@@ -516,6 +516,23 @@ def test_a_validation_session_that_holds_every_contact_is_refused_in_contacts():
         session.train(table, models.make_spec("deform-gru", epochs=1, hidden=4), val_trials=["s0"], seed=0)
 
 
+def test_training_says_where_contacts_close_together_train_as_one():
+    off, on, force = [5.0] * 30, [5.0] * 30, [0.0] * 30
+    for rest in (10, 60, 60):  # the first two grasps 10 frames apart: inside the first one's margin after its release
+        off += [150.0, 120.0, 40.0] + [5.0] * 30 + [5.0, 5.0] + [5.0] * rest
+        on += [15.0, 12.0, 5.0] + [5.0] * 30 + [90.0, 90.0] + [5.0] * rest
+        force += [1.0, 2.0, 2.0] + [2.0] * 30 + [0.5, 0.0] + [0.0] * rest
+    counts = np.zeros((len(off), 2, SIZE, SIZE))
+    counts[:, 0, 4, 4], counts[:, 1, 4, 4] = off, on
+    table = frames_table("s0", counts, np.asarray(force), np.where(np.asarray(force) > 0, "holding", "none"), np.full(len(off), -1))
+    said = []
+    model = session.train(table, models.make_spec("deform-gru", epochs=1, hidden=4), val_fraction=0, seed=0, progress=said.append)
+    summary = model.training["contacts"]
+    assert (summary["found"], summary["contacts"]) == (3, 2)
+    assert any(line.startswith("contacts: 2 (of 3 found: one ending within 32 frames of the next trains with it) in 1 stream")
+               for line in said), said
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
