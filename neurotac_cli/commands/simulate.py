@@ -124,14 +124,12 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     from neurotac_cli import tables
     from neurotac_cli.errors import UsageError
     from neurotac_cli.sim.config import preset_config
-    from neurotac_cli.sim.physics import parse_variation
 
     _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift, hold, keep_led)
-    _check_settings(settings, session, vary, hold_out, unseen)
+    variation = _check_settings(settings, session, vary, hold_out, unseen)
     overrides = _overrides(settings, groups, session and preset is None, gripper, illumination_drift, force_range, hold,
                            force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
-    variation = parse_variation(vary, hold_out, unseen)
     if rigs and variation is None:
         raise UsageError("--rigs deals the grasps to rigs of drawn physics: give --vary (or --hold-out / --unseen) too")
     if rigs and session:
@@ -219,8 +217,9 @@ def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, dura
 
 
 def _check_settings(settings, session, vary, hold_out, unseen):
-    """A --set that would change nothing is refused, not ignored: a session's parameter in a run of
-    trials, or a parameter that --vary draws outright (a factor family's is drawn about it)."""
+    """The variation the options ask for; a --set that would change nothing is refused, not ignored:
+    a session's parameter in a run of trials, or a parameter that --vary draws outright (a factor
+    family's is drawn about it)."""
     from neurotac_cli.errors import UsageError
     from neurotac_cli.sim.config import SESSION_PARAMETERS
     from neurotac_cli.sim.physics import FAMILIES, parse_variation
@@ -237,6 +236,7 @@ def _check_settings(settings, session, vary, hold_out, unseen):
         spec = FAMILIES[family][name]
         raise UsageError(f"--set {name}: --vary draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
                          f"replace the value given; leave {family} out of --vary, or the --set out")
+    return variation
 
 
 def _force_range(text):

@@ -14,6 +14,7 @@ import numpy as np
 
 from neurotac_cli.errors import SyncError
 from neurotac_cli.ops.instant import Instant
+from neurotac_cli.units import counted
 
 SMALL_LED_Z = 5  # a rejected burst this many times over the z bar is named as a small LED's, with its box
 LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
@@ -51,7 +52,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     pixels = _pixels_seen(x, y, sensor, method.region)
     starting = int(np.min(t)) + STARTUP_US  # pairs of bins starting before it hold no blink (the recording's, not the region's, start)
     # candidates: local maxima of z, strongest first, at least 50 ms apart
-    chosen, rejected, startup = [], [], None
+    chosen, windows, rejected, startup = [], [], [], None
     taken = np.zeros(len(z), dtype=bool)
     gap = max(1, 50_000 // bin_us)
     for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
@@ -73,6 +74,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         # the pair starting at bin i holds the spike: its end is counted from the fuller bin
         end_us = origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us
         chosen.append(_spike_instant(times[c:d], z[i], coverage, end_us, method.latency_us))
+        windows.append((lo - bin_us, hi + bin_us))
         if len(chosen) >= count + spare:
             break
     if len(chosen) < count:
@@ -81,7 +83,38 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         raise _no_spike(len(chosen), count, best, method, startup)
     if startup is not None:
         _after_startup(chosen, startup)
+    if len(chosen) > count:
+        _weigh_polarities(chosen, windows, t, x, y, p, method.region)
     return sorted(chosen, key=lambda instant: instant.t0)
+
+
+MIXED_SHARE = 0.5  # a spike with this many ON events per OFF event in its bins is no light switching off
+
+
+def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):
+    """Each spike's ON events per OFF event in its bins (`on_share`), where more spikes stand out
+    than are wanted: an LED switching off darkens every pixel it lights (a blink: 20 ON events
+    against 80,838 OFF), where a gripper's motor shaking the membrane, or the scene moving past a
+    camera on an arm, makes both polarities alike (about 1:1)."""
+    on = np.sort(t[(p == 1) & in_region(x, y, region)])
+    for instant, (lo, hi) in zip(chosen, windows):
+        a, b = np.searchsorted(on, [lo, hi])
+        instant.details["on_share"] = round((b - a) / max(instant.details["spike_events"], 1), 3)
+
+
+def pure(spikes: list, count: int) -> list:
+    """Of more spikes than `count`, those of OFF events alone (under MIXED_SHARE ON per OFF), where at
+    least `count` are: a spike of both polarities is the membrane shaking or the scene moving, said in
+    a warning on the first spike kept; otherwise the spikes as given."""
+    kept = [spike for spike in spikes if spike.details.get("on_share", 0.0) < MIXED_SHARE]
+    if len(kept) < count or len(kept) == len(spikes):
+        return spikes
+    dropped = [f"{spike.details['on_share']:.2f} ON per OFF at {spike.details['onset_us']} µs" for spike in spikes if spike not in kept]
+    kept[0].details.setdefault("warnings", []).append(
+        f"{counted(len(dropped), 'burst')} of OFF events as strong as a blink passed over, "
+        f"{'each' if len(dropped) > 1 else 'one'} with about as many ON events "
+        f"({', '.join(dropped)}): the membrane shaking or the scene moving, not a light switching off")
+    return kept
 
 
 def _startup_text(startup_us: int) -> str:

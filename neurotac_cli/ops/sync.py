@@ -25,7 +25,7 @@ from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
-from neurotac_cli.ops.led import LED_LATENCY_US, extra_spike, led_spikes
+from neurotac_cli.ops.led import LED_LATENCY_US, extra_spike, led_spikes, pure
 from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
 from neurotac_cli.units import counted
@@ -293,7 +293,7 @@ def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
     try:
         _check_region(method.region, sch.sensor_of(table.schema))
         if method.method == "led":
-            instants = led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES)
+            instants = pure(led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES), count)
             if len(instants) > count:
                 instants = _by_agreement(instants, count, t, logs, forces)
         elif method.method == "trigger":
