@@ -41,8 +41,12 @@ rules were chosen on the totals; docs/journal.md).
 
 A frame whose events cover most of the view (`FLASH_SHARE` of its cells, where it has `FLASH_CELLS`
 or more) begins no contact: an LED blink or a lamp changes the light over the whole membrane, a press
-only where the object is (the LED sync's own test of coverage). Where the detector has no frames
-(`detect` given sums alone) or frames pooled to a few cells, only the warm-up passes over a blink.
+only where the object is (the LED sync's own test of coverage). Nor does a frame in which the view moves
+(`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of them), or the
+`scene_frames` frames after it: a camera on a robot arm sees the membrane window's edge and the
+scene slide by, a gripper's motor shakes the membrane before a touch, and a press makes one
+polarity in a cell at a time. Where the detector has no frames (`detect` given sums alone) or
+frames pooled to a few cells, only the warm-up passes over a blink, and nothing over a move.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
@@ -83,6 +87,7 @@ class ContactConfig:
     lead_frames: int = 2  # the force model reads this many frames before the onset it is started at (training keeps as many)
     press_frames: int = 10  # press_polarity "either": the polarity of a contact's press is the one with more events above
     # the background over this many frames from its onset (a bright object's press can begin with the dark rim about it)
+    scene_frames: int = 3  # after a frame of rest in which the view moved (`_scene_moves`), no contact begins for this many frames
     press_polarity: str = "off"  # the polarity most of a press's events have ("on": pressing brightens; "either": read at
     # each onset, where a sensor sees objects of both kinds; `press_polarity`)
 
@@ -97,7 +102,7 @@ class ContactConfig:
 # from a few ms to 20 ms.
 REFERENCE_WINDOW_US = 10_000
 FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames",
-                                    "lead_frames", "press_frames"),
+                                    "lead_frames", "press_frames", "scene_frames"),
                   "SlipConfig": ("hold_frames", "settle_frames", "level_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 
@@ -270,6 +275,7 @@ class ContactState:
     contact_open: bool = False  # a contact has begun since the state last read a rest frame ("either": its release is the tail)
     tail: str | None = None  # the polarity of the last release while its burst lasts: no press of that polarity begins in it
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
+    since_scene: int = 1 << 30  # frames since the view last moved between contacts (`_scene_moves`)
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
@@ -295,6 +301,9 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     frame; without it, slips are judged on the totals."""
     if state.phase == NONE and state.warmup is None and frame is not None and _flash(config, state, frame, off, on):
         return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
+    state.since_scene += 1
+    if state.phase == NONE and frame is not None and _scene_moves(config, state, frame, off, on):
+        return NONE  # the view moved (a camera on an arm, a gripper's motor): no press, and no rest to learn from
     either = config.press_polarity == "either"
     if either:
         _choose_polarity(config, state, off, on)
@@ -320,6 +329,35 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large
 # contact can hold half its cells inside it) ...
 FLASH_CELLS = 64  # ... on frames of at least this many cells: pooled to a few (`crop --pool all`: one), a press covers them all
+
+
+SCENE_SHARE = 0.02  # a frame whose cells fire both polarities above their rest background over this share of them ...
+SCENE_CELLS = 8  # ... and at least this many is the view moving (a press: at most 0.6% of the cells, on five simulated physics)
+
+
+def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray, off: float, on: float) -> bool:
+    """Whether the view moves in this frame of rest, where a contact could begin: a camera on a robot
+    arm sees the edge of the membrane's window, and the scene through a translucent membrane, slide
+    by; a gripper's motor shakes the membrane before a touch. Edges moving make both polarities in the
+    same cells over much of the view; a press darkens (or brightens) the object's patch, one polarity
+    in a cell at a time. For `scene_frames` frames after such a frame the view is taken as still
+    moving (a move's frames pass the bar unevenly). Frames of fewer than FLASH_CELLS cells are not
+    judged (pooled to a few, a press covers them all). A contact under way is not judged: an arm may
+    carry what the gripper holds."""
+    background = state.footprint.background
+    if state.warmup is not None or background is None or background.shape != np.shape(frame) or np.size(frame) // 2 < FLASH_CELLS:
+        return False
+    means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
+    if not (_above(config, off, means[0]) or _above(config, on, means[1])):
+        return False
+    if state.since_scene <= config.scene_frames:
+        return True
+    rest = background[::-1] if state.polarity == "on" else background  # as framed
+    both = int(np.count_nonzero((frame[0] > rest[0] + 1.0) & (frame[1] > rest[1] + 1.0)))
+    if both < max(SCENE_SHARE * (np.size(frame) // 2), SCENE_CELLS):
+        return False
+    state.since_scene = 0
+    return True
 
 
 def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on: float):

@@ -533,6 +533,37 @@ def test_training_says_where_contacts_close_together_train_as_one():
                for line in said), said
 
 
+def moving_view_stream(move_at=40, press_at=80, hold_move_at=100, release_at=125, length=170, seed=0):
+    """9x9 frames of a quiet camera: the view moving (both polarities in 40 cells, 8 frames) at rest,
+    then a press (OFF in a 3x3 patch), the view moving again while held, and the release (ON)."""
+    rng = np.random.default_rng(seed)
+    counts = rng.poisson(0.05, (length, 2, SIZE, SIZE)).astype(np.float64)
+    cells = rng.choice(SIZE * SIZE, 40, replace=False)
+    for start in (move_at, hold_move_at):
+        for k in range(start, start + 8):
+            for polarity in (0, 1):
+                counts[k, polarity, cells // SIZE, cells % SIZE] += rng.poisson(3.0, 40)
+    counts[press_at:press_at + 3, 0, 3:6, 3:6] += 12
+    counts[release_at:release_at + 2, 1, 3:6, 3:6] += 12
+    return counts
+
+
+def test_the_view_moving_at_rest_begins_no_contact_and_a_contact_under_way_goes_on():
+    """A camera on a robot arm, or a gripper's motor: edges sliding by make both polarities in the
+    same cells over much of the view. An independent generator's arm moves began contacts that ran on
+    into the next grasp; none begins in such a frame or the 3 after it. A press makes one polarity in
+    a cell at a time, and a contact under way is not judged (an arm may carry what the gripper holds)."""
+    counts = moving_view_stream()
+    off, on = contact.frame_sums(counts)
+    force = np.zeros(len(off))
+    force[80:126] = 1.0
+    config = contact.ContactConfig(release_force_n=0.3)
+    framed = metrics.runs(contact.detect(config, off, on, force=force, counts=counts)[0] != contact.NONE)
+    assert len(framed) == 1 and framed[0][0] == 80 and framed[0][1] >= 125
+    sums_only = metrics.runs(contact.detect(config, off, on, force=force)[0] != contact.NONE)
+    assert sums_only[0][0] == 40  # without the frames the move is a burst like any other
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
