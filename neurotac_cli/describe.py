@@ -615,21 +615,22 @@ def _model_lines(info: dict) -> list:
     pressed, released, either = _polarities(info.get("press_polarity"))
     if isinstance(contacts, dict):
         pairs.append(("contacts", f"{contacts.get('contacts')} in {contacts.get('sessions')} session(s); median press "
-                                  f"{_compact(contacts.get('press_off'))} {pressed}, release {_compact(contacts.get('release_on'))} "
+                                  f"{_compact(contacts.get('press_off'))}{pressed}, release {_compact(contacts.get('release_on'))}"
                                   f"{released} events{either}"))
     if isinstance(info.get("slip"), dict):
-        pairs.append(("slip bars", f"{info['slip'].get('min_events')} {pressed} / {info['slip'].get('min_events_on')} {released} events"))
+        bars = f"{info['slip'].get('min_events')}{pressed} / {info['slip'].get('min_events_on')}{released} events"
+        pairs.append(("slip bars", bars + (" (press / release polarity)" if either else "")))
     return pairs + [""] + _steps_lines("trained on frames made by:", info["history"])
 
 
 def _polarities(press_polarity) -> tuple:
-    """How a contacts model's lines name the polarity a press makes and a release makes, and what to
-    add where each contact is read in its own (press_polarity "either")."""
+    """How a contacts model's lines name the polarity a press makes and a release makes (" OFF", " ON";
+    none where each contact is read in its own, press_polarity "either"), and what to add then."""
     from neurotac_cli.ops.contact import polarity_names
 
     if press_polarity == "either":
-        return "press", "release", " (each contact read in the polarity its press makes, ON or OFF)"
-    return (*polarity_names(press_polarity or "off"), "")
+        return "", "", " (each contact read in the polarity its press makes, ON or OFF)"
+    return (*(f" {name}" for name in polarity_names(press_polarity or "off")), "")
 
 
 def _exists(path) -> bool:

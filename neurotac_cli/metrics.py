@@ -22,6 +22,7 @@ hundred frames, and it keeps a compiled dependency out of the install.
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError, UsageError
+from neurotac_cli.ops.phases import step_noise
 
 PHASES = ("grasping", "holding", "releasing")
 
@@ -301,7 +302,7 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     figures = {"rest_frames": int(rest.sum())}
     # the force's rest level and noise as `ops.phases.label_session` reads them: a log need not read 0 N at rest
     steps = np.concatenate([np.diff(true[idx][known[idx]]) for idx in sessions]) if sessions else np.zeros(0)
-    noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2) if len(steps) else 0.0
+    noise = step_noise(steps)
     level = float(np.percentile(true[known], 5)) if known.any() else 0.0
     above = np.abs(np.nan_to_num(true, nan=level) - level)
     loaded = rest & known & (above > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))

@@ -490,6 +490,7 @@ def test_a_session_without_time_for_its_grasps_is_refused(tmp_path, args, code_e
     (["--vary", "optics", "--set", "object_contrast=-1.5"], "--set object_contrast: --vary draws it (optics: 0.5 to 0.95), which would "
                                                             "replace the value given"),
     (["--vary", "all", "--set", "on_threshold=0.3"], "--set on_threshold: --vary draws it (pixels"),
+    (["--vary", "noise", "--background-rate", "5"], "--background-rate: --vary draws it (noise: 0.02 to 1)"),
 ])
 def test_a_setting_that_would_change_nothing_is_refused_not_ignored(tmp_path, args, said):
     code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", *args, "--out", str(tmp_path / "s")])

@@ -126,7 +126,7 @@ def command(preset, session, grasps, sessions, duration, illumination_drift, gri
     from neurotac_cli.sim.config import preset_config
 
     _check_mode(session, out_dir, synced, output, trials, grasps, sessions, duration, illumination_drift, hold, keep_led)
-    variation = _check_settings(settings, session, vary, hold_out, unseen)
+    variation = _check_settings(settings, session, vary, hold_out, unseen, background_rate)
     overrides = _overrides(settings, groups, session and preset is None, gripper, illumination_drift, force_range, hold,
                            force_sensor, background_rate, sensor_size)
     config = preset_config(preset or "ch4", **overrides)
@@ -216,7 +216,7 @@ def _check_mode(session, out_dir, synced, output, trials, grasps, sessions, dura
                          "leave them out)")
 
 
-def _check_settings(settings, session, vary, hold_out, unseen):
+def _check_settings(settings, session, vary, hold_out, unseen, background_rate):
     """The variation the options ask for; a --set that would change nothing is refused, not ignored:
     a session's parameter in a run of trials, or a parameter that --vary draws outright (a factor
     family's is drawn about it)."""
@@ -229,13 +229,16 @@ def _check_settings(settings, session, vary, hold_out, unseen):
     if idle and not session:
         raise UsageError(f"--set {', '.join(idle)}: {'these only apply' if len(idle) > 1 else 'it only applies'} with --session "
                          "(add --session, or leave them out)")
+    given = {name: f"--set {name}" for name in names}
+    if background_rate is not None:
+        given["background_rate_hz"] = "--background-rate"
     variation = parse_variation(vary, hold_out, unseen)
-    replaced = variation.replaces(names) if variation is not None else []
+    replaced = variation.replaces(list(given)) if variation is not None else []
     if replaced:
         name, family = replaced[0]
         spec = FAMILIES[family][name]
-        raise UsageError(f"--set {name}: --vary draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
-                         f"replace the value given; leave {family} out of --vary, or the --set out")
+        raise UsageError(f"{given[name]}: --vary draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
+                         f"replace the value given; leave {family} out of --vary, or {given[name]} out")
     return variation
 
 

@@ -85,7 +85,8 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
                           progress=progress_printer("train"), contacts=contacts)
     if contacts:
         found = trained.model.training.get("contacts", {})
-        echo_lines("train", filter(None, [session.one_contact_note(found), session.polarity_note(found), session.detection_note(found)]), "warning: ")
+        notes = [session.one_contact_note(found), session.polarity_note(found), session.detection_note(found)]
+        echo_lines("train", filter(None, notes), "warning: ")
     with tables.together():  # the model, its curve and its plot are one training's, or the last one's
         models.save(trained.model, output)
         if curve:

@@ -389,8 +389,8 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
                f"its own), released at {config.dominance:g} times as many of the other" if config.press_polarity == "either" else
                f"pressed as {pressed} events{'' if truths is not None else ' (taken, not measured: no phases)'}, released at "
                f"{config.dominance:g} times as many {released}")
-        merged = (f" (of {summary['found']} found: one ending within {summary['merge_frames']} frames of the next trains with it)"
-                  if summary["found"] != summary["contacts"] else "")
+        merged = (f" (of {summary['found']} found: a contact ending within {summary['merge_frames']} frames of the next trains "
+                  "with it)" if summary["found"] != summary["contacts"] else "")
         progress(f"contacts: {summary['contacts']}{merged} in {counted(summary['sessions'], 'stream')}, "
                  f"{summary['frames_in_contacts']} of {summary['frames']} frames, {how}; slips flagged at "
                  f"{slip.min_events:g} {pressed} and {slip.on_events:g} {released} events above the background")

@@ -333,6 +333,7 @@ FLASH_CELLS = 64  # ... on frames of at least this many cells: pooled to a few (
 
 SCENE_SHARE = 0.02  # a frame whose cells fire both polarities above their rest background over this share of them ...
 SCENE_CELLS = 8  # ... and at least this many is the view moving (a press: at most 0.6% of the cells, on five simulated physics)
+SCENE_SIGMA = 3.0  # a cell fires when its count passes its rest background by one event and this many Poisson σ
 
 
 def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray, off: float, on: float) -> bool:
@@ -350,14 +351,14 @@ def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray, 
     means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
     if not (_above(config, off, means[0]) or _above(config, on, means[1])):
         return False
-    if state.since_scene <= config.scene_frames:
-        return True
     rest = background[::-1] if state.polarity == "on" else background  # as framed
-    both = int(np.count_nonzero((frame[0] > rest[0] + 1.0) & (frame[1] > rest[1] + 1.0)))
-    if both < max(SCENE_SHARE * (np.size(frame) // 2), SCENE_CELLS):
-        return False
-    state.since_scene = 0
-    return True
+    # a cell fires above its rest by one event and SCENE_SIGMA Poisson σ: cells of about one event a
+    # frame at rest (pooled, busy, or long frames) pass a bar of one event by chance in both polarities
+    bar = rest + 1.0 + SCENE_SIGMA * np.sqrt(rest)
+    both = int(np.count_nonzero((frame[0] > bar[0]) & (frame[1] > bar[1])))
+    if both >= max(SCENE_SHARE * (np.size(frame) // 2), SCENE_CELLS):
+        state.since_scene = 0
+    return state.since_scene <= config.scene_frames
 
 
 def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on: float):

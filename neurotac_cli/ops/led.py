@@ -63,7 +63,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         if lo < starting:  # the camera's start-up, or a blink the recording began inside: said where it matters
             if startup is None and z[i] >= method.min_z and coverage >= method.min_coverage:
-                startup = lo
+                startup = max(lo, int(times[a]) if b > a else lo)  # its first OFF event, not its bin's start
             continue
         taken[max(0, i - gap): i + gap + 1] = True
         if not (z[i] >= method.min_z and coverage >= method.min_coverage):
@@ -102,19 +102,17 @@ def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):
         instant.details["on_share"] = round((b - a) / max(instant.details["spike_events"], 1), 3)
 
 
-def pure(spikes: list, count: int) -> list:
+def pure(spikes: list, count: int) -> tuple[list, str | None]:
     """Of more spikes than `count`, those of OFF events alone (under MIXED_SHARE ON per OFF), where at
-    least `count` are: a spike of both polarities is the membrane shaking or the scene moving, said in
-    a warning on the first spike kept; otherwise the spikes as given."""
+    least `count` are, and a warning naming the others (a spike of both polarities is the membrane
+    shaking or the scene moving); otherwise the spikes as given, and None."""
     kept = [spike for spike in spikes if spike.details.get("on_share", 0.0) < MIXED_SHARE]
     if len(kept) < count or len(kept) == len(spikes):
-        return spikes
+        return spikes, None
     dropped = [f"{spike.details['on_share']:.2f} ON per OFF at {spike.details['onset_us']} µs" for spike in spikes if spike not in kept]
-    kept[0].details.setdefault("warnings", []).append(
-        f"{counted(len(dropped), 'burst')} of OFF events as strong as a blink passed over, "
-        f"{'each' if len(dropped) > 1 else 'one'} with about as many ON events "
-        f"({', '.join(dropped)}): the membrane shaking or the scene moving, not a light switching off")
-    return kept
+    return kept, (f"{counted(len(dropped), 'burst')} of OFF events as strong as a blink passed over, with {MIXED_SHARE:g} ON "
+                  f"events per OFF or more ({', '.join(dropped)}): the membrane shaking or the scene moving, not a light "
+                  "switching off")
 
 
 def _startup_text(startup_us: int) -> str:
@@ -123,11 +121,14 @@ def _startup_text(startup_us: int) -> str:
             "xcorr or offset")
 
 
+TAIL_US = 2 * STARTUP_US  # a burst this soon after a blink-like start-up burst may be that blink's tail
+
+
 def _after_startup(chosen: list, startup_us: int):
-    """A spike taken within STARTUP_US after a start-up burst that would have passed as a blink may be
+    """A spike taken within TAIL_US after a start-up burst that would have passed as a blink may be
     that blink's tail (the recording began inside it), read late: a warning on it."""
     for instant in chosen:
-        if instant.details["onset_us"] - startup_us < 2 * STARTUP_US:
+        if instant.details["onset_us"] - startup_us < TAIL_US:
             instant.details.setdefault("warnings", []).append(
                 f"the spike at {instant.details['onset_us']} µs may be the tail of a blink: {_startup_text(startup_us)}")
 
@@ -178,13 +179,14 @@ def _no_spike(found: int, count: int, best, method, startup: int | None = None) 
     """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time, OFF events' box
     (x0, y0, x1, y1)) of the best rejected burst. A burst far above the bar in z over too few pixels
     may be a small LED's (one in a corner of the view): the error gives its box as a --region, unless
-    a blink-like burst opened the recording (`startup`, its time): then the best burst may be that
-    blink's tail, and a bar lowered to take it would read the blink late."""
+    a blink-like burst opened the recording (`startup`, its time) within TAIL_US before the best
+    burst: then the best burst may be that blink's tail, and a bar lowered to take it would read the
+    blink late."""
     found_text = f"found {found} of {count}; " if count > 1 else ""
     detail = (f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
               if best else "no OFF burst at all")
     advice = "check the LED is in view, give --region, or use --method xcorr, trigger or offset"
-    if startup is not None:
+    if startup is not None and best and best[2] - startup < TAIL_US:
         advice = _startup_text(startup)
     elif best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
         x0, y0, x1, y1 = best[3]

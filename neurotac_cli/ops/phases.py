@@ -145,7 +145,7 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
         return phase, grasp
     rest = float(np.percentile(force[known], 5))
     filled = np.where(known, force, rest)
-    noise = 1.4826 * float(np.median(np.abs(np.diff(filled) - np.median(np.diff(filled))))) / np.sqrt(2) if n > 2 else 0.0
+    noise = step_noise(np.diff(filled)) if n > 2 else 0.0
     scale = float(np.percentile(filled, 95)) - rest
     threshold = rest + max(contact_share * scale, 5 * noise, 1e-6)
     index = 0
@@ -159,6 +159,14 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
                                          ends_in_contact=end == last + 1)
         index += 1
     return phase, grasp
+
+
+def step_noise(steps: np.ndarray) -> float:
+    """A trace's sample-to-sample noise (σ) from its steps: the median absolute deviation of the steps,
+    scaled to σ (x 1.4826) and from a difference of two samples to one (/ √2); a grasp's few large
+    steps do not move it."""
+    steps = np.asarray(steps, dtype=np.float64)
+    return 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2) if len(steps) else 0.0
 
 
 def _contact_runs(touching: np.ndarray) -> list[tuple[int, int]]:

@@ -247,9 +247,10 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     """One blink among several spikes (a fast press or a flicker can also darken a share of the
     membrane at once): the one where the force log, placed there, moves with the events, when it
     clearly does, or the one spike that leaves the log inside the recording (where the log, if it
-    can be scored, moves with the events); else the spikes are refused. A spike that leaves less than forcelog.SHORT_OVERLAP of the log inside the recording is
-    no candidate: its r would be read on a few seconds of the log (a burst near a recording's end
-    fitted a 40 s log's first 4 s at r 0.57)."""
+    can be scored, moves with the events); else the spikes are refused. A spike that leaves less
+    than forcelog.SHORT_OVERLAP of the log inside the recording is no candidate: its r would be read
+    on a few seconds of the log (a burst near a recording's end fitted a 40 s log's first 4 s at r
+    0.57)."""
     if count != 1:
         raise extra_spike(spikes, count)
     first, last = int(np.min(t)), int(np.max(t))
@@ -293,9 +294,11 @@ def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
     try:
         _check_region(method.region, sch.sensor_of(table.schema))
         if method.method == "led":
-            instants = pure(led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES), count)
+            instants, passed_over = pure(led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES), count)
             if len(instants) > count:
                 instants = _by_agreement(instants, count, t, logs, forces)
+            if passed_over:  # on the instant taken: only its warnings reach stderr
+                instants[0].details.setdefault("warnings", []).append(passed_over)
         elif method.method == "trigger":
             instants = find_triggers(table.schema, method, count)
         elif method.method == "offset":

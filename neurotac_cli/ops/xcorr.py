@@ -38,6 +38,7 @@ import numpy as np
 from neurotac_cli.errors import SyncError
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import in_region
+from neurotac_cli.ops.phases import step_noise
 
 XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
 XCORR_BIN_US = 250
@@ -187,7 +188,9 @@ def _holds_a_grasp(values: np.ndarray) -> bool:
     if len(values) < 3:
         return False
     steps = np.diff(values)
-    noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2)
+    moved = np.abs(steps[steps != 0])
+    # a log quantised more coarsely than its noise mostly repeats a value: its noise is at least one step
+    noise = max(step_noise(steps), float(moved.min()) if len(moved) else 0.0)
     return float(values.max() - np.percentile(values, 5)) > 10 * noise
 
 
