@@ -491,9 +491,12 @@ def test_a_session_without_time_for_its_grasps_is_refused(tmp_path, args, code_e
                                                             "replace the value given"),
     (["--vary", "all", "--set", "on_threshold=0.3"], "--set on_threshold: --vary draws it (pixels"),
     (["--vary", "noise", "--background-rate", "5"], "--background-rate: --vary draws it (noise: 0.02 to 1)"),
+    (["--hold-out", "optics", "--set", "object_contrast=-1"], "--set object_contrast: --hold-out draws it (optics"),
+    (["--session", "--set", "grasp_us=100ms"], "--set grasp_us: it only applies without --session"),
 ])
 def test_a_setting_that_would_change_nothing_is_refused_not_ignored(tmp_path, args, said):
-    code, stderr, _ = invoke(["simulate", "--preset", "ch4", "--trials", "1", *args, "--out", str(tmp_path / "s")])
+    trials = [] if "--session" in args else ["--trials", "1"]
+    code, stderr, _ = invoke(["simulate", "--preset", "ch4", *trials, *args, "--out", str(tmp_path / "s")])
     assert code == 2 and said in stderr, stderr
 
 

@@ -221,14 +221,15 @@ def _check_settings(settings, session, vary, hold_out, unseen, background_rate):
     a session's parameter in a run of trials, or a parameter that --vary draws outright (a factor
     family's is drawn about it)."""
     from neurotac_cli.errors import UsageError
-    from neurotac_cli.sim.config import SESSION_PARAMETERS
+    from neurotac_cli.sim.config import SESSION_PARAMETERS, TRIAL_PARAMETERS
     from neurotac_cli.sim.physics import FAMILIES, parse_variation
 
     names = [name for name, _ in settings]
-    idle = [name for name in names if name in SESSION_PARAMETERS]
-    if idle and not session:
-        raise UsageError(f"--set {', '.join(idle)}: {'these only apply' if len(idle) > 1 else 'it only applies'} with --session "
-                         "(add --session, or leave them out)")
+    idle = [name for name in names if name in (TRIAL_PARAMETERS if session else SESSION_PARAMETERS)]
+    if idle:
+        where = "without --session (a session draws its grasps' timing itself)" if session else "with --session"
+        raise UsageError(f"--set {', '.join(idle)}: {'these only apply' if len(idle) > 1 else 'it only applies'} {where} "
+                         f"({'leave them out' if session else 'add --session, or leave them out'})")
     given = {name: f"--set {name}" for name in names}
     if background_rate is not None:
         given["background_rate_hz"] = "--background-rate"
@@ -237,8 +238,9 @@ def _check_settings(settings, session, vary, hold_out, unseen, background_rate):
     if replaced:
         name, family = replaced[0]
         spec = FAMILIES[family][name]
-        raise UsageError(f"{given[name]}: --vary draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
-                         f"replace the value given; leave {family} out of --vary, or {given[name]} out")
+        drawn_by = "--vary" if vary else "--hold-out" if hold_out else "--unseen"
+        raise UsageError(f"{given[name]}: {drawn_by} draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
+                         f"replace the value given; leave {family} out of {drawn_by}, or {given[name]} out")
     return variation
 
 

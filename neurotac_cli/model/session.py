@@ -57,9 +57,12 @@ def one_contact_note(summary: dict) -> str | None:
     """A warning where `train --contacts` found one contact per stream covering nearly all of it: the
     frames' phases were not read per grasp (`frame --phases session`)."""
     if summary.get("contacts", 0) and summary["contacts"] <= summary["sessions"] and summary["frames_in_contacts"] > 0.9 * summary["frames"]:
-        return (f"{counted(summary['contacts'], 'contact')} in {counted(summary['sessions'], 'stream')} covering "
-                f"{100 * summary['frames_in_contacts'] / summary['frames']:.0f}% of the frames: were the sessions framed "
-                "with --phases session? (--phases auto labels a whole trial as one grasp)")
+        covering = (f"{counted(summary['contacts'], 'contact')} in {counted(summary['sessions'], 'stream')} covering "
+                    f"{100 * summary['frames_in_contacts'] / summary['frames']:.0f}% of the frames")
+        if summary.get("found", 0) > summary["contacts"]:  # the phases found the grasps; their rests are shorter than the margins
+            return (f"{covering}: the {summary['found']} contacts found rest less than {summary['merge_frames']} frames apart, "
+                    "so they train as one, with no rest to learn zero from; train on sessions with longer rests")
+        return f"{covering}: were the sessions framed with --phases session? (--phases auto labels a whole trial as one grasp)"
     return None
 
 
@@ -525,8 +528,9 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
 
 
 def slip_truth(table: pa.Table) -> np.ndarray | None:
-    """The `slip` truth column as flags, unknown read as no slip; None without the column."""
-    if "slip" not in table.schema.names:
+    """The `slip` truth column as flags, unknown read as no slip; None without the column, or where it
+    holds no value at all (nothing to score against)."""
+    if "slip" not in table.schema.names or table.column("slip").null_count == table.num_rows:
         return None
     return table.column("slip").cast(pa.bool_()).fill_null(False).to_numpy(zero_copy_only=False)
 
@@ -582,7 +586,7 @@ def summary_lines(figures: dict) -> list[str]:
         lines.append(f"slips: F1 {get('slip_f1'):.3f} ({int(get('slip_hits'))} of {int(get('slip_true'))} found, "
                      f"{int(get('slip_found'))} flagged){within}")
     elif "contact_f1" in figures:
-        lines.append("slips: not scored (the frames have no `slip` truth column: `neurotac frame --slips CSV` adds one)")
+        lines.append("slips: not scored (the frames have no `slip` truth: `neurotac frame --slips CSV` adds it)")
     return lines
 
 

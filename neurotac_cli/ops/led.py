@@ -14,7 +14,6 @@ import numpy as np
 
 from neurotac_cli.errors import SyncError
 from neurotac_cli.ops.instant import Instant
-from neurotac_cli.units import counted
 
 SMALL_LED_Z = 5  # a rejected burst this many times over the z bar is named as a small LED's, with its box
 LED_LATENCY_US = 170  # spike onset minus LED switch-off, measured on the simulated DAVIS240C (docs/commands/sync.md)
@@ -88,7 +87,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
-MIXED_SHARE = 0.5  # a spike with this many ON events per OFF event in its bins is no light switching off
+MIXED_SHARE = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
 
 
 def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):
@@ -100,19 +99,6 @@ def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):
     for instant, (lo, hi) in zip(chosen, windows):
         a, b = np.searchsorted(on, [lo, hi])
         instant.details["on_share"] = round((b - a) / max(instant.details["spike_events"], 1), 3)
-
-
-def pure(spikes: list, count: int) -> tuple[list, str | None]:
-    """Of more spikes than `count`, those of OFF events alone (under MIXED_SHARE ON per OFF), where at
-    least `count` are, and a warning naming the others (a spike of both polarities is the membrane
-    shaking or the scene moving); otherwise the spikes as given, and None."""
-    kept = [spike for spike in spikes if spike.details.get("on_share", 0.0) < MIXED_SHARE]
-    if len(kept) < count or len(kept) == len(spikes):
-        return spikes, None
-    dropped = [f"{spike.details['on_share']:.2f} ON per OFF at {spike.details['onset_us']} µs" for spike in spikes if spike not in kept]
-    return kept, (f"{counted(len(dropped), 'burst')} of OFF events as strong as a blink passed over, with {MIXED_SHARE:g} ON "
-                  f"events per OFF or more ({', '.join(dropped)}): the membrane shaking or the scene moving, not a light "
-                  "switching off")
 
 
 def _startup_text(startup_us: int) -> str:
@@ -179,15 +165,15 @@ def _no_spike(found: int, count: int, best, method, startup: int | None = None) 
     """The error when fewer than `count` spikes stand out; `best` = (z, coverage, time, OFF events' box
     (x0, y0, x1, y1)) of the best rejected burst. A burst far above the bar in z over too few pixels
     may be a small LED's (one in a corner of the view): the error gives its box as a --region, unless
-    a blink-like burst opened the recording (`startup`, its time) within TAIL_US before the best
-    burst: then the best burst may be that blink's tail, and a bar lowered to take it would read the
-    blink late."""
+    a blink-like burst opened the recording (`startup`, its time): the recording may have begun inside
+    its blink, and the best burst be that blink's tail (read late) or a bright object's release (the
+    log placed 0.3 s late), so no bar or box of it is offered."""
     found_text = f"found {found} of {count}; " if count > 1 else ""
     detail = (f"best OFF burst at {best[2]} µs: z={best[0]:.1f}, covering {100 * best[1]:.1f}% of the pixels"
               if best else "no OFF burst at all")
     advice = "check the LED is in view, give --region, or use --method xcorr, trigger or offset"
-    if startup is not None and best and best[2] - startup < TAIL_US:
-        advice = _startup_text(startup)
+    if startup is not None:  # no bar or box of the best burst: it may be the blink's tail, or a press the log cannot start at
+        advice = _startup_text(startup) + "; a small LED elsewhere in the view: give its box with --region"
     elif best and best[0] >= SMALL_LED_Z * method.min_z and best[3] is not None:
         x0, y0, x1, y1 = best[3]
         advice = (f"if that burst is a small LED's (one in a corner of the view), give its box, --region {x0},{y0},"

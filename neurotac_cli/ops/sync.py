@@ -25,7 +25,7 @@ from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
-from neurotac_cli.ops.led import LED_LATENCY_US, extra_spike, led_spikes, pure
+from neurotac_cli.ops.led import LED_LATENCY_US, MIXED_SHARE, extra_spike, led_spikes
 from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
 from neurotac_cli.units import counted
@@ -246,29 +246,26 @@ AGREE_MARGIN = 0.2  # the best placement's r must lead the next by this much to 
 def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     """One blink among several spikes (a fast press or a flicker can also darken a share of the
     membrane at once): the one where the force log, placed there, moves with the events, when it
-    clearly does, or the one spike that leaves the log inside the recording (where the log, if it
-    can be scored, moves with the events); else the spikes are refused. A spike that leaves less
-    than forcelog.SHORT_OVERLAP of the log inside the recording is no candidate: its r would be read
-    on a few seconds of the log (a burst near a recording's end fitted a 40 s log's first 4 s at r
-    0.57)."""
+    clearly does, or the one spike that leaves the log inside the recording (where the log, if it can
+    be scored, moves with the events, or where it is the one spike of OFF events alone: `_mixed`);
+    else the spikes are refused. A spike that leaves less than forcelog.SHORT_OVERLAP of the log
+    inside the recording is no candidate: its r would be read on a few seconds of the log (a burst
+    near a recording's end fitted a 40 s log's first 4 s at r 0.57). Among the candidates, those of
+    OFF events alone are weighed where there are both kinds."""
     if count != 1:
         raise extra_spike(spikes, count)
-    first, last = int(np.min(t)), int(np.max(t))
-    scored, figures = [], []
-    for spike in spikes:
-        inside_us, span = forcelog.inside(spike.t0, logs[0], first, last)
-        inside = inside_us / span
-        held = inside >= forcelog.SHORT_OVERLAP
-        r = agreement(t, logs[0].t, forces[0], spike.t0, raw=logs[0].value) if held else None
-        scored += [(r, spike)] if held else []
-        about = f"r {r:.2f}" if r is not None else "no r" if held else f"{max(inside, 0.0):.0%} of the log inside the recording"
-        figures.append(f"{about} at {spike.details['onset_us']} µs")
-    figures = ", ".join(figures)
+    scored, figures = _placements(spikes, t, logs[0], forces[0])
+    blinks = [item for item in scored if not _mixed(item[1])]
+    kind = " of OFF events alone" if blinks and len(blinks) < len(scored) else ""
+    scored = blinks if blinks else scored
+    # a blink of OFF events alone among bursts of both polarities (a gripper's motor): taken whatever
+    # its r, which the moves of a camera on an arm can drown
+    alone = len(blinks) == 1 and all(_mixed(spike) for spike in spikes if spike is not blinks[0][1])
     ranked = sorted(scored, key=lambda item: -item[0] if item[0] is not None else np.inf)
-    if len(scored) == 1 and (scored[0][0] is None or scored[0][0] >= AGREE_MIN):
+    if len(scored) == 1 and (scored[0][0] is None or scored[0][0] >= AGREE_MIN or alone):
         # a short grasp's release can darken as much as the blink, but the log cannot start there; a
         # grasp too short to score is taken, one where the log does not move with the events is not
-        (r, spike), why = scored[0], "the only one that leaves the force log inside the recording"
+        (r, spike), why = scored[0], f"the only one{kind} that leaves the force log inside the recording"
     # else every placement that holds the log scored, the best at least AGREE_MIN and AGREE_MARGIN above the next
     elif (not ranked or any(r is None for r, _ in scored) or ranked[0][0] < AGREE_MIN
             or (len(ranked) > 1 and ranked[0][0] - ranked[1][0] < AGREE_MARGIN)):
@@ -277,9 +274,38 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
         (r, spike), why = ranked[0], "where the force log moves with the events"
     if r is not None:
         spike.details["agreement"] = r
+    mixed = [other for other in spikes if _mixed(other)] if not _mixed(spike) else []
+    polarity = (f"; {counted(len(mixed), 'spike')} with {MIXED_SHARE:g} ON events per OFF or more passed over (the membrane "
+                "shaking or the scene moving, not a light switching off)" if mixed else "")
     spike.details.setdefault("warnings", []).append(f"{counted(len(spikes), 'LED-off spike')} stand out; the one at "
-                                                    f"{spike.details['onset_us']} µs was taken, {why} ({figures})")
+                                                    f"{spike.details['onset_us']} µs was taken, {why} ({figures}){polarity}")
     return [spike]
+
+
+def _mixed(spike) -> bool:
+    """A spike of about as many ON events as OFF (`led._weigh_polarities`): an LED switching off makes
+    OFF events alone (an independent generator's blink: 20 ON against 80,838 OFF), a gripper's motor
+    shaking the membrane both alike (0.8-1.4 ON per OFF). A flash of a millisecond or two can hold its
+    switch-on's ON events too (up to 0.9 ON per OFF): the rule only weighs spikes that leave the log
+    inside the recording."""
+    return spike.details.get("on_share", 0.0) >= MIXED_SHARE
+
+
+def _placements(spikes: list, t, log, force) -> tuple[list, str]:
+    """(r, spike) of each spike that leaves at least forcelog.SHORT_OVERLAP of the log inside the
+    recording (r None where it cannot be scored), and each spike's figure as the messages give it."""
+    first, last = int(np.min(t)), int(np.max(t))
+    scored, figures = [], []
+    for spike in spikes:
+        inside_us, span = forcelog.inside(spike.t0, log, first, last)
+        inside = inside_us / span
+        held = inside >= forcelog.SHORT_OVERLAP
+        r = agreement(t, log.t, force, spike.t0, raw=log.value) if held else None
+        scored += [(r, spike)] if held else []
+        about = f"r {r:.2f}" if r is not None else "no r" if held else f"{max(inside, 0.0):.0%} of the log inside the recording"
+        on = f", {spike.details['on_share']:.2f} ON per OFF" if _mixed(spike) else ""
+        figures.append(f"{about} at {spike.details['onset_us']} µs{on}")
+    return scored, ", ".join(figures)
 
 
 def _check_region(region, sensor) -> None:
@@ -294,11 +320,9 @@ def _instants(table, t, x, y, p, logs, forces, method: SyncMethod) -> list:
     try:
         _check_region(method.region, sch.sensor_of(table.schema))
         if method.method == "led":
-            instants, passed_over = pure(led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES), count)
+            instants = led_spikes(t, x, y, p, method, count, sch.sensor_of(table.schema), spare=SPARE_SPIKES)
             if len(instants) > count:
                 instants = _by_agreement(instants, count, t, logs, forces)
-            if passed_over:  # on the instant taken: only its warnings reach stderr
-                instants[0].details.setdefault("warnings", []).append(passed_over)
         elif method.method == "trigger":
             instants = find_triggers(table.schema, method, count)
         elif method.method == "offset":

@@ -154,6 +154,10 @@ class SimConfig:
     illumination_period_us: int = 60_000_000  # period of that drift
 
 
+# Parameters a run of trials alone reads (a trial's own timing, the still recording): set for sessions,
+# they would change nothing (the same bytes, measured).
+TRIAL_PARAMETERS = ("tail_us", "contact_delay_us", "max_duration_us", "grasp_us", "duration_jitter", "still_us")
+
 # Parameters only a session simulation reads (`simulate --session`): set for trials, they would change nothing.
 SESSION_PARAMETERS = ("session_rest_us", "session_hold_us", "session_speed", "regrasp_share", "change_share", "partial_share",
                       "slip_share", "bright_share", "bright_contrast", "slip_speed_mm_s", "slip_us", "slip_force_drop",

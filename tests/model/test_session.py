@@ -602,6 +602,12 @@ def test_a_busy_background_does_not_read_as_the_view_moving(background):
     assert [run[0] for run in metrics.runs(found != contact.NONE)] == [60, 180, 300, 420]
 
 
+def test_a_slip_column_without_a_value_is_no_slip_truth():
+    table = pa.table({"slip": pa.array([None, None, None], pa.bool_())})
+    assert session.slip_truth(table) is None
+    assert session.slip_truth(pa.table({"slip": pa.array([None, True, False], pa.bool_())})).tolist() == [False, True, False]
+
+
 def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_in(sessions, trained, tmp_path):
     from neurotac_cli.describe import _model_lines, describe_model
 
@@ -1097,6 +1103,9 @@ def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_strea
     assert session.whole_trials_note(sessions.drop(["grasp"]).schema, "training") is None
     assert "covering 95% of the frames" in session.one_contact_note({"contacts": 2, "sessions": 2, "frames_in_contacts": 950, "frames": 1000})
     assert session.one_contact_note({"contacts": 12, "sessions": 2, "frames_in_contacts": 600, "frames": 1000}) is None
+    merged = session.one_contact_note({"contacts": 1, "found": 6, "merge_frames": 32, "sessions": 1, "frames_in_contacts": 950,
+                                       "frames": 1000})
+    assert "the 6 contacts found rest less than 32 frames apart, so they train as one" in merged and "--phases" not in merged
 
 
 def test_a_session_given_for_validation_holds_out_every_contact_found_in_it(sessions):
