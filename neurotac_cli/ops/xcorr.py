@@ -187,11 +187,7 @@ def _holds_a_grasp(values: np.ndarray) -> bool:
     values = values[np.isfinite(values)]
     if len(values) < 3:
         return False
-    steps = np.diff(values)
-    moved = np.abs(steps[steps != 0])
-    # a log quantised more coarsely than its noise mostly repeats a value: its noise is at least one step
-    noise = max(step_noise(steps), float(moved.min()) if len(moved) else 0.0)
-    return float(values.max() - np.percentile(values, 5)) > 10 * noise
+    return float(values.max() - np.percentile(values, 5)) > 10 * step_noise(np.diff(values))
 
 
 def _window_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:
