@@ -492,6 +492,8 @@ def test_a_session_without_time_for_its_grasps_is_refused(tmp_path, args, code_e
     (["--vary", "all", "--set", "on_threshold=0.3"], "--set on_threshold: --vary draws it (pixels"),
     (["--vary", "noise", "--background-rate", "5"], "--background-rate: --vary draws it (noise: 0.02 to 1)"),
     (["--hold-out", "optics", "--set", "object_contrast=-1"], "--set object_contrast: --hold-out draws it (optics"),
+    (["--vary", "pixels", "--hold-out", "optics", "--set", "object_contrast=-1"], "--set object_contrast: --hold-out draws it"),
+    (["--vary", "pixels", "--unseen", "noise", "--set", "hot_pixels=3"], "--set hot_pixels: --unseen draws it (noise"),
     (["--session", "--set", "grasp_us=100ms"], "--set grasp_us: it only applies without --session"),
 ])
 def test_a_setting_that_would_change_nothing_is_refused_not_ignored(tmp_path, args, said):

@@ -238,7 +238,7 @@ def _check_settings(settings, session, vary, hold_out, unseen, background_rate):
     if replaced:
         name, family = replaced[0]
         spec = FAMILIES[family][name]
-        drawn_by = "--vary" if vary else "--hold-out" if hold_out else "--unseen"
+        drawn_by = ("--vary" if family != variation.held_out else "--hold-out" if variation.side == "seen" else "--unseen")
         raise UsageError(f"{given[name]}: {drawn_by} draws it ({family}: {spec.low:g} to {spec.high:g}), which would "
                          f"replace the value given; leave {family} out of {drawn_by}, or {given[name]} out")
     return variation
