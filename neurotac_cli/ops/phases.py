@@ -161,17 +161,26 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     return phase, grasp
 
 
+QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)
+
+
 def step_noise(steps: np.ndarray) -> float:
     """A trace's sample-to-sample noise (σ) from its steps: the median absolute deviation of the steps,
     scaled to σ (x 1.4826) and from a difference of two samples to one (/ √2); a grasp's few large
-    steps do not move it. At least its smallest step: a log quantised more coarsely than its noise
-    mostly repeats a value, and a deviation of 0 would make any step of noise a grasp."""
+    steps do not move it. At least the log's quantum where its noise flips it (QUANTUM_SHARE of the
+    steps or more are one quantum): a log quantised more coarsely than its noise mostly repeats a
+    value, and a deviation of 0 would make any step of noise a grasp; a clean trace's few steps are
+    no noise."""
     steps = np.asarray(steps, dtype=np.float64)
     if not len(steps):
         return 0.0
-    moved = np.abs(steps[steps != 0])
     mad = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2)
-    return max(mad, float(moved.min()) if len(moved) else 0.0)
+    moved = np.abs(steps[steps != 0])
+    if not len(moved):
+        return mad
+    quantum = float(moved.min())
+    flips = np.count_nonzero(np.isclose(moved, quantum, rtol=0.01)) >= QUANTUM_SHARE * len(steps)
+    return max(mad, quantum) if flips else mad
 
 
 def _contact_runs(touching: np.ndarray) -> list[tuple[int, int]]:
