@@ -299,11 +299,12 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
-    if state.phase == NONE and state.warmup is None and frame is not None and _flash(config, state, frame, off, on):
-        return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
     state.since_scene += 1
-    if state.phase == NONE and frame is not None and _scene_moves(config, state, frame, off, on):
-        return NONE  # the view moved (a camera on an arm, a gripper's motor): no press, and no rest to learn from
+    if state.phase == NONE and state.warmup is None and frame is not None and _may_begin(config, state, frame, off, on):
+        if _flash(state, frame, off, on):
+            return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
+        if _scene_moves(config, state, frame):
+            return NONE  # the view moved (a camera on an arm, a gripper's motor): no press, and no rest to learn from
     either = config.press_polarity == "either"
     if either:
         _choose_polarity(config, state, off, on)
@@ -336,20 +337,27 @@ SCENE_CELLS = 8  # ... and at least this many is the view moving (a press: at mo
 SCENE_SIGMA = 3.0  # a cell fires when its count passes its rest background by one event and this many Poisson σ
 
 
-def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray, off: float, on: float) -> bool:
+def _may_begin(config: ContactConfig, state: ContactState, frame: np.ndarray, off: float, on: float) -> bool:
+    """Whether a contact could begin in this frame of rest (a polarity's total above its background),
+    on a frame of FLASH_CELLS cells or more: only then are its cells looked at (`_flash`,
+    `_scene_moves`), so a busy camera's rest frames cost no pass over them. Frames pooled to a few
+    cells are not judged: a press covers them all."""
+    if np.size(frame) // 2 < FLASH_CELLS:
+        return False
+    means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
+    return _above(config, off, means[0]) or _above(config, on, means[1])
+
+
+def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray) -> bool:
     """Whether the view moves in this frame of rest, where a contact could begin: a camera on a robot
     arm sees the edge of the membrane's window, and the scene through a translucent membrane, slide
     by; a gripper's motor shakes the membrane before a touch. Edges moving make both polarities in the
     same cells over much of the view; a press darkens (or brightens) the object's patch, one polarity
     in a cell at a time. For `scene_frames` frames after such a frame the view is taken as still
-    moving (a move's frames pass the bar unevenly). Frames of fewer than FLASH_CELLS cells are not
-    judged (pooled to a few, a press covers them all). A contact under way is not judged: an arm may
+    moving (a move's frames pass the bar unevenly). A contact under way is not judged: an arm may
     carry what the gripper holds."""
     background = state.footprint.background
-    if state.warmup is not None or background is None or background.shape != np.shape(frame) or np.size(frame) // 2 < FLASH_CELLS:
-        return False
-    means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
-    if not (_above(config, off, means[0]) or _above(config, on, means[1])):
+    if background is None or background.shape != np.shape(frame):
         return False
     rest = background[::-1] if state.polarity == "on" else background  # as framed
     # a cell fires above its rest by one event and SCENE_SIGMA Poisson σ: cells of about one event a
@@ -431,17 +439,13 @@ def _onset(config: ContactConfig, press: float, other: float, press_mean: float,
     return _above(config, press, press_mean) and not _brightening(config, press, other, other_mean)
 
 
-def _flash(config: ContactConfig, state: "ContactState", frame: np.ndarray, off: float, on: float) -> bool:
-    """A frame of FLASH_CELLS cells or more in which at least FLASH_SHARE of them hold an event more than
-    their rest background: a blink or flash that lights the whole membrane, where a press lights the
-    object's cells. Its cells are looked at only where a contact could begin (a polarity's total above
-    its background) and the frame's total could reach the share: a busy camera's rest frames are not.
-    Both polarities are summed: it reads the same however the state is turned."""
-    cells = np.size(frame) // 2
-    if cells < FLASH_CELLS or off + on < FLASH_SHARE * cells:
-        return False
-    means = oriented_sums(state.polarity, state.mean_off, state.mean_on)  # as framed
-    if not (_above(config, off, means[0]) or _above(config, on, means[1])):
+def _flash(state: "ContactState", frame: np.ndarray, off: float, on: float) -> bool:
+    """A frame (of FLASH_CELLS cells or more, where a contact could begin: `_may_begin`) in which at
+    least FLASH_SHARE of the cells hold an event more than their rest background: a blink or flash
+    that lights the whole membrane, where a press lights the object's cells. Its cells are looked at
+    only where the frame's total could reach the share. Both polarities are summed: it reads the
+    same however the state is turned."""
+    if off + on < FLASH_SHARE * (np.size(frame) // 2):
         return False
     background = state.footprint.background
     events = np.asarray(frame, dtype=np.float32).reshape(2, -1).sum(axis=0)
