@@ -87,7 +87,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
-MIXED_SHARE = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
+MIXED_ON_PER_OFF = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
 
 
 def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):

@@ -25,7 +25,7 @@ from neurotac_cli.io.force import ForceLog
 from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
-from neurotac_cli.ops.led import LED_LATENCY_US, MIXED_SHARE, extra_spike, led_spikes
+from neurotac_cli.ops.led import LED_LATENCY_US, MIXED_ON_PER_OFF, extra_spike, led_spikes
 from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
 from neurotac_cli.units import counted
@@ -275,7 +275,7 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
     if r is not None:
         spike.details["agreement"] = r
     mixed = [other for other in spikes if _mixed(other)] if not _mixed(spike) else []
-    polarity = (f"; {counted(len(mixed), 'spike')} with {MIXED_SHARE:g} ON events per OFF or more passed over (the membrane "
+    polarity = (f"; {counted(len(mixed), 'spike')} with {MIXED_ON_PER_OFF:g} ON events per OFF or more passed over (the membrane "
                 "shaking or the scene moving, not a light switching off)" if mixed else "")
     spike.details.setdefault("warnings", []).append(f"{counted(len(spikes), 'LED-off spike')} stand out; the one at "
                                                     f"{spike.details['onset_us']} µs was taken, {why} ({figures}){polarity}")
@@ -288,7 +288,7 @@ def _mixed(spike) -> bool:
     shaking the membrane both alike (0.8-1.4 ON per OFF). A flash of a millisecond or two can hold its
     switch-on's ON events too (up to 0.9 ON per OFF): the rule only weighs spikes that leave the log
     inside the recording."""
-    return spike.details.get("on_share", 0.0) >= MIXED_SHARE
+    return spike.details.get("on_share", 0.0) >= MIXED_ON_PER_OFF
 
 
 def _placements(spikes: list, t, log, force) -> tuple[list, str]:
