@@ -563,7 +563,6 @@ def describe_model(path: str) -> dict:
                      "member_best_epochs": training.get("member_best_epochs"),
                      "member_draws": _distinct_draws(trials)},
         "contacts": training.get("contacts"), "slip": spec.get("slip"),
-        "press_polarity": (spec.get("contact") or {}).get("press_polarity"),
         "force_scale_n": (spec.get("normalisation") or {}).get("force_scale"),
         "history": training.get("data_history") or [],
     }
@@ -612,7 +611,7 @@ def _model_lines(info: dict) -> list:
     if fit:
         pairs.append(("fit", " ".join(f"{k}={_compact(v)}" for k, v in fit.items())))
     contacts = info.get("contacts")
-    pressed, released, either = _polarities(info.get("press_polarity"))
+    pressed, released, either = _polarities(contacts.get("press_polarity") if isinstance(contacts, dict) else None)
     if isinstance(contacts, dict):
         pairs.append(("contacts", f"{contacts.get('contacts')} in {contacts.get('sessions')} session(s); median press "
                                   f"{_compact(contacts.get('press_off'))}{pressed}, release {_compact(contacts.get('release_on'))}"
@@ -630,7 +629,7 @@ def _polarities(press_polarity) -> tuple:
 
     if press_polarity == "either":
         return "", "", " (each contact read in the polarity its press makes, ON or OFF)"
-    return (*(f" {name}" for name in polarity_names(press_polarity or "off")), "")
+    return (*(f" {name}" for name in polarity_names(press_polarity)), "")
 
 
 def _exists(path) -> bool:
