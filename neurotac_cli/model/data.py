@@ -197,10 +197,7 @@ def choose_validation(data: Sequences, *, trials=None, fraction=None, where=None
     else:
         mask = np.zeros(n, dtype=bool)
     if mask.all():
-        sessions = unit == "contact" and trials
-        where_from = " (--val-trials names a session for all of its contacts)" if sessions else ""
-        raise ModelError(f"every {unit} would be in validation, leaving none to train on{where_from}; choose fewer validation "
-                         f"{'sessions or contacts' if sessions else unit + 's'}")
+        raise ModelError(f"every {unit} would be in validation, leaving none to train on; choose fewer validation {unit}s")
     return mask
 
 

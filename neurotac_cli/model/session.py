@@ -407,12 +407,16 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
 
 def _contacts_of(found: pa.Table, chosen: list) -> list:
     """Validation ids given as sessions (the frames' trials) stand for every contact found in them
-    (named STREAM@FRAME); a contact's own name stays as it is."""
+    (named STREAM@FRAME); a contact's own name stays as it is. Sessions that hold every contact leave
+    none to train on: refused here, where the ids are still sessions."""
     names = list(dict.fromkeys(found.column("trial").to_pylist()))
     out = []
     for name in chosen:
         inside = [contact for contact in names if contact.split("@")[0] == name]
         out += inside if name not in names and inside else [name]  # an unknown id is left for training to refuse
+    if set(out) == set(names):  # an unknown id among them is for training to name
+        raise ModelError("every contact would be in validation, leaving none to train on (--val-trials names a session for "
+                         "all of its contacts); choose fewer validation sessions or contacts")
     return out
 
 
