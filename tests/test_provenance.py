@@ -5,7 +5,6 @@ import hashlib
 import os
 import subprocess
 
-
 from neurotac_cli import schema as sch, tables
 from neurotac_cli.ops.xcorr import XCORR_MIN_CORRELATION, unrelated_warnings
 
