@@ -71,8 +71,9 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         # the spike may start in the bin before the best pair: take its neighbours too
         c, d = np.searchsorted(times, [lo - bin_us, hi + bin_us])
         # the pair starting at bin i holds the spike: its end is counted from the fuller bin
-        end_us = origin + _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2]))) * bin_us
-        chosen.append(_spike_instant(times[c:d], z[i], coverage, end_us, method.latency_us))
+        end_bin = _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2])))
+        chosen.append(_spike_instant(times[c:d], z[i], coverage, origin + end_bin * bin_us, method.latency_us))
+        _echo(chosen[-1], (i, end_bin, gap), z, times, off_x, off_y, (origin, bin_us, pixels), method)
         windows.append((lo - bin_us, hi + bin_us))
         if len(chosen) >= count + spare:
             break
@@ -85,6 +86,33 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     if len(chosen) > count:
         _weigh_polarities(chosen, windows, t, x, y, p, method.region)
     return sorted(chosen, key=lambda instant: instant.t0)
+
+
+ECHO_SHARE = 0.5  # a burst near a blink over this share of its pixels is the LED's own (a press darkens the object's patch)
+ECHOES_WEIGHED = 5  # the strongest bins near a blink whose pixels are counted
+
+
+def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, binning: tuple, method):
+    """A second blink-like burst within the 50 ms about a spike (`spike`: its best pair's bin, its
+    burst's end bin, the gap in bins), which no candidate can be: a switch that bounces, or an LED
+    that flickers as it goes dark, blinks twice, and the spike taken is the one of higher z, whichever
+    the force log starts at. Said in a warning on the spike, with the other burst's time."""
+    i, end_bin, gap = spike
+    origin, bin_us, pixels = binning
+    near = np.arange(max(0, i - gap), min(len(z), i + gap + 1))
+    # pairs of bins that hold none of the spike's own burst, from the bin before its best pair to its end
+    near = near[((near < i - 2) | (near > end_bin)) & (z[near] >= method.min_z)]
+    for k in near[np.argsort(-z[near], kind="stable")][:ECHOES_WEIGHED]:
+        a, b = np.searchsorted(times, [origin + k * bin_us, origin + (k + 2) * bin_us])
+        coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
+        if coverage >= max(method.min_coverage, ECHO_SHARE * instant.details["coverage"]):
+            onset, other = instant.details["onset_us"], int(times[a])
+            instant.details.setdefault("warnings", []).append(
+                f"a second blink-like burst at {other} µs, {abs(other - onset) / 1000:.3g} ms {'after' if other > onset else 'before'} "
+                f"the spike taken at {onset} µs (z {z[k]:.0f} against {instant.score:.0f}; covering {coverage:.0%} of the pixels): "
+                "an LED switch that bounces, or a light that flickers, blinks twice; the stronger was taken: check which one "
+                f"the force log starts at (--method offset --offset {other - method.latency_us}us takes the other)")
+            return
 
 
 MIXED_ON_PER_OFF = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
