@@ -90,7 +90,9 @@ def polarity_note(summary: dict) -> str | None:
 
 def detection_note(summary: dict) -> str | None:
     """A warning where the detector, run on the training sessions with their true force ending
-    contacts (`detection_check`), finds their contacts or slips poorly: it will do no better at run time."""
+    contacts (`detection_check`), finds their contacts or slips poorly: it will do no better at run time.
+    Its contacts are not judged where the frames' phases merged the grasps (`one_contact_note`): it is
+    scored against the merged ones there, however well it finds each grasp."""
     check = summary.get("detection")
     if not check:
         return None
@@ -99,7 +101,7 @@ def detection_note(summary: dict) -> str | None:
     pressed, released = detector.polarity_names(polarity)
     reading = ("each contact's press of one polarity and its release of the other" if polarity == "either" else
                f"a press of {pressed} events, a release of {released}")
-    if check["true"] and check["f1"] < DETECTION_WARN_F1:
+    if check["true"] and check["f1"] < DETECTION_WARN_F1 and one_contact_note(summary) is None:
         poor.append(f"finds {check['hits']:g} of their {counted(int(check['true']), 'contact')}, {check['found']:g} in all "
                     f"(F1 {check['f1']:.2f}; a contact that runs on through a rest merges grasps): this sensor's events do "
                     f"not show its presses and releases as the detector reads them ({reading})")

@@ -1106,6 +1106,13 @@ def test_session_frames_met_by_a_model_of_whole_trials_and_one_contact_per_strea
     merged = session.one_contact_note({"contacts": 1, "found": 6, "merge_frames": 32, "sessions": 1, "frames_in_contacts": 950,
                                        "frames": 1000})
     assert "the 6 contacts found rest less than 32 frames apart, so they train as one" in merged and "--phases" not in merged
+    # the detector scored against grasps the phases merged: its contacts are not judged (its slips are)
+    poor = {"detection": {"f1": 0.29, "true": 1.0, "found": 6.0, "hits": 1.0, "slip_f1": 0.2, "slip_true": 2.0, "slip_found": 18.0,
+                          "slip_hits": 2.0}}
+    note = session.detection_note({**poor, "contacts": 1, "sessions": 1, "frames_in_contacts": 950, "frames": 1000})
+    assert "presses and releases" not in note and "holds do not show slips" in note
+    assert "finds 1 of their 1 contact" in session.detection_note({**poor, "contacts": 1, "sessions": 1, "frames_in_contacts": 500,
+                                                                   "frames": 1000})
 
 
 def test_a_session_given_for_validation_holds_out_every_contact_found_in_it(sessions):
