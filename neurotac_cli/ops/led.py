@@ -73,7 +73,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         # the pair starting at bin i holds the spike: its end is counted from the fuller bin
         end_bin = _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2])))
         chosen.append(_spike_instant(times[c:d], z[i], coverage, origin + end_bin * bin_us, method.latency_us))
-        _echo(chosen[-1], (i, end_bin, gap), z, times, off_x, off_y, (origin, bin_us, pixels), method)
+        _echo(chosen[-1], (i, end_bin, gap), z, times, off_x, off_y, (origin, bin_us, pixels, starting), method)
         windows.append((lo - bin_us, hi + bin_us))
         if len(chosen) >= count + spare:
             break
@@ -96,10 +96,12 @@ def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, bi
     """A second blink-like burst within the 50 ms about a spike (`spike`: its best pair's bin, its
     burst's end bin, the gap in bins), which no candidate can be: a switch that bounces, or an LED
     that flickers as it goes dark, blinks twice, and the spike taken is the one of higher z, whichever
-    the force log starts at. Said in a warning on the spike, with the other burst's time."""
+    the force log starts at. Said in a warning on the spike, with the other burst's time. Bins of the
+    camera's start-up (before `starting`) are not looked at: a burst there is said as that."""
     i, end_bin, gap = spike
-    origin, bin_us, pixels = binning
-    near = np.arange(max(0, i - gap), min(len(z), i + gap + 1))
+    origin, bin_us, pixels, starting = binning
+    first = max(0, i - gap, -(-(starting - origin) // bin_us))
+    near = np.arange(first, min(len(z), i + gap + 1))
     # pairs of bins that hold none of the spike's own burst, from the bin before its best pair to its end
     near = near[((near < i - 2) | (near > end_bin)) & (z[near] >= method.min_z)]
     for k in near[np.argsort(-z[near], kind="stable")][:ECHOES_WEIGHED]:
@@ -110,7 +112,7 @@ def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, bi
             instant.details.setdefault("warnings", []).append(
                 f"a second blink-like burst at {other} µs, {abs(other - onset) / 1000:.3g} ms {'after' if other > onset else 'before'} "
                 f"the spike taken at {onset} µs (z {z[k]:.0f} against {instant.score:.0f}; covering {coverage:.0%} of the pixels): "
-                "an LED switch that bounces, or a light that flickers, blinks twice; the stronger was taken: check which one "
+                "an LED switch that bounces, or a light that flickers, blinks twice; the one of higher z was taken: check which one "
                 f"the force log starts at (--method offset --offset {other - method.latency_us}us takes the other)")
             return
 

@@ -272,8 +272,7 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
         raise extra_spike(spikes, count, f" (the force log placed at each moves with the events: {figures})")
     else:
         (r, spike), why = ranked[0], "where the force log moves with the events"
-    if r is not None:
-        spike.details["agreement"] = r
+    spike.details["agreement"] = r  # None for a grasp too short to score: not scored again
     mixed = [other for other in spikes if _mixed(other)] if not _mixed(spike) else []
     polarity = (f"; {counted(len(mixed), 'spike')} with {MIXED_ON_PER_OFF:g} ON events per OFF or more passed over (the membrane "
                 "shaking or the scene moving, not a light switching off)" if mixed else "")
