@@ -34,8 +34,9 @@ STARTUP_US = 2_000  # a camera fires a burst as it starts (a Prophesee VGA recor
 
 
 def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> list[Instant]:
-    """The strongest LED-off spikes, `count` and up to `spare` more, in time order; SyncError when
-    fewer than `count` stand out."""
+    """The strongest LED-off spikes, `count` and up to `spare` more of OFF events alone (with those of
+    both polarities stronger than them: `on_share`), in time order; SyncError when fewer than `count`
+    stand out."""
     times, off_x, off_y = _off_events(t, x, y, p, method.region)
     bin_us = method.bin_us
     # a median's width of empty bins either side: a quiet --region holds OFF events only in its blink,
@@ -51,7 +52,8 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     pixels = _pixels_seen(x, y, sensor, method.region)
     starting = int(np.min(t)) + STARTUP_US  # pairs of bins starting before it hold no blink (the recording's, not the region's, start)
     # candidates: local maxima of z, strongest first, at least 50 ms apart
-    chosen, windows, rejected, startup = [], [], [], None
+    chosen, rejected, startup = [], [], None
+    ordered = bool(np.all(t[1:] >= t[:-1]))
     taken = np.zeros(len(z), dtype=bool)
     gap = max(1, 50_000 // bin_us)
     for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
@@ -74,8 +76,10 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         end_bin = _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2])))
         chosen.append(_spike_instant(times[c:d], z[i], coverage, origin + end_bin * bin_us, method.latency_us))
         _echo(chosen[-1], (i, end_bin, gap), z, times, off_x, off_y, (origin, bin_us, pixels, starting), method)
-        windows.append((lo - bin_us, hi + bin_us))
-        if len(chosen) >= count + spare:
+        _weigh_polarity(chosen[-1], (lo - bin_us, hi + bin_us), (t, x, y, p), ordered, method.region)
+        # spikes of both polarities (a shaking membrane) do not use up the spare: more of them than it
+        # stronger than the blink hid the blink from the choice
+        if sum(instant.details["on_share"] < MIXED_ON_PER_OFF for instant in chosen) >= count + spare:
             break
     if len(chosen) < count:
         best = max(rejected, default=None)  # its box only: the only one the error shows
@@ -83,8 +87,6 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         raise _no_spike(len(chosen), count, best, method, startup)
     if startup is not None:
         _after_startup(chosen, startup)
-    if len(chosen) > count:
-        _weigh_polarities(chosen, windows, t, x, y, p, method.region)
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
@@ -120,16 +122,17 @@ def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, bi
 MIXED_ON_PER_OFF = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
 
 
-def _weigh_polarities(chosen: list, windows: list, t, x, y, p, region):
-    """Each spike's ON events per OFF event in its bins (`on_share`), where more spikes stand out
-    than are wanted: an LED switching off darkens every pixel it lights (a blink: 20 ON events
-    against 80,838 OFF), where a gripper's motor shaking the membrane, or the scene moving past a
-    camera on an arm, makes both polarities alike (about 1:1)."""
-    ordered = bool(np.all(t[1:] >= t[:-1]))  # as a camera writes them: each window by bisection, no sort
-    for instant, (lo, hi) in zip(chosen, windows):
-        inside = slice(*np.searchsorted(t, [lo, hi])) if ordered else (t >= lo) & (t < hi)
-        on = np.count_nonzero((p[inside] == 1) & in_region(x[inside], y[inside], region))
-        instant.details["on_share"] = round(on / max(instant.details["spike_events"], 1), 3)
+def _weigh_polarity(instant: Instant, window: tuple, events: tuple, ordered: bool, region):
+    """A spike's ON events per OFF event in its bins (`on_share`): an LED switching off darkens every
+    pixel it lights (a blink: 20 ON events against 80,838 OFF), where a gripper's motor shaking the
+    membrane, or the scene moving past a camera on an arm, makes both polarities alike (about 1:1)."""
+    t, x, y, p = events
+    if ordered:  # as a camera writes them: the window by bisection
+        inside = slice(*np.searchsorted(t, window))
+    else:
+        inside = (t >= window[0]) & (t < window[1])
+    on = np.count_nonzero((p[inside] == 1) & in_region(x[inside], y[inside], region))
+    instant.details["on_share"] = round(on / max(instant.details["spike_events"], 1), 3)
 
 
 def _startup_text(startup_us: int) -> str:

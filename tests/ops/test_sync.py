@@ -853,6 +853,25 @@ def test_a_burst_of_both_polarities_is_weighed_after_the_spikes_of_off_alone(mon
     assert sy._by_agreement([flash, release], 1, end, [short], [short.value])[0] is flash
 
 
+def test_bursts_of_both_polarities_stronger_than_the_blink_do_not_hide_it():
+    """Six shaking bursts stronger than the blink took every candidate (the blink and 4 spare), and the
+    error listed them alone: they no longer count toward the spare."""
+    from neurotac_cli.ops.led import led_spikes
+
+    rng = np.random.default_rng(5)
+    noise = (rng.integers(0, 12_000_000, 20_000), rng.integers(0, 240, 20_000), rng.integers(0, 180, 20_000), rng.integers(0, 2, 20_000))
+    parts = [_blink(3_000_000, 1), noise]
+    for at in range(4_000_000, 10_000_000, 1_000_000):
+        n = 100_000
+        parts.append((at + rng.integers(0, 1_000, n), rng.integers(0, 240, n), rng.integers(0, 180, n), rng.integers(0, 2, n)))
+    t, x, y, p = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(t, kind="stable")
+    t, x, y, p = t[order], x[order].astype(np.uint16), y[order].astype(np.uint16), p[order].astype(np.int8)
+    spikes = led_spikes(t, x, y, p, sy.SyncMethod(), 1, (240, 180), spare=4)
+    alone = [spike for spike in spikes if spike.details["on_share"] < sy.MIXED_ON_PER_OFF]
+    assert len(spikes) == 7 and len(alone) == 1 and abs(alone[0].t0 - 3_000_000) < 200
+
+
 def test_a_start_up_burst_as_bright_as_a_blink_gets_no_bar_or_box_of_another_burst():
     """A start-up burst that would pass as a blink, and a small LED's blink 1.2 s later: the
     recording may instead have begun inside its blink, and the best burst be a bright object's
