@@ -54,6 +54,10 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     deform-gru (--members) draws validation trials of its own and trains on the rest; its
     normalisation is the first member's.
 
+    Ctrl-C (or SIGTERM) after the first epoch stops the training as early stopping would: the model
+    of the best epoch so far is written, and the command exits as interrupted (130; 143 for SIGTERM).
+    A deform-gru of several members writes no model where a member is left untrained.
+
     Defaults: "(thesis X)" is the thesis's setting and the default; "(default X)" is ours where the
     thesis gives none.
 
@@ -75,14 +79,16 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     import torch
 
     from neurotac_cli.model import session
+    from neurotac_cli.model.fit import kept_on_interrupt
     from neurotac_cli.model.training import train_model
 
     torch.set_num_threads(max(1, threads))
     use_device(device)
     echo_lines("train", session.training_input_notes(table, model_name in FORCE_MODELS, contacts))
-    trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
-                          val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
-                          progress=progress_printer("train"), contacts=contacts)
+    with kept_on_interrupt() as stops:
+        trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
+                              val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
+                              progress=progress_printer("train"), contacts=contacts)
     if contacts:
         found = trained.model.training.get("contacts", {})
         notes = [session.one_contact_note(found), session.polarity_note(found), session.detection_note(found)]
@@ -95,3 +101,14 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
             curve_figure(member_curves(trained.model.training), plot, title=f"{model_name} training curve", loss=trained.loss)
     if trained.summary:
         click.echo(f"{trained.summary}; wrote {output}", err=True)
+    _end_if_interrupted(stops, output)
+
+
+def _end_if_interrupted(stops: list, output: str):
+    """After the model of the best epoch before an interrupt is written (`kept_on_interrupt`), the
+    run still ends as interrupted: a script or make sees it did not finish as asked."""
+    if stops:
+        who, epochs, stop = stops[0]
+        click.echo(f"{who}: stopped by the interrupt after {epochs} epoch{'s' if epochs != 1 else ''}: {output} holds its best epoch's "
+                   "weights", err=True)
+        raise stop

@@ -1,5 +1,7 @@
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -75,6 +77,24 @@ def test_train_command_writes_model_curve_and_plot(tmp_path):
     assert curve.num_rows == 6 and set(curve.column("metric").to_pylist()) == {"train_loss", "val_loss"}
     model = models.load(str(tmp_path / "m.model"))
     assert model.config.layers == 2 and model.config.units == 5
+
+
+@pytest.mark.parametrize("number, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_training_stopped_by_the_user_writes_its_best_epoch_s_model_and_ends_as_interrupted(tmp_path, number, code):
+    path = write_stream(tiny_frames(trials=4), tmp_path / "f.arrows")
+    process = subprocess.Popen([sys.executable, "-c", "from neurotac_cli.cli import main; main()", "train", "--model", "tdnn",
+                                "--epochs", "100000", "--patience", "100000", "--layers", "2", "--units", "5",
+                                "-o", str(tmp_path / "m.model"), str(path)], stderr=subprocess.PIPE)
+    lines = [process.stderr.readline()]
+    while lines[-1] and b"tdnn: epoch 1 " not in lines[-1]:  # off a terminal, the first epoch's line is shown
+        lines.append(process.stderr.readline())
+    time.sleep(0.5)
+    process.send_signal(number)
+    stderr = b"".join(lines) + process.communicate(timeout=60)[1]
+    assert process.returncode == code, stderr
+    assert b"Traceback" not in stderr and b"stopped by the interrupt after" in stderr and b"holds its best epoch's weights" in stderr
+    model = models.load(str(tmp_path / "m.model"))
+    assert model.config.layers == 2 and 1 <= len(model.training["curve"]) < 100000
 
 
 @pytest.mark.parametrize("command", [

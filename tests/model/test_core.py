@@ -158,6 +158,41 @@ def test_a_training_that_diverges_is_refused_not_written_as_its_untrained_weight
         fit(net, batch_loss, 4, val_loss, FitConfig(epochs=3), torch.Generator().manual_seed(0))
 
 
+def test_an_interrupted_fit_keeps_its_best_epoch_where_the_caller_asks_and_begins_no_member_after_it():
+    import torch
+
+    from neurotac_cli.model.fit import FitConfig, fit, kept_on_interrupt
+
+    net = torch.nn.Linear(1, 1)
+    x, y = torch.ones(4, 1), torch.full((4, 1), 3.0)
+    calls, states = [0], []
+
+    def batch_loss(indices):
+        calls[0] += 1
+        if calls[0] == 9:  # in the fifth epoch (2 batches of 2 each)
+            raise KeyboardInterrupt
+        return ((net(x[indices]) - y[indices]) ** 2).mean()
+
+    def val_loss():
+        states.append({key: value.clone() for key, value in net.state_dict().items()})
+        return float(((net(x) - y) ** 2).mean())
+
+    config = FitConfig(epochs=50, batch_size=2, lr=0.1)
+    with pytest.raises(KeyboardInterrupt):  # a fit of a study, or of a command that does not keep it: lost
+        fit(net, batch_loss, 4, val_loss, config, torch.Generator().manual_seed(0))
+    calls[0], states[:] = 0, []
+    with kept_on_interrupt() as stops:
+        curve = fit(net, batch_loss, 4, val_loss, config, torch.Generator().manual_seed(0))
+        assert len(curve) == 4 and [(label, epochs) for label, epochs, _ in stops] == [("train", 4)]
+        best = min(range(4), key=lambda k: curve[k]["val_loss"])
+        assert all(torch.equal(net.state_dict()[key], states[best][key]) for key in states[best])
+        with pytest.raises(KeyboardInterrupt):  # the next member would be untrained: not begun
+            fit(net, batch_loss, 4, val_loss, config, torch.Generator().manual_seed(0))
+    calls[0] = 8  # interrupted in its first epoch: nothing to keep
+    with kept_on_interrupt() as stops, pytest.raises(KeyboardInterrupt):
+        fit(net, batch_loss, 4, val_loss, config, torch.Generator().manual_seed(0))
+
+
 @pytest.mark.parametrize("setting, value", [("layers", 100_000), ("lr", 1e39), ("weight_decay", 1e39), ("units", 10**9)])
 def test_sizes_and_rates_far_past_any_network_are_refused(setting, value):
     with pytest.raises(UsageError, match=f"--{setting.replace('_', '-')} must be a finite number"):
