@@ -80,8 +80,7 @@ def detection(training, test):
         # the slip flags do not change where contacts end, so both bars find the same contacts
         phases, _, flags, _ = zip(*(detector.detect(config, s["off"], s["on"], separation=s["separation"], slip=slip,
                                                     force=s["force"], counts=s["counts"]) for s in test))
-        figures[name] = metrics.detection_figures([s["slip"] for s in test], flags, "slip", unit=WINDOW_MS,
-                                                  units="ms", timing="latency", tolerance=20.0)
+        figures[name] = metrics.detection_figures([s["slip"] for s in test], flags, "slip", unit=WINDOW_MS, **metrics.SLIP_TIMING)
     figures["contact"] = metrics.detection_figures([s["touching"] for s in test], [p != detector.NONE for p in phases], "contact")
     return figures
 

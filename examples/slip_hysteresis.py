@@ -36,7 +36,7 @@ def score_folder(folder: str, shares) -> list:
 
 def figures(truths, flags) -> dict:
     """Slip figures over the streams together (`metrics.detection_figures` pools them)."""
-    return metrics.detection_figures(truths, flags, "slip", unit=WINDOW_MS, units="ms", timing="latency", tolerance=20.0)
+    return metrics.detection_figures(truths, flags, "slip", unit=WINDOW_MS, **metrics.SLIP_TIMING)
 
 
 def line(label: str, f: dict) -> str:

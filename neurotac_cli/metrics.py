@@ -250,6 +250,9 @@ def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
     return pairs
 
 
+SLIP_TIMING = {"units": "ms", "timing": "latency", "tolerance": 20.0}  # slips are timed in ms from their start, within 20 ms
+
+
 def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, units="frames",
                       timing="onset", tolerance: float = 2.0, clocks_per_session=None) -> dict:
     """F1 over runs, onset latency (`{name}_{timing}_{units}_*`: in frames x `unit`, or, with
@@ -326,9 +329,8 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
         figures.update(detection_figures([~rest[idx] for idx in sessions], [contact_pred[idx] for idx in sessions], "contact"))
     if slip is not None and slip_pred is not None:
         slip, slip_pred = np.asarray(slip, dtype=bool), np.asarray(slip_pred, dtype=bool)
-        figures.update(detection_figures([slip[idx] for idx in sessions], [slip_pred[idx] for idx in sessions], "slip",
-                                         unit=1 / 1000, units="ms", timing="latency", tolerance=20.0,
-                                         clocks_per_session=[t_us[idx] for idx in sessions]))
+        figures.update(detection_figures([slip[idx] for idx in sessions], [slip_pred[idx] for idx in sessions], "slip", unit=1 / 1000,
+                                         clocks_per_session=[t_us[idx] for idx in sessions], **SLIP_TIMING))
     rows[:0] = [("all", name, float(value)) for name, value in figures.items()]
     return rows
 
