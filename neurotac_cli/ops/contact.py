@@ -88,6 +88,10 @@ class ContactConfig:
     press_frames: int = 10  # press_polarity "either": the polarity of a contact's press is the one with more events above
     # the background over this many frames from its onset (a bright object's press can begin with the dark rim about it)
     scene_frames: int = 3  # after a frame of rest in which the view moved (`_scene_moves`), no contact begins for this many frames
+    tail_frames: int = 3  # press_polarity "either": a release's polarity begins no contact until it has been under the onset
+    # bar this many frames in a row (`tail`: a release burst dips for a frame, or the quiet rule ends a contact just before it)
+    await_frames: int = 100  # ... nor, after the quiet rule ended a contact whose release looks partial, in its next burst
+    # within this many frames (`_awaits_release`; 0: none): the rest of that release, not an object of the other kind
     press_polarity: str = "off"  # the polarity most of a press's events have ("on": pressing brightens; "either": read at
     # each onset, where a sensor sees objects of both kinds; `press_polarity`)
 
@@ -102,7 +106,7 @@ class ContactConfig:
 # from a few ms to 20 ms.
 REFERENCE_WINDOW_US = 10_000
 FRAME_SETTINGS = {"ContactConfig": ("low_frames", "quiet_frames", "background_frames", "memory_frames", "warmup_frames",
-                                    "lead_frames", "press_frames", "scene_frames"),
+                                    "lead_frames", "press_frames", "scene_frames", "tail_frames", "await_frames"),
                   "SlipConfig": ("hold_frames", "settle_frames", "level_frames")}
 EVENT_SETTINGS = {"ContactConfig": ("min_events", "background_off", "background_on"), "SlipConfig": ()}
 
@@ -144,7 +148,7 @@ def polarity_names(polarity: str) -> tuple:
 
 
 MAX_FRAMES = 10**8  # a count of frames no stream reaches (11 days of 10 ms frames): past it a setting is damage, not a choice
-MAY_BE_ZERO = ("lead_frames", "warmup_frames", "follow_presses")  # counts of frames or presses that may be 0
+MAY_BE_ZERO = ("lead_frames", "warmup_frames", "follow_presses", "await_frames")  # counts of frames or presses that may be 0
 
 
 def checked(config):
@@ -274,6 +278,9 @@ class ContactState:
     polarity: str = "off"  # how the numbers above are read: "on", every OFF / ON pair swapped (`oriented_sums`)
     contact_open: bool = False  # a contact has begun since the state last read a rest frame ("either": its release is the tail)
     tail: str | None = None  # the polarity of the last release while its burst lasts: no press of that polarity begins in it
+    tail_quiet: int = 0  # frames in a row the tail's polarity has not risen (`tail_frames`)
+    tail_wait: int = 0  # frames left in which the rest of the last contact's release is awaited as its tail (`await_frames`)
+    pressed_sum: float = 0.0  # OFF events above the background in the contact's pressing frames (leaky), for `_awaits_release`
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
     since_scene: int = 1 << 30  # frames since the view last moved between contacts (`_scene_moves`)
 
@@ -373,21 +380,36 @@ def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on:
     """For a sensor that sees objects of both kinds (dark ones press OFF, bright ones ON): between
     contacts the state reads OFF as a press; a frame whose ON events rise above their background more
     than its OFF events do, as an onset's must, turns it to read ON as the press for that contact. The
-    burst of the release that just ended a contact begins none (`tail`)."""
+    burst of the release that just ended a contact begins none (`tail`, `_follow_tail`)."""
     if state.phase != NONE:
         return
     if state.contact_open:  # the contact just ended, read as it pressed: its release's polarity is the tail
-        state.tail, state.contact_open = ("off" if state.polarity == "on" else "on"), False
+        state.tail, state.contact_open, state.tail_quiet = ("off" if state.polarity == "on" else "on"), False, 0
     state.turn("off")
     if state.warmup is not None:
         return
     rises = {"off": _onset(config, off, on, state.mean_off, state.mean_on), "on": _onset(config, on, off, state.mean_on, state.mean_off)}
-    if state.tail is not None and not rises[state.tail]:
-        state.tail = None
+    _follow_tail(config, state, rises)
     if state.tail is not None:
         rises[state.tail] = False
     if rises["on"] and (not rises["off"] or on - state.mean_on > off - state.mean_off):
         state.turn("on")
+
+
+def _follow_tail(config: ContactConfig, state: ContactState, rises: dict):
+    """The tail lasts while its polarity rises above the onset bar (`rises`), and until it has not for
+    `tail_frames` frames in a row: a release burst dips under the bar for a frame, and where the quiet
+    rule ends a contact a frame or two before its final release, that release is its tail. Where the
+    rest of the release is awaited (`tail_wait`, `_awaits_release`), it lasts until that burst comes."""
+    if state.tail is None:
+        return
+    if rises[state.tail]:
+        state.tail_quiet, state.tail_wait = 0, 0  # the awaited burst has come: it lasts while it rises
+        return
+    state.tail_quiet += 1
+    state.tail_wait = max(state.tail_wait - 1, 0)
+    if state.tail_quiet >= config.tail_frames and state.tail_wait == 0:
+        state.tail = None
 
 
 @dataclass
@@ -424,6 +446,7 @@ def _follow_press(config: ContactConfig, state: ContactState, off: float, on: fl
     k = POLARITIES.index(chosen)
     # this frame is added by `_step`, as every frame of the contact is
     state.off_since, state.peak_off = early.events[k] - (on if chosen == "on" else off), early.peaks[k]
+    state.pressed_sum = early.excess[k] - max((on if chosen == "on" else off) - state.mean_off, 0.0)
     state.phase, state.on_run, state.released, state.held = GRASPING, 0.0, False, 0
     state.released_on, state.quiet, state.since_release, state.low = 0.0, 0.0, 0, 0  # what was read as a release was the press
     state.footprint.pressed = None  # the footprint starts again from this frame's press
@@ -465,6 +488,7 @@ def _step(config, state, off, on, by_force) -> str:
             state.phase, state.onsets, state.contact_open, state.low = GRASPING, state.onsets + 1, True, 0
             state.off_since, state.peak_off, state.on_run, state.released, state.held = off, off, 0.0, False, 0
             state.peak_force, state.press_after, state.hold_level = 0.0, 0, (0.0, 0.0)
+            state.pressed_sum, state.tail_wait = max(off - state.mean_off, 0.0), 0
         else:
             _update_background(config, state, off, on)
         return state.phase
@@ -485,6 +509,7 @@ def _step(config, state, off, on, by_force) -> str:
             state.press_after = state.held
         state.phase, state.on_run, state.released = GRASPING, 0.0, False
         state.peak_off = max(state.peak_off, off)
+        state.pressed_sum = state.pressed_sum * keep + off - state.mean_off
     else:
         state.on_run = 0.0
         # settled once the OFF count above the background falls: a busy background alone (hot pixels)
@@ -513,11 +538,13 @@ def end_by_force(config: ContactConfig, state: ContactState, force_n: float) -> 
     quiet for `quiet_frames` frames since the burst while the estimate is under `quiet_force_share` of
     its peak in the contact (`peak_force`, which the caller keeps) or the release was bright
     (`quiet_release_share`). With press_polarity "either", `low_frames` frames in a row under
-    `release_force_n` end a contact that has loaded, with or without a release burst (`_unloaded`)."""
+    `release_force_n` end a contact that has loaded, with or without a release burst (`_unloaded`), and
+    the rest of a release that looks partial is awaited (`_awaits_release`)."""
     if state.phase == NONE:
         return False
     ended = _released_end(config, state, force_n) if state.released else _unloaded(config, state, force_n)
     if ended:
+        state.tail_wait = config.await_frames if _awaits_release(config, state) else 0
         state.phase, state.on_run, state.released, state.low = NONE, 0.0, False, 0
     return ended
 
@@ -537,6 +564,23 @@ def _released_end(config: ContactConfig, state: ContactState, force_n: float) ->
     quiet = (state.since_release >= config.quiet_frames and (fallen or large)
              and state.quiet < state.mean_off + config.quiet_sigma * np.sqrt(state.mean_off / (2 * config.quiet_frames)))
     return state.low >= config.low_frames or quiet
+
+
+AWAIT_SHARE = 0.5  # a release looks partial where its bursts brightened the membrane by under this share of what the press
+# darkened it (events above the background): the quiet rule's early ends on three generators 0.09-0.30, whole releases
+# mostly 0.4-1.7 but some 0.1 (a re-grasp's two presses against its last release), so the wait is bounded
+
+
+def _awaits_release(config: ContactConfig, state: ContactState) -> bool:
+    """Whether the quiet rule (not the estimate: it read low) ends this contact of press_polarity
+    "either" at what may be a partial release: the object still held at a lower force, its final
+    release to come. That burst, of the release's polarity, would read as the press of an object of
+    the other kind, and the model reads 1.5-2.6 N through the rest after it. So the next such burst
+    within `await_frames` is the contact's tail (`_follow_tail`). Bounded: after a whole release
+    that only looked partial, the next object's press of that polarity is lost within the wait
+    (waiting without a bound lost presses on two generators; docs/journal.md)."""
+    return (config.press_polarity == "either" and state.released and state.low < config.low_frames
+            and state.released_on < AWAIT_SHARE * state.pressed_sum)
 
 
 def _unloaded(config: ContactConfig, state: ContactState, force_n: float) -> bool:

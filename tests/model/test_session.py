@@ -408,6 +408,27 @@ def test_a_bright_press_that_begins_with_its_rims_off_events_is_read_as_pressing
     assert first[32] == contact.RELEASING and first[75] == contact.GRASPING
 
 
+def test_an_either_contact_ended_at_a_partial_release_takes_its_final_release_as_its_tail():
+    """The quiet rule ends a dark contact at a partial release (the object still held at 1.2 N); its
+    final release, 40 frames later, is an ON burst as a bright object's press is: within
+    `await_frames` of such an end it begins no contact. A bright press after the wait, and one 40
+    frames after a whole release, begin theirs."""
+    def stream(release):
+        off = [5.0] * 30 + [150.0, 120.0, 100.0] + [5.0] * 267 + [5.0, 5.0, 5.0] + [5.0] * 57 + [100.0, 80.0] + [5.0] * 60
+        on = [5.0] * 100 + release + [5.0] * 58 + [120.0, 80.0] + [5.0] * 138 + [150.0, 120.0, 100.0] + [5.0] * 119
+        force = [0.0] * 30 + [3.0] * 70 + [1.2] * 60 + [0.0] * 140 + [3.0] * 60 + [0.0] * 62  # a bright press at 300
+        return np.asarray(off), np.asarray(on), np.asarray(force)
+
+    config = contact.ContactConfig(press_polarity="either")
+    partial = stream([60.0, 40.0])  # 90 ON events above the background against the press's 355 OFF
+    found = contact.detect(config, partial[0], partial[1], force=partial[2])[1]
+    assert list(np.flatnonzero(found)) == [30, 300]
+    unbounded = contact.detect(dataclasses.replace(config, await_frames=0), partial[0], partial[1], force=partial[2])[1]
+    assert list(np.flatnonzero(unbounded)) == [30, 160]  # the final release read as a bright press, run on through the next
+    whole = stream([200.0, 150.0])  # a whole release: the burst 40 frames after its end is the next object's press
+    assert contact.detect(config, whole[0], whole[1], force=whole[2])[1][160]
+
+
 def test_a_contact_turned_over_measures_its_press_for_the_slip_bars_in_its_own_polarity():
     off = [5.0] * 30 + [165.0, 20.0, 20.0, 10.0] + [5.0] * 40 + [100.0, 100.0] + [5.0] * 40
     on = [5.0] * 30 + [20.0, 100.0, 100.0, 60.0] + [5.0] * 40 + [10.0, 10.0] + [5.0] * 40
