@@ -22,7 +22,7 @@ hundred frames, and it keeps a compiled dependency out of the install.
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError, UsageError
-from neurotac_cli.ops.phases import step_noise
+from neurotac_cli.ops.phases import rest_levels, step_noise
 
 PHASES = ("grasping", "holding", "releasing")
 
@@ -306,8 +306,11 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     # the force's rest level and noise as `ops.phases.label_session` reads them: a log need not read 0 N at rest
     steps = np.concatenate([np.diff(true[idx][known[idx]]) for idx in sessions]) if sessions else np.zeros(0)
     noise = step_noise(steps)
-    level = float(np.percentile(true[known], 5)) if known.any() else 0.0
-    above = np.abs(np.nan_to_num(true, nan=level) - level)
+    above = np.zeros(len(true))
+    for idx in sessions:  # each session's own rest level, which a drifting sensor moves
+        values = true[idx][known[idx]]
+        if len(values):
+            above[idx[known[idx]]] = np.abs(values - rest_levels(values))
     loaded = rest & known & (above > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
     if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
         figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(np.abs(true[loaded]).max()))

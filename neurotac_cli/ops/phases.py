@@ -117,7 +117,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
                   slope_share: float = SLOPE_SHARE) -> tuple[np.ndarray, np.ndarray]:
     """(phase per frame, grasp index per frame as int32, -1 for none) of a trial holding many grasps.
 
-    A grasp is a run of frames in contact: force above the rest level (5th percentile) by more than
+    A grasp is a run of frames in contact: force above the rest level (`rest_levels`: the 5th
+    percentile of the log's stretches, which a drifting sensor moves) by more than
     `contact_share` of the force scale (95th percentile above rest) and by 5 noise s.d. (the noise is
     read from frame-to-frame differences); dips of at most MERGE_FRAMES frames stay in the grasp; a
     run whose peak is within 10 noise s.d. of rest is noise, not a grasp. The frame that first reads
@@ -143,22 +144,42 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     known = ~np.isnan(force)
     if not known.any():
         return phase, grasp
-    rest = float(np.percentile(force[known], 5))
-    filled = np.where(known, force, rest)
+    filled = np.where(known, force, float(np.percentile(force[known], 5)))
+    rest = rest_levels(filled)
     noise = step_noise(np.diff(filled)) if n > 2 else 0.0
-    scale = float(np.percentile(filled, 95)) - rest
+    scale = float(np.percentile(filled - rest, 95))
     threshold = rest + max(contact_share * scale, 5 * noise, 1e-6)
     index = 0
     for first, last in _contact_runs(filled > threshold):
-        if filled[first:last + 1].max() < rest + max(10 * noise, 1e-6):
+        if (filled[first:last + 1] - rest[first:last + 1]).max() < max(10 * noise, 1e-6):
             continue
         end = min(last + 2, n)  # the first frame below contact is the grasp's last
         grasp[first:end] = index
-        before = filled[first - 1] if first > 0 else rest
-        phase[first:end] = _grasp_phases(filled[first:end], before, rest, noise, move_share, slope_share,
+        before = filled[first - 1] if first > 0 else rest[0]
+        phase[first:end] = _grasp_phases(filled[first:end], before, float(rest[first]), noise, move_share, slope_share,
                                          ends_in_contact=end == last + 1)
         index += 1
     return phase, grasp
+
+
+REST_BLOCK = 1000  # frames (10 s of 10 ms frames) whose 5th percentile is a stretch of the log's rest level ...
+REST_SPAN = 1  # ... taken as the lowest of this many blocks either side: a hold as long as a block reads no rest of its own
+
+
+def rest_levels(force: np.ndarray) -> np.ndarray:
+    """The rest level of a log (no NaN) at each sample: the 5th percentile of each REST_BLOCK samples,
+    the lowest of it and its REST_SPAN neighbours either side, interpolated between the blocks'
+    centres. A force sensor's zero drifts (a strain gauge warming: 0.2 N a minute put a session's
+    later rests above a level read once for the whole log, and they were labelled grasps); a log of
+    under two blocks has one level, its 5th percentile."""
+    force = np.asarray(force, dtype=np.float64)
+    blocks = max(1, len(force) // REST_BLOCK)
+    if blocks < 2:
+        return np.full(len(force), float(np.percentile(force, 5)) if len(force) else 0.0)
+    edges = np.linspace(0, len(force), blocks + 1).astype(int)
+    levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
+    lowest = np.array([levels[max(0, k - REST_SPAN):k + REST_SPAN + 1].min() for k in range(blocks)])
+    return np.interp(np.arange(len(force)), (edges[:-1] + edges[1:] - 1) / 2, lowest)
 
 
 QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)

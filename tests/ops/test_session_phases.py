@@ -3,6 +3,7 @@
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
+from neurotac_cli import metrics
 from neurotac_cli.ops.phases import detect_phases, label_session, session_columns
 
 
@@ -107,3 +108,27 @@ def test_a_log_quantised_more_coarsely_than_its_noise_holds_no_grasp():
     loaded = rest.copy()
     loaded[1_000:1_400] += 1.0
     assert set(label_session(loaded)[1]) == {-1, 0}
+
+
+def test_a_force_sensor_whose_zero_drifts_keeps_its_rests_at_rest():
+    """A strain gauge warming: its zero climbs 0.5 N a minute over 3 minutes. Read against one rest
+    level for the whole log, the later rests were grasps and the weak grasps among the strong split or
+    vanished; each stretch of the log has its own rest level."""
+    rng = np.random.default_rng(3)
+    parts, peaks = [np.zeros(150)], []
+    for k in range(24):
+        peak = 0.6 if k % 3 == 0 else 5.0
+        hold = int(rng.integers(80, 400))
+        parts += [ramp(0, peak, 10), np.full(hold, peak), ramp(peak, 0, 8), np.zeros(int(rng.integers(300, 500)))]
+        peaks.append(peak)
+    force = np.concatenate(parts)
+    drifted = force + 0.5 * np.arange(force.size) / 6000 + rng.normal(0, 0.01, force.size)  # 10 ms frames: 6000 a minute
+    assert drifted.size / 6000 > 2.5 and drifted[-1] - drifted[0] > 1.2
+    phase, grasp = label_session(drifted)
+    assert grasp.max() + 1 == len(peaks)
+    assert np.all((grasp >= 0) == (phase != "none"))
+    assert np.mean(phase[force == 0] == "none") > 0.99  # the true rests (a grasp's last frame reads below contact)
+    # `eval`'s check that frames at rest carry no force reads the same rest levels: no drifted rest is "loaded"
+    frame = np.arange(drifted.size)
+    rows = metrics.session_rows(["s"] * frame.size, frame, frame * 10_000.0, phase, drifted, np.zeros(frame.size))
+    assert "rest_loaded_frames" not in {metric for scope, metric, _ in rows if scope == "all"}
