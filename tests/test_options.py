@@ -21,7 +21,7 @@ def test_history_holds_the_parameters_the_output_depends_on_and_not_where_it_wen
     assert step["command"] == "crop" and written[0]["args"] == written[1]["args"]
     assert step["args"]["pool"] == "all" and step["args"]["box"] == [1, 1, 6, 6] and step["args"]["warn_above"] == 0.9
     assert step["args"]["report"]["box"] == [1, 1, 6, 6]  # a streamed crop counts what it cut on stderr
-    assert "cut " in done.output and " frame counts" in done.output
+    assert "cut " in done.output and " events (counted in frames)" in done.output
     assert "output" not in step["args"] and "center" not in step["args"]  # where it went; an option not given
 
 

@@ -282,7 +282,7 @@ def _crop_counts(batch: pa.RecordBatch, box, pool, report: CropReport) -> np.nda
     total = float(counts.sum(dtype=np.float64))
     kept = float(inner.sum(dtype=np.float64))
     integer = counts.dtype.kind != "f"
-    report.unit = "frame counts"
+    report.unit = "events (counted in frames)" if integer else "frame counts (scaled)"  # integer counts are events
     report.kept += int(kept) if integer else kept
     report.cut += int(total - kept) if integer else (total - kept)
     return pool_counts(np.ascontiguousarray(inner), pool)
