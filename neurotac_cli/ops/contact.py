@@ -42,8 +42,9 @@ rules were chosen on the totals; docs/journal.md).
 A frame whose events cover most of the view (`FLASH_SHARE` of its cells, where it has `FLASH_CELLS`
 or more) begins no contact: an LED blink or a lamp changes the light over the whole membrane, a press
 only where the object is (the LED sync's own test of coverage). Nor does a frame in which the view moves
-(`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of them), or the
-`scene_frames` frames after it: a camera on a robot arm sees the membrane window's edge and the
+(`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of them, in the frame or one
+in it and the other within `scene_frames` before: an LED that lights part of the view and goes dark
+frames later), or the `scene_frames` frames after it: a camera on a robot arm sees the membrane window's edge and the
 scene slide by, a gripper's motor shakes the membrane before a touch, and a press makes one
 polarity in a cell at a time. Where the detector has no frames (`detect` given sums alone) or
 frames pooled to a few cells, only the warm-up passes over a blink, and nothing over a move.
@@ -283,6 +284,8 @@ class ContactState:
     pressed_sum: float = 0.0  # OFF events above the background in the contact's pressing frames (leaky), for `_awaits_release`
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
     since_scene: int = 1 << 30  # frames since the view last moved between contacts (`_scene_moves`)
+    frames: int = 0  # frames stepped so far
+    lit: np.ndarray | None = None  # (2, H, W) int32: the frame in which each cell last fired above its rest, per polarity as framed
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
@@ -307,6 +310,7 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
     state.since_scene += 1
+    state.frames += 1
     if state.phase == NONE and state.warmup is None and frame is not None and _may_begin(config, state, frame, off, on):
         if _flash(state, frame, off, on):
             return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
@@ -370,7 +374,14 @@ def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray) 
     # a cell fires above its rest by one event and SCENE_SIGMA Poisson σ: cells of about one event a
     # frame at rest (pooled, busy, or long frames) pass a bar of one event by chance in both polarities
     bar = rest + 1.0 + SCENE_SIGMA * np.sqrt(rest)
-    both = int(np.count_nonzero((frame[0] > bar[0]) & (frame[1] > bar[1])))
+    fired = np.asarray(frame) > bar
+    if state.lit is None or state.lit.shape != fired.shape:
+        state.lit = np.full(fired.shape, -(1 << 30), dtype=np.int32)
+    # a light switched on and off again within a few frames (an LED blink lighting part of the view,
+    # one polarity a frame) fires both in the same cells too, in frames of their own
+    recent = state.frames - state.lit <= config.scene_frames
+    both = int(np.count_nonzero((fired[0] & (fired[1] | recent[1])) | (fired[1] & recent[0])))
+    state.lit[fired] = state.frames
     if both >= max(SCENE_SHARE * (np.size(frame) // 2), SCENE_CELLS):
         state.since_scene = 0
     return state.since_scene <= config.scene_frames

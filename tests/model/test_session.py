@@ -605,6 +605,29 @@ def test_the_view_moving_at_rest_begins_no_contact_and_a_contact_under_way_goes_
     assert sums_only[0][0] == 40  # without the frames the move is a burst like any other
 
 
+def test_an_led_that_lights_part_of_the_view_and_goes_dark_frames_later_begins_no_contact():
+    """A session's LED lit a third of the view 0.5 s into the recording (after the warm-up) for 20
+    ms: its switch-on is ON events alone in its frame, its switch-off two frames later OFF alone,
+    over too few cells for a flash, and the switch-off began a contact that ran on into the first
+    grasp. Cells that fire one polarity and, within `scene_frames`, the other are the view changing."""
+    rng = np.random.default_rng(1)
+    counts = rng.poisson(0.3, (400, 2, 30, 30)).astype(np.float64)
+    counts[50, 1, :10] += 4  # the LED on, over the top third of the cells
+    counts[52, 0, :10] += 4  # ... and off
+    force = np.zeros(len(counts))
+    counts[150:153, 0, 14:18, 14:18] += 30  # a dark press
+    counts[300:302, 1, 14:18, 14:18] += 30  # its release
+    force[150:302] = 1.0
+    off, on = contact.frame_sums(counts)
+    config = contact.ContactConfig(release_force_n=0.3)
+    found = contact.detect(config, off, on, force=force, counts=counts)[0]
+    assert [run[0] for run in metrics.runs(found != contact.NONE)] == [150]
+    counts[52, 0, :10] -= 4
+    counts[52, 0, 10:20] += 4  # OFF in other cells than the ON before it: a burst of its own, read as a press
+    found = contact.detect(config, *contact.frame_sums(counts), force=force, counts=counts)[0]
+    assert metrics.runs(found != contact.NONE)[0][0] == 52
+
+
 @pytest.mark.parametrize("background", [0.05, 0.5, 1.0])
 def test_a_busy_background_does_not_read_as_the_view_moving(background):
     """Cells of about one event a frame at rest (pooled, busy or long frames) pass a bar of one event
