@@ -61,7 +61,7 @@ class _Events:
 
     def __init__(self, schema):
         self.low = self.high = self.last = None
-        self.count = self.on = self.backward = 0
+        self.count = self.on = self.backward = self.largest_back = 0
 
     def add(self, batch):
         if not batch.num_rows:
@@ -70,7 +70,10 @@ class _Events:
         p = batch.column("p").to_numpy()
         self.count += len(t)
         self.on += int(np.count_nonzero(p))
-        self.backward += int(np.count_nonzero(np.diff(t) < 0)) + int(self.last is not None and t[0] < self.last)
+        steps = np.diff(t)
+        across = 0 if self.last is None else self.last - int(t[0])  # the step back from the last batch, where positive
+        self.backward += int(np.count_nonzero(steps < 0)) + int(across > 0)
+        self.largest_back = max(self.largest_back, across, -int(steps.min(initial=0)))
         self.last = int(t[-1])
         low, high = int(t.min()), int(t.max())
         self.low = low if self.low is None else min(self.low, low)
@@ -79,7 +82,8 @@ class _Events:
     def result(self):
         if not self.count:
             return {"trials": 0, "events": 0}
-        return {"trials": 1, "events": self.count, **_time_stats(self.low, self.high, self.count, self.on), "backward_steps": self.backward}
+        return {"trials": 1, "events": self.count, **_time_stats(self.low, self.high, self.count, self.on), "backward_steps": self.backward,
+                "largest_backward_step_us": self.largest_back}
 
 
 def _time_stats(low, high, events, on) -> dict:
@@ -330,7 +334,8 @@ def _content_pairs(info: dict, sync: dict) -> list:
         ("time", info.get("span_us") is not None, lambda: f"{_us(info['t_first_us'])} .. {_us(info['t_last_us'])} ({_duration(info['span_us'])})"),
         ("event rate", info.get("event_rate_per_s") is not None, lambda: f"{_rate(info['event_rate_per_s'])} events/s"),
         ("ON share", info.get("on_share") is not None, lambda: f"{info['on_share']:.3f}"),
-        ("time order", info.get("backward_steps"), lambda: f"{info['backward_steps']:,} backward steps (kept as the camera wrote them)"),
+        ("time order", info.get("backward_steps"), lambda: f"{info['backward_steps']:,} backward steps, the largest "
+                                                              f"{_duration(info.get('largest_backward_step_us', 0))} (kept as the camera wrote them)"),
         ("window", "window_us" in info, lambda: _duration(info["window_us"])),
         ("frame shape", info.get("frame_shape"), lambda: "x".join(str(n) for n in info["frame_shape"]) + " (channels x rows x columns)"),
         ("frames/trial", info.get("frames_per_trial"), lambda: "{min}..{max} (mean {mean:.1f})".format(**info["frames_per_trial"])),

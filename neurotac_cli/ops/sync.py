@@ -200,7 +200,9 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     except SyncError as error:  # the force log's own checks, around this, name the trial themselves
         raise SyncError(f"trial {source.trial}: {error}") from None
     forcelog.check_logs(t, instants, logs, source.trial)
-    order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(np.diff(t) < 0) else None
+    steps = np.diff(t)
+    order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(steps < 0) else None
+    back = -int(steps.min()) if order is not None else 0
     if order is not None:
         t, x, y, p = t[order], x[order], y[order], p[order]
     # trial i ends where its force log ends (or at the next instant, if sooner); what follows, up
@@ -235,8 +237,23 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
             entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True, raw=log.value)
         if log.notes:
             entry["notes"] = log.notes
+        if back >= CLOCK_JUMP_US and i == 0:  # said once per recording
+            entry.setdefault("warnings", []).append(_clock_jump(source.trial, back, steps))
         info[name] = entry
     return trials, info
+
+
+CLOCK_JUMP_US = 1_000_000  # events that step back in time this far come from a clock that jumped (a camera's own
+# reordering is microseconds: an HD EVT 3.0 file steps back by up to 11 µs)
+
+
+def _clock_jump(trial: str, back: int, steps: np.ndarray) -> str:
+    """The warning for a recording whose events step back in time by CLOCK_JUMP_US or more: sorted
+    by time, events of different moments mix, and the trial is cut where the force log says."""
+    jumps = int(np.count_nonzero(steps <= -CLOCK_JUMP_US))
+    return (f"trial {trial}: the events step back in time by up to {back / 1e6:.3g} s ({counted(jumps, 'place')}): the camera's "
+            "clock jumped (a time word lost, or a wrap the file cannot tell from a step back); sorted by time, events of different "
+            "moments mix (`neurotac info` of the camera file counts the steps)")
 
 
 SPARE_SPIKES = 4  # spikes beyond the log's trials weighed by how well the log then moves with the events

@@ -32,9 +32,9 @@ def test_events_rows_span_rate_and_on_share(tmp_path):
     assert info["kind"] == "events" and info["rows"] == 4 and info["trials"] == 1
     assert info["sensor"] == {"width": 4, "height": 2}
     assert info["span_us"] == 1_000_000 and info["event_rate_per_s"] == 4.0
-    assert info["on_share"] == 0.75 and info["backward_steps"] == 1
+    assert info["on_share"] == 0.75 and info["backward_steps"] == 1 and info["largest_backward_step_us"] == 50
     text = info_cli(tmp_path, table)
-    assert "4x2" in text and re.search(r"ON\ share\s+0\.750", text) and "1 backward steps" in text
+    assert "4x2" in text and re.search(r"ON\ share\s+0\.750", text) and "1 backward steps, the largest 50 µs" in text
 
 
 def test_recordings_per_trial_events_force_and_labels(tmp_path):

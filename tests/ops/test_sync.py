@@ -243,6 +243,22 @@ def test_a_blink_repeated_within_50ms_is_warned_with_the_other_burst_s_time(shif
     assert not any("second blink" in line for line in alone["g"].get("warnings", []))
 
 
+def test_events_whose_clock_jumps_back_seconds_are_warned_and_a_camera_s_microsecond_reordering_is_not():
+    """An EVT 3.0 writer that left out time words over a quiet gap read as a 16 s step back; sync
+    sorted the events by time and cut the trial, without a word."""
+    led_off = 3_050_000
+    table = synthetic_recording(2, led_off=led_off)
+    t = table.column("t").to_numpy().copy()
+    warned = {}
+    for shift in (-2_500_000, -11):
+        moved = t.copy()
+        moved[len(t) // 2:] += shift  # the second half of the recording read back in time
+        jumped = table.set_column(0, "t", pa.array(moved))
+        _, info = sy.sync_source(manifest.Source("g", jumped, [force_log()]), sy.SyncMethod())
+        warned[shift] = [line for line in info["g"].get("warnings", []) if "step back in time" in line]
+    assert len(warned[-2_500_000]) == 1 and "by up to 2.5 s (1 place)" in warned[-2_500_000][0] and warned[-11] == []
+
+
 def test_a_session_with_fewer_blinks_than_force_trials_fails():
     table = synthetic_recording(5, led_off=3_050_000)
     with pytest.raises(SyncError, match="found 1 of 2"):
