@@ -162,24 +162,40 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     return phase, grasp
 
 
-REST_BLOCK = 1000  # frames (10 s of 10 ms frames) whose 5th percentile is a stretch of the log's rest level ...
-REST_SPAN = 1  # ... taken as the lowest of this many blocks either side: a hold as long as a block reads no rest of its own
+REST_BLOCK = 1000  # samples (10 s of 10 ms frames) whose 5th percentile is a stretch of the log's rest level
 
 
-def rest_levels(force: np.ndarray) -> np.ndarray:
-    """The rest level of a log (no NaN) at each sample: the 5th percentile of each REST_BLOCK samples,
-    the lowest of it and its REST_SPAN neighbours either side, interpolated between the blocks'
-    centres. A force sensor's zero drifts (a strain gauge warming: 0.2 N a minute put a session's
-    later rests above a level read once for the whole log, and they were labelled grasps); a log of
-    under two blocks has one level, its 5th percentile."""
+def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> np.ndarray:
+    """The rest level of a log (no NaN) at each sample. Each REST_BLOCK samples' 5th percentile is
+    their rest, unless a grasp holds through the block: a block whose level stands above the line
+    through its neighbours' by half the contact bar (`contact_share` of the force scale, or 5 noise
+    σ) is left out, again until none stands out, so a hold of any length reads no rest of its own;
+    the rest is interpolated between the blocks kept. A force sensor's zero drifts (a strain gauge
+    warming: 0.2 N a minute put a session's later rests above a level read once for the whole log,
+    and they were labelled grasps), and a drift is a line through the blocks. A log of under two
+    blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
-    blocks = max(1, len(force) // REST_BLOCK)
+    blocks = len(force) // REST_BLOCK
     if blocks < 2:
         return np.full(len(force), float(np.percentile(force, 5)) if len(force) else 0.0)
     edges = np.linspace(0, len(force), blocks + 1).astype(int)
+    centres = (edges[:-1] + edges[1:] - 1) / 2
     levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
-    lowest = np.array([levels[max(0, k - REST_SPAN):k + REST_SPAN + 1].min() for k in range(blocks)])
-    return np.interp(np.arange(len(force)), (edges[:-1] + edges[1:] - 1) / 2, lowest)
+    low = float(np.percentile(force, 5))
+    margin = 0.5 * max(contact_share * (float(np.percentile(force, 95)) - low), 5 * step_noise(np.diff(force)), 1e-6)
+    kept = np.ones(blocks, dtype=bool)
+    while kept.sum() > 1:
+        index = np.flatnonzero(kept)
+        # each kept block against the line through its kept neighbours (its one neighbour at an end)
+        before, after = np.r_[index[1], index[:-1]], np.r_[index[1:], index[-2]]
+        width = centres[after] - centres[before]
+        share = np.divide(centres[index] - centres[before], width, out=np.zeros(len(index)), where=width != 0)
+        above = levels[index] - (levels[before] + share * (levels[after] - levels[before]))
+        worst = int(np.argmax(above))
+        if above[worst] <= margin:
+            break
+        kept[index[worst]] = False  # the block that stands out most first: a hold's edges go before its middle
+    return np.interp(np.arange(len(force)), centres[kept], levels[kept])
 
 
 QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)

@@ -132,3 +132,17 @@ def test_a_force_sensor_whose_zero_drifts_keeps_its_rests_at_rest():
     frame = np.arange(drifted.size)
     rows = metrics.session_rows(["s"] * frame.size, frame, frame * 10_000.0, phase, drifted, np.zeros(frame.size))
     assert "rest_loaded_frames" not in {metric for scope, metric, _ in rows if scope == "all"}
+
+
+def test_a_hold_longer_than_the_rest_level_s_stretches_reads_no_rest_of_its_own():
+    """A rest level read per 10 s stretch would take a minute-long hold's middle for rest, split the
+    grasp and lose its weak neighbours: a stretch that stands above the line through its neighbours
+    holds no rest, drifting or not."""
+    for drift in (0.0, 0.5):
+        parts = [np.zeros(2000)]
+        for peak, hold in ((3.0, 6000), (0.6, 300), (5.0, 400), (0.6, 200), (4.0, 500)):
+            parts += [ramp(0, peak, 10), np.full(hold, peak), ramp(peak, 0, 8), np.zeros(800)]
+        force = np.concatenate(parts)
+        noisy = force + drift * np.arange(force.size) / 6000 + np.random.default_rng(4).normal(0, 0.01, force.size)
+        phase, grasp = label_session(noisy)
+        assert grasp.max() + 1 == 5 and np.mean(phase[force == 0] == "none") > 0.99
