@@ -19,6 +19,8 @@ DTW is a small vectorised implementation (anti-diagonal sweep): the phases are a
 hundred frames, and it keeps a compiled dependency out of the install.
 """
 
+import types
+
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError, UsageError
@@ -250,7 +252,7 @@ def match_runs(true_runs, found_runs) -> list[tuple[int, int]]:
     return pairs
 
 
-SLIP_TIMING = {"units": "ms", "timing": "latency", "tolerance": 20.0}  # slips are timed in ms from their start, within 20 ms
+SLIP_TIMING = types.MappingProxyType({"units": "ms", "timing": "latency", "tolerance": 20.0})  # slips: ms from their start, within 20
 
 
 def detection_figures(true_flags_per_session, found_flags_per_session, name: str, unit: float = 1.0, units="frames",

@@ -1,3 +1,4 @@
+import contextlib
 import os
 
 import click
@@ -85,7 +86,7 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     torch.set_num_threads(max(1, threads))
     use_device(device)
     echo_lines("train", session.training_input_notes(table, model_name in FORCE_MODELS, contacts))
-    with kept_on_interrupt() as stops:
+    with kept_on_interrupt() as stops, _said_when_lost(stops):
         trained = train_model(table, model_name, hyperparameters(options), val_trials=val_trials,
                               val_fraction=val_fraction, val_where=val_where, per=val_per, seed=seed, label=label,
                               progress=progress_printer("train"), contacts=contacts)
@@ -102,6 +103,20 @@ def command(paths, model_name, output, val_trials, val_fraction, val_where, val_
     if trained.summary:
         click.echo(f"{trained.summary}; wrote {output}", err=True)
     _end_if_interrupted(stops, output)
+
+
+@contextlib.contextmanager
+def _said_when_lost(stops: list):
+    """An interrupt that ends the training with a member stopped early and another not begun: no
+    model is written, and the line says why (the exit alone would say "interrupted")."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        if stops:
+            who, epochs, _ = stops[0]
+            click.echo(f"{who}: stopped by the interrupt after {epochs} epoch{'s' if epochs != 1 else ''}, before the members after "
+                       "it began: no model written (a model of untrained members is none)", err=True)
+        raise
 
 
 def _end_if_interrupted(stops: list, output: str):

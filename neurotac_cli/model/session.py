@@ -91,8 +91,9 @@ def polarity_note(summary: dict) -> str | None:
 def detection_note(summary: dict) -> str | None:
     """A warning where the detector, run on the training sessions with their true force ending
     contacts (`detection_check`), finds their contacts or slips poorly: it will do no better at run time.
-    Its contacts are not judged where the frames' phases merged the grasps (`one_contact_note`): it is
-    scored against the merged ones there, however well it finds each grasp."""
+    Its contacts are not judged where the frames' phases read each stream as one contact
+    (`one_contact_note`: grasps merged, or a whole trial labelled as one grasp): it is scored against
+    that one contact there, however well it finds each grasp."""
     check = summary.get("detection")
     if not check:
         return None

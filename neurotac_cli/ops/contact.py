@@ -455,7 +455,7 @@ def _follow_press(config: ContactConfig, state: ContactState, off: float, on: fl
         return
     state.turn(chosen)
     k = POLARITIES.index(chosen)
-    # this frame is added by `_step`, as every frame of the contact is
+    # this frame is added by `_step`, as every frame of the contact is (to `pressed_sum` where it presses)
     state.off_since, state.peak_off = early.events[k] - (on if chosen == "on" else off), early.peaks[k]
     state.pressed_sum = early.excess[k] - max((on if chosen == "on" else off) - state.mean_off, 0.0)
     state.phase, state.on_run, state.released, state.held = GRASPING, 0.0, False, 0

@@ -52,8 +52,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     pixels = _pixels_seen(x, y, sensor, method.region)
     starting = int(np.min(t)) + STARTUP_US  # pairs of bins starting before it hold no blink (the recording's, not the region's, start)
     # candidates: local maxima of z, strongest first, at least 50 ms apart
-    chosen, rejected, startup = [], [], None
-    ordered = bool(np.all(t[1:] >= t[:-1]))
+    chosen, rejected, startup, on_times = [], [], None, _OnTimes(t, x, y, p, method.region)
     taken = np.zeros(len(z), dtype=bool)
     gap = max(1, 50_000 // bin_us)
     for i in np.argsort(-z, kind="stable")[: 200 + 4 * count]:  # a handful of candidates per wanted spike, not per event
@@ -76,10 +75,10 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         end_bin = _burst_end(counts, background, i + int(np.argmax(counts[i : i + 2])))
         chosen.append(_spike_instant(times[c:d], z[i], coverage, origin + end_bin * bin_us, method.latency_us))
         _echo(chosen[-1], (i, end_bin, gap), z, times, off_x, off_y, (origin, bin_us, pixels, starting), method)
-        _weigh_polarity(chosen[-1], (lo - bin_us, hi + bin_us), (t, x, y, p), ordered, method.region)
+        chosen[-1].details["window_us"] = (lo - bin_us, hi + bin_us)
         # spikes of both polarities (a shaking membrane) do not use up the spare: more of them than it
-        # stronger than the blink hid the blink from the choice
-        if sum(instant.details["on_share"] < MIXED_ON_PER_OFF for instant in chosen) >= count + spare:
+        # stronger than the blink hid the blink from the choice (weighed only once there are more spikes than wanted)
+        if len(chosen) >= count + spare and sum(on_times.share(spike) < MIXED_ON_PER_OFF for spike in chosen) >= count + spare:
             break
     if len(chosen) < count:
         best = max(rejected, default=None)  # its box only: the only one the error shows
@@ -87,52 +86,73 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
         raise _no_spike(len(chosen), count, best, method, startup)
     if startup is not None:
         _after_startup(chosen, startup)
+    for spike in chosen:  # the polarity of each, where more spikes stand out than are wanted
+        window = spike.details.pop("window_us")
+        if len(chosen) > count:
+            on_times.share(spike, window)
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
 ECHO_SHARE = 0.5  # a burst near a blink over this share of its pixels is the LED's own (a press darkens the object's patch)
-ECHOES_WEIGHED = 5  # the strongest bins near a blink whose pixels are counted
+ECHOES_WEIGHED = 5  # the pairs of bins of highest z near a blink whose pixels are counted
 
 
 def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, binning: tuple, method):
-    """A second blink-like burst within the 50 ms about a spike (`spike`: its best pair's bin, its
+    """Other blink-like bursts within the 50 ms about a spike (`spike`: its best pair's bin, its
     burst's end bin, the gap in bins), which no candidate can be: a switch that bounces, or an LED
-    that flickers as it goes dark, blinks twice, and the spike taken is the one of higher z, whichever
-    the force log starts at. Said in a warning on the spike, with the other burst's time. Bins of the
-    camera's start-up (before `starting`) are not looked at: a burst there is said as that."""
+    that flickers as it goes dark, blinks more than once, and the spike taken is the one of highest
+    z, whichever the force log starts at. Said in one warning on the spike, with each other burst's
+    instant as the spike's own is read (its onset less the latency). Bins of the camera's start-up
+    (before `starting`) are not looked at: a burst there is said as that. A bounce within the
+    burst's own few milliseconds is part of it."""
     i, end_bin, gap = spike
     origin, bin_us, pixels, starting = binning
     first = max(0, i - gap, -(-(starting - origin) // bin_us))
     near = np.arange(first, min(len(z), i + gap + 1))
     # pairs of bins that hold none of the spike's own burst, from the bin before its best pair to its end
     near = near[((near < i - 2) | (near > end_bin)) & (z[near] >= method.min_z)]
+    others = []
     for k in near[np.argsort(-z[near], kind="stable")][:ECHOES_WEIGHED]:
+        if any(abs(k - taken) <= 2 for taken, _ in others):  # a neighbouring pair of one already found: the same burst
+            continue
         a, b = np.searchsorted(times, [origin + k * bin_us, origin + (k + 2) * bin_us])
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         if coverage >= max(method.min_coverage, ECHO_SHARE * instant.details["coverage"]):
-            onset, other = instant.details["onset_us"], int(times[a])
-            instant.details.setdefault("warnings", []).append(
-                f"a second blink-like burst at {other} µs, {abs(other - onset) / 1000:.3g} ms {'after' if other > onset else 'before'} "
-                f"the spike taken at {onset} µs (z {z[k]:.0f} against {instant.score:.0f}; covering {coverage:.0%} of the pixels): "
-                "an LED switch that bounces, or a light that flickers, blinks twice; the one of higher z was taken: check which one "
-                f"the force log starts at (--method offset --offset {other - method.latency_us}us takes the other)")
-            return
+            c, d = np.searchsorted(times, [origin + (k - 1) * bin_us, origin + (k + 3) * bin_us])
+            others.append((int(k), _spike_instant(times[c:d], z[k], coverage, 0, method.latency_us)))
+    if others:
+        onset = instant.details["onset_us"]
+        listed = "; ".join(f"{other.details['onset_us']} µs, {abs(other.details['onset_us'] - onset) / 1000:.3g} ms "
+                           f"{'after' if other.details['onset_us'] > onset else 'before'} (z {other.score:.0f}, covering "
+                           f"{other.details['coverage']:.0%} of the pixels; its instant {other.t0} µs)" for _, other in sorted(others))
+        instant.details.setdefault("warnings", []).append(
+            f"blink-like bursts also at {listed}, beside the spike taken at {onset} µs (z {instant.score:.0f}): an LED switch that "
+            "bounces, or a light that flickers, blinks more than once; the one of highest z was taken: check which one the force "
+            "log starts at (a log of one trial is placed at another instant by --method offset --offset)")
 
 
 MIXED_ON_PER_OFF = 0.5  # a spike with this many ON events per OFF event in its bins is weighed after those of OFF alone (sync)
 
 
-def _weigh_polarity(instant: Instant, window: tuple, events: tuple, ordered: bool, region):
-    """A spike's ON events per OFF event in its bins (`on_share`): an LED switching off darkens every
+class _OnTimes:
+    """Each spike's ON events per OFF event in its bins (`on_share`): an LED switching off darkens every
     pixel it lights (a blink: 20 ON events against 80,838 OFF), where a gripper's motor shaking the
-    membrane, or the scene moving past a camera on an arm, makes both polarities alike (about 1:1)."""
-    t, x, y, p = events
-    if ordered:  # as a camera writes them: the window by bisection
-        inside = slice(*np.searchsorted(t, window))
-    else:
-        inside = (t >= window[0]) & (t < window[1])
-    on = np.count_nonzero((p[inside] == 1) & in_region(x[inside], y[inside], region))
-    instant.details["on_share"] = round(on / max(instant.details["spike_events"], 1), 3)
+    membrane, or the scene moving past a camera on an arm, makes both polarities alike (about 1:1).
+    The ON events' times (in the region) are taken out and put in order once, at the first spike
+    weighed, so any number of spikes costs a bisection each."""
+
+    def __init__(self, t, x, y, p, region):
+        self.events, self.region, self.times = (t, x, y, p), region, None
+
+    def share(self, spike: Instant, window: tuple | None = None) -> float:
+        if "on_share" not in spike.details:
+            if self.times is None:
+                t, x, y, p = self.events
+                on = t[(p == 1) & in_region(x, y, self.region)]
+                self.times = on if bool(np.all(on[1:] >= on[:-1])) else np.sort(on)
+            lo, hi = np.searchsorted(self.times, window if window is not None else spike.details["window_us"])
+            spike.details["on_share"] = round((hi - lo) / max(spike.details["spike_events"], 1), 3)
+        return spike.details["on_share"]
 
 
 def _startup_text(startup_us: int) -> str:

@@ -202,7 +202,9 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     forcelog.check_logs(t, instants, logs, source.trial)
     steps = np.diff(t)
     order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(steps < 0) else None
-    back = -int(steps.min()) if order is not None else 0
+    # a clock's jump: large steps back in a stream otherwise in order (a table written out of order, by
+    # pixel say, steps back everywhere: sorting it is all it needs)
+    back = -int(steps.min()) if order is not None and np.count_nonzero(steps < 0) <= ORDERED_SHARE * len(steps) else 0
     if order is not None:
         t, x, y, p = t[order], x[order], y[order], p[order]
     # trial i ends where its force log ends (or at the next instant, if sooner); what follows, up
@@ -243,6 +245,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     return trials, info
 
 
+ORDERED_SHARE = 0.001  # a stream with steps back between at most this share of its events is in camera order
 CLOCK_JUMP_US = 1_000_000  # events that step back in time this far come from a clock that jumped (a camera's own
 # reordering is microseconds: an HD EVT 3.0 file steps back by up to 11 µs)
 
@@ -299,7 +302,7 @@ def _by_agreement(spikes: list, count: int, t, logs, forces) -> list:
 
 
 def _mixed(spike) -> bool:
-    """A spike of about as many ON events as OFF (`led._weigh_polarities`): an LED switching off makes
+    """A spike of about as many ON events as OFF (`led._OnTimes`): an LED switching off makes
     OFF events alone (an independent generator's blink: 20 ON against 80,838 OFF), a gripper's motor
     shaking the membrane both alike (0.8-1.4 ON per OFF). A flash of a millisecond or two can hold its
     switch-on's ON events too (up to 0.9 ON per OFF): the rule only weighs spikes that leave the log
@@ -307,21 +310,29 @@ def _mixed(spike) -> bool:
     return spike.details.get("on_share", 0.0) >= MIXED_ON_PER_OFF
 
 
+FIGURES_LISTED = 8  # spikes whose figures a message lists; the rest are counted
+
+
 def _placements(spikes: list, t, log, force) -> tuple[list, str]:
     """(r, spike) of each spike that leaves at least forcelog.SHORT_OVERLAP of the log inside the
-    recording (r None where it cannot be scored), and each spike's figure as the messages give it."""
+    recording (r None where it cannot be scored, and for spikes of both polarities where there are
+    spikes of OFF alone: they are not weighed), and each spike's figure as the messages give it."""
     first, last = int(np.min(t)), int(np.max(t))
     scored, figures = [], []
+    alone = any(not _mixed(spike) for spike in spikes)
     for spike in spikes:
         inside_us, span = forcelog.inside(spike.t0, log, first, last)
         inside = inside_us / span
         held = inside >= forcelog.SHORT_OVERLAP
-        r = agreement(t, log.t, force, spike.t0, raw=log.value) if held else None
+        weighed = held and not (alone and _mixed(spike))
+        r = agreement(t, log.t, force, spike.t0, raw=log.value) if weighed else None
         scored += [(r, spike)] if held else []
-        about = f"r {r:.2f}" if r is not None else "no r" if held else f"{max(inside, 0.0):.0%} of the log inside the recording"
+        about = (f"r {r:.2f}" if r is not None else "no r" if weighed else "not weighed" if held
+                 else f"{max(inside, 0.0):.0%} of the log inside the recording")
         on = f", {spike.details['on_share']:.2f} ON per OFF" if _mixed(spike) else ""
         figures.append(f"{about} at {spike.details['onset_us']} µs{on}")
-    return scored, ", ".join(figures)
+    more = len(figures) - FIGURES_LISTED
+    return scored, ", ".join(figures[:FIGURES_LISTED]) + (f" and {more} more" if more > 0 else "")
 
 
 def _check_region(region, sensor) -> None:

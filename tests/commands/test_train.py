@@ -206,3 +206,15 @@ def test_a_model_file_the_disk_cannot_hold_is_one_line_and_keeps_the_old_file(tm
     assert done.stderr.splitlines()[-1].startswith("neurotac train: error: cannot write m.model (file too large")
     assert (tmp_path / "m.model").read_bytes() == b"old model"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.arrows", "m.model"]
+
+
+def test_an_interrupt_that_leaves_a_member_untrained_says_no_model_was_written(capsys):
+    from neurotac_cli.commands.train import _said_when_lost
+
+    with pytest.raises(KeyboardInterrupt), _said_when_lost([("deform-gru member 1/3", 12, KeyboardInterrupt())]):
+        raise KeyboardInterrupt
+    assert "deform-gru member 1/3: stopped by the interrupt after 12 epochs, before the members after it began: no model written" \
+        in capsys.readouterr().err
+    with pytest.raises(KeyboardInterrupt), _said_when_lost([]):  # interrupted before any epoch ended: the exit says it
+        raise KeyboardInterrupt
+    assert capsys.readouterr().err == ""

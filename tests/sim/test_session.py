@@ -116,7 +116,7 @@ def test_lighting_that_swings_each_second_does_not_hide_whose_log_it_is(tmp_path
     log moved with the events only once the slow swing was taken out (r 0.01 as counted: warned
     "another recording's?")."""
     lit = simulate(tmp_path / "lit", "--grasps", "4", "--seed", "2", "--illumination-drift", "0.4", "--set",
-                   "illumination_period_us=1s", *SHORT)
+                   "illumination_period_us=1s")
     done = subprocess.run(["neurotac", "sync", "--manifest", str(lit / "manifest.csv"), "-o", str(tmp_path / "r.parquet")],
                           capture_output=True)
     assert done.returncode == 0 and b"hardly moves" not in done.stderr, done.stderr.decode()
