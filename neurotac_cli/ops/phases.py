@@ -186,8 +186,12 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> np.n
     kept = np.ones(blocks, dtype=bool)
     while kept.sum() > 1:
         index = np.flatnonzero(kept)
-        # each kept block against the line through its kept neighbours (its one neighbour at an end)
-        before, after = np.r_[index[1], index[:-1]], np.r_[index[1:], index[-2]]
+        # each kept block against the line through its kept neighbours; at an end, through the two
+        # nearest (a drift goes on past them), or the one other where only two are kept
+        if len(index) > 2:
+            before, after = np.r_[index[1], index[:-2], index[-3]], np.r_[index[2], index[2:], index[-2]]
+        else:
+            before, after = index[::-1], index[::-1]
         width = centres[after] - centres[before]
         share = np.divide(centres[index] - centres[before], width, out=np.zeros(len(index)), where=width != 0)
         above = levels[index] - (levels[before] + share * (levels[after] - levels[before]))

@@ -152,6 +152,7 @@ class SimConfig:
     slip_force_drop: tuple = (0.0, 0.5)  # share of the normal force lost during a slip
     illumination_drift: float = 0.0  # slow drift of the lighting: relative amplitude (0.05 = +-5%)
     illumination_period_us: int = 60_000_000  # period of that drift
+    force_drift_n_per_min: float = 0.0  # the force log's zero drifting over the session (a strain gauge warming), N a minute
 
 
 # Parameters a run of trials alone reads (a trial's own timing, the still recording): set for sessions,
@@ -161,7 +162,7 @@ TRIAL_PARAMETERS = ("tail_us", "contact_delay_us", "max_duration_us", "grasp_us"
 # Parameters only a session simulation reads (`simulate --session`): set for trials, they would change nothing.
 SESSION_PARAMETERS = ("session_rest_us", "session_hold_us", "session_speed", "regrasp_share", "change_share", "partial_share",
                       "slip_share", "bright_share", "bright_contrast", "slip_speed_mm_s", "slip_us", "slip_force_drop",
-                      "illumination_drift", "illumination_period_us")
+                      "illumination_drift", "illumination_period_us", "force_drift_n_per_min")
 
 
 def _groups(*entries):
@@ -284,6 +285,7 @@ BOUNDS = {
     **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share", "bright_share"), _SHARE),
     **dict.fromkeys(("creep", "vignetting", "threshold_mismatch", "illumination_drift"), _BELOW_ONE),
     "on_threshold": (1e-3, 10.0, False, False), "off_threshold": (1e-3, 10.0, False, False),
+    "force_drift_n_per_min": (-60.0, 60.0, False, False),
     "object_contrast": (-4.0, 1.0, False, True), "bright_contrast": (-4.0, 0.0, False, True), "membrane_poisson": (0.0, 0.5, False, False),
 }
 WHY = {"on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "

@@ -122,6 +122,21 @@ def test_lighting_that_swings_each_second_does_not_hide_whose_log_it_is(tmp_path
     assert done.returncode == 0 and b"hardly moves" not in done.stderr, done.stderr.decode()
 
 
+def test_a_force_log_whose_zero_drifts_gets_each_grasp_labelled_once(tmp_path):
+    """`--set force_drift_n_per_min`: the log's zero climbs over the session; each grasp is still
+    found once above the log's rest level where it is (read for the whole log, the later rests were
+    grasps)."""
+    drifting = simulate(tmp_path / "d", "--grasps", "8", "--seed", "3", "--set", "force_drift_n_per_min=0.6")
+    t_ms, force = force_log(drifting / "session00_force.csv")
+    assert force[-50:].mean() - force[:50].mean() > 0.3  # the zero has moved by about a tenth of a grasp
+    synced = subprocess.run(["neurotac", "sync", "--manifest", str(drifting / "manifest.csv")], capture_output=True, check=True)
+    framed = subprocess.run(["neurotac", "frame", "--window", "10ms", "--phases", "session"], input=synced.stdout,
+                            capture_output=True, check=True)
+    table = pa.ipc.open_stream(framed.stdout).read_all()
+    grasp = table.column("grasp").to_numpy()
+    assert grasp.max() + 1 == 8 and len(read_csv(drifting / "grasps.csv")) == 8
+
+
 def test_frame_labels_each_grasp_of_the_session(session):
     grasps = read_csv(session / "grasps.csv")
     cmd = f"neurotac sync --manifest {session}/manifest.csv | neurotac frame --window 10ms --phases session"
