@@ -318,7 +318,7 @@ class _LabelDoubts:
     slips at rest outside every grasp."""
 
     def __init__(self):
-        self.several, self.resting, self.unforced = [], 0, {}
+        self.several, self.resting, self.unforced, self.drifting = [], 0, {}, {}
 
     def look(self, framing: Framing, trial: str, force, phase, grasp, n_real: int, n_total: int) -> None:
         """`force`: the trial's frames' force, None where it has no force log."""
@@ -327,6 +327,10 @@ class _LabelDoubts:
             self.unforced[trial] = unforced
         if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
             self.several.append(trial)
+        if framing.phases == "session" and force is not None:
+            moved = ph.rest_drift(force[:n_real])
+            if moved is not None:
+                self.drifting[trial] = moved
         if framing.slips is not None and grasp is not None:
             for span in framing.slips.get(trial, ()):
                 inside = slip_column([span], framing.window_us, n_total)
@@ -342,6 +346,11 @@ class _LabelDoubts:
         if self.resting:
             notes.append(f"{counted(self.resting, 'true slip')} {'lies' if self.resting == 1 else 'lie'} at rest, outside every "
                          "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")
+        if self.drifting:
+            trial, moved = max(self.drifting.items(), key=lambda item: abs(item[1]))
+            notes.append(f"the force log's rest level moves over {counted(len(self.drifting), 'session')} ({trial}: by {moved:+.3g}, "
+                         "from its start to its end): a force sensor whose zero drifts; grasps are found above the rest level where "
+                         "it is, and the frames' force keeps the drift")
         if self.several:
             notes.append(f"the force comes back to rest between grasps in {counted(len(self.several), 'trial')} "
                          f"({first_few(self.several)}), labelled as one grasp "

@@ -202,6 +202,20 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> np.n
     return np.interp(np.arange(len(force)), centres[kept], levels[kept])
 
 
+def rest_drift(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> float | None:
+    """How far a session log's rest level (`rest_levels`) moves from its start to its end, where that
+    passes half the contact bar (`contact_share` of the force scale, or 5 noise σ); else None."""
+    force = np.asarray(force, dtype=np.float64)
+    known = ~np.isnan(force)
+    if known.sum() < 2 * REST_BLOCK:
+        return None
+    filled = np.where(known, force, float(np.percentile(force[known], 5)))
+    rest = rest_levels(filled, contact_share)
+    bar = max(contact_share * (float(np.percentile(filled, 95)) - float(np.percentile(filled, 5))), 5 * step_noise(np.diff(filled)))
+    moved = float(rest[-1] - rest[0])
+    return moved if abs(moved) > 0.5 * bar else None
+
+
 QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)
 
 

@@ -1,10 +1,11 @@
 """Grasps inside a session: `ops.phases.label_session` on force traces with re-grasps, force changes and partial releases."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings, strategies as st
 
 from neurotac_cli import metrics
-from neurotac_cli.ops.phases import detect_phases, label_session, session_columns
+from neurotac_cli.ops.phases import detect_phases, label_session, rest_drift, session_columns
 
 
 def ramp(a, b, frames):
@@ -128,6 +129,7 @@ def test_a_force_sensor_whose_zero_drifts_keeps_its_rests_at_rest():
     assert grasp.max() + 1 == len(peaks)
     assert np.all((grasp >= 0) == (phase != "none"))
     assert np.mean(phase[force == 0] == "none") > 0.99  # the true rests (a grasp's last frame reads below contact)
+    assert rest_drift(drifted) == pytest.approx(drifted.size / 6000 * 0.5, abs=0.1) and rest_drift(force + 0.001) is None
     # `eval`'s check that frames at rest carry no force reads the same rest levels: no drifted rest is "loaded"
     frame = np.arange(drifted.size)
     rows = metrics.session_rows(["s"] * frame.size, frame, frame * 10_000.0, phase, drifted, np.zeros(frame.size))

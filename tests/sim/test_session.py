@@ -135,6 +135,7 @@ def test_a_force_log_whose_zero_drifts_gets_each_grasp_labelled_once(tmp_path):
     table = pa.ipc.open_stream(framed.stdout).read_all()
     grasp = table.column("grasp").to_numpy()
     assert grasp.max() + 1 == 8 and len(read_csv(drifting / "grasps.csv")) == 8
+    assert b"the force log's rest level moves over 1 session (session00: by +0.3" in framed.stderr
 
 
 def test_frame_labels_each_grasp_of_the_session(session):
