@@ -41,12 +41,12 @@ rules were chosen on the totals; docs/journal.md).
 
 A frame whose events cover most of the view (`FLASH_SHARE` of its cells, where it has `FLASH_CELLS`
 or more) begins no contact: an LED blink or a lamp changes the light over the whole membrane, a press
-only where the object is (the LED sync's own test of coverage). Nor does a frame in which the view moves
-(`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of them, in the frame or one
-in it and the other within `scene_frames` before: an LED that lights part of the view and goes dark
-frames later), or the `scene_frames` frames after it: a camera on a robot arm sees the membrane window's edge and the
-scene slide by, a gripper's motor shakes the membrane before a touch, and a press makes one
-polarity in a cell at a time. Where the detector has no frames (`detect` given sums alone) or
+only where the object is (the LED sync's own test of coverage). Nor does a frame in which the view
+moves (`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of them, in the frame
+or one in it and the other within `scene_frames` before: an LED that lights part of the view and
+goes dark frames later), or the `scene_frames` frames after it: a camera on a robot arm sees the
+membrane window's edge and the scene slide by, a gripper's motor shakes the membrane before a
+touch, and a press makes one polarity in a cell at a time. Where the detector has no frames (`detect` given sums alone) or
 frames pooled to a few cells, only the warm-up passes over a blink, and nothing over a move.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
@@ -285,7 +285,7 @@ class ContactState:
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
     since_scene: int = 1 << 30  # frames since the view last moved between contacts (`_scene_moves`)
     frames: int = 0  # frames stepped so far
-    lit: np.ndarray | None = None  # (2, H, W) int32: the frame in which each cell last fired above its rest, per polarity as framed
+    lit: np.ndarray | None = None  # (2, H, W): the frame in which each cell last fired above its rest, per polarity as framed
 
     @classmethod
     def start(cls, config: ContactConfig) -> "ContactState":
@@ -376,7 +376,7 @@ def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray) 
     bar = rest + 1.0 + SCENE_SIGMA * np.sqrt(rest)
     fired = np.asarray(frame) > bar
     if state.lit is None or state.lit.shape != fired.shape:
-        state.lit = np.full(fired.shape, -(1 << 30), dtype=np.int32)
+        state.lit = np.full(fired.shape, -(1 << 40), dtype=np.int64)  # int64: a stream of years of frames does not wrap it
     # a light switched on and off again within a few frames (an LED blink lighting part of the view,
     # one polarity a frame) fires both in the same cells too, in frames of their own
     recent = state.frames - state.lit <= config.scene_frames

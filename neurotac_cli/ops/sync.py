@@ -315,14 +315,14 @@ FIGURES_LISTED = 8  # spikes whose figures a message lists; the rest are counted
 
 def _placements(spikes: list, t, log, force) -> tuple[list, str]:
     """(r, spike) of each spike that leaves at least forcelog.SHORT_OVERLAP of the log inside the
-    recording (r None where it cannot be scored, and for spikes of both polarities where there are
-    spikes of OFF alone: they are not weighed), and each spike's figure as the messages give it."""
+    recording (r None where it cannot be scored, and for spikes of both polarities where such a
+    spike of OFF alone exists: they are not weighed), and each spike's figure as the messages give it."""
     first, last = int(np.min(t)), int(np.max(t))
     scored, figures = [], []
-    alone = any(not _mixed(spike) for spike in spikes)
-    for spike in spikes:
-        inside_us, span = forcelog.inside(spike.t0, log, first, last)
-        inside = inside_us / span
+    shares = [forcelog.inside(spike.t0, log, first, last) for spike in spikes]
+    shares = [inside_us / span for inside_us, span in shares]
+    alone = any(share >= forcelog.SHORT_OVERLAP and not _mixed(spike) for spike, share in zip(spikes, shares))
+    for spike, inside in zip(spikes, shares):
         held = inside >= forcelog.SHORT_OVERLAP
         weighed = held and not (alone and _mixed(spike))
         r = agreement(t, log.t, force, spike.t0, raw=log.value) if weighed else None
