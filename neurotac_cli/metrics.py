@@ -24,7 +24,7 @@ import types
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError, UsageError
-from neurotac_cli.ops.phases import rest_levels, step_noise
+from neurotac_cli.ops.phases import rest_block, rest_levels, step_noise
 
 PHASES = ("grasping", "holding", "releasing")
 
@@ -309,13 +309,12 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     steps = np.concatenate([np.diff(true[idx][known[idx]]) for idx in sessions]) if sessions else np.zeros(0)
     noise = step_noise(steps)
     above = np.zeros(len(true))
-    for idx in sessions:  # each session's own rest level, which a drifting sensor moves
-        values = true[idx][known[idx]]
-        if len(values):
-            above[idx[known[idx]]] = np.abs(values - rest_levels(values))
+    for idx in sessions:  # each session's own rest level, which a drifting sensor moves, over its frames' period
+        period = float(np.median(np.diff(t_us[idx]))) if len(idx) > 1 else None
+        above[idx] = np.abs(np.nan_to_num(true[idx] - rest_levels(true[idx], block=rest_block(period))))
     loaded = rest & known & (above > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
     if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
-        figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(np.abs(true[loaded]).max()))
+        figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(above[loaded].max()))
     touching = ~rest & known
     if touching.any():  # the grasps' own frames: comparable between a session and its grasps cut into trials
         figures["contact_rmse"] = regression(true[touching], pred[touching])["rmse"]

@@ -111,11 +111,12 @@ def _said_when_lost(stops: list):
     model is written, and the line says why (the exit alone would say "interrupted")."""
     try:
         yield
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as again:
         if stops:
-            who, epochs, _ = stops[0]
-            click.echo(f"{who}: stopped by the interrupt after {epochs} epoch{'s' if epochs != 1 else ''}, before the members after "
-                       "it began: no model written (a model of untrained members is none)", err=True)
+            who, epochs, stop = stops[0]
+            why = ("before the members after it began: no model written (a model of untrained members is none)" if again is stop
+                   else "and again before its model was written: none written")
+            click.echo(f"{who}: stopped by the interrupt after {epochs} epoch{'s' if epochs != 1 else ''}, {why}", err=True)
         raise
 
 

@@ -573,7 +573,7 @@ def summary_lines(figures: dict) -> list[str]:
                      "sensor's force (train on more of its sessions, or check the frames are the training's kind)")
     if get("rest_loaded_frames") > 0:
         lines.append(f"warning: {int(get('rest_loaded_frames'))} frames at rest by their phase carry a true force of up to "
-                     f"{get('rest_loaded_max'):.3g} N, so the figures at rest include contacts: frame sessions with "
+                     f"{get('rest_loaded_max'):.3g} N above the log's rest level, so the figures at rest include contacts: frame sessions with "
                      "`neurotac frame --phases session`")
     if "contact_f1" in figures and not get("contact_true"):  # a session without a grasp: nothing to find
         lines.append(f"contacts: none in the frames, {counted(int(get('contact_found')), 'contact')} detected")

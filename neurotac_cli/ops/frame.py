@@ -294,7 +294,7 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
             if framing.phases == "session":
-                phase, grasp = ph.session_columns(force, n_real, n_total)
+                phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
@@ -325,10 +325,10 @@ class _LabelDoubts:
         unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
         if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
             self.unforced[trial] = unforced
-        if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total)[1].max()) >= 1:
+        if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total, framing.window_us)[1].max()) >= 1:
             self.several.append(trial)
         if framing.phases == "session" and force is not None:
-            moved = ph.rest_drift(force[:n_real])
+            moved = ph.rest_drift(force[:n_real], block=ph.rest_block(framing.window_us))
             if moved is not None:
                 self.drifting[trial] = moved
         if framing.slips is not None and grasp is not None:

@@ -94,7 +94,7 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
 
 
 ECHO_SHARE = 0.5  # a burst near a blink over this share of its pixels is the LED's own (a press darkens the object's patch)
-ECHOES_WEIGHED = 5  # the pairs of bins of highest z near a blink whose pixels are counted
+ECHOES_WEIGHED = 8  # the bursts of highest z near a blink whose pixels are counted
 
 
 def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, binning: tuple, method):
@@ -111,10 +111,13 @@ def _echo(instant: Instant, spike: tuple, z: np.ndarray, times, off_x, off_y, bi
     near = np.arange(first, min(len(z), i + gap + 1))
     # pairs of bins that hold none of the spike's own burst, from the bin before its best pair to its end
     near = near[((near < i - 2) | (near > end_bin)) & (z[near] >= method.min_z)]
-    others = []
-    for k in near[np.argsort(-z[near], kind="stable")][:ECHOES_WEIGHED]:
-        if any(abs(k - taken) <= 2 for taken, _ in others):  # a neighbouring pair of one already found: the same burst
+    others, looked = [], []
+    for k in near[np.argsort(-z[near], kind="stable")]:
+        if len(looked) >= ECHOES_WEIGHED:
+            break
+        if any(abs(k - seen) <= 2 for seen in looked):  # a neighbouring pair of a burst already looked at: the same burst
             continue
+        looked.append(int(k))
         a, b = np.searchsorted(times, [origin + k * bin_us, origin + (k + 2) * bin_us])
         coverage = len(np.unique(off_y[a:b].astype(np.int64) * 65536 + off_x[a:b])) / max(pixels, 1)
         if coverage >= max(method.min_coverage, ECHO_SHARE * instant.details["coverage"]):

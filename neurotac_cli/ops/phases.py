@@ -114,11 +114,11 @@ MERGE_FRAMES = 2  # contact dips of at most this many frames do not split a gras
 
 
 def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_share: float = MOVE_SHARE,
-                  slope_share: float = SLOPE_SHARE) -> tuple[np.ndarray, np.ndarray]:
+                  slope_share: float = SLOPE_SHARE, block: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(phase per frame, grasp index per frame as int32, -1 for none) of a trial holding many grasps.
 
     A grasp is a run of frames in contact: force above the rest level (`rest_levels`: the 5th
-    percentile of the log's stretches, which a drifting sensor moves) by more than
+    percentile of the log's stretches of `block` frames, which a drifting sensor moves) by more than
     `contact_share` of the force scale (95th percentile above rest) and by 5 noise s.d. (the noise is
     read from frame-to-frame differences); dips of at most MERGE_FRAMES frames stay in the grasp; a
     run whose peak is within 10 noise s.d. of rest is noise, not a grasp. The frame that first reads
@@ -144,8 +144,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     known = ~np.isnan(force)
     if not known.any():
         return phase, grasp
-    filled = np.where(known, force, float(np.percentile(force[known], 5)))
-    rest = rest_levels(filled)
+    rest = rest_levels(force, contact_share, block)
+    filled = np.where(known, force, rest)
     noise = step_noise(np.diff(filled)) if n > 2 else 0.0
     scale = float(np.percentile(filled - rest, 95))
     threshold = rest + max(contact_share * scale, 5 * noise, 1e-6)
@@ -162,27 +162,38 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     return phase, grasp
 
 
-REST_BLOCK = 1000  # samples (10 s of 10 ms frames) whose 5th percentile is a stretch of the log's rest level
+REST_STRETCH_US = 10_000_000  # a stretch of the log whose 5th percentile is its rest level there
+REST_BLOCK = 1000  # ... in samples, where their period is not known: 10 s of 10 ms frames
 
 
-def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> np.ndarray:
-    """The rest level of a log (no NaN) at each sample. Each REST_BLOCK samples' 5th percentile is
-    their rest, unless a grasp holds through the block: a block whose level stands above the line
-    through its neighbours' by half the contact bar (`contact_share` of the force scale, or 5 noise
-    σ) is left out, again until none stands out, so a hold of any length reads no rest of its own;
-    the rest is interpolated between the blocks kept. A force sensor's zero drifts (a strain gauge
-    warming: 0.2 N a minute put a session's later rests above a level read once for the whole log,
-    and they were labelled grasps), and a drift is a line through the blocks. A log of under two
-    blocks has one level, its 5th percentile."""
+def rest_block(period_us: float | None) -> int:
+    """The samples in REST_STRETCH_US at this sample period (REST_BLOCK where it is not known)."""
+    return REST_BLOCK if not period_us or period_us <= 0 else max(2, int(round(REST_STRETCH_US / period_us)))
+
+
+def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: int | None = None) -> np.ndarray:
+    """The rest level of a log at each sample. Each `block` samples' 5th percentile (REST_BLOCK
+    unless given: `rest_block`) is their rest, unless a grasp holds through the block: a block whose
+    level stands above the line through its neighbours' (at an end, through the two nearest) by
+    half the contact bar (`contact_share` of the log's 5-95% spread, or 5 noise σ) is left out,
+    again until none stands out, so a hold of any length reads no rest of its own; the rest is
+    interpolated between the blocks kept. A force sensor's zero drifts (a strain gauge warming: 0.2 N
+    a minute put a session's later rests above a level read once for the whole log, and they were
+    labelled grasps), and a drift is a line through the blocks. Missing samples (NaN) are bridged
+    by interpolation. A log of under two blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
-    blocks = len(force) // REST_BLOCK
+    known = ~np.isnan(force)
+    if not known.any():
+        return np.zeros(len(force))
+    force = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+    block = block or REST_BLOCK
+    blocks = len(force) // block
     if blocks < 2:
-        return np.full(len(force), float(np.percentile(force, 5)) if len(force) else 0.0)
+        return np.full(len(force), float(np.percentile(force, 5)))
     edges = np.linspace(0, len(force), blocks + 1).astype(int)
     centres = (edges[:-1] + edges[1:] - 1) / 2
     levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
-    low = float(np.percentile(force, 5))
-    margin = 0.5 * max(contact_share * (float(np.percentile(force, 95)) - low), 5 * step_noise(np.diff(force)), 1e-6)
+    margin = 0.5 * _contact_bar(force, contact_share)
     kept = np.ones(blocks, dtype=bool)
     while kept.sum() > 1:
         index = np.flatnonzero(kept)
@@ -202,18 +213,22 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> np.n
     return np.interp(np.arange(len(force)), centres[kept], levels[kept])
 
 
-def rest_drift(force: np.ndarray, contact_share: float = CONTACT_SHARE) -> float | None:
+def _contact_bar(force: np.ndarray, contact_share: float) -> float:
+    """`contact_share` of a log's 5-95% spread, or 5 noise σ, whichever is larger (no NaN)."""
+    spread = float(np.percentile(force, 95)) - float(np.percentile(force, 5))
+    return max(contact_share * spread, 5 * step_noise(np.diff(force)), 1e-6)
+
+
+def rest_drift(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: int | None = None) -> float | None:
     """How far a session log's rest level (`rest_levels`) moves from its start to its end, where that
-    passes half the contact bar (`contact_share` of the force scale, or 5 noise σ); else None."""
+    passes half the contact bar; else None (and for a log of under two blocks)."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
-    if known.sum() < 2 * REST_BLOCK:
+    if known.sum() < 2 * (block or REST_BLOCK):
         return None
-    filled = np.where(known, force, float(np.percentile(force[known], 5)))
-    rest = rest_levels(filled, contact_share)
-    bar = max(contact_share * (float(np.percentile(filled, 95)) - float(np.percentile(filled, 5))), 5 * step_noise(np.diff(filled)))
+    rest = rest_levels(force, contact_share, block)
     moved = float(rest[-1] - rest[0])
-    return moved if abs(moved) > 0.5 * bar else None
+    return moved if abs(moved) > 0.5 * _contact_bar(force[known], contact_share) else None
 
 
 QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)
@@ -289,10 +304,11 @@ def _moves(change: np.ndarray, peak: float, move_share: float, slope_share: floa
     return moves
 
 
-def session_columns(force: np.ndarray, n_real: int, n_total: int) -> tuple[np.ndarray, np.ndarray]:
-    """`frame --phases session`: phase and grasp index of the first n_real frames, padding frames none / -1."""
+def session_columns(force: np.ndarray, n_real: int, n_total: int, window_us: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """`frame --phases session`: phase and grasp index of the first n_real frames (of `window_us`),
+    padding frames none / -1."""
     phase = np.full(n_total, NONE, dtype=object)
     grasp = np.full(n_total, -1, dtype=np.int32)
     if n_real and not np.isnan(force[:n_real]).all():
-        phase[:n_real], grasp[:n_real] = label_session(force[:n_real])
+        phase[:n_real], grasp[:n_real] = label_session(force[:n_real], block=rest_block(window_us))
     return phase, grasp

@@ -200,11 +200,7 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
     except SyncError as error:  # the force log's own checks, around this, name the trial themselves
         raise SyncError(f"trial {source.trial}: {error}") from None
     forcelog.check_logs(t, instants, logs, source.trial)
-    steps = np.diff(t)
-    order = np.argsort(t, kind="stable") if len(t) > 1 and np.any(steps < 0) else None
-    # a clock's jump: large steps back in a stream otherwise in order (a table written out of order, by
-    # pixel say, steps back everywhere: sorting it is all it needs)
-    back = -int(steps.min()) if order is not None and np.count_nonzero(steps < 0) <= ORDERED_SHARE * len(steps) else 0
+    order, jump = _time_order(t, source.trial)
     if order is not None:
         t, x, y, p = t[order], x[order], y[order], p[order]
     # trial i ends where its force log ends (or at the next instant, if sooner); what follows, up
@@ -239,15 +235,29 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
             entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True, raw=log.value)
         if log.notes:
             entry["notes"] = log.notes
-        if back >= CLOCK_JUMP_US and i == 0:  # said once per recording
-            entry.setdefault("warnings", []).append(_clock_jump(source.trial, back, steps))
+        if jump and i == 0:  # said once per recording
+            entry.setdefault("warnings", []).append(jump)
         info[name] = entry
     return trials, info
 
 
-ORDERED_SHARE = 0.001  # a stream with steps back between at most this share of its events is in camera order
+ORDERED_SHARE = 0.001  # a stream with steps back of over ORDERED_STEP_US between at most this share of its events ...
+ORDERED_STEP_US = 1_000  # ... is in camera order (a camera reorders by microseconds)
 CLOCK_JUMP_US = 1_000_000  # events that step back in time this far come from a clock that jumped (a camera's own
 # reordering is microseconds: an HD EVT 3.0 file steps back by up to 11 µs)
+
+
+def _time_order(t: np.ndarray, trial: str) -> tuple:
+    """The order that sorts the events by time (None where they are in it), and the warning for a
+    clock that jumped back (None): large steps back in a stream otherwise in camera order, whose own
+    steps back are microseconds (a table written out of order, by pixel say, steps back by
+    milliseconds everywhere: sorting it is all it needs)."""
+    steps = np.diff(t)
+    if len(t) < 2 or not np.any(steps < 0):
+        return None, None
+    ordered = np.count_nonzero(steps < -ORDERED_STEP_US) <= max(ORDERED_SHARE * len(steps), 1)
+    back = -int(steps.min())
+    return np.argsort(t, kind="stable"), (_clock_jump(trial, back, steps) if ordered and back >= CLOCK_JUMP_US else None)
 
 
 def _clock_jump(trial: str, back: int, steps: np.ndarray) -> str:

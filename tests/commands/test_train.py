@@ -211,10 +211,14 @@ def test_a_model_file_the_disk_cannot_hold_is_one_line_and_keeps_the_old_file(tm
 def test_an_interrupt_that_leaves_a_member_untrained_says_no_model_was_written(capsys):
     from neurotac_cli.commands.train import _said_when_lost
 
-    with pytest.raises(KeyboardInterrupt), _said_when_lost([("deform-gru member 1/3", 12, KeyboardInterrupt())]):
-        raise KeyboardInterrupt
+    stop = KeyboardInterrupt()
+    with pytest.raises(KeyboardInterrupt), _said_when_lost([("deform-gru member 1/3", 12, stop)]):
+        raise stop  # raised again by the next member's fit
     assert "deform-gru member 1/3: stopped by the interrupt after 12 epochs, before the members after it began: no model written" \
         in capsys.readouterr().err
+    with pytest.raises(KeyboardInterrupt), _said_when_lost([("tdnn", 3, KeyboardInterrupt())]):  # a second interrupt, after the fit
+        raise KeyboardInterrupt
+    assert "tdnn: stopped by the interrupt after 3 epochs, and again before its model was written: none written" in capsys.readouterr().err
     with pytest.raises(KeyboardInterrupt), _said_when_lost([]):  # interrupted before any epoch ended: the exit says it
         raise KeyboardInterrupt
     assert capsys.readouterr().err == ""

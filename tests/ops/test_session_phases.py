@@ -148,3 +148,23 @@ def test_a_hold_longer_than_the_rest_level_s_stretches_reads_no_rest_of_its_own(
         noisy = force + drift * np.arange(force.size) / 6000 + np.random.default_rng(4).normal(0, 0.01, force.size)
         phase, grasp = label_session(noisy)
         assert grasp.max() + 1 == 5 and np.mean(phase[force == 0] == "none") > 0.99
+
+
+def test_the_rest_level_s_stretches_are_seconds_at_any_frame_window_and_bridge_missing_force():
+    """The stretches were counted in frames (10 s at 10 ms, 50 s at 50 ms frames), and missing force
+    was filled with the whole log's level, which dragged a drifting log's local level."""
+    rng = np.random.default_rng(5)
+    parts = [np.zeros(40)]
+    for k in range(20):
+        peak = 0.6 if k % 3 == 0 else 4.0
+        parts += [ramp(0, peak, 3), np.full(int(rng.integers(10, 40)), peak), ramp(peak, 0, 3), np.zeros(int(rng.integers(30, 80)))]
+    force = np.concatenate(parts)  # 50 ms frames: 1,200 a minute
+    drifted = force + 1.0 * np.arange(force.size) / 1200 + rng.normal(0, 0.01, force.size)
+    assert drifted.size / 1200 > 1.3  # 1.4 minutes: eight 10 s stretches
+    assert session_columns(drifted, drifted.size, drifted.size, window_us=50_000)[1].max() + 1 == 20
+    gapped = drifted.copy()
+    gapped[drifted.size // 2: drifted.size // 2 + 600] = np.nan  # 30 s without force
+    phase, grasp = session_columns(gapped, gapped.size, gapped.size, window_us=50_000)
+    known_rest = (force == 0) & ~np.isnan(gapped)
+    assert np.mean(phase[known_rest] == "none") > 0.98
+
