@@ -85,7 +85,9 @@ def command(events, output, force_path, trial, labels, manifest, method, offset,
     several LED blinks is cut at each blink and matched to the force log's trials (a `trial`
     column, or time restarting at 0). Each force log is checked against the recording: one that
     does not overlap it, has fewer than 10 samples or a NaN or infinite value is refused; one
-    mostly outside it, negative throughout or beyond 450 N is warned about (docs/formats.md).
+    mostly outside it, negative throughout or beyond 450 N is warned about (docs/formats.md), as are a
+    blink that repeats within 50 ms (a switch that bounces) and events that step back in time by a
+    second or more (a camera clock that jumped).
 
     \b
         neurotac sync grasp.aedat --force grasp_force.csv --trial g1 --label material=foam > g1.arrows
