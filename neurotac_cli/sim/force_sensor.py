@@ -22,8 +22,11 @@ def sensor_lag_us(config) -> int:
     return config.force_lag_us or DEFAULT_LAG_US[config.force_sensor]
 
 
-def measure(config, force: np.ndarray, step_us: int, moving: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The sensor's reading of a true force sampled every `step_us` (same length). `moving`: gripper in motion."""
+def measure(config, force: np.ndarray, step_us: int, moving: np.ndarray, rng: np.random.Generator,
+            zero: np.ndarray | float = 0.0) -> np.ndarray:
+    """The sensor's reading of a true force sampled every `step_us` (same length). `moving`: gripper in
+    motion; `zero`: the sensor's zero at each sample (a strain gauge warming drifts it), read as the
+    force is, at the sensor's resolution."""
     lag = sensor_lag_us(config)
     noise = config.force_noise_n if config.force_noise_n >= 0 else DEFAULT_NOISE_N[config.force_sensor]
     if config.force_sensor == "nano17":
@@ -34,6 +37,7 @@ def measure(config, force: np.ndarray, step_us: int, moving: np.ndarray, rng: np
         reading = _flexiforce(force, step_us, lag)
         reading = reading + noise * rng.standard_normal(force.shape) * (1.0 + 2.0 * moving)
     resolution = RESOLUTION_N[config.force_sensor]
+    reading = reading + zero if np.any(zero) else reading  # no zero added: the same bytes as a sensor that keeps it
     return np.round(reading / resolution) * resolution
 
 

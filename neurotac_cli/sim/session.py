@@ -377,10 +377,8 @@ def _force_log(config, planned, start_us, end_us, rng):
     else:
         truth = grasp_force(config, planned, fine - planned.offset_us)
         moving = gripper_moving(planned, fine - planned.offset_us)
-    reading = force_sensor.measure(config, truth, FORCE_STEP_US, moving, rng)
-    if config.force_drift_n_per_min:  # the zero drifts with the session's clock, logged at the sensor's resolution
-        resolution = force_sensor.RESOLUTION_N[config.force_sensor]
-        reading = np.round((reading + config.force_drift_n_per_min * fine / 60e6) / resolution) * resolution
+    zero = config.force_drift_n_per_min * fine / 60e6 if config.force_drift_n_per_min else 0.0  # drifting with the session's clock
+    reading = force_sensor.measure(config, truth, FORCE_STEP_US, moving, rng, zero)
     period = config.force_period_us
     log_t = np.arange(-(-start // period) * period, end_us, period, dtype=np.int64)
     index = np.minimum(np.round((log_t - start) / FORCE_STEP_US).astype(int), fine.size - 1)
