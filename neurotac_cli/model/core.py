@@ -355,11 +355,11 @@ def train(table: pa.Table, spec: dict, *, val_trials=None, val_fraction=None, va
         data = _with_force(data, unit, progress, val_trials)
     rng = np.random.default_rng(seed)
     where = parse_where(val_where) if isinstance(val_where, str) else val_where
-    in_val = choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng, unit=unit)
-    # Each further member of an ensemble validates on a draw of its own, so that together they learn
-    # from every trial and stop at epochs of their own (docs/design.md)
-    splits = [in_val, *(choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng, unit=unit)
-                        for _ in range(getattr(config, "members", 1) - 1))]
+    # Each member of an ensemble validates on a draw of its own, so that together they learn from
+    # every trial and stop at epochs of their own (docs/design.md)
+    splits = [choose_validation(data, trials=val_trials, fraction=val_fraction, where=where, per=per, rng=rng, unit=unit)
+              for _ in range(getattr(config, "members", 1))]
+    in_val = splits[0]
     # normalisation and the checks see the first member's training trials, as a one-GRU model's do
     train_set, val_set = data.subset(np.flatnonzero(~in_val)), data.subset(np.flatnonzero(in_val))
     accumulated = already_accumulated(table.schema)
