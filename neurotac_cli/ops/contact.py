@@ -46,8 +46,9 @@ moves (`_scene_moves`: both polarities in the same cells, over `SCENE_SHARE` of 
 or one in it and the other within `scene_frames` before: an LED that lights part of the view and
 goes dark frames later), or the `scene_frames` frames after it: a camera on a robot arm sees the
 membrane window's edge and the scene slide by, a gripper's motor shakes the membrane before a
-touch, and a press makes one polarity in a cell at a time. Where the detector has no frames (`detect` given sums alone) or
-frames pooled to a few cells, only the warm-up passes over a blink, and nothing over a move.
+touch, and a press makes one polarity in a cell at a time. Where the detector has no frames
+(`detect` given sums alone) or frames pooled to a few cells, only the warm-up passes over a blink,
+and nothing over a move.
 
 The background (mean OFF and ON counts per frame) starts as the median of a stream's first
 `warmup_frames` frames, in which no contact begins: a camera's background can be ten times another's,
@@ -283,8 +284,8 @@ class ContactState:
     tail_wait: int = 0  # frames left in which the rest of the last contact's release is awaited as its tail (`await_frames`)
     pressed_sum: float = 0.0  # OFF events above the background in the contact's pressing frames (leaky), for `_awaits_release`
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
-    since_scene: int = 1 << 30  # frames since the view last moved between contacts (`_scene_moves`)
     frames: int = 0  # frames stepped so far
+    scene_at: int = -(1 << 40)  # the frame in which the view last moved between contacts (`_scene_moves`)
     lit: np.ndarray | None = None  # (2, H, W): the frame in which each cell last fired above its rest, per polarity as framed
 
     @classmethod
@@ -309,7 +310,6 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `by_force`: a force model decides the end of a contact (`end_by_force`), not `release_share`.
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
-    state.since_scene += 1
     state.frames += 1
     if state.phase == NONE and state.warmup is None and frame is not None and _may_begin(config, state, frame, off, on):
         if _flash(state, frame, off, on):
@@ -383,8 +383,8 @@ def _scene_moves(config: ContactConfig, state: ContactState, frame: np.ndarray) 
     both = int(np.count_nonzero((fired[0] & (fired[1] | recent[1])) | (fired[1] & recent[0])))
     state.lit[fired] = state.frames
     if both >= max(SCENE_SHARE * (np.size(frame) // 2), SCENE_CELLS):
-        state.since_scene = 0
-    return state.since_scene <= config.scene_frames
+        state.scene_at = state.frames
+    return state.frames - state.scene_at <= config.scene_frames
 
 
 def _choose_polarity(config: ContactConfig, state: ContactState, off: float, on: float):
