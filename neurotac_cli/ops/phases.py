@@ -147,8 +147,7 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     rest = rest_levels(force, contact_share, block)
     filled = np.where(known, force, rest)
     noise = step_noise(np.diff(filled)) if n > 2 else 0.0
-    scale = float(np.percentile(filled - rest, 95))
-    threshold = rest + max(contact_share * scale, 5 * noise, 1e-6)
+    threshold = rest + _contact_bar(filled - rest, contact_share, noise)
     index = 0
     for first, last in _contact_runs(filled > threshold):
         if (filled[first:last + 1] - rest[first:last + 1]).max() < max(10 * noise, 1e-6):
@@ -175,7 +174,7 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     """The rest level of a log at each sample. Each `block` samples' 5th percentile (REST_BLOCK
     unless given: `rest_block`) is their rest, unless a grasp holds through the block: a block whose
     level stands above the line through its neighbours' (at an end, through the two nearest) by
-    half the contact bar (`contact_share` of the log's 5-95% spread, or 5 noise σ) is left out,
+    half the contact bar (`_contact_bar`: `contact_share` of the log's scale, or 5 noise σ) is left out,
     again until none stands out, so a hold of any length reads no rest of its own; the rest is
     interpolated between the blocks kept. A force sensor's zero drifts (a strain gauge warming: 0.2 N
     a minute put a session's later rests above a level read once for the whole log, and they were
@@ -193,7 +192,7 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     edges = np.linspace(0, len(force), blocks + 1).astype(int)
     centres = (edges[:-1] + edges[1:] - 1) / 2
     levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
-    margin = 0.5 * _contact_bar(force, contact_share)
+    margin = 0.5 * _contact_bar(force - float(np.percentile(force, 5)), contact_share, step_noise(np.diff(force)))
     kept = np.ones(blocks, dtype=bool)
     while kept.sum() > 1:
         index = np.flatnonzero(kept)
@@ -213,10 +212,10 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     return np.interp(np.arange(len(force)), centres[kept], levels[kept])
 
 
-def _contact_bar(force: np.ndarray, contact_share: float) -> float:
-    """`contact_share` of a log's 5-95% spread, or 5 noise σ, whichever is larger (no NaN)."""
-    spread = float(np.percentile(force, 95)) - float(np.percentile(force, 5))
-    return max(contact_share * spread, 5 * step_noise(np.diff(force)), 1e-6)
+def _contact_bar(above_rest: np.ndarray, contact_share: float, noise: float) -> float:
+    """How far above its rest a log is in contact: `contact_share` of its force scale (the 95th
+    percentile above rest), or 5 `noise` σ, whichever is larger (no NaN)."""
+    return max(contact_share * float(np.percentile(above_rest, 95)), 5 * noise, 1e-6)
 
 
 def rest_drift(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: int | None = None) -> float | None:
@@ -228,7 +227,8 @@ def rest_drift(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: i
         return None
     rest = rest_levels(force, contact_share, block)
     moved = float(rest[-1] - rest[0])
-    return moved if abs(moved) > 0.5 * _contact_bar(force[known], contact_share) else None
+    bar = _contact_bar(force[known] - rest[known], contact_share, step_noise(np.diff(force[known])))
+    return moved if abs(moved) > 0.5 * bar else None
 
 
 QUANTUM_SHARE = 0.05  # steps of one quantum this common are a quantised log's noise (`step_noise`)
