@@ -38,7 +38,7 @@ import numpy as np
 from neurotac_cli.errors import SyncError
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import in_region
-from neurotac_cli.ops.phases import step_noise
+from neurotac_cli.ops.phases import rest_block, rest_levels, step_noise
 
 XCORR_RESPONSE_US = 1_600  # event rate behind |dF/dt| (membrane creep, photoreceptor), simulated rig
 XCORR_BIN_US = 250
@@ -157,7 +157,7 @@ def agreement(t, force_t, force_v, t0: int, sorted_time: bool = False, raw=None)
     over every event."""
     from scipy.ndimage import gaussian_filter1d
 
-    if len(force_t) < 10 or not _holds_a_grasp(np.asarray(force_v if raw is None else raw, dtype=np.float64)):
+    if len(force_t) < 10 or not _holds_a_grasp(np.asarray(force_v if raw is None else raw, dtype=np.float64), force_t):
         return None
     lo, hi = t0 + int(force_t[0]), t0 + int(force_t[-1])
     if sorted_time:
@@ -202,14 +202,17 @@ def _rates_read(rate: np.ndarray) -> list:
     return [gaussian_filter1d(rate, smooth), gaussian_filter1d((rate - trend) / np.sqrt(trend + 1.0), smooth)]
 
 
-def _holds_a_grasp(values: np.ndarray) -> bool:
-    """Whether a force log rises above its rest level by 10 times its sample-to-sample noise (as
-    `frame --phases session` finds a grasp): a log of a session without a grasp is noise, and the
-    events' r with it says nothing about whose log it is."""
-    values = values[np.isfinite(values)]
+def _holds_a_grasp(values: np.ndarray, t_us: np.ndarray) -> bool:
+    """Whether a force log (its samples at times `t_us`) rises above its rest level (`rest_levels`,
+    which a drifting zero moves) by 10 times its sample-to-sample noise, as `frame --phases session`
+    finds a grasp: a log of a session without a grasp is noise, and the events' r with it says
+    nothing about whose log it is."""
+    finite = np.isfinite(values)
+    values, t_us = values[finite], np.asarray(t_us)[finite]
     if len(values) < 3:
         return False
-    return float(values.max() - np.percentile(values, 5)) > 10 * step_noise(np.diff(values))
+    rest = rest_levels(values, block=rest_block(float(np.median(np.diff(t_us)))))
+    return float(np.max(values - rest)) > 10 * step_noise(np.diff(values))
 
 
 def _window_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -736,6 +736,8 @@ def test_a_log_of_a_session_without_a_grasp_is_not_weighed_against_the_events():
     assert xcorr.agreement(t, own_t, own_v + quiet, 3_000_000, raw=own_v + quiet) > 0.6
     finer = np.round(rng.normal(0.0, 0.004, len(own_t)) / 0.0125) * 0.0125  # noise under the quantum: most steps are 0
     assert xcorr.agreement(t, own_t, finer, 3_000_000) is None
+    drifting = quiet + 0.5 * own_t / 60e6  # a zero that drifts half a newton a minute is no grasp either
+    assert xcorr.agreement(t, own_t, drifting, 3_000_000) is None
 
 
 def _blink(at_us, seed, width=240, height=180):
