@@ -599,12 +599,13 @@ def _model_lines(info: dict) -> list:
     if info["force_scale_n"]:
         pairs.append(("force scale", f"{info['force_scale_n']:.4g} N (the training's largest force)"))
     pairs.append(("architecture", " ".join(f"{k}={_compact(v)}" for k, v in info["architecture"].items())))
-    text = f"{trained['trials']} trials, {trained['validation_trials']} for validation, seed {trained['seed']}"
+    unit = "contacts" if isinstance(info.get("contacts"), dict) else "trials"  # `train --contacts` trains on contacts
+    text = f"{trained['trials']} {unit}, {trained['validation_trials']} for validation, seed {trained['seed']}"
     if trained["epochs_run"]:
         text += f"; {trained['epochs_run']} epochs"
         if trained["best_epoch"] is not None:
             text += (f", best {trained['best_epoch']} (validation loss {trained['best_val_loss']:.4g})" if trained["best_val_loss"] is not None
-                     else f", best {trained['best_epoch']} by its training loss {trained['best_train_loss']:.4g} (no validation trials)")
+                     else f", best {trained['best_epoch']} by its training loss {trained['best_train_loss']:.4g} (no validation {unit})")
     members = trained.get("member_best_epochs")
     if isinstance(members, list) and members:  # the curve above is the first member's
         draws = trained.get("member_draws")

@@ -392,9 +392,10 @@ def train(table: pa.Table, spec: dict, config: detector.ContactConfig | None = N
     if progress:
         pressed, released = detector.polarity_names(config.press_polarity)
         how = (f"pressed as OFF or ON events ({summary['presses_on'][0]} of {summary['presses_on'][1]} presses ON: each contact read by "
-               f"its own), released at {config.dominance:g} times as many of the other" if config.press_polarity == "either" else
-               f"pressed as {pressed} events{'' if truths is not None else ' (taken, not measured: no phases)'}, released at "
-               f"{config.dominance:g} times as many {released}")
+               f"its own), released where the other polarity outnumbers the press's {config.dominance:g} to 1"
+               if config.press_polarity == "either" else
+               f"pressed as {pressed} events{'' if truths is not None else ' (taken, not measured: no phases)'}, released where "
+               f"{released} events outnumber {pressed} {config.dominance:g} to 1")
         merged = (f" (of {summary['found']} found: a contact ending within {summary['merge_frames']} frames of the next trains "
                   "with it)" if summary["found"] != summary["contacts"] else "")
         progress(f"contacts: {summary['contacts']}{merged} in {counted(summary['sessions'], 'stream')}, "

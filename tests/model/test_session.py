@@ -661,6 +661,7 @@ def test_info_names_the_polarities_a_contacts_model_reads_presses_and_releases_i
         models.save(model, str(tmp_path / f"{name}.model"))
         lines[name] = dict(pair for pair in _model_lines(describe_model(str(tmp_path / f"{name}.model"))) if isinstance(pair, tuple))
     assert " OFF, release " in lines["off"]["contacts"] and lines["off"]["contacts"].endswith(" ON events")
+    assert " contacts, " in lines["off"]["training"] and " trials" not in lines["off"]["training"]  # what it trained on
     assert " ON, release " in lines["on"]["contacts"] and lines["on"]["contacts"].endswith(" OFF events")
     assert lines["on"]["slip bars"].endswith(" OFF events") and " ON / " in lines["on"]["slip bars"]
     mixed = pa.concat_tables([tiny_session(6, seed=s, trial=f"s{s}", bright=(1, 4, s))[0] for s in range(3)])
