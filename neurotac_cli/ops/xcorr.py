@@ -395,7 +395,7 @@ def edge_warnings(trials: dict) -> list[str]:
     if not edge:
         return []
     return [f"on {len(edge)} of {len(trials)} trial(s) ({edge[0]}{', ...' if len(edge) > 1 else ''}) xcorr's best offset is the "
-            f"last it may take (the force log reaching {XCORR_SLACK_US / 1000:g} ms past the recording's end or start), "
+            f"last it may take (the force log may reach at most {XCORR_SLACK_US / 1000:g} ms past either end of the recording), "
             "not a peak: the true one may lie beyond; record some rest before and after each grasp, or use --method led or trigger"]
 
 
