@@ -370,8 +370,12 @@ def crop_box(table: pa.Table, steps: Steps, crop_spec) -> tuple[tuple, str]:
     activity = cr.activity_map(table) if crop_spec.center == "auto" else None
     report = cr.CropReport()
     box = cr.resolve_box(crop_spec, (width, height), activity, report)
-    how = "given" if crop_spec.box is not None else f"centre {report.center[0]},{report.center[1]} ({report.center_from})"
-    return box, how
+    if crop_spec.box is not None:
+        return box, "given"
+    found, kept = tuple(report.center), (box[0] + box[2] // 2, box[1] + box[3] // 2)
+    # a centre too near the edge is moved so the box fits: the title names where the drawn box stands
+    moved = "" if kept == found else f", moved from {found[0]},{found[1]} to fit the sensor"
+    return box, f"centre {kept[0]},{kept[1]} ({report.center_from}{moved})"
 
 
 def crop_view(table: pa.Table, steps: Steps, spec: RenderSpec, animated: bool):

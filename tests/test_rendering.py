@@ -142,6 +142,20 @@ def test_crop_view_takes_the_centre_found_automatically_from_the_command_line(tm
     assert (tmp_path / "c.png").stat().st_size > 0
 
 
+def test_the_crop_view_titles_the_centre_of_the_box_it_draws_where_the_found_one_was_moved():
+    from neurotac_cli.ops.crop import CropSpec
+    from neurotac_cli.rendering import Steps, crop_box
+
+    counts = np.zeros((1, 2, 16, 20), dtype=np.uint16)
+    counts[0, 0, 1:3, 1:3] = 50  # the contact in a corner: an 8x8 box about it must move to fit
+    table = pa.Table.from_pydict({"trial": ["a"], "frame": pa.array([0], pa.int32()), "t": [0], "counts": sch.counts_array(counts),
+                                  "force": pa.array([1.0], pa.float32()), "phase": ["holding"]},
+                                 schema=sch.frames_schema(16, 20, window_us=10_000))
+    steps = Steps(trial="a", counts=counts, starts_ms=np.zeros(1), step_ms=10.0, what="frame")
+    box, how = crop_box(table, steps, CropSpec(size=(8, 8), center="auto"))
+    assert box[:2] == (0, 0) and how.startswith("centre 4,4 (auto, moved from ")
+
+
 def test_every_command_on_the_seeing_page_runs_and_draws_its_picture(tmp_path):
     """docs/seeing.md's pictures come from its own commands: run them, writing the pictures here."""
     import re
