@@ -224,7 +224,7 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
             options[name] = _flag(options[name], name)
     window_us = _us(window, "window")
     source = _input(table, "recordings", "events")
-    fr.check_for_kind(source.kind, sorted({"start_us", "trial", "sort"} & set(options)), options.get("phases"))
+    fr.check_for_kind(source.kind, sorted({"start_us", "trial", "sort"} & set(options)), options.get("phases"), options.get("zero", "log"))
     if source.kind == "events":
         options.setdefault("trial", camera_file_stem(source.schema) or "events")
     schema, batches, report, _ = fr.frame(source, fr.Framing(window_us=window_us, **options))

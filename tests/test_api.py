@@ -290,5 +290,7 @@ def test_frame_refuses_for_a_table_s_kind_what_the_command_refuses(small):
     events = api.events_of(recordings, recordings["trial"][0].as_py())
     with pytest.raises(UsageError, match="--phases session reads each grasp from the force log"):
         api.frame(events, "10ms", phases="session")
+    with pytest.raises(UsageError, match="--zero rest reads the force log's rest level"):
+        api.frame(events, "10ms", zero="rest")
     with pytest.raises(UsageError, match="trial is for plain events tables"):
         api.frame(recordings, "10ms", trial="x")

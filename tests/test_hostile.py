@@ -1207,6 +1207,8 @@ def test_session_phases_of_a_plain_events_table_are_a_usage_error(tmp_path):
     tables.write(path, events([0, 9], [0, 5], [0, 1], 10, 10))
     code, stderr, _ = invoke(["frame", "--window", "10ms", "--phases", "session", "-o", str(tmp_path / "f.arrows"), path])
     assert one_line(stderr, code, 2) and "a plain events table has none" in stderr
+    code, stderr, _ = invoke(["frame", "--window", "10ms", "--zero", "rest", "-o", str(tmp_path / "f.arrows"), path])
+    assert one_line(stderr, code, 2) and "--zero rest reads the force log's rest level, and a plain events table has no log" in stderr
 
 
 def test_frames_that_would_fill_a_disk_are_named_before_they_are_written(files, tmp_path, monkeypatch):  # noqa: F811

@@ -56,6 +56,15 @@ class Scale(ParamType):
     help="Force per frame: the latest sample at the window's end, or the mean or median of the samples inside it.",
 )
 @click.option(
+    "--zero",
+    type=click.Choice(["log", "rest"]),
+    default="log",
+    show_default=True,
+    help="Force per frame from the log's own zero, or from its `rest` level where the frame is (the force between "
+    "grasps, read per 10 s of frames as --phases session reads it): a force sensor whose zero drifts then gives "
+    "frames at zero between grasps. Recordings with a force log only.",
+)
+@click.option(
     "--phases",
     default="auto",
     show_default=True,
@@ -105,7 +114,7 @@ class Scale(ParamType):
     "`simulate --session` writes grasps.csv): adds a bool `slip` column, true where a frame's window ends inside "
     "a slip, that `eval` scores the slip flag against. Synced recordings only.",
 )
-def command(paths, output, window, last_partial, pad_to, force_at, phases, accumulate, dtype, scale, start, trial, sensor, max_frames, sort,
+def command(paths, output, window, last_partial, pad_to, force_at, zero, phases, accumulate, dtype, scale, start, trial, sensor, max_frames, sort,
             slips_path):
     """Bin each trial's events into two-channel count frames, with force and phase per frame.
 
@@ -131,9 +140,9 @@ def command(paths, output, window, last_partial, pad_to, force_at, phases, accum
         phases = tuple(parse_ranges(phases))
     source = tables.open_input(paths, kind=("recordings", "events"))
     events_only = [flag for flag, given in (("--start", start is not None), ("--trial", trial is not None), ("--sort", sort)) if given]
-    fr.check_for_kind(source.kind, events_only, phases)
+    fr.check_for_kind(source.kind, events_only, phases, zero)
     framing = fr.Framing(
-        window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, phases=phases, accumulate=accumulate,
+        window_us=window, partial=last_partial, pad_to=pad_to, force_at=force_at, zero=zero, phases=phases, accumulate=accumulate,
         dtype=dtype, scale=scale, start_us=start, trial=(camera_file_stem(source.schema) or "events") if trial is None else trial,
         max_frames=max_frames, sort=sort, slips=None if slips_path is None else read_slips(slips_path),
     )

@@ -77,6 +77,7 @@ class Framing:
     partial: str = "keep"
     pad_to: int | str | None = None
     force_at: str = "end"
+    zero: str = "log"  # the frames' force from the log's zero, or from its rest level where they are (`rest_zeroed`)
     phases: str | tuple = "auto"
     accumulate: bool = False
     dtype: str = "uint16"
@@ -97,6 +98,8 @@ class Framing:
             raise UsageError(f"cannot pad to {self.pad_to!r} (give a number of frames, e.g. 41, or `longest`)")
         if self.force_at not in FORCE_AT:
             raise UsageError(f"force-at must be one of {', '.join(FORCE_AT)}, got {self.force_at!r}")
+        if self.zero not in ("log", "rest"):
+            raise UsageError(f"zero must be log or rest, got {self.zero!r}")
         if not isinstance(self.max_frames, (int, np.integer)) or self.max_frames <= 0:
             raise UsageError(f"max-frames must be a positive number of frames, got {self.max_frames!r}")
         if not isinstance(self.trial, str) or not self.trial.strip():
@@ -126,6 +129,7 @@ class Framing:
             "partial": self.partial,
             "pad_to": self.pad_to,
             "force_at": self.force_at,
+            "zero": self.zero,
             "phases": self.phases if isinstance(self.phases, str) else [list(r) for r in self.phases],
             "accumulate": self.accumulate,
             "dtype": self.dtype,
@@ -293,12 +297,15 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
+            doubts.look(framing, trial, force if len(force_t) else None, n_real)
+            if framing.zero == "rest":
+                force = rest_zeroed(force, n_real, framing.window_us)
             if framing.phases == "session":
                 phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
-            doubts.look(framing, trial, force if len(force_t) else None, phase, grasp, n_real, n_total)
+            doubts.look_at_labels(framing, trial, phase, grasp, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
@@ -318,19 +325,22 @@ class _LabelDoubts:
     slips at rest outside every grasp."""
 
     def __init__(self):
-        self.several, self.resting, self.unforced, self.drifting = [], 0, {}, {}
+        self.several, self.resting, self.unforced, self.drifting, self.zeroed = [], 0, {}, {}, False
 
-    def look(self, framing: Framing, trial: str, force, phase, grasp, n_real: int, n_total: int) -> None:
-        """`force`: the trial's frames' force, None where it has no force log."""
+    def look(self, framing: Framing, trial: str, force, n_real: int) -> None:
+        """The trial's frames' force as the log gives it (`force`; None where it has no force log)."""
         unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
         if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
             self.unforced[trial] = unforced
-        if framing.phases == "auto" and phase is not None and int(ph.session_columns(force, n_real, n_total, framing.window_us)[1].max()) >= 1:
+        if framing.phases == "auto" and force is not None and int(ph.session_columns(force, n_real, n_real, framing.window_us)[1].max()) >= 1:
             self.several.append(trial)
-        if framing.phases == "session" and force is not None:
+        if (framing.phases == "session" or framing.zero == "rest") and force is not None:
             moved = ph.rest_drift(force[:n_real], block=ph.rest_block(framing.window_us))
             if moved is not None:
                 self.drifting[trial] = moved
+        self.zeroed = framing.zero == "rest"
+
+    def look_at_labels(self, framing: Framing, trial: str, phase, grasp, n_total: int) -> None:
         if framing.slips is not None and grasp is not None:
             for span in framing.slips.get(trial, ()):
                 inside = slip_column([span], framing.window_us, n_total)
@@ -348,9 +358,11 @@ class _LabelDoubts:
                          "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")
         if self.drifting:
             trial, moved = max(self.drifting.items(), key=lambda item: abs(item[1]))
+            kept = ("the frames' force is taken from that level (--zero rest)" if self.zeroed
+                    else "the frames' force keeps the drift (--zero rest takes it out)")
             notes.append(f"the force log's rest level moves over {counted(len(self.drifting), 'session')} ({trial}: by {moved:+.3g}, "
                          "from its start to its end): a force sensor whose zero drifts; grasps are found above the rest level where "
-                         "it is, and the frames' force keeps the drift")
+                         f"it is, and {kept}")
         if self.several:
             notes.append(f"the force comes back to rest between grasps in {counted(len(self.several), 'trial')} "
                          f"({first_few(self.several)}), labelled as one grasp "
@@ -482,6 +494,23 @@ def _force_gap(force_t: np.ndarray) -> tuple:
     if steps[longest] > max(GAP_PERIODS * float(np.median(steps)), GAP_LEAST_US):
         return int(force_t[longest]), int(steps[longest])
     return None, 0
+
+
+def rest_zeroed(force: np.ndarray, n_real: int, window_us: int) -> np.ndarray:
+    """`frame --zero rest`: the frames' force less the log's rest level where each frame is (`rest_levels`,
+    read per REST_STRETCH_US of frames as `--phases session` reads it), so a force sensor whose zero
+    drifts (a strain gauge warming) gives a force of zero between grasps and a grasp's force above it
+    (padding frames keep theirs; missing samples stay missing). The levels are low percentiles, under
+    the rest's mean by about 1.6 noise σ: the median of the frames between grasps is the zero."""
+    real = force[:n_real].astype(np.float64)
+    if not n_real or np.isnan(real).all():
+        return force
+    block = ph.rest_block(window_us)
+    zeroed = real - ph.rest_levels(real, block=block)
+    resting = (ph.label_session(real, block=block)[1] < 0) & ~np.isnan(zeroed)
+    out = force.copy()
+    out[:n_real] = zeroed - (np.median(zeroed[resting]) if resting.any() else 0.0)
+    return out
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:
@@ -937,9 +966,10 @@ def _string_labels(table: pa.Table, report: FramingReport) -> pa.Table:
     return table
 
 
-def check_for_kind(kind: str, events_only: list[str], phases) -> None:
+def check_for_kind(kind: str, events_only: list[str], phases, zero: str = "log") -> None:
     """Refuse what a table of this kind cannot take: `events_only` (the options given, as their caller
-    names them) are for plain events tables; `--phases session` reads a force log, which they have not."""
+    names them) are for plain events tables; `--phases session` and `--zero rest` read a force log,
+    which they have not."""
     if kind == "recordings" and events_only:
         one = len(events_only) == 1
         raise UsageError(f"{', '.join(events_only)} {'is' if one else 'are'} for plain events tables (from `neurotac import`); "
@@ -948,6 +978,9 @@ def check_for_kind(kind: str, events_only: list[str], phases) -> None:
     if kind == "events" and phases == "session":
         raise UsageError("--phases session reads each grasp from the force log, and a plain events table has none: "
                          "sync it with its log first (`neurotac sync`), or frame it without --phases session")
+    if kind == "events" and zero == "rest":
+        raise UsageError("--zero rest reads the force log's rest level, and a plain events table has no log: "
+                         "sync it with its log first (`neurotac sync`), or frame it without --zero rest")
 
 
 def frame(source, framing: Framing, sensor=None):

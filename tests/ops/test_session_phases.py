@@ -168,3 +168,28 @@ def test_the_rest_level_s_stretches_are_seconds_at_any_frame_window_and_bridge_m
     known_rest = (force == 0) & ~np.isnan(gapped)
     assert np.mean(phase[known_rest] == "none") > 0.98
 
+
+
+def test_frames_zeroed_at_rest_take_a_drifting_sensor_s_zero_out_of_the_force():
+    """`frame --zero rest`: a strain gauge whose zero climbs 0.5 N a minute labelled every later grasp
+    and rest high by the drift; the force less the rest level where it is, and the rest's median
+    (the levels are low percentiles, 1.6 noise σ under it), is the true force within the noise."""
+    from neurotac_cli.ops.frame import rest_zeroed
+
+    rng = np.random.default_rng(3)
+    parts = [np.zeros(150)]
+    for k in range(24):
+        peak = 0.6 if k % 3 == 0 else 5.0
+        parts += [ramp(0, peak, 10), np.full(int(rng.integers(80, 400)), peak), ramp(peak, 0, 8), np.zeros(int(rng.integers(300, 500)))]
+    force = np.concatenate(parts)
+    noise = rng.normal(0, 0.01, force.size)
+    drifted = force + 0.5 * np.arange(force.size) / 6000 + noise  # 10 ms frames
+    padded = np.r_[drifted, np.zeros(5), np.nan].astype(np.float32)  # padding frames, and a frame without force
+    zeroed = rest_zeroed(padded, drifted.size, 10_000)
+    error = zeroed[: drifted.size] - (force + noise)
+    assert abs(np.mean(error)) < 0.005 and np.sqrt(np.mean(error**2)) < 0.02 and zeroed.dtype == np.float32
+    assert np.abs(drifted - (force + noise)).max() > 1.2  # what the log alone labels
+    assert np.array_equal(zeroed[drifted.size :], padded[drifted.size :], equal_nan=True)
+    again, before = label_session(zeroed[: drifted.size])[1], label_session(drifted)[1]
+    assert again.max() == before.max() == 23 and np.mean(again == before) > 0.999
+    assert np.array_equal(rest_zeroed(np.full(4, np.nan), 4, 10_000), np.full(4, np.nan), equal_nan=True)

@@ -136,6 +136,14 @@ def test_a_force_log_whose_zero_drifts_gets_each_grasp_labelled_once(tmp_path):
     grasp = table.column("grasp").to_numpy()
     assert grasp.max() + 1 == 8 and len(read_csv(drifting / "grasps.csv")) == 8
     assert b"the force log's rest level moves over 1 session (session00: by +0.3" in framed.stderr
+    assert b"keeps the drift (--zero rest takes it out)" in framed.stderr
+    # `--zero rest`: the same grasps, the force at rest about zero from start to end
+    zeroed = subprocess.run(["neurotac", "frame", "--window", "10ms", "--phases", "session", "--zero", "rest"], input=synced.stdout,
+                            capture_output=True, check=True)
+    again = pa.ipc.open_stream(zeroed.stdout).read_all()
+    assert np.mean(again.column("grasp").to_numpy() == grasp) > 0.999 and b"taken from that level (--zero rest)" in zeroed.stderr
+    at_rest = again.column("force").to_numpy()[grasp < 0]
+    assert abs(at_rest[:500].mean()) < 0.02 and abs(at_rest[-500:].mean()) < 0.02
 
 
 def test_frame_labels_each_grasp_of_the_session(session):
