@@ -328,12 +328,16 @@ def crop_event_arrays(t, x, y, p, box, pool, sensor):
     return (t, x.astype(np.uint16), y.astype(np.uint16), p), inside
 
 
+def _cropped_schema(schema: pa.Schema, box, pool) -> tuple[pa.Schema, tuple[int, int]]:
+    """(the schema of what `box` and `pool` make of a stream of `schema`, the sensor's (W, H) before)."""
+    width, height = sensor_size(schema)
+    _, _, w, h = box if box is not None else (0, 0, width, height)
+    return sch.set_meta(schema, sensor=sch.sensor_meta(*pooled_size(w, h, pool))), (width, height)
+
+
 def crop_events_batches(schema: pa.Schema, batches, box, pool, report: CropReport):
     """Crop an events stream batch by batch; returns (schema, iterator). The report fills as it runs."""
-    width, height = sensor_size(schema)
-    x0, y0, w, h = box if box is not None else (0, 0, width, height)
-    new_w, new_h = pooled_size(w, h, pool)
-    out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
+    out_schema, (width, height) = _cropped_schema(schema, box, pool)
 
     def generate():
         for batch in batches:
@@ -361,10 +365,7 @@ def crop_recordings(table: pa.Table, box, pool, report: CropReport) -> pa.Table:
 
 def crop_recordings_batches(schema: pa.Schema, batches, box, pool, report: CropReport):
     """Crop a recordings stream trial batch by trial batch; returns (schema, iterator)."""
-    width, height = sensor_size(schema)
-    x0, y0, w, h = box if box is not None else (0, 0, width, height)
-    new_w, new_h = pooled_size(w, h, pool)
-    out_schema = sch.set_meta(schema, sensor=sch.sensor_meta(new_w, new_h))
+    out_schema, (width, height) = _cropped_schema(schema, box, pool)
 
     def generate():
         for batch in batches:
