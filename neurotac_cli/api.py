@@ -209,8 +209,8 @@ def sync(camera, force: str, method: str = "led", trial: str | None = None, labe
 
 def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     """Frames of a recordings table (per trial, from t0) or an events table (one trial, from its first
-    event). `options` as `neurotac frame`'s: partial, pad_to, force_at, phases, accumulate, dtype,
-    scale, max_frames; start_us, trial, sort for an events table. Warns (NeurotacWarning) where
+    event). `options` as `neurotac frame`'s: partial, pad_to, force_at, zero, phases, accumulate,
+    dtype, scale, max_frames; start_us, trial, sort for an events table. Warns (NeurotacWarning) where
     the command line warns."""
     from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.ops import frame as fr

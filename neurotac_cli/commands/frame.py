@@ -60,8 +60,8 @@ class Scale(ParamType):
     type=click.Choice(["log", "rest"]),
     default="log",
     show_default=True,
-    help="Force per frame from the log's own zero, or from its `rest` level where the frame is (the force between "
-    "grasps, read per 10 s of frames as --phases session reads it): a force sensor whose zero drifts then gives "
+    help="Force per frame from the log's own zero, or from its `rest` level where the frame is (the median force "
+    "between the grasps --phases session finds, per 10 s of frames): a force sensor whose zero drifts then gives "
     "frames at zero between grasps. Recordings with a force log only.",
 )
 @click.option(

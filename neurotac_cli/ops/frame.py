@@ -298,8 +298,9 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
             doubts.look(framing, trial, force if len(force_t) else None, n_real)
-            if framing.zero == "rest":
-                force = rest_zeroed(force, n_real, framing.window_us)
+            if framing.zero == "rest" and len(force_t):
+                force, held = rest_zeroed(force, n_real, framing.window_us, trial)
+                doubts.look_at_zero(trial, held)
             if framing.phases == "session":
                 phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us)
             else:
@@ -325,7 +326,8 @@ class _LabelDoubts:
     slips at rest outside every grasp."""
 
     def __init__(self):
-        self.several, self.resting, self.unforced, self.drifting, self.zeroed = [], 0, {}, {}, False
+        self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
+        self.framing = None
 
     def look(self, framing: Framing, trial: str, force, n_real: int) -> None:
         """The trial's frames' force as the log gives it (`force`; None where it has no force log)."""
@@ -338,7 +340,15 @@ class _LabelDoubts:
             moved = ph.rest_drift(force[:n_real], block=ph.rest_block(framing.window_us))
             if moved is not None:
                 self.drifting[trial] = moved
-        self.zeroed = framing.zero == "rest"
+        if framing.zero == "rest" and force is None:
+            self.logless.append(trial)
+        self.framing = framing
+
+    def look_at_zero(self, trial: str, held: float | None) -> None:
+        """`held`: the level `rest_zeroed` took off a trial in which it found no grasp, where that lies
+        far from the log's zero (a trial held from start to end reads as rest)."""
+        if held is not None:
+            self.held[trial] = held
 
     def look_at_labels(self, framing: Framing, trial: str, phase, grasp, n_total: int) -> None:
         if framing.slips is not None and grasp is not None:
@@ -358,11 +368,19 @@ class _LabelDoubts:
                          "grasp the force shows: a slips file of another session, or slip times not from the sync instant?")
         if self.drifting:
             trial, moved = max(self.drifting.items(), key=lambda item: abs(item[1]))
-            kept = ("the frames' force is taken from that level (--zero rest)" if self.zeroed
+            found = "grasps are found above the rest level where it is, and " if self.framing.phases == "session" else ""
+            kept = ("the frames' force is taken from that level (--zero rest)" if self.framing.zero == "rest"
                     else "the frames' force keeps the drift (--zero rest takes it out)")
             notes.append(f"the force log's rest level moves over {counted(len(self.drifting), 'session')} ({trial}: by {moved:+.3g}, "
-                         "from its start to its end): a force sensor whose zero drifts; grasps are found above the rest level where "
-                         f"it is, and {kept}")
+                         f"from its start to its end): a force sensor whose zero drifts; {found}{kept}")
+        if self.held:
+            trial, level = max(self.held.items(), key=lambda item: abs(item[1]))
+            notes.append(f"--zero rest found no grasp in {counted(len(self.held), 'trial')} whose rest level lies far from the log's "
+                         f"zero ({trial}: {level:+.3g}): a trial held from start to end reads as rest there, its force taken off; "
+                         "frame such trials without --zero rest")
+        if self.logless:
+            notes.append(f"--zero rest: {counted(len(self.logless), 'trial')} ({first_few(self.logless)}) {'has' if len(self.logless) == 1 else 'have'} "
+                         "no force log, so no force to zero")
         if self.several:
             notes.append(f"the force comes back to rest between grasps in {counted(len(self.several), 'trial')} "
                          f"({first_few(self.several)}), labelled as one grasp "
@@ -496,20 +514,49 @@ def _force_gap(force_t: np.ndarray) -> tuple:
     return None, 0
 
 
-def rest_zeroed(force: np.ndarray, n_real: int, window_us: int) -> np.ndarray:
-    """`frame --zero rest`: the frames' force less the log's rest level where each frame is (`rest_levels`,
-    read per REST_STRETCH_US of frames as `--phases session` reads it), so a force sensor whose zero
-    drifts (a strain gauge warming) gives a force of zero between grasps and a grasp's force above it
-    (padding frames keep theirs; missing samples stay missing). The levels are low percentiles, under
-    the rest's mean by about 1.6 noise σ: the median of the frames between grasps is the zero."""
+def rest_zeroed(force: np.ndarray, n_real: int, window_us: int, trial: str = "") -> tuple[np.ndarray, float | None]:
+    """`frame --zero rest`: (the frames' force less the log's rest level where each frame is, the level
+    taken off where no grasp was found and it lies over 10 noise σ from the log's zero, else None).
+
+    The frames between grasps are those `--phases session` finds (`label_session`, whose rest levels
+    follow a drift); the level is the median of them in each REST_STRETCH_US of frames, placed at
+    their mean time, interpolated between stretches and followed along the line through the two
+    nearest for half a stretch past the first and last (a drift goes on to the log's ends). So a force sensor whose zero
+    drifts (a strain gauge warming) gives a force of zero between grasps and a grasp's force above it.
+    Padding frames (after `n_real`) lose the last frame's level; missing samples stay missing."""
     real = force[:n_real].astype(np.float64)
     if not n_real or np.isnan(real).all():
-        return force
+        return force, None
     block = ph.rest_block(window_us)
-    zeroed = real - ph.rest_levels(real, block=block)
-    resting = (ph.label_session(real, block=block)[1] < 0) & ~np.isnan(zeroed)
-    out = force.copy()
-    out[:n_real] = zeroed - (np.median(zeroed[resting]) if resting.any() else 0.0)
+    grasp = ph.label_session(real, block=block)[1]
+    resting = np.flatnonzero((grasp < 0) & ~np.isnan(real))
+    if not len(resting):
+        resting = np.flatnonzero(~np.isnan(real))
+    stretch = resting // block
+    places = [(float(resting[stretch == k].mean()), float(np.median(real[resting[stretch == k]]))) for k in np.unique(stretch)]
+    zero = _line_through(*map(np.asarray, zip(*places)), n_real, reach=block / 2)
+    out = force.astype(np.float64)
+    out[:n_real] -= zero
+    out[n_real:] -= zero[-1]
+    if np.nanmax(np.abs(out)) > np.finfo(np.float32).max:
+        raise SchemaError(f"trial {trial}: its force less its rest level passes float32's range (the log reads "
+                          f"{np.nanmin(real):.3g} to {np.nanmax(real):.3g}): a corrupt log; clean it, or frame without --zero rest")
+    known = real[~np.isnan(real)]
+    noise = ph.step_noise(np.diff(known)) if len(known) > 2 else 0.0
+    held = float(np.median(zero)) if grasp.max() < 0 and abs(np.median(zero)) > max(10 * noise, 1e-6) else None
+    return out.astype(force.dtype), held
+
+
+def _line_through(x: np.ndarray, y: np.ndarray, n: int, reach: float) -> np.ndarray:
+    """y at each of n samples: interpolated between the points (x ascending), and before the first
+    and after the last along the line through the two nearest for up to `reach` samples, level
+    beyond (a log that ends in a long grasp has no rest to say where its drift went)."""
+    at = np.arange(n, dtype=np.float64)
+    out = np.interp(at, x, y)
+    if len(x) > 1:
+        for ends, (a, b) in ((at < x[0], (0, 1)), (at > x[-1], (-2, -1))):
+            near = np.clip(at[ends], x[0] - reach, x[-1] + reach)
+            out[ends] = y[a] + (near - x[a]) * (y[b] - y[a]) / max(x[b] - x[a], 1e-9)
     return out
 
 

@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from neurotac_cli import metrics
+from neurotac_cli.errors import SchemaError
 from neurotac_cli.ops.phases import detect_phases, label_session, rest_drift, session_columns
 
 
@@ -185,11 +186,40 @@ def test_frames_zeroed_at_rest_take_a_drifting_sensor_s_zero_out_of_the_force():
     noise = rng.normal(0, 0.01, force.size)
     drifted = force + 0.5 * np.arange(force.size) / 6000 + noise  # 10 ms frames
     padded = np.r_[drifted, np.zeros(5), np.nan].astype(np.float32)  # padding frames, and a frame without force
-    zeroed = rest_zeroed(padded, drifted.size, 10_000)
+    zeroed, held = rest_zeroed(padded, drifted.size, 10_000)
+    assert held is None
     error = zeroed[: drifted.size] - (force + noise)
     assert abs(np.mean(error)) < 0.005 and np.sqrt(np.mean(error**2)) < 0.02 and zeroed.dtype == np.float32
     assert np.abs(drifted - (force + noise)).max() > 1.2  # what the log alone labels
-    assert np.array_equal(zeroed[drifted.size :], padded[drifted.size :], equal_nan=True)
+    # padding frames (the log's last sample) lose the last frame's level, as it does
+    assert np.allclose(zeroed[drifted.size : -1] - padded[drifted.size : -1], zeroed[drifted.size - 1] - padded[drifted.size - 1])
+    assert np.isnan(zeroed[-1])
     again, before = label_session(zeroed[: drifted.size])[1], label_session(drifted)[1]
     assert again.max() == before.max() == 23 and np.mean(again == before) > 0.999
-    assert np.array_equal(rest_zeroed(np.full(4, np.nan), 4, 10_000), np.full(4, np.nan), equal_nan=True)
+    assert np.array_equal(rest_zeroed(np.full(4, np.nan), 4, 10_000)[0], np.full(4, np.nan), equal_nan=True)
+    # a drift followed to the log's ends: a minute at rest drifting 0.5 N
+    ramp_only = 0.5 * np.arange(6000) / 6000 + np.random.default_rng(2).normal(0, 0.01, 6000)
+    ends = rest_zeroed(ramp_only, 6000, 10_000)[0]
+    assert np.abs(ends[:300]).mean() < 0.015 and np.abs(ends[-300:]).mean() < 0.015
+    # a trial cut inside a hold has no rest: its force is taken off, and the level is given back to be warned
+    hold = 3.0 + np.random.default_rng(1).normal(0, 0.01, 400)
+    assert rest_zeroed(hold, hold.size, 10_000)[1] == pytest.approx(3.0, abs=0.05)
+    with pytest.raises(SchemaError, match="trial t: its force less its rest level passes float32's range"):
+        rest_zeroed(np.r_[np.full(50, -2e38), np.full(50, 1.8e38)].astype(np.float32), 100, 10_000, "t")
+
+
+def test_frame_names_what_zeroing_at_rest_could_not_do():
+    """A trial held throughout has its force taken off as rest, and a trial without a log has nothing to
+    zero: each said; the drift warning says grasps are found above the level only where they are."""
+    from neurotac_cli.ops.frame import Framing, _LabelDoubts
+
+    doubts = _LabelDoubts()
+    framing = Framing(window_us=10_000, zero="rest", phases="none")
+    drifting = 0.5 * np.arange(6000) / 6000 + np.random.default_rng(2).normal(0, 0.01, 6000)
+    doubts.look(framing, "d", drifting, 6000)
+    doubts.look(framing, "nolog", None, 100)
+    doubts.look_at_zero("inside", 2.97)
+    notes = doubts.notes()
+    assert any("a force sensor whose zero drifts; the frames' force is taken from that level (--zero rest)" in n for n in notes), notes
+    assert any("found no grasp in 1 trial whose rest level lies far from the log's zero (inside: +2.97)" in n for n in notes), notes
+    assert any("--zero rest: 1 trial (nolog) has no force log" in n for n in notes), notes
