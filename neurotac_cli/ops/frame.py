@@ -297,9 +297,11 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
-            doubts.look(framing, trial, force if len(force_t) else None, n_real)
-            if framing.zero == "rest" and len(force_t):
-                force, held = rest_zeroed(force, n_real, framing.window_us, trial)
+            wanted = len(force_t) and (framing.zero == "rest" or framing.phases == "session")
+            line = ph.rest_line(force[:n_real], ph.rest_block(framing.window_us)) if wanted else None
+            doubts.look(framing, trial, force if len(force_t) else None, n_real, line)
+            if framing.zero == "rest" and line is not None:
+                force, held = rest_zeroed(force, n_real, line, trial)
                 doubts.look_at_zero(trial, held)
             if framing.phases == "session":
                 phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us)
@@ -329,15 +331,16 @@ class _LabelDoubts:
         self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
         self.framing = None
 
-    def look(self, framing: Framing, trial: str, force, n_real: int) -> None:
-        """The trial's frames' force as the log gives it (`force`; None where it has no force log)."""
+    def look(self, framing: Framing, trial: str, force, n_real: int, line=None) -> None:
+        """The trial's frames' force as the log gives it (`force`; None where it has no force log), and
+        its zero (`rest_line`) where framing reads it."""
         unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
         if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
             self.unforced[trial] = unforced
         if framing.phases == "auto" and force is not None and int(ph.session_columns(force, n_real, n_real, framing.window_us)[1].max()) >= 1:
             self.several.append(trial)
-        if (framing.phases == "session" or framing.zero == "rest") and force is not None:
-            moved = ph.rest_drift(force[:n_real], block=ph.rest_block(framing.window_us))
+        if line is not None:
+            moved = ph.rest_drift(force[:n_real], line, block=ph.rest_block(framing.window_us))
             if moved is not None:
                 self.drifting[trial] = moved
         if framing.zero == "rest" and force is None:
@@ -514,50 +517,25 @@ def _force_gap(force_t: np.ndarray) -> tuple:
     return None, 0
 
 
-def rest_zeroed(force: np.ndarray, n_real: int, window_us: int, trial: str = "") -> tuple[np.ndarray, float | None]:
-    """`frame --zero rest`: (the frames' force less the log's rest level where each frame is, the level
-    taken off where no grasp was found and it lies over 10 noise σ from the log's zero, else None).
-
-    The frames between grasps are those `--phases session` finds (`label_session`, whose rest levels
-    follow a drift); the level is the median of them in each REST_STRETCH_US of frames, placed at
-    their mean time, interpolated between stretches and followed along the line through the two
-    nearest for half a stretch past the first and last (a drift goes on to the log's ends). So a force sensor whose zero
-    drifts (a strain gauge warming) gives a force of zero between grasps and a grasp's force above it.
-    Padding frames (after `n_real`) lose the last frame's level; missing samples stay missing."""
+def rest_zeroed(force: np.ndarray, n_real: int, line: np.ndarray, trial: str = "") -> tuple[np.ndarray, float | None]:
+    """`frame --zero rest`: (the frames' force less the log's zero where each frame is (`line`, the
+    `rest_line` of its first `n_real`), the level taken off where no grasp was found and it lies over
+    10 noise σ from the log's zero, else None: a trial held from start to end reads as rest). So a
+    force sensor whose zero drifts (a strain gauge warming) gives a force of zero between grasps and
+    a grasp's force above it. Padding frames (after `n_real`) lose the last frame's level; missing
+    samples stay missing."""
     real = force[:n_real].astype(np.float64)
-    if not n_real or np.isnan(real).all():
-        return force, None
-    block = ph.rest_block(window_us)
-    grasp = ph.label_session(real, block=block)[1]
-    resting = np.flatnonzero((grasp < 0) & ~np.isnan(real))
-    if not len(resting):
-        resting = np.flatnonzero(~np.isnan(real))
-    stretch = resting // block
-    places = [(float(resting[stretch == k].mean()), float(np.median(real[resting[stretch == k]]))) for k in np.unique(stretch)]
-    zero = _line_through(*map(np.asarray, zip(*places)), n_real, reach=block / 2)
     out = force.astype(np.float64)
-    out[:n_real] -= zero
-    out[n_real:] -= zero[-1]
+    out[:n_real] -= line
+    out[n_real:] -= line[-1]
     if np.nanmax(np.abs(out)) > np.finfo(np.float32).max:
         raise SchemaError(f"trial {trial}: its force less its rest level passes float32's range (the log reads "
                           f"{np.nanmin(real):.3g} to {np.nanmax(real):.3g}): a corrupt log; clean it, or frame without --zero rest")
     known = real[~np.isnan(real)]
     noise = ph.step_noise(np.diff(known)) if len(known) > 2 else 0.0
-    held = float(np.median(zero)) if grasp.max() < 0 and abs(np.median(zero)) > max(10 * noise, 1e-6) else None
+    level = float(np.median(line))
+    held = level if abs(level) > max(10 * noise, 1e-6) and ph.label_session(out[:n_real])[1].max() < 0 else None
     return out.astype(force.dtype), held
-
-
-def _line_through(x: np.ndarray, y: np.ndarray, n: int, reach: float) -> np.ndarray:
-    """y at each of n samples: interpolated between the points (x ascending), and before the first
-    and after the last along the line through the two nearest for up to `reach` samples, level
-    beyond (a log that ends in a long grasp has no rest to say where its drift went)."""
-    at = np.arange(n, dtype=np.float64)
-    out = np.interp(at, x, y)
-    if len(x) > 1:
-        for ends, (a, b) in ((at < x[0], (0, 1)), (at > x[-1], (-2, -1))):
-            near = np.clip(at[ends], x[0] - reach, x[-1] + reach)
-            out[ends] = y[a] + (near - x[a]) * (y[b] - y[a]) / max(x[b] - x[a], 1e-9)
-    return out
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:

@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 
 from neurotac_cli import metrics
 from neurotac_cli.errors import SchemaError
-from neurotac_cli.ops.phases import detect_phases, label_session, rest_drift, session_columns
+from neurotac_cli.ops.phases import detect_phases, label_session, rest_drift, rest_line, session_columns
 
 
 def ramp(a, b, frames):
@@ -175,7 +175,11 @@ def test_frames_zeroed_at_rest_take_a_drifting_sensor_s_zero_out_of_the_force():
     """`frame --zero rest`: a strain gauge whose zero climbs 0.5 N a minute labelled every later grasp
     and rest high by the drift; the force less the rest level where it is, and the rest's median
     (the levels are low percentiles, 1.6 noise σ under it), is the true force within the noise."""
-    from neurotac_cli.ops.frame import rest_zeroed
+    from neurotac_cli.ops.frame import rest_zeroed as zeroed_with
+
+    def rest_zeroed(force, n_real, window_us, trial=""):  # as `frame` calls it, at 10 ms frames
+        line = rest_line(force[:n_real], block=1000)
+        return (force, None) if line is None else zeroed_with(force, n_real, line, trial)
 
     rng = np.random.default_rng(3)
     parts = [np.zeros(150)]
@@ -216,7 +220,7 @@ def test_frame_names_what_zeroing_at_rest_could_not_do():
     doubts = _LabelDoubts()
     framing = Framing(window_us=10_000, zero="rest", phases="none")
     drifting = 0.5 * np.arange(6000) / 6000 + np.random.default_rng(2).normal(0, 0.01, 6000)
-    doubts.look(framing, "d", drifting, 6000)
+    doubts.look(framing, "d", drifting, 6000, rest_line(drifting, 1000))
     doubts.look(framing, "nolog", None, 100)
     doubts.look_at_zero("inside", 2.97)
     notes = doubts.notes()
