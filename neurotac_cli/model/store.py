@@ -247,7 +247,8 @@ def load_in_background(path: str, threads: int = 1):
     import gc
     import threading
 
-    outcome = {}
+    outcome, done = {}, threading.Event()
+    restore = _defer_signals(done)
 
     def run():
         try:
@@ -261,14 +262,63 @@ def load_in_background(path: str, threads: int = 1):
             atexit.register(gc.unfreeze)  # at exit the frozen objects are collected as any others
         except BaseException as error:  # noqa: BLE001 - handed to the caller, who reports it
             outcome["error"] = error
+        finally:
+            done.set()
+            restore.deliver()
 
     thread = threading.Thread(target=run)
     thread.start()
 
     def result():
         thread.join()
+        restore()
         if "error" in outcome:
             raise outcome["error"]
         return outcome["model"]
 
     return result
+
+
+def _defer_signals(done):
+    """Ctrl-C and SIGTERM held back while a model loads beside the main thread, then acted on: raised
+    in the main thread while both threads import (torch, pandas), they left modules half made and
+    the loader waiting on an import lock for ever, or a traceback, or the signal lost (a run to the
+    end). Returns a callable that puts the handlers back; its `deliver` (called by the loader when
+    `done`) sends a held signal again, now to be acted on (the main thread may be waiting for input)."""
+    import os
+    import signal
+    import threading
+
+    held = []
+    numbers = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread():
+        restore = lambda: None  # noqa: E731 - signals are handled in the main thread only
+        restore.deliver = lambda: None
+        return restore
+    previous = {number: signal.getsignal(number) for number in numbers}
+
+    def handler(number, frame):
+        if not done.is_set():
+            held.append(number)
+            return
+        action = previous[number]
+        if callable(action):
+            return action(number, frame)
+        if action == signal.SIG_IGN:
+            return None
+        signal.signal(number, signal.SIG_DFL)  # the default: end as the signal ends a process
+        os.kill(os.getpid(), number)
+
+    for number in numbers:
+        signal.signal(number, handler)
+
+    def restore():
+        for number in numbers:
+            if signal.getsignal(number) is handler:
+                signal.signal(number, previous[number])
+        if held:
+            number = held.pop()
+            handler(number, None)
+
+    restore.deliver = lambda: held and os.kill(os.getpid(), held.pop())
+    return restore

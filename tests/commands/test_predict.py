@@ -225,3 +225,23 @@ def test_a_model_file_without_the_feature_distance_runs_unwatched(tmp_path):
     outside = models.Outside.of(old)
     schema, batches = models.stream(old, frames.schema, iter(frames.to_batches()), outside=outside)
     assert sum(batch.num_rows for batch in batches) == frames.num_rows and outside.unlike == 0
+
+
+@pytest.mark.parametrize("number, code, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+def test_a_signal_while_the_model_loads_ends_the_run_with_one_line(tmp_path, number, code, said):
+    """Raised in the main thread while the loader imported torch beside it, a Ctrl-C left modules
+    half made: tracebacks, a run to the end as if nothing had come, or a hang on an import lock."""
+    import signal
+    import time
+
+    frames = tiny_frames(trials=2)
+    models.save(models.train(frames, models.make_spec("deform-gru", epochs=1, members=1), seed=0), str(tmp_path / "m.model"))
+    path = write_stream(frames, tmp_path / "f.arrows")
+    for delay in np.arange(1, 9) / 10:  # the loader imports torch for about a second
+        process = subprocess.Popen(["neurotac", "predict", "--model", str(tmp_path / "m.model"), path, "-o", str(tmp_path / "p.arrows")],
+                                   stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        time.sleep(delay)
+        process.send_signal(getattr(signal, number))
+        assert process.wait(60) == code, (delay, process.stderr.read().decode())
+        stderr = process.stderr.read().decode()
+        assert stderr.strip() == f"neurotac predict: {said}", (delay, stderr)
