@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import pyarrow as pa
 
+from neurotac_cli import schema as sch
 from neurotac_cli.errors import UsageError
 from neurotac_cli.io import live
 from neurotac_cli.model import core, predict
@@ -49,6 +50,12 @@ def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, 
     cropped = frames
     if box is not None:
         schema, cropped, report.crop = cropping.crop(schema, frames, box)
+    # the steps as the pipe's history would record them, so the model's check of the input reads the
+    # pooling as `predict` does (the shape alone agrees for a smaller box pooled less)
+    steps = [{"command": "frame", "args": {"dtype": framing.dtype}}]
+    if box is not None and box.pool is not None:
+        steps.append({"command": "crop", "args": {"pool": list(box.pool) if isinstance(box.pool, tuple) else box.pool}})
+    schema = sch.set_meta(schema, history=sch.get_meta(schema, sch.HISTORY, []) + steps)
     core.check_streams(model)  # a classifier given as the force model is named as such, before the watcher reads it
     report.outside = predict.Outside.of(model, say=say)
     advice = (f"give `sense` the training's --window ({(model.input_spec.get('window_us') or 10000) / 1000:g}ms), --size with "

@@ -117,3 +117,17 @@ def test_sense_s_framing_errors_offer_no_option_sense_lacks():
     with pytest.raises(NeurotacError) as caught:
         list(batches)
     assert "with --sort" not in str(caught.value) and "`neurotac frame --sort`" in str(caught.value)
+
+
+def test_sense_refuses_a_pooling_the_model_was_not_trained_on_as_predict_does(rig, tmp_path):
+    """A box half the size pooled half as much makes frames of the training's shape: the pipe's
+    `predict` read the pooling from the frames' history and refused them, `sense` ran on."""
+    folder, camera = rig
+    shell(f"neurotac simulate --preset ch4 --trials 1 --seed 4 --synced | neurotac frame --window 10ms "
+          f"| neurotac crop --size 116x116 --center 120,90 --pool 4x4 -o {tmp_path}/pooled.parquet")
+    shell(f"neurotac train --model deform-gru --epochs 1 {tmp_path}/pooled.parquet -o {tmp_path}/pooled.model")
+    done = neurotac("sense", str(camera), "--model", f"{tmp_path}/pooled.model", "--size", "58x58", "--center", "120,90", "--pool", "2x2")
+    assert done.returncode == 1 and "(different pooling)" in done.stderr and done.stderr.count("\n") == 1, done.stderr
+    same = neurotac("sense", str(camera), "--model", f"{tmp_path}/pooled.model", "--size", "116x116", "--center", "120,90", "--pool", "4x4",
+                    "-o", f"{tmp_path}/p.arrows")
+    assert same.returncode == 0, same.stderr
