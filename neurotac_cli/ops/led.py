@@ -87,9 +87,9 @@ def led_spikes(t, x, y, p, method, count: int, sensor=None, spare: int = 1) -> l
     if startup is not None:
         _after_startup(chosen, startup)
     for spike in chosen:  # the polarity of each, where more spikes stand out than are wanted
-        window = spike.details.pop("window_us")
         if len(chosen) > count:
-            on_times.share(spike, window)
+            on_times.share(spike)
+        del spike.details["window_us"]
     return sorted(chosen, key=lambda instant: instant.t0)
 
 
@@ -147,13 +147,14 @@ class _OnTimes:
     def __init__(self, t, x, y, p, region):
         self.events, self.region, self.times = (t, x, y, p), region, None
 
-    def share(self, spike: Instant, window: tuple | None = None) -> float:
+    def share(self, spike: Instant) -> float:
+        """The spike's ON share, counted in its bins (`window_us` of its details) the first time it is asked."""
         if "on_share" not in spike.details:
             if self.times is None:
                 t, x, y, p = self.events
                 on = t[(p == 1) & in_region(x, y, self.region)]
                 self.times = on if bool(np.all(on[1:] >= on[:-1])) else np.sort(on)
-            lo, hi = np.searchsorted(self.times, window if window is not None else spike.details["window_us"])
+            lo, hi = np.searchsorted(self.times, spike.details["window_us"])
             spike.details["on_share"] = round((hi - lo) / max(spike.details["spike_events"], 1), 3)
         return spike.details["on_share"]
 
