@@ -292,14 +292,14 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         out_schema = sch.set_meta(out_schema, scale=scale)
     out_schema = _keep_meta(table.schema, out_schema)
 
-    doubts = _LabelDoubts()
+    doubts = _LabelDoubts(framing)
 
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
             force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
             wanted = len(force_t) and (framing.zero == "rest" or framing.phases == "session")
             line = ph.rest_line(force[:n_real], ph.rest_block(framing.window_us)) if wanted else None
-            doubts.look(framing, trial, force if len(force_t) else None, n_real, line)
+            doubts.look(trial, force if len(force_t) else None, n_real, line)
             if framing.zero == "rest" and line is not None:
                 force, held = rest_zeroed(force, n_real, line, trial)
                 doubts.look_at_zero(trial, held)
@@ -308,7 +308,7 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
-            doubts.look_at_labels(framing, trial, phase, grasp, n_total)
+            doubts.look_at_labels(trial, grasp, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
                 end = first + len(counts)
                 yield _frames_batch(out_schema, trial, counts, force[first:end], None if phase is None else phase[first:end],
@@ -325,27 +325,26 @@ UNFORCED_LEAST, UNFORCED_SHARE = 5, 0.01  # frames without force named where mor
 class _LabelDoubts:
     """Labels that are likely not what the user meant, gathered over the trials for one warning each:
     frames before a force log's first sample, a session framed as one grasp (`--phases auto`), true
-    slips at rest outside every grasp."""
+    slips at rest outside every grasp, a log whose zero drifts, and what `--zero rest` could not do."""
 
-    def __init__(self):
+    def __init__(self, framing: Framing):
+        self.framing = framing
         self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
-        self.framing = None
 
-    def look(self, framing: Framing, trial: str, force, n_real: int, line=None) -> None:
+    def look(self, trial: str, force, n_real: int, line=None) -> None:
         """The trial's frames' force as the log gives it (`force`; None where it has no force log), and
         its zero (`rest_line`) where framing reads it."""
         unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
         if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
             self.unforced[trial] = unforced
-        if framing.phases == "auto" and force is not None and int(ph.session_columns(force, n_real, n_real, framing.window_us)[1].max()) >= 1:
+        if self.framing.phases == "auto" and force is not None and int(ph.session_columns(force, n_real, n_real, self.framing.window_us)[1].max()) >= 1:
             self.several.append(trial)
         if line is not None:
-            moved = ph.rest_drift(force[:n_real], line, block=ph.rest_block(framing.window_us))
+            moved = ph.rest_drift(force[:n_real], line, block=ph.rest_block(self.framing.window_us))
             if moved is not None:
                 self.drifting[trial] = moved
-        if framing.zero == "rest" and force is None:
+        if self.framing.zero == "rest" and force is None:
             self.logless.append(trial)
-        self.framing = framing
 
     def look_at_zero(self, trial: str, held: float | None) -> None:
         """`held`: the level `rest_zeroed` took off a trial in which it found no grasp, where that lies
@@ -353,10 +352,10 @@ class _LabelDoubts:
         if held is not None:
             self.held[trial] = held
 
-    def look_at_labels(self, framing: Framing, trial: str, phase, grasp, n_total: int) -> None:
-        if framing.slips is not None and grasp is not None:
-            for span in framing.slips.get(trial, ()):
-                inside = slip_column([span], framing.window_us, n_total)
+    def look_at_labels(self, trial: str, grasp, n_total: int) -> None:
+        if self.framing.slips is not None and grasp is not None:
+            for span in self.framing.slips.get(trial, ()):
+                inside = slip_column([span], self.framing.window_us, n_total)
                 self.resting += bool(inside.any() and (grasp[inside] < 0).all())
 
     def notes(self) -> list[str]:

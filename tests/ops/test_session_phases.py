@@ -217,11 +217,10 @@ def test_frame_names_what_zeroing_at_rest_could_not_do():
     zero: each said; the drift warning says grasps are found above the level only where they are."""
     from neurotac_cli.ops.frame import Framing, _LabelDoubts
 
-    doubts = _LabelDoubts()
-    framing = Framing(window_us=10_000, zero="rest", phases="none")
+    doubts = _LabelDoubts(Framing(window_us=10_000, zero="rest", phases="none"))
     drifting = 0.5 * np.arange(6000) / 6000 + np.random.default_rng(2).normal(0, 0.01, 6000)
-    doubts.look(framing, "d", drifting, 6000, rest_line(drifting, 1000))
-    doubts.look(framing, "nolog", None, 100)
+    doubts.look("d", drifting, 6000, rest_line(drifting, 1000))
+    doubts.look("nolog", None, 100)
     doubts.look_at_zero("inside", 2.97)
     notes = doubts.notes()
     assert any("a force sensor whose zero drifts; the frames' force is taken from that level (--zero rest)" in n for n in notes), notes
