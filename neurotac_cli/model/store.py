@@ -248,7 +248,7 @@ def load_in_background(path: str, threads: int = 1):
     import threading
 
     outcome, done = {}, threading.Event()
-    restore = _defer_signals(done)
+    signals = _HeldSignals(done)
 
     def run():
         try:
@@ -264,14 +264,14 @@ def load_in_background(path: str, threads: int = 1):
             outcome["error"] = error
         finally:
             done.set()
-            restore.deliver()
+            signals.deliver()
 
     thread = threading.Thread(target=run)
     thread.start()
 
     def result():
         thread.join()
-        restore()
+        signals.restore()
         if "error" in outcome:
             raise outcome["error"]
         return outcome["model"]
@@ -279,46 +279,52 @@ def load_in_background(path: str, threads: int = 1):
     return result
 
 
-def _defer_signals(done):
+class _HeldSignals:
     """Ctrl-C and SIGTERM held back while a model loads beside the main thread, then acted on: raised
     in the main thread while both threads import (torch, pandas), they left modules half made and
     the loader waiting on an import lock for ever, or a traceback, or the signal lost (a run to the
-    end). Returns a callable that puts the handlers back; its `deliver` (called by the loader when
-    `done`) sends a held signal again, now to be acted on (the main thread may be waiting for input)."""
-    import os
-    import signal
-    import threading
+    end). `deliver` (the loader, once `done`) sends a held signal again, now to be acted on where the
+    main thread waits for input; `restore` (the caller, after the load) puts the handlers back and
+    acts on one still held. Signals are handled in the main thread only: elsewhere nothing is held."""
 
-    held = []
-    numbers = (signal.SIGINT, signal.SIGTERM)
-    if threading.current_thread() is not threading.main_thread():
-        restore = lambda: None  # noqa: E731 - signals are handled in the main thread only
-        restore.deliver = lambda: None
-        return restore
-    previous = {number: signal.getsignal(number) for number in numbers}
+    NUMBERS = ("SIGINT", "SIGTERM")
 
-    def handler(number, frame):
-        if not done.is_set():
-            held.append(number)
-            return
-        action = previous[number]
+    def __init__(self, done):
+        import signal
+        import threading
+
+        self.done, self.held, self.previous = done, [], {}
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NUMBERS:
+                number = getattr(signal, name)
+                self.previous[number] = signal.signal(number, self._handler)
+
+    def _handler(self, number, frame):
+        import os
+        import signal
+
+        if not self.done.is_set():
+            self.held.append(number)
+            return None
+        action = self.previous[number]
         if callable(action):
             return action(number, frame)
-        if action == signal.SIG_IGN:
-            return None
-        signal.signal(number, signal.SIG_DFL)  # the default: end as the signal ends a process
-        os.kill(os.getpid(), number)
+        if action != signal.SIG_IGN:  # the default: end as the signal ends a process
+            signal.signal(number, signal.SIG_DFL)
+            os.kill(os.getpid(), number)
+        return None
 
-    for number in numbers:
-        signal.signal(number, handler)
+    def deliver(self):
+        import os
 
-    def restore():
-        for number in numbers:
-            if signal.getsignal(number) is handler:
-                signal.signal(number, previous[number])
-        if held:
-            number = held.pop()
-            handler(number, None)
+        if self.held:
+            os.kill(os.getpid(), self.held.pop())
 
-    restore.deliver = lambda: held and os.kill(os.getpid(), held.pop())
-    return restore
+    def restore(self):
+        import signal
+
+        for number, action in self.previous.items():
+            if signal.getsignal(number) == self._handler:
+                signal.signal(number, action)
+        if self.held:
+            self._handler(self.held.pop(), None)
