@@ -237,7 +237,8 @@ def load_in_background(path: str, threads: int = 1):
     returned callable waits for the model, or raises the loader's error. A verb reading a pipe
     loads its model while the verbs upstream start, not after its first input arrives. The thread is
     not a daemon: a verb that fails on its input while torch is still being imported waits for the
-    import before it exits (a process ending mid-import aborts in torch's C++ teardown).
+    import before it exits (a process ending mid-import aborts in torch's C++ teardown). Ctrl-C and
+    SIGTERM wait until the model has loaded (`_HeldSignals`).
 
     Once loaded, the objects made so far (torch's modules, the model) are moved out of the cyclic
     garbage collector's reach (`gc.freeze`): a full collection scans every object and took 85-100 ms
