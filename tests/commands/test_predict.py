@@ -242,6 +242,7 @@ def test_a_signal_while_the_model_loads_ends_the_run_with_one_line(tmp_path, num
                                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         time.sleep(delay)
         process.send_signal(getattr(signal, number))
-        assert process.wait(60) == code, (delay, process.stderr.read().decode())
-        stderr = process.stderr.read().decode()
-        assert stderr.strip() == f"neurotac predict: {said}", (delay, stderr)
+        ended, stderr = process.wait(60), process.stderr.read().decode()
+        if ended == -getattr(signal, number) and not stderr:  # before the interpreter handles signals (a slow start)
+            continue
+        assert ended == code and stderr.strip() == f"neurotac predict: {said}", (delay, ended, stderr)
