@@ -208,10 +208,28 @@ def _end_on_sigterm():
 
     if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
+    if sys.unraisablehook is not _signal_again:
+        _signal_again.previous = sys.unraisablehook
+        sys.unraisablehook = _signal_again
 
 
 def _terminate(number, frame):
     raise Terminated()
+
+
+def _signal_again(unraisable):
+    """A signal's exception raised inside a callback Python cannot raise from (a weak reference's,
+    such as the import system's module locks, or a `__del__`) is printed and dropped, and the run
+    went on to its end with exit 0: the signal is sent again a moment later, from a thread (sent from
+    here it would be raised here, and dropped again), to be raised where the run has gone on."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        import signal
+        import threading
+
+        number = signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT
+        threading.Timer(0.01, os.kill, (os.getpid(), number)).start()
+        return
+    _signal_again.previous(unraisable)
 
 
 def _check_working_folder():

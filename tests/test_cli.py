@@ -2,6 +2,9 @@
 
 import json
 import subprocess
+import sys
+
+import pytest
 
 from click.testing import CliRunner
 
@@ -206,3 +209,21 @@ def test_a_deleted_working_folder_is_said_in_one_line_before_any_work(tmp_path):
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
     assert done.stderr.startswith("neurotac select: error: the working folder no longer exists")
     assert not (tmp_path / "k.arrows").exists()
+
+
+@pytest.mark.parametrize("number, code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_raised_inside_a_callback_python_drops_is_sent_again(tmp_path, number, code):
+    """Raised in a weak reference's callback (the import system's module locks), a signal's exception
+    is printed and dropped by Python: a run went on to its end, exit 0."""
+    script = tmp_path / "lost.py"
+    script.write_text(
+        "import os, signal, sys, weakref\nfrom neurotac_cli import cli\n\n"
+        "class Thing:\n    pass\n\n\n"
+        f"def callback(reference):\n    os.kill(os.getpid(), signal.{number})\n"
+        "    for _ in range(1000):  # the handler runs here, inside the callback\n        pass\n\n\n"
+        "cli._end_on_sigterm()\nthing = Thing()\nreference = weakref.ref(thing, callback)\n"
+        "try:\n    del thing\n    for _ in range(10**7):\n        pass\n"
+        "except KeyboardInterrupt as error:\n    sys.exit(143 if isinstance(error, cli.Terminated) else 130)\n"
+        "sys.exit(0)\n")
+    ended = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    assert ended.returncode == code and "Exception ignored" not in ended.stderr, ended.stderr

@@ -237,9 +237,8 @@ def test_a_signal_while_the_model_loads_ends_the_run_with_one_line(tmp_path, num
     frames = tiny_frames(trials=2)
     models.save(models.train(frames, models.make_spec("deform-gru", epochs=1, members=1), seed=0), str(tmp_path / "m.model"))
     path = write_stream(frames, tmp_path / "f.arrows")
-    # the loader imports torch for about a second; in the first 0.2 s, before the model starts loading,
-    # a SIGTERM was once lost (open, docs/journal.md), so the instants start after that
-    for delay in np.arange(3, 9) / 10:
+    # the loader imports torch for about a second; the first instants fall in the main thread's own imports
+    for delay in np.arange(1, 9) / 10:
         process = subprocess.Popen(["neurotac", "predict", "--model", str(tmp_path / "m.model"), path, "-o", str(tmp_path / "p.arrows")],
                                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         time.sleep(delay)
