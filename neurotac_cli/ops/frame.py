@@ -374,7 +374,7 @@ class _LabelDoubts:
             kept = ("the frames' force is taken from that level (--zero rest)" if self.framing.zero == "rest"
                     else "the frames' force keeps the drift (--zero rest takes it out)")
             notes.append(f"the force log's rest level moves over {counted(len(self.drifting), 'session')} ({trial}: by {moved:+.3g}, "
-                         f"from its start to its end): a force sensor whose zero drifts; {found}{kept}")
+                         f"from its start to its end): a force sensor whose zero drifts or was re-tared; {found}{kept}")
         if self.held:
             trial, level = max(self.held.items(), key=lambda item: abs(item[1]))
             notes.append(f"--zero rest found no grasp in {counted(len(self.held), 'trial')} whose rest level lies far from the log's "

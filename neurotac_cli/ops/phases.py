@@ -174,26 +174,67 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     """The rest level of a log at each sample. Each `block` samples' 5th percentile (REST_BLOCK
     unless given: `rest_block`) is their rest, unless a grasp holds through the block: a block whose
     level stands above the line through its neighbours' (at an end, through the two nearest) by
-    half the contact bar (`_contact_bar`: `contact_share` of the log's scale, or 5 noise σ) is left out,
-    again until none stands out, so a hold of any length reads no rest of its own; the rest is
-    interpolated between the blocks kept. A force sensor's zero drifts (a strain gauge warming: 0.2 N
-    a minute put a session's later rests above a level read once for the whole log, and they were
-    labelled grasps), and a drift is a line through the blocks. Missing samples (NaN) are bridged
-    by interpolation. A log of under two blocks has one level, its 5th percentile."""
+    half the contact bar (`_contact_bar`: `contact_share` of the log's scale, or 5 noise σ), and above
+    the lowest block on each side of it, is left out, again until none stands out, so a hold of any
+    length reads no rest of its own; the rest is interpolated between the blocks kept. A force
+    sensor's zero drifts (a strain gauge warming: 0.2 N a minute put a session's later rests above a
+    level read once for the whole log, and they were labelled grasps), and a drift is a line through
+    the blocks. It can also step (the sensor re-tared, a cable knocked): the blocks after a step up
+    have no lower block after them, so they are kept, and between two kept blocks apart by more
+    than the contact bar the rest steps where the samples cross from one level to the other
+    (`_rest_step`), not along a line. Missing samples (NaN) are bridged by interpolation. A log of
+    under two blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
-    known = ~np.isnan(force)
-    if not known.any():
+    if np.isnan(force).all():
         return np.zeros(len(force))
+    x, y, _ = _rest_points(force, contact_share, block)
+    return np.interp(np.arange(len(force)), x, y)
+
+
+def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """`rest_levels`' points (places, levels: a step is two points a sample apart) and the samples at
+    which its steps begin, of a log with at least one known sample. The blocks are read once for
+    the steps, then again on each side of them, so that no block mixes two zeros."""
+    known = ~np.isnan(force)
     force = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
     block = block or REST_BLOCK
-    blocks = len(force) // block
+    bar = _contact_bar(force - float(np.percentile(force, 5)), contact_share, step_noise(np.diff(force)))
+    x, y = _block_rest(force, 0, len(force), block, bar)
+    # a step, not a drift: one block-to-block change apart by half the contact bar from what its
+    # neighbours' rates make of its span (a long hold between two kept blocks spans several blocks)
+    change, rate = np.diff(y), np.diff(y) / np.diff(x)
+    around = np.array([np.median(np.delete(rate[max(k - 3, 0):k + 4], min(k, 3))) if len(rate) > 1 else 0.0
+                       for k in range(len(rate))]) * np.diff(x)
+    steps = sorted({_rest_step(force, int(np.ceil(x[k - 1])) if k else 0, int(x[k + 2]) if k + 2 < len(x) else len(force) - 1,
+                               y[k], y[k + 1]) for k in np.flatnonzero(np.abs(change - around) > 0.5 * bar)} - {0, len(force)})
+    if not steps:
+        return x, y, []
+    xs, ys = [], []
+    for first, end in zip([0, *steps], [*steps, len(force)]):
+        px, py = _block_rest(force, first, end, block, bar)
+        xs += [[first], px, [end - 1]]  # flat to the part's edges: the next part's level begins a sample on
+        ys += [py[:1], py, py[-1:]]
+    return np.concatenate(xs), np.concatenate(ys), steps
+
+
+def _block_rest(force: np.ndarray, first: int, end: int, block: int, bar: float) -> tuple[np.ndarray, np.ndarray]:
+    """The places and levels of the rest blocks (`_rest_blocks`) of samples `first` to `end`; where
+    they hold under two blocks, their 5th percentile at their middle."""
+    blocks = (end - first) // block
     if blocks < 2:
-        return np.full(len(force), float(np.percentile(force, 5)))
-    edges = np.linspace(0, len(force), blocks + 1).astype(int)
+        return np.array([first + (end - first - 1) / 2]), np.array([float(np.percentile(force[first:end], 5))])
+    edges = np.linspace(first, end, blocks + 1).astype(int)
     centres = (edges[:-1] + edges[1:] - 1) / 2
     levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
-    margin = 0.5 * _contact_bar(force - float(np.percentile(force, 5)), contact_share, step_noise(np.diff(force)))
-    kept = np.ones(blocks, dtype=bool)
+    kept = _rest_blocks(centres, levels, 0.5 * bar)
+    return centres[kept], levels[kept]
+
+
+def _rest_blocks(centres: np.ndarray, levels: np.ndarray, margin: float) -> np.ndarray:
+    """Which blocks read a rest (`rest_levels`): the block that stands out most above the line through
+    its kept neighbours, and above the lowest kept block on each side, left out first (a hold's
+    edges go before its middle), until none does."""
+    kept = np.ones(len(levels), dtype=bool)
     while kept.sum() > 1:
         index = np.flatnonzero(kept)
         # each kept block against the line through its kept neighbours; at an end, through the two
@@ -205,11 +246,31 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
         width = centres[after] - centres[before]
         share = np.divide(centres[index] - centres[before], width, out=np.zeros(len(index)), where=width != 0)
         above = levels[index] - (levels[before] + share * (levels[after] - levels[before]))
+        # a hold has rest on both sides; a block with none lower on one side is a zero that stepped
+        # (at an end, where one side is empty, a hold to the end and a step cannot be told apart: a hold)
+        kept_levels = levels[index]
+        lowest_before = np.minimum.accumulate(np.r_[np.inf, kept_levels[:-1]])
+        lowest_after = np.minimum.accumulate(np.r_[kept_levels[1:], np.inf][::-1])[::-1]
+        floor = np.maximum(lowest_before, lowest_after)
+        floor[~np.isfinite(floor)] = -np.inf
+        above = np.where(kept_levels - floor > margin, above, -np.inf)
         worst = int(np.argmax(above))
         if above[worst] <= margin:
             break
-        kept[index[worst]] = False  # the block that stands out most first: a hold's edges go before its middle
-    return np.interp(np.arange(len(force)), centres[kept], levels[kept])
+        kept[index[worst]] = False
+    return kept
+
+
+def _rest_step(force: np.ndarray, first: int, last: int, before: float, after: float) -> int:
+    """Where a rest level steps from `before` to `after` between samples `first` and `last`: after the
+    last sample near the lower level where it steps up (after the step none reads so low), at the
+    first where it steps down (before it none did); the crossing is half the step."""
+    span = force[first:last + 1]
+    low = min(before, after) + abs(after - before) / 2
+    near = np.flatnonzero(span < low)
+    if not len(near):
+        return first if after < before else last + 1
+    return first + (int(near[-1]) + 1 if after > before else int(near[0]))
 
 
 def _contact_bar(above_rest: np.ndarray, contact_share: float, noise: float) -> float:
@@ -222,22 +283,35 @@ def rest_line(force: np.ndarray, block: int | None = None) -> np.ndarray | None:
     """A log's zero at each sample: the median of the samples between grasps (`label_session`) in each
     `block` samples (REST_BLOCK unless given), placed at their mean place, joined by lines and followed
     for half a block past the first and last (a drift goes on to the log's ends; a log that ends in a
-    long grasp has no rest to say where it went). The rest levels that find the grasps are 5th
-    percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block, at its
-    early part. Where no sample lies between grasps (a trial held from start to end), the median of
-    every sample per block; None where no sample is known."""
+    long grasp has no rest to say where it went). Where the rest levels step (`rest_levels`: a
+    re-tared sensor), each side of the step has its own line. The rest levels that find the grasps
+    are 5th percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block,
+    at its early part. Where no sample lies between grasps (a trial held from start to end), the
+    median of every sample per block; None where no sample is known."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
     if not known.any():
         return None
     block = block or REST_BLOCK
-    places = np.flatnonzero((label_session(force, block=block)[1] < 0) & known)
-    if not len(places):
-        places = np.flatnonzero(known)
+    between = (label_session(force, block=block)[1] < 0) & known
+    if not between.any():
+        between = known
+    bounds = [0, *_rest_points(force, CONTACT_SHARE, block)[2], len(force)]
+    line = np.empty(len(force))
+    for first, end in zip(bounds[:-1], bounds[1:]):
+        places = first + np.flatnonzero(between[first:end])
+        if not len(places):  # a side of a step with no rest of its own: the samples it has, or the log's
+            places = first + np.flatnonzero(known[first:end]) if known[first:end].any() else np.flatnonzero(known)
+        line[first:end] = _joined(np.arange(first, end, dtype=np.float64), places, force[places], block)
+    return line
+
+
+def _joined(at: np.ndarray, places: np.ndarray, values: np.ndarray, block: int) -> np.ndarray:
+    """At `at`, the line through the medians of `values` (at `places`) per `block` samples, each placed
+    at its samples' mean place, followed half a block past the ends (`rest_line`)."""
     stretch = places // block
-    points = [(places[stretch == k].mean(), np.median(force[places[stretch == k]])) for k in np.unique(stretch)]
-    x, y = (np.array(values) for values in zip(*points))
-    at = np.arange(len(force), dtype=np.float64)
+    points = [(places[stretch == k].mean(), np.median(values[stretch == k])) for k in np.unique(stretch)]
+    x, y = (np.array(v) for v in zip(*points))
     line = np.interp(at, x, y)
     if len(x) > 1:
         for ends, (a, b) in ((at < x[0], (0, 1)), (at > x[-1], (-2, -1))):

@@ -151,6 +151,27 @@ def test_a_hold_longer_than_the_rest_level_s_stretches_reads_no_rest_of_its_own(
         assert grasp.max() + 1 == 5 and np.mean(phase[force == 0] == "none") > 0.99
 
 
+@pytest.mark.parametrize("step", [1.0, -1.0, 0.3, 2.0])
+@pytest.mark.parametrize("drift", [0.0, 0.4])
+def test_a_sensor_re_tared_between_grasps_keeps_its_rests_at_rest(step, drift):
+    """A zero that steps (re-tared, a cable knocked) and stays: its later rests stood above the line
+    through their neighbours, were taken for a hold one after another to the log's end, and 15-30%
+    of the rest frames after it were labelled grasps; zeroing ramped across the step for 10 s."""
+    rng = np.random.default_rng(6)
+    parts = [np.zeros(200)]
+    for k in range(40):
+        peak = 0.6 if k % 4 == 0 else float(rng.uniform(2, 6))
+        parts += [ramp(0, peak, 10), np.full(int(rng.integers(80, 350)), peak), ramp(peak, 0, 8), np.zeros(int(rng.integers(60, 300)))]
+    force = np.concatenate(parts)
+    rests = np.flatnonzero(force == 0)
+    at = int(rests[np.argmin(np.abs(rests - force.size // 2))])  # in a rest, as a re-tare is
+    zero = drift * np.arange(force.size) / 6000 + rng.normal(0, 0.02, force.size)
+    zero[at:] += step
+    phase, grasp = label_session(force + zero)
+    assert grasp.max() + 1 == 40 and np.mean(phase[force == 0] == "none") > 0.99
+    assert np.sqrt(np.mean((force + zero - rest_line(force + zero) - force) ** 2)) < 0.03
+
+
 def test_the_rest_level_s_stretches_are_seconds_at_any_frame_window_and_bridge_missing_force():
     """The stretches were counted in frames (10 s at 10 ms, 50 s at 50 ms frames), and missing force
     was filled with the whole log's level, which dragged a drifting log's local level."""
@@ -223,6 +244,6 @@ def test_frame_names_what_zeroing_at_rest_could_not_do():
     doubts.look("nolog", None, 100)
     doubts.look_at_zero("inside", 2.97)
     notes = doubts.notes()
-    assert any("a force sensor whose zero drifts; the frames' force is taken from that level (--zero rest)" in n for n in notes), notes
+    assert any("a force sensor whose zero drifts or was re-tared; the frames' force is taken from that level (--zero rest)" in n for n in notes), notes
     assert any("found no grasp in 1 trial whose rest level lies far from the log's zero (inside: +2.97)" in n for n in notes), notes
     assert any("--zero rest: 1 trial (nolog) has no force log" in n for n in notes), notes
