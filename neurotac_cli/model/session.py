@@ -159,19 +159,23 @@ class Stream:
         self.contact = detector.ContactState.start(self.config)
         self.inner = None
         self.lead = collections.deque(maxlen=self.config.lead_frames)  # the last frames and their times, read before an onset
-        self.last_frame = None  # the frame number read last: a stream's frames come one window after another
+        self.last_frame = None  # the (frame number, time) read last: a stream's frames come one window after another
 
-    def check_order(self, trial: str, frames: np.ndarray):
-        """Refuse frames that do not follow one another (a gap, a repeat, the wrong order): the detector
-        and the force model take each frame as the next window of the stream."""
-        given = np.concatenate([[self.last_frame], frames]) if self.last_frame is not None else frames
-        steps = np.diff(given)
-        if len(steps) and (steps != 1).any():
-            k = int(np.flatnonzero(steps != 1)[0])
-            raise InputError(f"trial {trial!r}: frame {int(given[k + 1])} follows frame {int(given[k])}; a model trained "
-                             "with --contacts reads each stream's frames one window after another, as `frame` writes them "
-                             "(give whole sessions, in order)")
-        self.last_frame = int(frames[-1]) if len(frames) else self.last_frame
+    def check_order(self, trial: str, frames: np.ndarray, t_us: np.ndarray):
+        """Refuse frames that do not follow one another (a gap, a repeat, the wrong order, a time that
+        does not move on with the frame number): the detector and the force model take each frame as
+        the next window of the stream, and the estimates keep the frames' times."""
+        given = np.concatenate([[self.last_frame[0]], frames]) if self.last_frame is not None else frames
+        times = np.concatenate([[self.last_frame[1]], t_us]) if self.last_frame is not None else t_us
+        bad = np.flatnonzero((np.diff(given) != 1) | (np.diff(times) <= 0))
+        if len(bad):
+            k = int(bad[0])
+            what = (f"frame {int(given[k + 1])} follows frame {int(given[k])}" if given[k + 1] - given[k] != 1 else
+                    f"frame {int(given[k + 1])} (t {int(times[k + 1])} µs) follows frame {int(given[k])} at t {int(times[k])} µs")
+            raise InputError(f"trial {trial!r}: {what}; a model trained with --contacts reads each stream's frames one window "
+                             "after another, as `frame` writes them (give whole sessions, in order)")
+        if len(frames):
+            self.last_frame = (int(frames[-1]), int(t_us[-1]))
 
     def step(self, counts: np.ndarray, t_us: np.ndarray):
         """(force, phase, slip flag, material) per frame of frames (T, 2, H, W) at times (T,) µs; the
@@ -517,7 +521,7 @@ def _predict_batch(model, material, batch, out_schema, streams) -> pa.RecordBatc
         if trials[begin] not in streams:
             streams[trials[begin]] = Stream(model, material)
         one = streams[trials[begin]]
-        one.check_order(trials[begin], frame_numbers[begin:end])
+        one.check_order(trials[begin], frame_numbers[begin:end], t[begin:end])
         force[begin:end], phase[begin:end], slip[begin:end], named[begin:end] = one.step(counts[begin:end], t[begin:end])
         distances[begin:end] = one.distances
     log = getattr(model.net, "distance_log", None)

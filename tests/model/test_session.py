@@ -1078,6 +1078,11 @@ def test_a_stream_whose_frames_do_not_follow_one_another_is_refused(trained):
                         (frames[::-1], f"frame {table.num_rows - 2} follows frame {table.num_rows - 1}")]:
         with pytest.raises(InputError, match=said):
             session.predict_table(trained, table.take(pa.array(order)))
+    t = table.column("t").to_numpy().copy()
+    t[40:] -= 20_000  # frame numbers that go on while the clock steps back two windows
+    stepped = table.set_column(table.schema.get_field_index("t"), "t", pa.array(t, table.schema.field("t").type))
+    with pytest.raises(InputError, match=rf"frame 40 \(t {t[40]} µs\) follows frame 39 at t {t[39]} µs"):
+        session.predict_table(trained, stepped)
 
 
 def test_scores_say_when_rest_frames_carry_force_and_when_a_session_has_no_grasp(trained):
