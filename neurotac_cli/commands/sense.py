@@ -41,6 +41,7 @@ def command(path, output, model_path, material_path, window, box, size, center, 
         neurotac sense --realtime session.aedat4 --model m.model --pool 6x6 > force.arrows
     """
     from neurotac_cli import tables
+    from neurotac_cli.errors import InputError, NeurotacError
     from neurotac_cli.io import events, live
     from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.model import sense
@@ -65,7 +66,12 @@ def command(path, output, model_path, material_path, window, box, size, center, 
     schema, batches, report = sense.sense(stream, loaded(), framing, box_spec,
                                           material=material(), sensor=sensor,
                                           say=lambda line: echo_lines("sense", [line], "warning: "))
-    tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+    try:
+        tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+    except NeurotacError:
+        if not stream.rows:  # with what the reader left out (a record cut short), which says why
+            why = "".join(f" ({note})" for note in stream.notes)
+            raise InputError(f"{path}: no events in the camera input, so no window to sense{why}") from None
+        echo_lines("sense", [f"warning: {note}" for note in stream.notes])
+        raise
     echo_lines("sense", [f"warning: {note}" for note in stream.notes] + report.messages())
-    if not stream.rows:
-        click.echo(f"neurotac sense: warning: {path}: no events in the camera input (an empty table was written)", err=True)

@@ -131,3 +131,19 @@ def test_sense_refuses_a_pooling_the_model_was_not_trained_on_as_predict_does(ri
     same = neurotac("sense", str(camera), "--model", f"{tmp_path}/pooled.model", "--size", "116x116", "--center", "120,90", "--pool", "4x4",
                     "-o", f"{tmp_path}/p.arrows")
     assert same.returncode == 0, same.stderr
+
+
+def test_sense_on_a_camera_file_cut_before_its_first_event_says_what_was_left_out(rig, tmp_path):
+    """It said only that the events table was empty; `import` of the same file said that a record
+    was cut short."""
+    folder, camera = rig
+    data = camera.read_bytes()
+    header = 0
+    while data.startswith(b"#", header):  # AEDAT 2.0's header: lines that begin with '#'
+        header = data.index(b"\n", header) + 1
+    cut = tmp_path / "cut.aedat"
+    cut.write_bytes(data[:header + 5])  # the header and five bytes of an 8-byte event
+    done = neurotac("sense", str(cut), "--model", f"{folder}/m.model", *BOX, "-o", str(tmp_path / "out.arrows"))
+    lines = done.stderr.splitlines()
+    assert done.returncode == 1 and len(lines) == 1, done.stderr
+    assert "cut.aedat: no events in the camera input" in lines[0] and "cut short" in lines[0], lines
