@@ -95,7 +95,7 @@ def import_events(paths, sensor=None, fmt: str | None = None, follow: bool = Fal
     # a piped file read whole (HDF5, text) carries its reader's notes in the schema, as a file does
     stream.notes += source_notes(stream.schema)
     if speed is not None:
-        stream.batches = live.replay(stream.batches, speed, stop)
+        stream.batches = live.replay(stream.batches, speed, stop, notes=stream.notes)
     stream.batches = _counted(stream, stream.batches)
     return stream
 

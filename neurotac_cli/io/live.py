@@ -442,17 +442,20 @@ def _decoder(fmt: str, header: bytes, sensor):
 
 
 def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable[[], bool] = lambda: False,
-           slice_us: int = REPLAY_SLICE_US, clock=time.monotonic, sleep=time.sleep) -> Iterator[pa.RecordBatch]:
+           slice_us: int = REPLAY_SLICE_US, clock=time.monotonic, sleep=time.sleep,
+           notes: list | None = None) -> Iterator[pa.RecordBatch]:
     """The batches again, each event released when the wall-clock time since the first event reaches
     its camera time (divided by `speed`): the events of each `slice_us` of camera time go out together
     once that slice has passed. Events that step back in time go out with the slice they are in; a
-    stop request ends the replay at once."""
+    clock that steps back by REPLAY_RESET_US or more (a camera reset, a wrapped counter) is paced
+    again from where it went back, with a line in `notes` (its backlog went out at once, and the pace
+    was gone until the clock had caught up); a stop request ends the replay at once."""
     start_t = start_wall = None
-    last = 0
+    last, clock_state = 0, _ClockSteps(notes)
     for batch in batches:
         if batch.num_rows == 0:
             continue
-        t = batch.column("t").to_numpy()
+        t = clock_state.paced(batch.column("t").to_numpy().astype(np.int64))
         if start_t is None:
             start_t, start_wall = int(t[0]), clock()
         slices = np.maximum.accumulate(np.maximum((t - start_t) // slice_us, last))
@@ -467,6 +470,34 @@ def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable
                 return
             yield batch.slice(begin, end - begin)
         last = int(slices[-1])
+
+
+REPLAY_RESET_US = 1_000_000  # a replay's clock stepping back this far was reset, not a few events out of order
+
+
+class _ClockSteps:
+    """The times a replay paces by: a camera's times, each step back of REPLAY_RESET_US or more taken
+    out (the events after it follow on from the latest time before it), each said once in `notes`."""
+
+    def __init__(self, notes: list | None):
+        self.notes, self.offset, self.peak = notes, 0, None
+
+    def paced(self, t: np.ndarray) -> np.ndarray:
+        out = t + self.offset
+        while True:
+            before = np.maximum.accumulate(np.concatenate(([out[0] if self.peak is None else self.peak], out[:-1])))
+            back = np.flatnonzero(out < before - REPLAY_RESET_US)
+            if not len(back):
+                break
+            k = int(back[0])
+            shift = int(before[k] - out[k])
+            out[k:] += shift
+            self.offset += shift
+            if self.notes is not None:
+                self.notes.append(f"the camera's clock steps back {shift / 1e6:.4g} s at t {int(t[k])} µs; the replay "
+                                  "paces the events after it from where the clock went back (their times are kept)")
+        self.peak = int(out.max()) if self.peak is None else max(self.peak, int(out.max()))
+        return out
 
 
 def stop_on_signals() -> Callable[[], bool]:

@@ -487,6 +487,25 @@ def test_a_replay_releases_no_event_before_its_time_and_each_within_a_slice(spee
     assert released[-1][0] == pytest.approx((t[-1] - t[0]) / 1e6 / speed, abs=live.REPLAY_SLICE_US / 1e6 / speed)
 
 
+def test_a_replay_whose_clock_steps_back_paces_what_follows_from_there():
+    """A camera clock reset 2 s back: the 2 s after it went out at once, unpaced, without a word."""
+    clock, sleep, now = fake_clock()
+    t = np.concatenate([np.arange(0, 2_000_000, 1000), np.arange(0, 2_000_000, 1000)]) + 7_000_000
+    schema = sch.events_schema(10, 10)
+    zeros = np.zeros(len(t), np.uint16)
+    batches = [sch.events_batch(t[i : i + 300], zeros[i : i + 300], zeros[i : i + 300], zeros[i : i + 300].astype(np.uint8), schema)
+               for i in range(0, len(t), 300)]
+    notes, released = [], []
+    for batch in live.replay(iter(batches), 1.0, clock=clock, sleep=sleep, notes=notes):
+        released.append((now[0] - 100.0, batch.column("t").to_numpy()))
+    assert np.concatenate([b for _, b in released]).tolist() == t.tolist()  # every event, its time kept
+    assert released[-1][0] == pytest.approx(4.0, abs=0.01)
+    paced = np.concatenate([np.arange(2000), 1999 + np.arange(2000)]) / 1000  # s: the reset's events follow on
+    last = np.cumsum([len(times) for _, times in released]) - 1
+    assert all(paced[k] <= wall + 1e-9 <= paced[k] + 0.002 for (wall, _), k in zip(released, last))  # none early, none late
+    assert len(notes) == 1 and "steps back 2 s" in notes[0]
+
+
 def test_realtime_replays_at_the_recorded_pace(tmp_path):
     source = real_file("davis240c_rotdisk.aedat")  # 3.17 s of events
     start = time.monotonic()
