@@ -503,7 +503,7 @@ def test_a_replay_whose_clock_steps_back_paces_what_follows_from_there():
     paced = np.concatenate([np.arange(2000), 1999 + np.arange(2000)]) / 1000  # s: the reset's events follow on
     last = np.cumsum([len(times) for _, times in released]) - 1
     assert all(paced[k] <= wall + 1e-9 <= paced[k] + 0.002 for (wall, _), k in zip(released, last))  # none early, none late
-    assert len(notes) == 1 and "steps back 2 s" in notes[0]
+    assert len(notes) == 1 and "steps back 1.999 s at t 7000000 µs" in notes[0]
 
 
 def test_realtime_replays_at_the_recorded_pace(tmp_path):
