@@ -176,7 +176,7 @@ def open_stream(path, sensor=None, fmt: str | None = None, follow: bool = False,
     name = "stdin" if path in (None, "-") else os.path.basename(str(path))
     if follow and path not in (None, "-"):
         _wait_for(path, idle_timeout, stop)
-    fd, decoder = _open_fd(path, stop, name), None
+    fd, decoder = _open_fd(path, stop, name, idle_timeout if follow else None), None
     closed = []
 
     def close():
@@ -254,7 +254,7 @@ def _wait_for(path, idle_timeout: float, stop: Callable[[], bool]):
         time.sleep(IDLE_POLL_S)
 
 
-def _open_fd(path, stop: Callable[[], bool] = lambda: False, name: str = "") -> int:
+def _open_fd(path, stop: Callable[[], bool] = lambda: False, name: str = "", idle_timeout: float | None = None) -> int:
     if path in (None, "-"):
         from neurotac_cli.tables import is_terminal
 
@@ -265,22 +265,27 @@ def _open_fd(path, stop: Callable[[], bool] = lambda: False, name: str = "") -> 
         raise InputError(f"{path} is a directory, not a file (give the camera files inside it)")
     try:
         if sys.platform.startswith("linux") and stat.S_ISFIFO(os.stat(path).st_mode):
-            return _open_fifo(path, stop, name or str(path))
+            return _open_fifo(path, stop, name or str(path), idle_timeout)
         return os.open(path, os.O_RDONLY)
     except OSError as error:
         raise cannot_open(path, error) from None
 
 
-def _open_fifo(path, stop: Callable[[], bool], name: str) -> int:
-    """A FIFO, once a writer has opened it. A plain open blocks in the kernel until then, and the
-    stop request's handler restarts it there (SA_RESTART), so Ctrl-C and SIGTERM would never end an
-    import of a FIFO nobody writes to. Opened without blocking, it is waited on here instead: Linux
-    reports such a FIFO neither readable nor hung up until a writer comes."""
+def _open_fifo(path, stop: Callable[[], bool], name: str, idle_timeout: float | None = None) -> int:
+    """A FIFO, once a writer has opened it (given up after `idle_timeout` s, where followed). A plain
+    open blocks in the kernel until then, and the stop request's handler restarts it there
+    (SA_RESTART), so Ctrl-C and SIGTERM would never end an import of a FIFO nobody writes to. Opened
+    without blocking, it is waited on here instead: Linux reports such a FIFO neither readable nor
+    hung up until a writer comes."""
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    deadline = None if idle_timeout is None else time.monotonic() + idle_timeout
     try:
         while not select.select([fd], [], [], WAKE_S)[0]:
             if stop():
                 raise InputError(f"{name}: stopped before anything wrote into the FIFO (no table to write)")
+            if deadline is not None and time.monotonic() > deadline:
+                raise InputError(f"{name}: nothing opened the FIFO to write into it in {idle_timeout:g} s (--idle-timeout); "
+                                 "is the camera writing it?")
         os.set_blocking(fd, True)
     except BaseException:
         os.close(fd)

@@ -277,6 +277,15 @@ def test_ctrl_c_ends_an_import_of_a_fifo_nobody_writes_to(tmp_path, number):
     assert process.returncode == 1 and len(lines) == 1 and "stopped before anything wrote" in lines[0], stderr
 
 
+def test_a_followed_fifo_nobody_opens_ends_after_the_idle_timeout(tmp_path):
+    """--idle-timeout covered a file that did not appear or stopped growing, not a FIFO no writer opened."""
+    os.mkfifo(tmp_path / "cam.fifo")
+    done = subprocess.run(["neurotac", "import", "--follow", "--idle-timeout", "0.3s", str(tmp_path / "cam.fifo")],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=30)
+    lines = done.stderr.decode().strip().splitlines()
+    assert done.returncode == 1 and len(lines) == 1 and "nothing opened the FIFO to write into it in 0.3 s" in lines[0], lines
+
+
 def test_a_piped_file_read_whole_that_fails_closes_only_its_own_descriptor(tmp_path, monkeypatch):
     """The pipe is closed once copied: the error's clean-up must not close its number again, by then
     another file's (a chunk reader's, which the error left open, shown as a traceback at exit)."""
