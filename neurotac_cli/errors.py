@@ -59,6 +59,10 @@ class OutsideSensorError(NeurotacError):
     """A crop box or size that does not fit the sensor (or the frames)."""
 
 
+class PoolError(NeurotacError):
+    """A pooling that does not fit the size it pools."""
+
+
 class OutputError(NeurotacError):
     """An output that cannot be written: a full disk, a read-only or vanished folder."""
 

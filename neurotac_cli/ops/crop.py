@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, OutsideSensorError, SchemaError, UsageError
+from neurotac_cli.errors import NeurotacError, OutsideSensorError, PoolError, SchemaError, UsageError
 from neurotac_cli.units import MAX_SIDE, is_whole
 
 MAX_COUNT = int(np.iinfo(np.uint16).max)
@@ -219,9 +219,9 @@ def pooled_size(width: int, height: int, pool) -> tuple[int, int]:
         return 1, 1
     k, l = pool
     if k > width or l > height:
-        raise NeurotacError(f"cannot pool {width}x{height} by {k}x{l}: the pool is larger than the crop (`--pool all` sums it to one pixel)")
+        raise PoolError(f"cannot pool {width}x{height} by {k}x{l}: the pool is larger than the crop (`--pool all` sums it to one pixel)")
     if width % k or height % l:
-        raise NeurotacError(f"cannot pool {width}x{height} by {k}x{l}: the size must divide evenly (choose a crop size that does)")
+        raise PoolError(f"cannot pool {width}x{height} by {k}x{l}: the size must divide evenly (choose a crop size that does)")
     return width // k, height // l
 
 
@@ -434,9 +434,19 @@ def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Sc
             out_schema, out = STREAMERS[kind](schema, batches, box, spec.pool, report)
             return out_schema, out, report
         table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report)
-    except OutsideSensorError as error:
-        if sensor is None and sch.camera_source(schema).get("sensor_from") == "events":
-            raise OutsideSensorError(f"{error} (that size is the events' extent, the camera file does not give it: "
-                                     "give the sensor's size to `neurotac import --sensor WxH`)") from None
+    except (OutsideSensorError, PoolError) as error:
+        hint = guessed_sensor_hint(schema)
+        if hint:
+            raise type(error)(f"{error}{hint}") from None
         raise
     return table.schema, table, report
+
+
+def guessed_sensor_hint(schema: pa.Schema) -> str:
+    """Where a table's sensor size is its events' extent (a camera file that does not state it: DAT,
+    text), what to add to an error about sizes: the size is a guess, and how to give the true one."""
+    if sch.camera_source(schema).get("sensor_from") != "events":
+        return ""
+    width, height = sensor_size(schema)
+    return (f" ({width}x{height} is the extent of the events: the camera file does not give its sensor's size; "
+            "give it with --sensor WxH)")

@@ -147,3 +147,19 @@ def test_sense_on_a_camera_file_cut_before_its_first_event_says_what_was_left_ou
     lines = done.stderr.splitlines()
     assert done.returncode == 1 and len(lines) == 1, done.stderr
     assert "cut.aedat: no events in the camera input" in lines[0] and "cut short" in lines[0], lines
+
+
+def test_sense_says_where_the_size_it_refuses_is_only_the_extent_of_the_events(rig, tmp_path):
+    """A DAT file without its geometry: the sensor is the events' extent, a guess the errors about
+    sizes did not name."""
+    folder, _ = rig
+    rng = np.random.default_rng(0)
+    x, y = rng.integers(0, 54, 2000), rng.integers(0, 61, 2000)
+    words = np.stack([np.sort(rng.integers(0, 100_000, 2000)), (1 << 28) | (y << 14) | x], axis=1).astype("<u4")
+    camera = tmp_path / "c.dat"
+    camera.write_bytes(b"% Data file containing CD events.\n% Version 2\n" + bytes([0x0C, 8]) + words.tobytes())
+    for args in ([], ["--pool", "4x4"]):  # whole frames against the model's; a pool of the whole sensor
+        done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", *args, "-o", str(tmp_path / "out.arrows"))
+        lines = done.stderr.splitlines()
+        assert done.returncode == 1 and len(lines) == 1, done.stderr
+        assert "54x61 is the extent of the events" in lines[0] and "--sensor WxH" in lines[0], lines

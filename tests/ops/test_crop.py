@@ -145,10 +145,12 @@ def test_a_box_past_a_sensor_guessed_from_the_events_says_how_to_give_the_size(t
     source = tmp_path / "e.arrows"
     tables.write(str(source), events)
     env = {**os.environ, "PATH": f"{os.path.dirname(sys.executable)}:{os.environ['PATH']}"}
-    done = subprocess.run(["neurotac", "crop", "--size", "32x32", "--center", "10,7", str(source)], capture_output=True, env=env)
-    lines = done.stderr.decode().strip().splitlines()
-    assert done.returncode == 1 and len(lines) == 1
-    assert "larger than the 20x15 input" in lines[0] and "neurotac import --sensor WxH" in lines[0]
+    for args, said in [(["--size", "32x32", "--center", "10,7"], "larger than the 20x15 input"),
+                       (["--pool", "3x3"], "cannot pool 20x15 by 3x3")]:  # the pool of a whole sensor that is a guess
+        done = subprocess.run(["neurotac", "crop", *args, str(source)], capture_output=True, env=env)
+        lines = done.stderr.decode().strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1
+        assert said in lines[0] and "20x15 is the extent of the events" in lines[0] and "give it with --sensor WxH" in lines[0]
 
 
 # ---------------------------------------------------------------- streams
