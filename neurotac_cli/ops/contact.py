@@ -311,6 +311,8 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
     state.frames += 1
+    if state.phase == NONE and state.warmup is None and off + on == 0 and state.mean_off + state.mean_on >= SILENT_EVENTS:
+        return NONE  # the camera sent nothing (a gap in a recording, a dropped transfer): no rest to learn from
     if state.phase == NONE and state.warmup is None and frame is not None and _may_begin(config, state, frame, off, on):
         if _flash(state, frame, off, on):
             return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
@@ -336,6 +338,11 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
         elif phase == GRASPING:
             state.footprint.press(config, frame, onset=state.onsets != before)
     return phase
+
+
+SILENT_EVENTS = 10.0  # a rest frame without one event where the background expects this many (Poisson: e^-10) is a camera
+# that sent nothing: a recording's gap of hours decayed the background to zero, then it climbed back by 3σ a frame, and the
+# stream's next contacts ended early and split on ON events read as release bursts
 
 
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large

@@ -98,6 +98,19 @@ def test_detector_finds_every_contact_within_two_frames_and_ends_it_at_the_relea
     assert {"grasping", "holding"} <= set(phases[truth])
 
 
+def test_a_gap_in_the_camera_s_events_teaches_the_detector_no_background():
+    """Two hours without an event (a recording paused, a dropped transfer) at 10 ms frames decayed the
+    background to zero, from which it climbed back by 3σ a frame: the stream's next contact ended early
+    and split, its background ON events read as release bursts."""
+    table, onsets = tiny_session(grasps=4, seed=3, background=0.2)  # 16 events of each polarity a frame at rest
+    off, on = contact.frame_sums(sch.counts_numpy(table.column("counts")))
+    start = onsets[0] - 40  # rest: the warm-up done, the background learnt
+    gap = np.zeros(720_000)
+    phases, _, _, _ = contact.detect(contact.ContactConfig(), off, on)
+    gapped, _, _, _ = contact.detect(contact.ContactConfig(), np.r_[off[:start], gap, off[start:]], np.r_[on[:start], gap, on[start:]])
+    assert (gapped[start + len(gap):] == phases[start:]).all() and (gapped[start:start + len(gap)] == contact.NONE).all()
+
+
 def test_detector_phases_through_a_grasp():
     """Rest; an OFF burst (grasping) that settles (holding), a hold's ripple, an ON-dominated run that
     grows to a full release (releasing, then rest), and the membrane's ON tail after it (still rest)."""
