@@ -304,7 +304,9 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
                 force, held = rest_zeroed(force, n_real, line, trial)
                 doubts.look_at_zero(trial, held)
             if framing.phases == "session":
-                phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us)
+                spikes = []
+                phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes)
+                doubts.look_at_spikes(trial, spikes)
             else:
                 phase, grasp = _phases(force, n_real, n_total, framing.phases), None
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
@@ -330,6 +332,7 @@ class _LabelDoubts:
     def __init__(self, framing: Framing):
         self.framing = framing
         self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
+        self.spikes = {}
 
     def look(self, trial: str, force, n_real: int, line=None) -> None:
         """The trial's frames' force as the log gives it (`force`; None where it has no force log), and
@@ -351,6 +354,11 @@ class _LabelDoubts:
         far from the log's zero (a trial held from start to end reads as rest)."""
         if held is not None:
             self.held[trial] = held
+
+    def look_at_spikes(self, trial: str, spikes: list) -> None:
+        """`spikes`: the trial's runs of contact too short for a grasp (`label_session`)."""
+        if spikes:
+            self.spikes[trial] = spikes
 
     def look_at_labels(self, trial: str, grasp, n_total: int) -> None:
         if self.framing.slips is not None and grasp is not None:
@@ -380,6 +388,13 @@ class _LabelDoubts:
             notes.append(f"--zero rest found no grasp in {counted(len(self.held), 'trial')} whose rest level lies far from the log's "
                          f"zero ({trial}: {level:+.3g}): a trial held from start to end reads as rest there, its force taken off; "
                          "frame such trials without --zero rest")
+        if self.spikes:
+            trial, spikes = max(self.spikes.items(), key=lambda item: len(item[1]))
+            first, frames, peak = max(spikes, key=lambda spike: spike[2])
+            notes.append(f"the force log rises above its rest level for under {ph.MIN_GRASP_US / 1000:g} ms "
+                         f"{counted(sum(map(len, self.spikes.values())), 'time')} in {counted(len(self.spikes), 'session')} "
+                         f"({trial}: {len(spikes)}, the highest {peak:.3g} above rest at frame {first}): a force sensor's "
+                         "glitches, no gripper's grasp; those frames are labelled at rest")
         if self.logless:
             notes.append(f"--zero rest: {counted(len(self.logless), 'trial')} ({first_few(self.logless)}) {'has' if len(self.logless) == 1 else 'have'} "
                          "no force log, so no force to zero")

@@ -114,7 +114,8 @@ MERGE_FRAMES = 2  # contact dips of at most this many frames do not split a gras
 
 
 def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_share: float = MOVE_SHARE,
-                  slope_share: float = SLOPE_SHARE, block: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  slope_share: float = SLOPE_SHARE, block: int | None = None,
+                  spikes: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(phase per frame, grasp index per frame as int32, -1 for none) of a trial holding many grasps.
 
     A grasp is a run of frames in contact: force above the rest level (`rest_levels`: the 5th
@@ -133,6 +134,11 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     `slope_share` per frame, and a viscoelastic object relaxing, stay holding; after the last fall
     every frame to the end of contact is releasing.
 
+    A run of contact with fewer frames in contact than MIN_GRASP_US holds (at the frames' period, which
+    `block` gives), away from the log's ends, is a force sensor's glitch (or a burst of them), not a
+    grasp: no gripper presses and lets go within it.
+    Each is left at rest and, with `spikes`, appended there as (first frame, frames, peak above rest).
+
     Limits: a grasp weaker than `contact_share` of the session's force scale is not found (a 0.5 N
     touch among 20 N grasps: lower `contact_share`); the noise is read from the trace itself, so it
     needs some tens of frames at rest to be read well.
@@ -148,9 +154,14 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     filled = np.where(known, force, rest)
     noise = step_noise(np.diff(filled)) if n > 2 else 0.0
     threshold = rest + _contact_bar(filled - rest, contact_share, noise)
-    index = 0
+    index, shortest = 0, int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
     for first, last in _contact_runs(filled > threshold):
-        if (filled[first:last + 1] - rest[first:last + 1]).max() < max(10 * noise, 1e-6):
+        peak = float((filled[first:last + 1] - rest[first:last + 1]).max())
+        if peak < max(10 * noise, 1e-6):
+            continue
+        if int((filled[first:last + 1] > threshold[first:last + 1]).sum()) < shortest and first > 0 and last < n - 1:
+            if spikes is not None:
+                spikes.append((first, last - first + 1, peak))
             continue
         end = min(last + 2, n)  # the first frame below contact is the grasp's last
         grasp[first:end] = index
@@ -161,6 +172,7 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     return phase, grasp
 
 
+MIN_GRASP_US = 40_000  # a run of contact shorter than this is a force sensor's glitch (our grasps: 0.43 s and more)
 REST_STRETCH_US = 10_000_000  # a stretch of the log whose 5th percentile is its rest level there
 REST_BLOCK = 1000  # ... in samples, where their period is not known: 10 s of 10 ms frames
 
@@ -408,11 +420,12 @@ def _moves(change: np.ndarray, peak: float, move_share: float, slope_share: floa
     return moves
 
 
-def session_columns(force: np.ndarray, n_real: int, n_total: int, window_us: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def session_columns(force: np.ndarray, n_real: int, n_total: int, window_us: int | None = None,
+                    spikes: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """`frame --phases session`: phase and grasp index of the first n_real frames (of `window_us`),
-    padding frames none / -1."""
+    padding frames none / -1; `spikes` as `label_session`'s."""
     phase = np.full(n_total, NONE, dtype=object)
     grasp = np.full(n_total, -1, dtype=np.int32)
     if n_real and not np.isnan(force[:n_real]).all():
-        phase[:n_real], grasp[:n_real] = label_session(force[:n_real], block=rest_block(window_us))
+        phase[:n_real], grasp[:n_real] = label_session(force[:n_real], block=rest_block(window_us), spikes=spikes)
     return phase, grasp

@@ -172,6 +172,35 @@ def test_a_sensor_re_tared_between_grasps_keeps_its_rests_at_rest(step, drift):
     assert np.sqrt(np.mean((force + zero - rest_line(force + zero) - force) ** 2)) < 0.03
 
 
+def test_a_force_sensor_s_glitches_are_no_grasps_and_are_said():
+    """Spikes of 1-3 frames above the rest level (a load cell's interference) were each a grasp: 20
+    glitches among 40 grasps gave 60."""
+    from neurotac_cli.ops.frame import Framing, _LabelDoubts
+
+    rng = np.random.default_rng(7)
+    parts = [np.zeros(200)]
+    for _ in range(40):
+        parts += [ramp(0, float(rng.uniform(1, 5)), 10), np.full(int(rng.integers(40, 300)), 3.0), ramp(3.0, 0, 8),
+                  np.zeros(int(rng.integers(100, 300)))]
+    force = np.concatenate(parts) + rng.normal(0, 0.01, sum(map(len, parts)))
+    rests = [k for k in np.flatnonzero(np.concatenate(parts) == 0) if k > 20 and (np.concatenate(parts)[k - 20:k + 25] == 0).all()]
+    places = rests[::max(1, len(rests) // 20)][:20]
+    glitched = force.copy()
+    for k, place in enumerate(places):
+        glitched[place:place + 1 + k % 3] += 4.0
+    spikes = []
+    phase, grasp = label_session(glitched, spikes=spikes)
+    assert grasp.max() + 1 == 40 and len(spikes) == len(places) and (grasp[places] == -1).all()
+    assert sorted(first for first, _, _ in spikes) == sorted(places)
+    # a grasp cut by the log's end is kept however short; 50 ms frames take no run of contact for a glitch
+    cut = np.r_[force[:places[0]], 2.0, 3.0]
+    assert label_session(cut)[1][-2:].tolist() == [0, 0]
+    assert label_session(glitched, block=200)[1].max() + 1 == 40 + len(places)  # 200 frames in 10 s: 50 ms frames
+    doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
+    doubts.look_at_spikes("s", spikes)
+    assert any(f"under 40 ms {len(places)} times in 1 session (s: {len(places)}" in n for n in doubts.notes()), doubts.notes()
+
+
 def test_the_rest_level_s_stretches_are_seconds_at_any_frame_window_and_bridge_missing_force():
     """The stretches were counted in frames (10 s at 10 ms, 50 s at 50 ms frames), and missing force
     was filled with the whole log's level, which dragged a drifting log's local level."""
