@@ -391,10 +391,11 @@ class _LabelDoubts:
         if self.spikes:
             trial, spikes = max(self.spikes.items(), key=lambda item: len(item[1]))
             first, frames, peak = max(spikes, key=lambda spike: spike[2])
-            notes.append(f"the force log rises above its rest level for under {ph.MIN_GRASP_US / 1000:g} ms "
+            notes.append(f"the force log rises into contact for under {ph.MIN_GRASP_US / 1000:g} ms "
                          f"{counted(sum(map(len, self.spikes.values())), 'time')} in {counted(len(self.spikes), 'session')} "
                          f"({trial}: {len(spikes)}, the highest {peak:.3g} above rest at frame {first}): a force sensor's "
-                         "glitches, no gripper's grasp; those frames are labelled at rest")
+                         "glitches, or its noise where a slow press crosses the contact level, not grasps; those frames "
+                         "are labelled at rest")
         if self.logless:
             notes.append(f"--zero rest: {counted(len(self.logless), 'trial')} ({first_few(self.logless)}) {'has' if len(self.logless) == 1 else 'have'} "
                          "no force log, so no force to zero")

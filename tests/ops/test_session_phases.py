@@ -198,7 +198,7 @@ def test_a_force_sensor_s_glitches_are_no_grasps_and_are_said():
     assert label_session(glitched, block=200)[1].max() + 1 == 40 + len(places)  # 200 frames in 10 s: 50 ms frames
     doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
     doubts.look_at_spikes("s", spikes)
-    assert any(f"under 40 ms {len(places)} times in 1 session (s: {len(places)}" in n for n in doubts.notes()), doubts.notes()
+    assert any(f"into contact for under 40 ms {len(places)} times in 1 session (s: {len(places)}" in n for n in doubts.notes()), doubts.notes()
 
 
 def test_the_rest_level_s_stretches_are_seconds_at_any_frame_window_and_bridge_missing_force():
