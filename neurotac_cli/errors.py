@@ -39,6 +39,10 @@ def cannot_open(path, error: OSError) -> InputError:
     return InputError(f"{path}: cannot open ({error.strerror})")
 
 
+class NoEventsError(InputError):
+    """An events input without one event: nothing to frame."""
+
+
 class SchemaError(NeurotacError):
     """A table of the wrong kind, or with missing, mistyped or out-of-range columns."""
 

@@ -232,7 +232,7 @@ def camera_input_options(function):
                      "appeared, or nothing has opened the FIFO to write into it, after this long."),
         click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
                      "when that much time has passed since the first event (to test a controller against a recording); "
-                     "where the camera's clock steps back a second or more, the pace goes on from there (warned)."),
+                     "where the camera's clock is reset (steps back a second or more, and stays back), the pace goes on from there (warned)."),
         click.option("--speed", type=Finite(above=0), default=None,
                      help="With --realtime: replay this many times faster than recorded (e.g. 10) [default: 1]."),
     ]):

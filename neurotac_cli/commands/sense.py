@@ -41,7 +41,7 @@ def command(path, output, model_path, material_path, window, box, size, center, 
         neurotac sense --realtime session.aedat4 --model m.model --pool 6x6 > force.arrows
     """
     from neurotac_cli import tables
-    from neurotac_cli.errors import InputError, NeurotacError
+    from neurotac_cli.errors import InputError, NeurotacError, NoEventsError
     from neurotac_cli.io import events, live
     from neurotac_cli.io.camera import camera_file_stem
     from neurotac_cli.model import sense
@@ -68,10 +68,10 @@ def command(path, output, model_path, material_path, window, box, size, center, 
                                           say=lambda line: echo_lines("sense", [line], "warning: "))
     try:
         tables.write(output, batches, step=history(), schema=schema, flush_each=True)
+    except NoEventsError:  # with what the reader left out (a record cut short), which says why
+        why = "".join(f" ({note})" for note in stream.notes)
+        raise InputError(f"{path}: no events in the camera input, so no window to sense{why}") from None
     except NeurotacError:
-        if not stream.rows:  # with what the reader left out (a record cut short), which says why
-            why = "".join(f" ({note})" for note in stream.notes)
-            raise InputError(f"{path}: no events in the camera input, so no window to sense{why}") from None
         echo_lines("sense", [f"warning: {note}" for note in stream.notes])
         raise
     echo_lines("sense", [f"warning: {note}" for note in stream.notes] + report.messages())

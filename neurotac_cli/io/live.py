@@ -452,57 +452,87 @@ def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable
     """The batches again, each event released when the wall-clock time since the first event reaches
     its camera time (divided by `speed`): the events of each `slice_us` of camera time go out together
     once that slice has passed. Events that step back in time go out with the slice they are in; a
-    clock that steps back by REPLAY_RESET_US or more (a camera reset, a wrapped counter) is paced
-    again from where it went back, with a line in `notes` (its backlog went out at once, and the pace
-    was gone until the clock had caught up); a stop request ends the replay at once."""
+    clock that is reset (`_ClockSteps`: a camera reset, a wrapped counter) is paced again from where
+    it went back, with a line in `notes` (its backlog went out at once, and the pace was gone until
+    the clock had caught up); a stop request ends the replay at once."""
     start_t = start_wall = None
     last, clock_state = 0, _ClockSteps(notes)
-    for batch in batches:
-        if batch.num_rows == 0:
-            continue
-        t = clock_state.paced(batch.column("t").to_numpy().astype(np.int64))
-        if start_t is None:
-            start_t, start_wall = int(t[0]), clock()
-        slices = np.maximum.accumulate(np.maximum((t - start_t) // slice_us, last))
-        edges = np.concatenate(([0], np.flatnonzero(np.diff(slices)) + 1, [len(t)]))
-        for begin, end in zip(edges[:-1], edges[1:]):
-            due = start_wall + (int(slices[begin]) + 1) * slice_us / 1e6 / speed
-            while (wait := due - clock()) > 0:
+    try:
+        for batch in batches:
+            if batch.num_rows == 0:
+                continue
+            t = clock_state.paced(batch.column("t").to_numpy().astype(np.int64))
+            if start_t is None:
+                start_t, start_wall = int(t[0]), clock()
+            slices = np.maximum.accumulate(np.maximum((t - start_t) // slice_us, last))
+            edges = np.concatenate(([0], np.flatnonzero(np.diff(slices)) + 1, [len(t)]))
+            for begin, end in zip(edges[:-1], edges[1:]):
+                due = start_wall + (int(slices[begin]) + 1) * slice_us / 1e6 / speed
+                while (wait := due - clock()) > 0:
+                    if stop():
+                        return
+                    sleep(min(wait, WAKE_S))
                 if stop():
                     return
-                sleep(min(wait, WAKE_S))
-            if stop():
-                return
-            yield batch.slice(begin, end - begin)
-        last = int(slices[-1])
+                yield batch.slice(begin, end - begin)
+            last = int(slices[-1])
+    finally:
+        clock_state.note()
 
 
-REPLAY_RESET_US = 1_000_000  # a replay's clock stepping back this far was reset, not a few events out of order
+REPLAY_RESET_US = 1_000_000  # a replay's clock stepping back this far ...
+REPLAY_RESET_EVENTS = 100  # ... and staying back for this many events in a row was reset (one stray time is no reset)
 
 
 class _ClockSteps:
-    """The times a replay paces by: a camera's times, each step back of REPLAY_RESET_US or more taken
-    out (the events after it follow on from the latest time before it), each said once in `notes`."""
+    """The times a replay paces by: a camera's times, each reset of its clock taken out (a step back
+    of REPLAY_RESET_US or more that REPLAY_RESET_EVENTS events in a row stay behind: the events after
+    it follow on from the latest time before it). A stray event behind goes out with the slice it is
+    in. `note()` says them all in one line."""
 
     def __init__(self, notes: list | None):
         self.notes, self.offset, self.peak = notes, 0, None
+        self.behind = 0  # events in a row at the end of the last batch that lay a reset's step behind
+        self.resets, self.largest, self.first_at = 0, 0, None
 
     def paced(self, t: np.ndarray) -> np.ndarray:
         out = t + self.offset
         while True:
             before = np.maximum.accumulate(np.concatenate(([out[0] if self.peak is None else self.peak], out[:-1])))
-            back = np.flatnonzero(out < before - REPLAY_RESET_US)
-            if not len(back):
+            k = self._reset_at(out < before - REPLAY_RESET_US)
+            if k is None:
                 break
-            k = int(back[0])
             shift = int(before[k] - out[k])
             out[k:] += shift
             self.offset += shift
-            if self.notes is not None:
-                self.notes.append(f"the camera's clock steps back {shift / 1e6:.4g} s at t {int(t[k])} µs; the replay "
-                                  "paces the events after it from where the clock went back (their times are kept)")
+            self.resets, self.largest = self.resets + 1, max(self.largest, shift)
+            self.first_at = int(t[k]) if self.first_at is None else self.first_at
         self.peak = int(out.max()) if self.peak is None else max(self.peak, int(out.max()))
         return out
+
+    def _reset_at(self, back: np.ndarray) -> int | None:
+        """The first event of the first run of REPLAY_RESET_EVENTS behind (a run the last batch began
+        counts its events there); None where there is none, the run at the batch's end kept."""
+        edges = np.flatnonzero(np.diff(np.concatenate(([False], back, [False])).astype(np.int8)))
+        for begin, end in zip(edges[::2], edges[1::2]):
+            carried = self.behind if begin == 0 else 0
+            if end - begin + carried >= REPLAY_RESET_EVENTS:
+                self.behind = 0
+                return int(begin)
+        self.behind = self._trailing(back)
+        return None
+
+    def _trailing(self, back: np.ndarray) -> int:
+        """Events behind at the batch's end, in a row (with the last batch's, where all of these are)."""
+        ahead = np.flatnonzero(~back)
+        trailing = len(back) - (int(ahead[-1]) + 1 if len(ahead) else 0)
+        return trailing + (self.behind if not len(ahead) else 0)
+
+    def note(self):
+        if self.resets and self.notes is not None:
+            many = f"{self.resets} times, by up to {self.largest / 1e6:.4g} s, first" if self.resets > 1 else f"{self.largest / 1e6:.4g} s"
+            self.notes.append(f"the camera's clock steps back {many} at t {self.first_at} µs; the replay paces the events after "
+                              "each step from where the clock went back (their times are kept)")
 
 
 def stop_on_signals() -> Callable[[], bool]:

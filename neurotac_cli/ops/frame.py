@@ -31,7 +31,7 @@ import pyarrow as pa
 import pyarrow.ipc as ipc
 
 from neurotac_cli import schema as sch
-from neurotac_cli.errors import NeurotacError, SchemaError, UsageError
+from neurotac_cli.errors import NeurotacError, NoEventsError, SchemaError, UsageError
 from neurotac_cli.io import kernels
 from neurotac_cli.units import counted, first_few
 from neurotac_cli.ops import phases as ph
@@ -714,7 +714,7 @@ class _StreamFramer:
             yield from self._count(t, x, y, p, batches)
             yield from self._emit(self._closed())
         if self.latest is None:
-            raise NeurotacError("input events table is empty: nothing to frame")
+            raise NoEventsError("input events table is empty: nothing to frame")
         yield from self._finish()
 
     def _count(self, t, x, y, p, rest):

@@ -147,6 +147,9 @@ def test_sense_on_a_camera_file_cut_before_its_first_event_says_what_was_left_ou
     lines = done.stderr.splitlines()
     assert done.returncode == 1 and len(lines) == 1, done.stderr
     assert "cut.aedat: no events in the camera input" in lines[0] and "cut short" in lines[0], lines
+    # another error before the first window is itself, not "no events"
+    done = neurotac("sense", str(camera), "--model", f"{folder}/m.model", *BOX, "-o", str(tmp_path / "missing" / "out.arrows"))
+    assert done.returncode == 1 and "does not exist" in done.stderr and "no events" not in done.stderr, done.stderr
 
 
 def test_sense_says_where_the_size_it_refuses_is_only_the_extent_of_the_events(rig, tmp_path):

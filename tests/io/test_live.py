@@ -513,6 +513,14 @@ def test_a_replay_whose_clock_steps_back_paces_what_follows_from_there():
     last = np.cumsum([len(times) for _, times in released]) - 1
     assert all(paced[k] <= wall + 1e-9 <= paced[k] + 0.002 for (wall, _), k in zip(released, last))  # none early, none late
     assert len(notes) == 1 and "steps back 1.999 s at t 7000000 µs" in notes[0]
+    # one stray time far back (a damaged word) is no reset: it goes out with its slice, the pace unchanged
+    stray = np.arange(7_000_000, 9_000_000, 1000)
+    stray[500] = 0
+    batches = [sch.events_batch(stray[i : i + 300], zeros[:300][: len(stray[i : i + 300])], zeros[:300][: len(stray[i : i + 300])],
+                                zeros[:300][: len(stray[i : i + 300])].astype(np.uint8), schema) for i in range(0, len(stray), 300)]
+    notes, now[0] = [], 100.0
+    assert sum(b.num_rows for b in live.replay(iter(batches), 1.0, clock=clock, sleep=sleep, notes=notes)) == len(stray)
+    assert now[0] - 100.0 == pytest.approx(2.0, abs=0.01) and notes == []
 
 
 def test_realtime_replays_at_the_recorded_pace(tmp_path):
