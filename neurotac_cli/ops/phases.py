@@ -206,12 +206,14 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
 def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """`rest_levels`' points (places, levels: a step is two points a sample apart) and the samples at
     which its steps begin, of a log with at least one known sample. The blocks are read once for
-    the steps, then again on each side of them, so that no block mixes two zeros."""
+    the steps, then again on each side of them, so that no block mixes two zeros. Missing samples
+    are left out of the levels and the steps (bridged from a grasp into a rest, they would read as
+    either)."""
     known = ~np.isnan(force)
-    force = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+    filled = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
     block = block or REST_BLOCK
-    bar = _contact_bar(force - float(np.percentile(force, 5)), contact_share, step_noise(np.diff(force)))
-    x, y = _block_rest(force, 0, len(force), block, bar)
+    bar = _contact_bar(filled - float(np.percentile(filled, 5)), contact_share, step_noise(np.diff(filled)))
+    x, y = _block_rest(force, filled, 0, len(force), block, bar)
     # a step, not a drift: one block-to-block change apart by half the contact bar from what its
     # neighbours' rates make of its span (a long hold between two kept blocks spans several blocks)
     change, rate = np.diff(y), np.diff(y) / np.diff(x)
@@ -223,21 +225,25 @@ def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> 
         return x, y, []
     xs, ys = [], []
     for first, end in zip([0, *steps], [*steps, len(force)]):
-        px, py = _block_rest(force, first, end, block, bar)
+        px, py = _block_rest(force, filled, first, end, block, bar)
         xs += [[first], px, [end - 1]]  # flat to the part's edges: the next part's level begins a sample on
         ys += [py[:1], py, py[-1:]]
     return np.concatenate(xs), np.concatenate(ys), steps
 
 
-def _block_rest(force: np.ndarray, first: int, end: int, block: int, bar: float) -> tuple[np.ndarray, np.ndarray]:
-    """The places and levels of the rest blocks (`_rest_blocks`) of samples `first` to `end`; where
-    they hold under two blocks, their 5th percentile at their middle."""
+def _block_rest(force: np.ndarray, filled: np.ndarray, first: int, end: int, block: int, bar: float) -> tuple[np.ndarray, np.ndarray]:
+    """The places and levels of the rest blocks (`_rest_blocks`) of samples `first` to `end`, each the
+    5th percentile of its known samples (a block with none is left out; `filled`, the log with its
+    gaps bridged, where the samples hold none); under two blocks, their 5th percentile at their middle."""
+    part = force[first:end] if not np.isnan(force[first:end]).all() else filled[first:end]
+    known = ~np.isnan(part)
     blocks = (end - first) // block
     if blocks < 2:
-        return np.array([first + (end - first - 1) / 2]), np.array([float(np.percentile(force[first:end], 5))])
-    edges = np.linspace(first, end, blocks + 1).astype(int)
-    centres = (edges[:-1] + edges[1:] - 1) / 2
-    levels = np.array([np.percentile(force[a:b], 5) for a, b in zip(edges[:-1], edges[1:])])
+        return np.array([first + (end - first - 1) / 2]), np.array([float(np.percentile(part[known], 5))])
+    edges = np.linspace(0, end - first, blocks + 1).astype(int)
+    spans = [(a, b) for a, b in zip(edges[:-1], edges[1:]) if known[a:b].any()]
+    centres = np.array([first + (a + b - 1) / 2 for a, b in spans])
+    levels = np.array([np.percentile(part[a:b][known[a:b]], 5) for a, b in spans])
     kept = _rest_blocks(centres, levels, 0.5 * bar)
     return centres[kept], levels[kept]
 
@@ -273,16 +279,30 @@ def _rest_blocks(centres: np.ndarray, levels: np.ndarray, margin: float) -> np.n
     return kept
 
 
+REST_RUN = 10  # samples in a row within half a step of a level: the log resting there, not a press passing through it
+
+
 def _rest_step(force: np.ndarray, first: int, last: int, before: float, after: float) -> int:
     """Where a rest level steps from `before` to `after` between samples `first` and `last`: after the
     last sample near the lower level where it steps up (after the step none reads so low), at the
-    first where it steps down (before it none did); the crossing is half the step."""
+    first where it steps down (before it none did); the crossing is half the step. Where the log is
+    missing between that sample and the nearest rest at the other level (REST_RUN samples near it),
+    the step is at the gap's start: a zero that moved while nothing was logged."""
     span = force[first:last + 1]
-    low = min(before, after) + abs(after - before) / 2
-    near = np.flatnonzero(span < low)
+    half = abs(after - before) / 2
+    near = np.flatnonzero(span < min(before, after) + half)
     if not len(near):
         return first if after < before else last + 1
-    return first + (int(near[-1]) + 1 if after > before else int(near[0]))
+    at = int(near[-1]) + 1 if after > before else int(near[0])
+    resting = np.convolve(np.abs(span - (after if after > before else before)) < half, np.ones(REST_RUN), "valid") >= REST_RUN
+    if after > before:  # the first rest at the new level after the crossing
+        later = np.flatnonzero(resting[at:])
+        bracket = (at, at + int(later[0]) if len(later) else len(span))
+    else:  # the last rest at the old level before it
+        earlier = np.flatnonzero(resting[:max(at - REST_RUN + 1, 0)])
+        bracket = (int(earlier[-1]) + REST_RUN if len(earlier) else 0, at)
+    missing = np.flatnonzero(np.isnan(span[bracket[0]:bracket[1]]))
+    return first + (bracket[0] + int(missing[0]) if len(missing) else at)
 
 
 def _contact_bar(above_rest: np.ndarray, contact_share: float, noise: float) -> float:

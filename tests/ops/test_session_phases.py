@@ -172,6 +172,24 @@ def test_a_sensor_re_tared_between_grasps_keeps_its_rests_at_rest(step, drift):
     assert np.sqrt(np.mean((force + zero - rest_line(force + zero) - force) ** 2)) < 0.03
 
 
+def test_a_re_tare_inside_a_gap_of_the_log_that_begins_in_a_grasp_is_read_from_the_known_samples():
+    """The gap's samples bridged from a held grasp to the rest after it were read as levels: a step up
+    went before the grasp, whose zero was 2.3 N off; the step is put at the gap's start."""
+    rng = np.random.default_rng(0)
+    one = np.r_[ramp(0, 4.0, 10), np.full(300, 4.0), ramp(4.0, 0, 8)]
+    before = np.concatenate([np.r_[np.zeros(600), one] for _ in range(12)])
+    force = np.r_[before, np.zeros(600), *[np.r_[one, np.zeros(600)] for _ in range(12)]]
+    gap = before.size - 100  # the log drops out 1 s before a release, for 30 s
+    logged = force + rng.normal(0, 0.02, force.size)
+    logged[before.size:] += 1.0
+    logged[gap:gap + 3000] = np.nan
+    plain = force + rng.normal(0, 0.02, force.size)
+    plain[gap:gap + 3000] = np.nan
+    assert label_session(logged)[1].max() == label_session(plain)[1].max()
+    held = slice(gap - 300, gap)
+    assert np.abs(logged[held] - rest_line(logged)[held] - force[held]).max() < 0.1
+
+
 def test_a_force_sensor_s_glitches_are_no_grasps_and_are_said():
     """Spikes of 1-3 frames above the rest level (a load cell's interference) were each a grasp: 20
     glitches among 40 grasps gave 60."""
