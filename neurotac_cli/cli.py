@@ -66,6 +66,7 @@ class LazyGroup(click.Group):
         _end_on_sigterm()
         try:
             result = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+            _end_if_dropped()
             if not result:
                 sys.stdout.flush()  # exit 0 says the output is whole: its last bytes are written first
         except click.exceptions.NoArgsIsHelpError as error:  # bare `neurotac`: its help, readable through a pager
@@ -226,10 +227,33 @@ def _signal_again(unraisable):
         import signal
         import threading
 
-        number = signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT
-        threading.Timer(0.01, os.kill, (os.getpid(), number)).start()
+        _DROPPED.append(signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT)
+        threading.Timer(0.01, _send_dropped).start()
         return
     _signal_again.previous(unraisable)
+
+
+_DROPPED = []  # signals whose exception Python dropped, not yet sent again (`_signal_again`)
+
+
+def _send_dropped():
+    try:
+        number = _DROPPED.pop()  # one pop: this or `_end_if_dropped` acts on it, never both
+    except IndexError:
+        return
+    os.kill(os.getpid(), number)
+
+
+def _end_if_dropped():
+    """A run that ended before the signal Python dropped was sent again ends as that signal's."""
+    import signal
+
+    try:
+        number = _DROPPED.pop()
+    except IndexError:
+        return
+    terminated = number == signal.SIGTERM
+    _fail(f"neurotac: {'terminated' if terminated else 'interrupted'}", code=143 if terminated else 130)
 
 
 def _check_working_folder():

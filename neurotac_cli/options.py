@@ -229,7 +229,7 @@ def camera_input_options(function):
                      "--idle-timeout, or on Ctrl-C, with the output complete."),
         click.option("--idle-timeout", type=Duration(positive=True), default="2s", show_default=True,
                      help="With --follow: end once the file (or the pipe) has not grown for this long, or when the file has not "
-                     "appeared, or nothing has opened the FIFO to write into it, after this long."),
+                     "appeared, or nothing has been written into the FIFO, after this long."),
         click.option("--realtime", is_flag=True, help="Replay at the recorded speed: each millisecond of events is passed on "
                      "when that much time has passed since the first event (to test a controller against a recording); "
                      "where the camera's clock is reset (steps back a second or more, and stays back), the pace goes on from there (warned)."),

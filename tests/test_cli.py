@@ -227,3 +227,21 @@ def test_a_signal_raised_inside_a_callback_python_drops_is_sent_again(tmp_path, 
         "sys.exit(0)\n")
     ended = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
     assert ended.returncode == code and "Exception ignored" not in ended.stderr, ended.stderr
+
+
+def test_a_run_that_ends_before_a_dropped_signal_is_sent_again_ends_as_that_signal_s(monkeypatch, capsys):
+    """The signal is sent again 10 ms later: a run that ended first exited 0 without a word."""
+    import threading
+    import types
+
+    from neurotac_cli import cli as root
+
+    timers = []
+    monkeypatch.setattr(threading, "Timer", lambda delay, function: types.SimpleNamespace(start=lambda: timers.append(function)))
+    monkeypatch.setattr(root, "_DROPPED", [])
+    root._signal_again(types.SimpleNamespace(exc_value=root.Terminated()))
+    with pytest.raises(SystemExit) as ended:
+        root._end_if_dropped()
+    assert ended.value.code == 143 and "neurotac: terminated" in capsys.readouterr().err
+    timers[0]()  # the timer, later: nothing left to send
+    root._end_if_dropped()  # and nothing left to end on

@@ -284,7 +284,7 @@ def _open_fifo(path, stop: Callable[[], bool], name: str, idle_timeout: float | 
             if stop():
                 raise InputError(f"{name}: stopped before anything wrote into the FIFO (no table to write)")
             if deadline is not None and time.monotonic() > deadline:
-                raise InputError(f"{name}: nothing opened the FIFO to write into it in {idle_timeout:g} s (--idle-timeout); "
+                raise InputError(f"{name}: nothing was written into the FIFO in {idle_timeout:g} s (--idle-timeout); "
                                  "is the camera writing it?")
         os.set_blocking(fd, True)
     except BaseException:

@@ -60,8 +60,9 @@ def sense(stream: live.Stream, model: core.Model, framing: framing_ops.Framing, 
     report.outside = predict.Outside.of(model, say=say)
     advice = (f"give `sense` the training's --window ({(model.input_spec.get('window_us') or 10000) / 1000:g}ms), --size with "
               "--center (or --box) and --pool (`neurotac info` of the training frames shows them)")
-    if box is None:  # whole frames: a size that is only the events' extent is said to be one
-        advice += cropping.guessed_sensor_hint(stream.schema)
+    spec = model.input_spec
+    if box is None and sch.frames_shape(schema) != (spec.get("height"), spec.get("width")):
+        advice += cropping.guessed_sensor_hint(stream.schema)  # whole frames whose size is only the events' extent
     schema, batches = predict.stream(model, schema, cropped, material=material, outside=report.outside, notes=report.notes,
                                      advice=advice)
     return schema, batches, report

@@ -285,6 +285,7 @@ class ContactState:
     pressed_sum: float = 0.0  # OFF events above the background in the contact's pressing frames (leaky), for `_awaits_release`
     early: "Early | None" = None  # the current contact's first press_frames frames (press_polarity "either")
     frames: int = 0  # frames stepped so far
+    silent: int = 0  # frames in a row without an event (`SILENT_FRAMES`)
     scene_at: int = -(1 << 40)  # the frame in which the view last moved between contacts (`_scene_moves`)
     lit: np.ndarray | None = None  # (2, H, W): the frame in which each cell last fired above its rest, per polarity as framed
 
@@ -311,8 +312,9 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     `frame`: the frame's (2, H, W) counts, for the footprint on which `slip_step` judges a slip in this
     frame; without it, slips are judged on the totals."""
     state.frames += 1
-    if state.phase == NONE and state.warmup is None and off + on == 0 and state.mean_off + state.mean_on >= SILENT_EVENTS:
-        return NONE  # the camera sent nothing (a gap in a recording, a dropped transfer): no rest to learn from
+    state.silent = state.silent + 1 if off + on == 0 else 0
+    if state.phase == NONE and state.warmup is None and state.silent > SILENT_FRAMES and state.mean_off + state.mean_on >= SILENT_EVENTS:
+        return NONE  # the camera has sent nothing for a while (a gap in a recording, a dropped transfer): no rest to learn from
     if state.phase == NONE and state.warmup is None and frame is not None and _may_begin(config, state, frame, off, on):
         if _flash(state, frame, off, on):
             return NONE  # the light changed over the whole view (an LED, a lamp): no press, and no rest to learn from
@@ -340,9 +342,10 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
     return phase
 
 
-SILENT_EVENTS = 10.0  # a rest frame without one event where the background expects this many (Poisson: e^-10) is a camera
-# that sent nothing: a recording's gap of hours decayed the background to zero, then it climbed back by 3σ a frame, and the
-# stream's next contacts ended early and split on ON events read as release bursts
+SILENT_EVENTS = 10.0  # rest frames without one event where the background expects this many (Poisson: e^-10 each) ...
+SILENT_FRAMES = 3  # ... after this many in a row are a camera that sent nothing: a recording's gap of hours decayed the
+# background to zero, then it climbed back by 3σ a frame, and the stream's next contacts ended early and split on ON events
+# read as release bursts. A camera that sends its events in bursts leaves a frame or two empty between them: learnt from
 
 
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large

@@ -435,7 +435,8 @@ def crop(schema: pa.Schema, batches, spec: CropSpec, sensor=None) -> tuple[pa.Sc
             return out_schema, out, report
         table = crop_table(pa.Table.from_batches(list(batches), schema=schema), spec, report)
     except (OutsideSensorError, PoolError) as error:
-        hint = guessed_sensor_hint(schema)
+        # a pool's error is about the sensor's size only where no box of the user's own was pooled
+        hint = guessed_sensor_hint(schema) if isinstance(error, OutsideSensorError) or (spec.box, spec.size) == (None, None) else ""
         if hint:
             raise type(error)(f"{error}{hint}") from None
         raise

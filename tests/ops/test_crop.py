@@ -151,6 +151,8 @@ def test_a_box_past_a_sensor_guessed_from_the_events_says_how_to_give_the_size(t
         lines = done.stderr.decode().strip().splitlines()
         assert done.returncode == 1 and len(lines) == 1
         assert said in lines[0] and "20x15 is the extent of the events" in lines[0] and "give it with --sensor WxH" in lines[0]
+    own = subprocess.run(["neurotac", "crop", "--size", "10x10", "--center", "10,7", "--pool", "3x3", str(source)], capture_output=True, env=env)
+    assert own.returncode == 1 and b"cannot pool 10x10" in own.stderr and b"extent" not in own.stderr  # the user's own box
 
 
 # ---------------------------------------------------------------- streams
