@@ -221,8 +221,8 @@ def _terminate(number, frame):
 def _signal_again(unraisable):
     """A signal's exception raised inside a callback Python cannot raise from (a weak reference's,
     such as the import system's module locks, or a `__del__`) is printed and dropped, and the run
-    went on to its end with exit 0: the signal is sent again a moment later, from a thread (sent from
-    here it would be raised here, and dropped again), to be raised where the run has gone on."""
+    would go on to its end with exit 0: the signal is sent again a moment later, from a thread (sent
+    from here it would be raised here, and dropped again), to be raised where the run has gone on."""
     if isinstance(unraisable.exc_value, KeyboardInterrupt):
         import signal
         import threading

@@ -453,8 +453,8 @@ def replay(batches: Iterator[pa.RecordBatch], speed: float = 1.0, stop: Callable
     its camera time (divided by `speed`): the events of each `slice_us` of camera time go out together
     once that slice has passed. Events that step back in time go out with the slice they are in; a
     clock that is reset (`_ClockSteps`: a camera reset, a wrapped counter) is paced again from where
-    it went back, with a line in `notes` (its backlog went out at once, and the pace was gone until
-    the clock had caught up); a stop request ends the replay at once."""
+    it went back, with a line in `notes` (else its backlog would go out at once, unpaced until the
+    clock caught up); a stop request ends the replay at once."""
     start_t = start_wall = None
     last, clock_state = 0, _ClockSteps(notes)
     try:

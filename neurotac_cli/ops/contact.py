@@ -343,9 +343,9 @@ def step(config: ContactConfig, state: ContactState, off: float, on: float, by_f
 
 
 SILENT_EVENTS = 10.0  # rest frames without one event where the background expects this many (Poisson: e^-10 each) ...
-SILENT_FRAMES = 3  # ... after this many in a row are a camera that sent nothing: a recording's gap of hours decayed the
-# background to zero, then it climbed back by 3σ a frame, and the stream's next contacts ended early and split on ON events
-# read as release bursts. A camera that sends its events in bursts leaves a frame or two empty between them: learnt from
+SILENT_FRAMES = 3  # ... after this many in a row are a camera that sent nothing. Learnt from, a recording's gap of hours
+# takes the background to zero, from which it climbs back by 3σ a frame, and the next contacts end early and split on ON
+# events read as release bursts. A camera that sends its events in bursts leaves a frame or two empty between them: learnt from
 
 
 FLASH_SHARE = 0.8  # a burst over this share of the frame's cells is the light changing, not a press (a crop about a large

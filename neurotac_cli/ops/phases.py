@@ -136,8 +136,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
 
     A run of contact with fewer frames in contact than MIN_GRASP_US holds (at the frames' period, which
     `block` gives), away from the log's ends, is a force sensor's glitch (or a burst of them), not a
-    grasp: no gripper presses and lets go within it.
-    Each is left at rest and, with `spikes`, appended there as (first frame, frames, peak above rest).
+    grasp: no gripper presses and lets go within it. Each is left at rest and, with `spikes`,
+    appended there as (first frame, frames, peak above rest).
 
     Limits: a grasp weaker than `contact_share` of the session's force scale is not found (a 0.5 N
     touch among 20 N grasps: lower `contact_share`); the noise is read from the trace itself, so it
@@ -194,8 +194,8 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     the blocks. It can also step (the sensor re-tared, a cable knocked): the blocks after a step up
     have no lower block after them, so they are kept, and between two kept blocks apart by more
     than the contact bar the rest steps where the samples cross from one level to the other
-    (`_rest_step`), not along a line. Missing samples (NaN) are bridged by interpolation. A log of
-    under two blocks has one level, its 5th percentile."""
+    (`_rest_step`), not along a line. Missing samples (NaN) are left out of the levels, which are
+    interpolated across them. A log of under two blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
     if np.isnan(force).all():
         return np.zeros(len(force))
