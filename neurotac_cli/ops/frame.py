@@ -296,19 +296,8 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
 
     def batches():
         for trial, events, force_t, force_v, label_values, n_real, n_total in plan:
-            force = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
-            wanted = len(force_t) and (framing.zero == "rest" or framing.phases == "session")
-            line = ph.rest_line(force[:n_real], ph.rest_block(framing.window_us)) if wanted else None
-            doubts.look(trial, force if len(force_t) else None, n_real, line)
-            if framing.zero == "rest" and line is not None:
-                force, held = rest_zeroed(force, n_real, line, trial)
-                doubts.look_at_zero(trial, held)
-            if framing.phases == "session":
-                spikes = []
-                phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes)
-                doubts.look_at_spikes(trial, spikes)
-            else:
-                phase, grasp = _phases(force, n_real, n_total, framing.phases), None
+            logged = frame_force(force_t, force_v, framing.window_us, n_total, framing.force_at)
+            force, phase, grasp = _force_labels(framing, doubts, trial, logged, len(force_t) > 0, n_real, n_total)
             slip = None if framing.slips is None else slip_column(framing.slips.get(trial, ()), framing.window_us, n_total)
             doubts.look_at_labels(trial, grasp, n_total)
             for first, counts in counter.chunks(events, n_real, n_total):
@@ -319,6 +308,31 @@ def frame_recordings_batches(table: pa.Table, framing: Framing, report: FramingR
         report.notes.extend(doubts.notes())
 
     return out_schema, batches()
+
+
+def _force_labels(framing: Framing, doubts: "_LabelDoubts", trial: str, logged: np.ndarray, has_log: bool,
+                  n_real: int, n_total: int):
+    """(force, phase, grasp) of a trial's frames from their force as logged (`frame_force`'s; `has_log`:
+    whether the trial has a force log): zeroed at rest with `--zero rest`, labelled by `framing.phases`,
+    what is doubtful told to `doubts`. Each labelling of the session's grasps is made once: those of
+    the force the frames get, and the log's own where its zero is read from them."""
+    block = ph.rest_block(framing.window_us)
+    line = ph.rest_line(logged[:n_real], block) if has_log and framing.zero == "rest" else None
+    force = rest_zeroed(logged, n_real, line, trial) if line is not None else logged
+    grasp = None
+    if framing.phases == "session":
+        spikes = []
+        phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes)
+        doubts.look_at_spikes(trial, spikes)
+        if has_log and framing.zero != "rest":
+            line = ph.rest_line(logged[:n_real], block, grasp[:n_real])
+    else:
+        phase = _phases(force, n_real, n_total, framing.phases)
+    doubts.look(trial, logged if has_log else None, n_real, line)
+    if line is not None and framing.zero == "rest":
+        zeroed = grasp[:n_real] if grasp is not None else ph.label_session(force[:n_real], block=block)[1]
+        doubts.look_at_zero(trial, held_level(logged, n_real, line, zeroed))
+    return force, phase, grasp
 
 
 UNFORCED_LEAST, UNFORCED_SHARE = 5, 0.01  # frames without force named where more than both (a log's first sample a few ms late is not)
@@ -532,25 +546,29 @@ def _force_gap(force_t: np.ndarray) -> tuple:
     return None, 0
 
 
-def rest_zeroed(force: np.ndarray, n_real: int, line: np.ndarray, trial: str = "") -> tuple[np.ndarray, float | None]:
-    """`frame --zero rest`: (the frames' force less the log's zero where each frame is (`line`, the
-    `rest_line` of its first `n_real`), the level taken off where no grasp was found and it lies over
-    10 noise σ from the log's zero, else None: a trial held from start to end reads as rest). So a
-    force sensor whose zero drifts (a strain gauge warming) gives a force of zero between grasps and
-    a grasp's force above it. Padding frames (after `n_real`) lose the last frame's level; missing
-    samples stay missing."""
-    real = force[:n_real].astype(np.float64)
+def rest_zeroed(force: np.ndarray, n_real: int, line: np.ndarray, trial: str = "") -> np.ndarray:
+    """`frame --zero rest`: the frames' force less the log's zero where each frame is (`line`, the
+    `rest_line` of its first `n_real`). So a force sensor whose zero drifts (a strain gauge warming)
+    gives a force of zero between grasps and a grasp's force above it. Padding frames (after
+    `n_real`) lose the last frame's level; missing samples stay missing."""
     out = force.astype(np.float64)
     out[:n_real] -= line
     out[n_real:] -= line[-1]
     if np.nanmax(np.abs(out)) > np.finfo(np.float32).max:
+        real = force[:n_real]
         raise SchemaError(f"trial {trial}: its force less its rest level passes float32's range (the log reads "
                           f"{np.nanmin(real):.3g} to {np.nanmax(real):.3g}): a corrupt log; clean it, or frame without --zero rest")
-    known = real[~np.isnan(real)]
+    return out.astype(force.dtype)
+
+
+def held_level(force: np.ndarray, n_real: int, line: np.ndarray, grasp: np.ndarray) -> float | None:
+    """The level `rest_zeroed` took off a trial whose zeroed force holds no grasp (`grasp`, its labels
+    of the first `n_real` frames, all -1), where that lies over 10 noise σ of the log (`force`) from
+    its zero; else None. A trial held from start to end reads as rest, its force taken off."""
+    known = force[:n_real][~np.isnan(force[:n_real])].astype(np.float64)
     noise = ph.step_noise(np.diff(known)) if len(known) > 2 else 0.0
     level = float(np.median(line))
-    held = level if abs(level) > max(10 * noise, 1e-6) and ph.label_session(out[:n_real])[1].max() < 0 else None
-    return out.astype(force.dtype), held
+    return level if abs(level) > max(10 * noise, 1e-6) and grasp.max(initial=-1) < 0 else None
 
 
 def frame_force(force_t: np.ndarray, force_v: np.ndarray, window_us: int, n_frames: int, how: str = "end") -> np.ndarray:

@@ -311,7 +311,7 @@ def _contact_bar(above_rest: np.ndarray, contact_share: float, noise: float) -> 
     return max(contact_share * float(np.percentile(above_rest, 95)), 5 * noise, 1e-6)
 
 
-def rest_line(force: np.ndarray, block: int | None = None) -> np.ndarray | None:
+def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | None = None) -> np.ndarray | None:
     """A log's zero at each sample: the median of the samples between grasps (`label_session`) in each
     `block` samples (REST_BLOCK unless given), placed at their mean place, joined by lines and followed
     for half a block past the first and last (a drift goes on to the log's ends; a log that ends in a
@@ -319,13 +319,14 @@ def rest_line(force: np.ndarray, block: int | None = None) -> np.ndarray | None:
     re-tared sensor), each side of the step has its own line. The rest levels that find the grasps
     are 5th percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block,
     at its early part. Where no sample lies between grasps (a trial held from start to end), the
-    median of every sample per block; None where no sample is known."""
+    median of every sample per block; None where no sample is known. `grasp`: the log's grasp labels
+    (`label_session`'s), where the caller has them."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
     if not known.any():
         return None
     block = block or REST_BLOCK
-    between = (label_session(force, block=block)[1] < 0) & known
+    between = ((label_session(force, block=block)[1] if grasp is None else grasp) < 0) & known
     if not between.any():
         between = known
     bounds = [0, *_rest_points(force, CONTACT_SHARE, block)[2], len(force)]

@@ -243,11 +243,14 @@ def test_frames_zeroed_at_rest_take_a_drifting_sensor_s_zero_out_of_the_force():
     """`frame --zero rest`: a strain gauge whose zero climbs 0.5 N a minute labelled every later grasp
     and rest high by the drift; the force less the rest level where it is, and the rest's median
     (the levels are low percentiles, 1.6 noise σ under it), is the true force within the noise."""
-    from neurotac_cli.ops.frame import rest_zeroed as zeroed_with
+    from neurotac_cli.ops.frame import held_level, rest_zeroed as zeroed_with
 
     def rest_zeroed(force, n_real, window_us, trial=""):  # as `frame` calls it, at 10 ms frames
         line = rest_line(force[:n_real], block=1000)
-        return (force, None) if line is None else zeroed_with(force, n_real, line, trial)
+        if line is None:
+            return force, None
+        zeroed = zeroed_with(force, n_real, line, trial)
+        return zeroed, held_level(force, n_real, line, label_session(zeroed[:n_real])[1])
 
     rng = np.random.default_rng(3)
     parts = [np.zeros(150)]
