@@ -234,8 +234,13 @@ def test_a_signal_while_the_model_loads_ends_the_run_with_one_line(tmp_path, num
     import signal
     import time
 
-    frames = tiny_frames(trials=2)
-    models.save(models.train(frames, models.make_spec("deform-gru", epochs=1, members=1), seed=0), str(tmp_path / "m.model"))
+    from neurotac_cli.model import session
+    from tests.model.test_session import tiny_session
+
+    # a model trained with --contacts: `predict` imports the detector and the session's model while
+    # torch is imported beside it (a model of whole trials read its input and waited: it never broke)
+    frames = tiny_session(grasps=3, seed=1)[0]
+    models.save(session.train(frames, models.make_spec("deform-gru", epochs=1, hidden=8, members=1), seed=0), str(tmp_path / "m.model"))
     path = write_stream(frames, tmp_path / "f.arrows")
     # the loader imports torch for about a second; the first instants fall in the main thread's own imports
     for delay in np.arange(1, 9) / 10:
