@@ -513,20 +513,16 @@ class _ClockSteps:
     def _reset_at(self, back: np.ndarray) -> int | None:
         """The first event of the first run of REPLAY_RESET_EVENTS behind (a run the last batch began
         counts its events there); None where there is none, the run at the batch's end kept."""
-        edges = np.flatnonzero(np.diff(np.concatenate(([False], back, [False])).astype(np.int8)))
-        for begin, end in zip(edges[::2], edges[1::2]):
-            carried = self.behind if begin == 0 else 0
-            if end - begin + carried >= REPLAY_RESET_EVENTS:
-                self.behind = 0
-                return int(begin)
-        self.behind = self._trailing(back)
-        return None
+        from neurotac_cli.metrics import runs
 
-    def _trailing(self, back: np.ndarray) -> int:
-        """Events behind at the batch's end, in a row (with the last batch's, where all of these are)."""
-        ahead = np.flatnonzero(~back)
-        trailing = len(back) - (int(ahead[-1]) + 1 if len(ahead) else 0)
-        return trailing + (self.behind if not len(ahead) else 0)
+        found = runs(back)
+        for begin, end in found:
+            if end - begin + (self.behind if begin == 0 else 0) >= REPLAY_RESET_EVENTS:
+                self.behind = 0
+                return begin
+        begin, end = found[-1] if found else (0, 0)
+        self.behind = (end - begin + (self.behind if begin == 0 else 0)) if end == len(back) and found else 0
+        return None
 
     def note(self):
         if self.resets and self.notes is not None:

@@ -499,28 +499,34 @@ def test_a_replay_releases_no_event_before_its_time_and_each_within_a_slice(spee
 def test_a_replay_whose_clock_steps_back_paces_what_follows_from_there():
     """A camera clock reset 2 s back: the 2 s after it went out at once, unpaced, without a word."""
     clock, sleep, now = fake_clock()
-    t = np.concatenate([np.arange(0, 2_000_000, 1000), np.arange(0, 2_000_000, 1000)]) + 7_000_000
     schema = sch.events_schema(10, 10)
-    zeros = np.zeros(len(t), np.uint16)
-    batches = [sch.events_batch(t[i : i + 300], zeros[i : i + 300], zeros[i : i + 300], zeros[i : i + 300].astype(np.uint8), schema)
-               for i in range(0, len(t), 300)]
-    notes, released = [], []
-    for batch in live.replay(iter(batches), 1.0, clock=clock, sleep=sleep, notes=notes):
-        released.append((now[0] - 100.0, batch.column("t").to_numpy()))
+
+    def replayed(t, size):
+        zeros = np.zeros(len(t), np.uint16)
+        batches = [sch.events_batch(t[i : i + size], zeros[i : i + size], zeros[i : i + size], zeros[i : i + size].astype(np.uint8), schema)
+                   for i in range(0, len(t), size)]
+        notes, released, now[0] = [], [], 100.0
+        for batch in live.replay(iter(batches), 1.0, clock=clock, sleep=sleep, notes=notes):
+            released.append((now[0] - 100.0, batch.column("t").to_numpy()))
+        return released, notes
+
+    t = np.concatenate([np.arange(0, 2_000_000, 1000), np.arange(0, 2_000_000, 1000)]) + 7_000_000
+    released, notes = replayed(t, 300)
     assert np.concatenate([b for _, b in released]).tolist() == t.tolist()  # every event, its time kept
     assert released[-1][0] == pytest.approx(4.0, abs=0.01)
     paced = np.concatenate([np.arange(2000), 1999 + np.arange(2000)]) / 1000  # s: the reset's events follow on
     last = np.cumsum([len(times) for _, times in released]) - 1
     assert all(paced[k] <= wall + 1e-9 <= paced[k] + 0.002 for (wall, _), k in zip(released, last))  # none early, none late
     assert len(notes) == 1 and "steps back 1.999 s at t 7000000 µs" in notes[0]
+    # the events that stay back counted across batches (30 in one, 70 in the next): the same reset
+    released, notes = replayed(t, 70)
+    assert released[-1][0] == pytest.approx(4.0, abs=0.05) and len(notes) == 1 and "steps back" in notes[0]
     # one stray time far back (a damaged word) is no reset: it goes out with its slice, the pace unchanged
     stray = np.arange(7_000_000, 9_000_000, 1000)
     stray[500] = 0
-    batches = [sch.events_batch(stray[i : i + 300], zeros[:300][: len(stray[i : i + 300])], zeros[:300][: len(stray[i : i + 300])],
-                                zeros[:300][: len(stray[i : i + 300])].astype(np.uint8), schema) for i in range(0, len(stray), 300)]
-    notes, now[0] = [], 100.0
-    assert sum(b.num_rows for b in live.replay(iter(batches), 1.0, clock=clock, sleep=sleep, notes=notes)) == len(stray)
-    assert now[0] - 100.0 == pytest.approx(2.0, abs=0.01) and notes == []
+    released, notes = replayed(stray, 300)
+    assert sum(len(times) for _, times in released) == len(stray)
+    assert released[-1][0] == pytest.approx(2.0, abs=0.01) and notes == []
 
 
 def test_realtime_replays_at_the_recorded_pace(tmp_path):
