@@ -210,7 +210,7 @@ def _end_on_sigterm():
     if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
     if sys.unraisablehook is not _signal_again:
-        _signal_again.previous = sys.unraisablehook
+        _UNRAISABLE.append(sys.unraisablehook)
         sys.unraisablehook = _signal_again
 
 
@@ -230,9 +230,10 @@ def _signal_again(unraisable):
         _DROPPED.append(signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT)
         threading.Timer(0.01, _send_dropped).start()
         return
-    _signal_again.previous(unraisable)
+    _UNRAISABLE[-1](unraisable)
 
 
+_UNRAISABLE = []  # the hook `_signal_again` took the place of, for every other unraisable exception
 _DROPPED = []  # signals whose exception Python dropped, not yet sent again (`_signal_again`)
 
 
