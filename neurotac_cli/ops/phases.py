@@ -121,7 +121,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     A grasp is a run of frames in contact: force above the rest level (`rest_levels`: the 5th
     percentile of the log's stretches of `block` frames, which a drifting sensor moves) by more than
     `contact_share` of the force scale (95th percentile above rest) and by 5 noise s.d. (the noise is
-    read from frame-to-frame differences); dips of at most MERGE_FRAMES frames stay in the grasp; a
+    read from frame-to-frame differences; a log whose noise sets that bar is read through a centred
+    median, `_calm`); dips of at most MERGE_FRAMES frames stay in the grasp; a
     run whose peak is within 10 noise s.d. of rest is noise, not a grasp. The frame that first reads
     below contact after a grasp is its last (releasing), as in `detect_phases`.
 
@@ -150,9 +151,9 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     known = ~np.isnan(force)
     if not known.any():
         return phase, grasp
+    force, noise = _calm(force, contact_share, block or REST_BLOCK)
     rest = rest_levels(force, contact_share, block)
     filled = np.where(known, force, rest)
-    noise = step_noise(np.diff(filled)) if n > 2 else 0.0
     threshold = rest + _contact_bar(filled - rest, contact_share, noise)
     index, shortest = 0, int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
     for first, last in _contact_runs(filled > threshold):
@@ -170,6 +171,37 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
                                          ends_in_contact=end == last + 1)
         index += 1
     return phase, grasp
+
+
+CALM_US = (30_000, 50_000, 90_000)  # the centred medians `_calm` tries, shortest first: well inside our shortest grasp
+
+
+def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarray, float]:
+    """The log `label_session` reads and its noise σ: as logged where `contact_share` of its scale
+    (the 95th percentile above its 5th) stands above 5 noise σ, else the centred median of the fewest
+    samples (CALM_US at the period `block` gives) whose noise does not (the longest where none),
+    missing samples kept missing. A noisy load cell (0.2 N on grasps of 0.5-6 N) put the bar at 1 N:
+    a quarter of the contact frames and a sixth of the grasps were lost. A median keeps a press's
+    edge where it is and a glitch shorter than half its span out.
+
+    The median's noise is the larger of the spread of the differences of medians `k` samples apart
+    (two disjoint spans: a noise that is not white, a lagging sensor's, is not taken for smaller than
+    it is) and a median's of white noise (1.2533 σ / √k: a quantised log's medians repeat a value)."""
+    known = ~np.isnan(force)
+    filled = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+    noise = step_noise(np.diff(filled)) if len(force) > 2 else 0.0
+    scale = contact_share * float(np.percentile(filled, 95) - np.percentile(filled, 5))
+    calm = force, noise
+    if 5 * noise <= scale:
+        return calm
+    period_us = REST_STRETCH_US / block
+    spans = dict.fromkeys(2 * int(round(us / period_us / 2)) + 1 for us in CALM_US)
+    for k in [k for k in spans if k >= 3 and 4 * k <= len(force)]:
+        median = np.median(np.lib.stride_tricks.sliding_window_view(np.pad(filled, k // 2, mode="edge"), k), axis=1)
+        calm = np.where(known, median, np.nan), max(_spread(median[k:] - median[:-k]), 1.2533 * noise / np.sqrt(k))
+        if 5 * calm[1] <= scale:
+            break
+    return calm
 
 
 MIN_GRASP_US = 40_000  # a run of contact shorter than this is a force sensor's glitch (our grasps: 0.43 s and more)
@@ -191,16 +223,17 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     length reads no rest of its own; the rest is interpolated between the blocks kept. A force
     sensor's zero drifts (a strain gauge warming: 0.2 N a minute put a session's later rests above a
     level read once for the whole log, and they were labelled grasps), and a drift is a line through
-    the blocks. It can also step (the sensor re-tared, a cable knocked): the blocks after a step up
-    have no lower block after them, so they are kept, and between two kept blocks apart by more
-    than the contact bar the rest steps where the samples cross from one level to the other
-    (`_rest_step`), not along a line. Missing samples (NaN) are left out of the levels, which are
-    interpolated across them. A log of under two blocks has one level, its 5th percentile."""
+    the blocks (each block's percentile read about that line, which is followed half a block past
+    the log's ends, so that the drift inside a block does not sink its level). It can also step (the
+    sensor re-tared, a cable knocked): the blocks after a step up have no lower block after them,
+    so they are kept, and between two kept blocks apart by more than the contact bar the rest steps
+    where the samples cross from one level to the other (`_rest_step`), not along a line. Missing
+    samples (NaN) are left out of the levels, which are interpolated across them. A log of under two blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
     if np.isnan(force).all():
         return np.zeros(len(force))
     x, y, _ = _rest_points(force, contact_share, block)
-    return np.interp(np.arange(len(force)), x, y)
+    return _followed(np.arange(len(force), dtype=np.float64), x, y, block or REST_BLOCK)
 
 
 def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> tuple[np.ndarray, np.ndarray, list[int]]:
@@ -219,22 +252,47 @@ def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> 
     change, rate = np.diff(y), np.diff(y) / np.diff(x)
     around = np.array([np.median(np.delete(rate[max(k - 3, 0):k + 4], min(k, 3))) if len(rate) > 1 else 0.0
                        for k in range(len(rate))]) * np.diff(x)
-    steps = sorted({_rest_step(force, int(np.ceil(x[k - 1])) if k else 0, int(x[k + 2]) if k + 2 < len(x) else len(force) - 1,
-                               y[k], y[k + 1]) for k in np.flatnonzero(np.abs(change - around) > 0.5 * bar)} - {0, len(force)})
+    steps = {_rest_step(force, int(np.ceil(x[k - 1])) if k else 0, int(x[k + 2]) if k + 2 < len(x) else len(force) - 1,
+                        y[k], y[k + 1]) for k in np.flatnonzero(np.abs(change - around) > 0.5 * bar)}
+    steps = sorted((steps | _end_tares(filled, bar, block)) - {0, len(force)})
     if not steps:
         return x, y, []
     xs, ys = [], []
     for first, end in zip([0, *steps], [*steps, len(force)]):
         px, py = _block_rest(force, filled, first, end, block, bar)
-        xs += [[first], px, [end - 1]]  # flat to the part's edges: the next part's level begins a sample on
-        ys += [py[:1], py, py[-1:]]
+        # flat to a step's side: the next part's level begins a sample on (the log's ends: followed)
+        xs += [[first] if first else [], px, [end - 1] if end < len(force) else []]
+        ys += [py[:1] if first else [], py, py[-1:] if end < len(force) else []]
     return np.concatenate(xs), np.concatenate(ys), steps
+
+
+def _end_tares(filled: np.ndarray, bar: float, block: int) -> set[int]:
+    """The steps of the rest in a log's first and last `block` samples, which its blocks do not see:
+    one sample that drops the log by more than the contact `bar` from a rest (REST_RUN samples flat
+    within the bar, at the lowest level of the samples before them) to a rest (the same, at the lowest
+    level of the block after): a sensor tared after its log began, which read as a grasp from the
+    first frame and swallowed the grasps before the tare; and the mirror at the end (one sample up
+    from the rest to a new rest held to the last: re-tared before the log stopped). A press moves the
+    force over several samples, a tare in one."""
+    steps = set()
+    for log, mirrored in ((filled, False), (filled[::-1], True)):
+        for at in np.flatnonzero(log[:-1] - log[1:] > bar)[::-1] + 1:  # the first sample at the new level
+            if at > 2 * block or at < REST_RUN:
+                continue
+            before, after = log[at - REST_RUN:at], log[at:at + REST_RUN]
+            if len(after) == REST_RUN and max(np.ptp(before), np.ptp(after)) <= bar \
+                    and abs(np.median(before) - np.percentile(log[:at], 5)) <= bar / 2 \
+                    and abs(np.median(after) - np.percentile(log[at:at + block], 5)) <= bar / 2:
+                steps.add(len(log) - int(at) if mirrored else int(at))
+                break
+    return steps
 
 
 def _block_rest(force: np.ndarray, filled: np.ndarray, first: int, end: int, block: int, bar: float) -> tuple[np.ndarray, np.ndarray]:
     """The places and levels of the rest blocks (`_rest_blocks`) of samples `first` to `end`, each the
-    5th percentile of its known samples (a block with none is left out; `filled`, the log with its
-    gaps bridged, where the samples hold none); under two blocks, their 5th percentile at their middle."""
+    5th percentile of its known samples about the line through the blocks' 5th percentiles, at its
+    known samples' mean place (a block with none is left out; `filled`, the log with its gaps
+    bridged, where the samples hold none); under two blocks, their 5th percentile at their middle."""
     part = force[first:end] if not np.isnan(force[first:end]).all() else filled[first:end]
     known = ~np.isnan(part)
     blocks = (end - first) // block
@@ -242,10 +300,19 @@ def _block_rest(force: np.ndarray, filled: np.ndarray, first: int, end: int, blo
         return np.array([first + (end - first - 1) / 2]), np.array([float(np.percentile(part[known], 5))])
     edges = np.linspace(0, end - first, blocks + 1).astype(int)
     spans = [(a, b) for a, b in zip(edges[:-1], edges[1:]) if known[a:b].any()]
-    centres = np.array([first + (a + b - 1) / 2 for a, b in spans])
+    centres = np.array([first + a + np.flatnonzero(known[a:b]).mean() for a, b in spans])  # where its samples are
     levels = np.array([np.percentile(part[a:b][known[a:b]], 5) for a, b in spans])
     kept = _rest_blocks(centres, levels, 0.5 * bar)
-    return centres[kept], levels[kept]
+    centres, spans = centres[kept], [span for span, keep in zip(spans, kept) if keep]
+    if len(centres) < 2:
+        return centres, levels[kept]
+    # each level read again about the line through them: a zero drifting 0.5 N a minute moves 0.08 N
+    # in a block, and the block's 5th percentile, read flat, sits under most of its rest by half that
+    # (a log at rest labelled one grasp from end to end); along the line, its rest's noise alone
+    line = _followed(np.arange(first, end, dtype=np.float64), centres, levels[kept], block)
+    levels = np.array([np.interp(c, centres, levels[kept]) + np.percentile((part[a:b] - line[a:b])[known[a:b]], 5)
+                       for c, (a, b) in zip(centres, spans)])
+    return centres, levels
 
 
 def _rest_blocks(centres: np.ndarray, levels: np.ndarray, margin: float) -> np.ndarray:
@@ -345,6 +412,12 @@ def _joined(at: np.ndarray, places: np.ndarray, values: np.ndarray, block: int) 
     stretch = places // block
     points = [(places[stretch == k].mean(), np.median(values[stretch == k])) for k in np.unique(stretch)]
     x, y = (np.array(v) for v in zip(*points))
+    return _followed(at, x, y, block)
+
+
+def _followed(at: np.ndarray, x: np.ndarray, y: np.ndarray, block: int) -> np.ndarray:
+    """At `at`, the line through the points (x, y), followed half a `block` past its first and last
+    point along its first and last piece, flat beyond."""
     line = np.interp(at, x, y)
     if len(x) > 1:
         for ends, (a, b) in ((at < x[0], (0, 1)), (at > x[-1], (-2, -1))):
@@ -381,13 +454,19 @@ def step_noise(steps: np.ndarray) -> float:
     steps = np.asarray(steps, dtype=np.float64)
     if not len(steps):
         return 0.0
-    mad = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2)
+    mad = _spread(steps)
     moved = np.abs(steps[steps != 0])
     if not len(moved):
         return mad
     quantum = float(moved.min())
     flips = np.count_nonzero(np.isclose(moved, quantum, rtol=0.01)) >= QUANTUM_SHARE * len(steps)
     return max(mad, quantum) if flips else mad
+
+
+def _spread(steps: np.ndarray) -> float:
+    """The σ of each of two samples whose differences are `steps`: their median absolute deviation,
+    scaled to σ (x 1.4826) and from a difference to one sample (/ √2)."""
+    return 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / np.sqrt(2)
 
 
 def _contact_runs(touching: np.ndarray) -> list[tuple[int, int]]:

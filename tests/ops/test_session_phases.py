@@ -137,6 +137,65 @@ def test_a_force_sensor_whose_zero_drifts_keeps_its_rests_at_rest():
     assert "rest_loaded_frames" not in {metric for scope, metric, _ in rows if scope == "all"}
 
 
+@pytest.mark.parametrize("drift", [-2.0, -1.0, 0.5, 1.0, 2.0])
+def test_a_drifting_log_at_rest_holds_no_grasp(drift):
+    """A session without a grasp whose zero drifts 0.5-2 N a minute: each stretch's 5th percentile,
+    read flat, sat under most of its rest by half the stretch's drift, above the 5-noise-σ bar (the
+    whole log one grasp); read about the line through the stretches, and followed to the log's ends."""
+    n = 30_000
+    drifted = np.random.default_rng(1).normal(0, 0.003, n) + drift * np.arange(n) / 6000
+    phase, grasp = label_session(drifted)
+    assert (grasp == -1).all() and set(phase) == {"none"}
+    with_grasps = drifted.copy()
+    for start in range(2_000, n - 1_000, 4_000):
+        with_grasps[start:start + 300] += np.r_[ramp(0, 3.0, 20), np.full(260, 3.0), ramp(3.0, 0, 20)]
+    grasp = label_session(with_grasps)[1]
+    assert grasp.max() + 1 == len(range(2_000, n - 1_000, 4_000))
+    assert np.mean(grasp[with_grasps - drifted == 0] == -1) > 0.995
+
+
+@pytest.mark.parametrize("noise", [0.1, 0.15])
+def test_a_noisy_load_cell_s_grasps_are_found_whole(noise):
+    """Noise of 0.1-0.2 N on grasps of 0.5-6 N: a bar of 5 noise σ on the log as logged lost weak
+    grasps and the edges of the others (76-97% of the contact frames, 56-69 grasps of 70). The log is
+    read through the shortest centred median that puts its noise under the bar."""
+    rng = np.random.default_rng(4)
+    parts, truth = [np.zeros(200)], [np.zeros(200, dtype=bool)]
+    for _ in range(70):
+        peak, rise, hold, rest = rng.uniform(0.5, 6.0), int(rng.integers(5, 30)), int(rng.integers(60, 340)), int(rng.integers(30, 300))
+        parts += [ramp(0, peak, rise), np.full(hold, peak), ramp(peak, 0, rise), np.zeros(rest)]
+        truth += [np.ones(2 * rise + hold - 1, dtype=bool), np.zeros(rest + 1, dtype=bool)]
+    force, truth = np.concatenate(parts), np.concatenate(truth)
+    grasp = label_session(force + rng.normal(0, noise, force.size))[1]
+    assert grasp.max() + 1 == 70
+    assert np.mean(grasp[truth] >= 0) > 0.97 and np.mean(grasp[~truth] >= 0) < 0.01
+
+
+@pytest.mark.parametrize("seconds", [1, 5, 12, 19])
+@pytest.mark.parametrize("end", ["start", "end"])
+def test_a_sensor_tared_near_the_log_s_ends_keeps_its_rests_at_rest(seconds, end):
+    """A log 1.5 N off its zero until the sensor is tared 1-19 s after it began (or re-tared that
+    long before it stopped): the stretch read as one grasp from the first frame (to the last), 1-7%
+    of the rest frames, swallowing the grasps in it. One sample from a rest to a rest is a tare."""
+    rng = np.random.default_rng(2)
+    parts = [np.zeros(200)]
+    for _ in range(40):
+        peak = rng.uniform(0.5, 6.0)
+        parts += [ramp(0, peak, 15), np.full(int(rng.integers(100, 300)), peak), ramp(peak, 0, 15), np.zeros(int(rng.integers(40, 300)))]
+    force = np.concatenate(parts)
+    at = seconds * 100  # 10 ms frames
+    if end == "end":
+        at = force.size - at
+    while force[at - 20:at + 20].any():  # a lab tares at rest
+        at += 1
+    logged = force + rng.normal(0, 0.01, force.size)
+    logged[:at] += 1.5 if end == "start" else 0.0
+    logged[at:] += 1.5 if end == "end" else 0.0
+    phase, grasp = label_session(logged)
+    assert grasp.max() + 1 == 40
+    assert np.mean(grasp[force == 0] == -1) > 0.995
+
+
 def test_a_hold_longer_than_the_rest_level_s_stretches_reads_no_rest_of_its_own():
     """A rest level read per 10 s stretch would take a minute-long hold's middle for rest, split the
     grasp and lose its weak neighbours: a stretch that stands above the line through its neighbours
@@ -280,7 +339,7 @@ def test_frames_zeroed_at_rest_take_a_drifting_sensor_s_zero_out_of_the_force():
     hold = 3.0 + np.random.default_rng(1).normal(0, 0.01, 400)
     assert rest_zeroed(hold, hold.size, 10_000)[1] == pytest.approx(3.0, abs=0.05)
     with pytest.raises(SchemaError, match="trial t: its force less its rest level passes float32's range"):
-        rest_zeroed(np.r_[np.full(50, -2e38), np.full(50, 1.8e38)].astype(np.float32), 100, 10_000, "t")
+        rest_zeroed(np.r_[np.full(50, -2e38), np.linspace(-2e38, 1.8e38, 50)].astype(np.float32), 100, 10_000, "t")
 
 
 def test_frame_names_what_zeroing_at_rest_could_not_do():
