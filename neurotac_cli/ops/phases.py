@@ -267,18 +267,18 @@ def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> 
 
 
 def _end_tares(filled: np.ndarray, bar: float, block: int) -> set[int]:
-    """The steps of the rest in a log's first and last `block` samples, which its blocks do not see:
+    """The steps of the rest in a log's first and last two `block`s, which its blocks do not show:
     one sample that drops the log by more than the contact `bar` from a rest (REST_RUN samples flat
     within the bar, at the lowest level of the samples before them) to a rest (the same, at the lowest
     level of the block after): a sensor tared after its log began, which read as a grasp from the
     first frame and swallowed the grasps before the tare; and the mirror at the end (one sample up
     from the rest to a new rest held to the last: re-tared before the log stopped). A press moves the
-    force over several samples, a tare in one."""
+    force over several samples, a tare in one; a hold from the log's first sample let go within one
+    sample reads as a tare (the limit)."""
     steps = set()
     for log, mirrored in ((filled, False), (filled[::-1], True)):
-        for at in np.flatnonzero(log[:-1] - log[1:] > bar)[::-1] + 1:  # the first sample at the new level
-            if at > 2 * block or at < REST_RUN:
-                continue
+        drops = np.flatnonzero(log[:-1] - log[1:] > bar) + 1  # the first sample at the new level
+        for at in drops[(drops >= REST_RUN) & (drops <= 2 * block)][::-1]:
             before, after = log[at - REST_RUN:at], log[at:at + REST_RUN]
             if len(after) == REST_RUN and max(np.ptp(before), np.ptp(after)) <= bar \
                     and abs(np.median(before) - np.percentile(log[:at], 5)) <= bar / 2 \
