@@ -178,19 +178,26 @@ CALM_US = (30_000, 50_000, 90_000)  # the centred medians `_calm` tries, shortes
 
 def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarray, float]:
     """The log `label_session` reads and its noise σ: as logged where `contact_share` of its scale
-    (the 95th percentile above its 5th) stands above 5 noise σ, else the centred median of the fewest
-    samples (CALM_US at the period `block` gives) whose noise does not (the longest where none),
-    missing samples kept missing. A noisy load cell (0.2 N on grasps of 0.5-6 N) put the bar at 1 N:
-    a quarter of the contact frames and a sixth of the grasps were lost. A median keeps a press's
-    edge where it is and a glitch shorter than half its span out.
+    (the 95th percentile above its rest levels) stands above 5 noise σ, else the centred median of
+    the fewest samples (CALM_US at the period `block` gives) whose noise does not (the longest
+    where none), missing samples kept missing. A noisy load cell (0.2 N on grasps of 0.5-6 N) put
+    the bar at 1 N: a quarter of the contact frames and a sixth of the grasps were lost. A median
+    keeps a press's edge where it is and a glitch shorter than half its span out.
 
     The median's noise is the larger of the spread of the differences of medians `k` samples apart
     (two disjoint spans: a noise that is not white, a lagging sensor's, is not taken for smaller than
-    it is) and a median's of white noise (1.2533 σ / √k: a quantised log's medians repeat a value)."""
+    it is) and a median's of white noise (1.2533 σ / √k: a quantised log's medians repeat a value).
+    A median that leaves more than 0.8 of the noise is not used: a slow noise is not lowered by a
+    few samples' median, which only takes off the peaks that carried weak grasps over the bar. Nor
+    is a log of under three blocks read so: its one or two rest levels cannot follow a drift, which
+    the noise of the log as logged keeps under the bar."""
     known = ~np.isnan(force)
     filled = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
-    noise = step_noise(np.diff(filled)) if len(force) > 2 else 0.0
-    scale = contact_share * float(np.percentile(filled, 95) - np.percentile(filled, 5))
+    steps = np.diff(force)
+    noise = step_noise(steps[~np.isnan(steps)]) if len(force) > 2 else 0.0  # the steps the log has: none across a gap
+    if len(force) < 3 * block or noise == 0:
+        return force, noise
+    scale = contact_share * float(np.percentile(filled - rest_levels(force, contact_share, block), 95))
     calm = force, noise
     if 5 * noise <= scale:
         return calm
@@ -198,8 +205,12 @@ def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarr
     spans = dict.fromkeys(2 * int(round(us / period_us / 2)) + 1 for us in CALM_US)
     for k in [k for k in spans if k >= 3 and 4 * k <= len(force)]:
         median = np.median(np.lib.stride_tricks.sliding_window_view(np.pad(filled, k // 2, mode="edge"), k), axis=1)
-        calm = np.where(known, median, np.nan), max(_spread(median[k:] - median[:-k]), 1.2533 * noise / np.sqrt(k))
-        if 5 * calm[1] <= scale:
+        # no less than a median of k samples of white noise reads (a quantised log's medians repeat a value)
+        sigma = max(_spread(median[k:] - median[:-k]), 1.2533 * noise / np.sqrt(k))
+        if sigma > 0.8 * noise:
+            continue
+        calm = np.where(known, median, np.nan), sigma
+        if 5 * sigma <= scale:
             break
     return calm
 
@@ -268,20 +279,25 @@ def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> 
 
 def _end_tares(filled: np.ndarray, bar: float, block: int) -> set[int]:
     """The steps of the rest in a log's first and last two `block`s, which its blocks do not show:
-    one sample that drops the log by more than the contact `bar` from a rest (REST_RUN samples flat
-    within the bar, at the lowest level of the samples before them) to a rest (the same, at the lowest
-    level of the block after): a sensor tared after its log began, which read as a grasp from the
-    first frame and swallowed the grasps before the tare; and the mirror at the end (one sample up
-    from the rest to a new rest held to the last: re-tared before the log stopped). A press moves the
-    force over several samples, a tare in one; a hold from the log's first sample let go within one
-    sample reads as a tare (the limit)."""
+    one sample that drops the log, and its level, by more than the contact `bar` from a rest
+    (REST_RUN samples flat within the bar, no sample of the log before them lower: three in a row,
+    by half the bar) to a rest (the same, at the lowest level of the block after): a sensor tared
+    after its log began,
+    which read as a grasp from the first frame and swallowed the grasps before the tare; and the
+    mirror at the end (one sample up from a rest to a rest held to the last: re-tared before the log
+    stopped). A press moves the force over several samples, a tare in one; a hold from the log's
+    first sample let go within one sample (or pressed within one and held to its last) reads as a
+    tare: the limit, where a fast gripper or long frames make one-sample presses."""
     steps = set()
     for log, mirrored in ((filled, False), (filled[::-1], True)):
         drops = np.flatnonzero(log[:-1] - log[1:] > bar) + 1  # the first sample at the new level
         for at in drops[(drops >= REST_RUN) & (drops <= 2 * block)][::-1]:
             before, after = log[at - REST_RUN:at], log[at:at + REST_RUN]
-            if len(after) == REST_RUN and max(np.ptp(before), np.ptp(after)) <= bar \
-                    and abs(np.median(before) - np.percentile(log[:at], 5)) <= bar / 2 \
+            # the lowest level before it, of three samples in a row (a few samples at rest before a
+            # hold tell it from a zero's offset; noise alone reaches no lower than the bar's half)
+            lowest = float(np.median(np.lib.stride_tricks.sliding_window_view(log[:at], 3), axis=1).min())
+            if len(after) == REST_RUN and max(np.ptp(before), np.ptp(after)) <= bar < np.median(before) - np.median(after) \
+                    and abs(np.median(before) - lowest) <= bar / 2 \
                     and abs(np.median(after) - np.percentile(log[at:at + block], 5)) <= bar / 2:
                 steps.add(len(log) - int(at) if mirrored else int(at))
                 break
