@@ -239,7 +239,8 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     sensor re-tared, a cable knocked): the blocks after a step up have no lower block after them,
     so they are kept, and between two kept blocks apart by more than the contact bar the rest steps
     where the samples cross from one level to the other (`_rest_step`), not along a line. Missing
-    samples (NaN) are left out of the levels, which are interpolated across them. A log of under two blocks has one level, its 5th percentile."""
+    samples (NaN) are left out of the levels, which are interpolated across them. A log of under
+    two blocks has one level, its 5th percentile."""
     force = np.asarray(force, dtype=np.float64)
     if np.isnan(force).all():
         return np.zeros(len(force))
@@ -282,10 +283,9 @@ def _end_tares(filled: np.ndarray, bar: float, block: int) -> set[int]:
     one sample that drops the log, and its level, by more than the contact `bar` from a rest
     (REST_RUN samples flat within the bar, no sample of the log before them lower: three in a row,
     by half the bar) to a rest (the same, at the lowest level of the block after): a sensor tared
-    after its log began,
-    which read as a grasp from the first frame and swallowed the grasps before the tare; and the
-    mirror at the end (one sample up from a rest to a rest held to the last: re-tared before the log
-    stopped). A press moves the force over several samples, a tare in one; a hold from the log's
+    after its log began, which read as a grasp from the first frame and swallowed the grasps before
+    the tare; and the mirror at the end (one sample up from a rest to a rest held to the last:
+    re-tared before the log stopped). A press moves the force over several samples, a tare in one; a hold from the log's
     first sample let go within one sample (or pressed within one and held to its last) reads as a
     tare: the limit, where a fast gripper or long frames make one-sample presses."""
     steps = set()
