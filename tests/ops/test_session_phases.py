@@ -154,18 +154,24 @@ def test_a_drifting_log_at_rest_holds_no_grasp(drift):
     assert np.mean(grasp[with_grasps - drifted == 0] == -1) > 0.995
 
 
+def seventy_grasps(rng):
+    """(force, true contact per frame) of 70 grasps of 0.5-6 N, rises of 5-30 frames, holds of
+    0.6-3.4 s and rests of 0.3-3 s, at 10 ms frames, without noise."""
+    parts, truth = [np.zeros(200)], [np.zeros(200, dtype=bool)]
+    for _ in range(70):
+        peak, rise, hold, rest = rng.uniform(0.5, 6.0), int(rng.integers(5, 30)), int(rng.integers(60, 340)), int(rng.integers(30, 300))
+        parts += [ramp(0, peak, rise), np.full(hold, peak), ramp(peak, 0, rise), np.zeros(rest)]
+        truth += [np.ones(2 * rise + hold - 1, dtype=bool), np.zeros(rest + 1, dtype=bool)]
+    return np.concatenate(parts), np.concatenate(truth)
+
+
 @pytest.mark.parametrize("noise", [0.1, 0.15])
 def test_a_noisy_load_cell_s_grasps_are_found_whole(noise):
     """Noise of 0.1-0.2 N on grasps of 0.5-6 N: a bar of 5 noise σ on the log as logged lost weak
     grasps and the edges of the others (76-97% of the contact frames, 56-69 grasps of 70). The log is
     read through the shortest centred median that puts its noise under the bar."""
     rng = np.random.default_rng(4)
-    parts, truth = [np.zeros(200)], [np.zeros(200, dtype=bool)]
-    for _ in range(70):
-        peak, rise, hold, rest = rng.uniform(0.5, 6.0), int(rng.integers(5, 30)), int(rng.integers(60, 340)), int(rng.integers(30, 300))
-        parts += [ramp(0, peak, rise), np.full(hold, peak), ramp(peak, 0, rise), np.zeros(rest)]
-        truth += [np.ones(2 * rise + hold - 1, dtype=bool), np.zeros(rest + 1, dtype=bool)]
-    force, truth = np.concatenate(parts), np.concatenate(truth)
+    force, truth = seventy_grasps(rng)
     grasp = label_session(force + rng.normal(0, noise, force.size))[1]
     assert grasp.max() + 1 == 70
     assert np.mean(grasp[truth] >= 0) > 0.97 and np.mean(grasp[~truth] >= 0) < 0.01
@@ -201,8 +207,8 @@ def test_a_noisy_log_is_read_through_a_median_only_where_that_helps():
     rest levels, which a drift passes under the median's lower bar (15 s drifting 2 N a minute: 42%
     of the rest labelled grasp); a slow noise is not lowered by a few samples' median, which only
     took off the peaks that carried weak grasps over the bar (198 grasps found of 210, 204 as
-    logged); and a
-    drifting log's scale is read above its rest levels, not from its spread, which the drift fills."""
+    logged); and a drifting log's scale is read above its rest levels, not from its spread, which
+    the drift fills."""
     from scipy.signal import lfilter
 
     from neurotac_cli.ops.phases import _calm
@@ -215,11 +221,7 @@ def test_a_noisy_log_is_read_through_a_median_only_where_that_helps():
     found = 0
     for seed in range(3):  # 70 grasps each under one-pole low-passed noise of 0.2 N: 66, 68 and 70 found as logged
         rng = np.random.default_rng(seed)
-        parts = [np.zeros(200)]
-        for _ in range(70):
-            peak, rise, hold, rest = rng.uniform(0.5, 6.0), int(rng.integers(5, 30)), int(rng.integers(60, 340)), int(rng.integers(30, 300))
-            parts += [ramp(0, peak, rise), np.full(hold, peak), ramp(peak, 0, rise), np.zeros(rest)]
-        force = np.concatenate(parts)
+        force = seventy_grasps(rng)[0]
         found += label_session(force + lfilter([0.5], [1, -0.5], rng.normal(0, 0.35, force.size)))[1].max() + 1
     assert found >= 202
     white = rng.normal(0, 0.2, 72_000) + 1.0 * np.arange(72_000) / 6000  # 12 minutes, 1 N a minute
