@@ -151,7 +151,7 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     known = ~np.isnan(force)
     if not known.any():
         return phase, grasp
-    force, noise = _calm(force, contact_share, block or REST_BLOCK)
+    logged, (force, noise) = force, _calm(force, contact_share, block or REST_BLOCK)
     rest = rest_levels(force, contact_share, block)
     filled = np.where(known, force, rest)
     threshold = rest + _contact_bar(filled - rest, contact_share, noise)
@@ -170,7 +170,22 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
         phase[first:end] = _grasp_phases(filled[first:end], before, float(rest[first]), noise, move_share, slope_share,
                                          ends_in_contact=end == last + 1)
         index += 1
+    if spikes is not None and force is not logged:  # the median took the glitches out before they were runs
+        spikes += _glitches(np.where(known, logged, rest), rest, threshold - rest, grasp, shortest)
     return phase, grasp
+
+
+def _glitches(logged: np.ndarray, rest: np.ndarray, bar: np.ndarray, grasp: np.ndarray, shortest: int) -> list:
+    """(first frame, frames, peak above rest) of each run of a log read through a median
+    (`_calm`), as logged above its rest by the contact `bar` and by 5 of its own noise σ, peaking 10 σ
+    above it (as a grasp must), shorter than `shortest` frames and away from the grasps found: the
+    glitches the median left at rest."""
+    noise = step_noise(np.diff(logged))
+    near = np.convolve(grasp >= 0, np.ones(2 * MERGE_FRAMES + 1), "same") > 0
+    above = logged - rest
+    runs = _contact_runs((above > np.maximum(bar, 5 * noise)) & ~near)
+    return [(first, last - first + 1, float(above[first:last + 1].max())) for first, last in runs
+            if last - first + 1 < shortest and above[first:last + 1].max() >= 10 * noise]
 
 
 CALM_US = (30_000, 50_000, 90_000)  # the centred medians `_calm` tries, shortest first: well inside our shortest grasp
