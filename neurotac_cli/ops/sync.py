@@ -26,7 +26,8 @@ from neurotac_cli.ops import forcelog
 from neurotac_cli.io.manifest import Source
 from neurotac_cli.ops.instant import Instant
 from neurotac_cli.ops.led import LED_LATENCY_US, MIXED_ON_PER_OFF, extra_spike, led_spikes
-from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings, uncertainty_warnings,
+from neurotac_cli.ops.xcorr import (AGREE_MIN, XCORR_RESPONSE_US, XCORR_SATURATION, agreement, disagreement_warnings, edge_warnings,
+                                   force_noise_share, uncertainty_warnings,
                                    unrelated_warnings, xcorr_instant)
 from neurotac_cli.units import counted
 
@@ -233,6 +234,8 @@ def sync_source(source: Source, method: SyncMethod) -> tuple[list[dict], dict]:
         entry.update(instant.details)
         if method.method != "xcorr" and "agreement" not in entry:  # xcorr reports its own; a spike chosen by it, too
             entry["agreement"] = agreement(t, log.t, values, instant.t0, sorted_time=True, raw=log.value)
+        if method.method == "xcorr":  # a noisy log lowers xcorr's r by itself (`unrelated_warnings`)
+            entry["force_noise_share"] = round(force_noise_share(log.value), 4)
         if log.notes:
             entry["notes"] = log.notes
         if jump and i == 0:  # said once per recording

@@ -399,12 +399,30 @@ def edge_warnings(trials: dict) -> list[str]:
             "not a peak: the true one may lie beyond; record some rest before and after each grasp, or use --method led or trigger"]
 
 
+XCORR_NOISY_SHARE = 0.02  # a log's sample noise (σ) above this share of its range lowers r by itself (0.15 N on 3.4 N: r 0.22 at the right offset)
+
+
+def force_noise_share(values: np.ndarray) -> float:
+    """A force log's sample-to-sample noise (σ, `step_noise`) as a share of its range (0.5th to 99.5th
+    percentile); 0 where it has no range."""
+    values = np.asarray(values, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if len(values) < 3:
+        return 0.0
+    span = float(np.percentile(values, 99.5) - np.percentile(values, 0.5))
+    return step_noise(np.diff(values)) / span if span > 0 else 0.0
+
+
 def unrelated_warnings(trials: dict) -> list[str]:
-    """One warning for the trials whose event rate and force log hardly correlate at any offset."""
+    """One warning for the trials whose event rate and force log hardly correlate at any offset,
+    naming a noisy log as a cause that does not need a wrong pairing (`force_noise_share`)."""
     low = {name: info["correlation"] for name, info in trials.items() if info.get("correlation", 1.0) < XCORR_MIN_CORRELATION}
     if not low:
         return []
     worst = min(low, key=low.get)
+    noisy = trials[worst].get("force_noise_share", 0.0)
+    why = (f"; its force log's noise is {100 * noisy:.1f}% of its range, which alone lowers r: where the log is noisy "
+           "a low r is expected of a right pairing too") if noisy >= XCORR_NOISY_SHARE else ""
     return [f"on {len(low)} of {len(trials)} trial(s) the event rate and the force log correlate below "
             f"{XCORR_MIN_CORRELATION} at their best offset (lowest r {low[worst]:.3f}, {worst}): are they of the same "
-            "grasp? Check the pairing; an LED blink (--method led) or a trigger does not depend on it"]
+            f"grasp? Check the pairing; an LED blink (--method led) or a trigger does not depend on it{why}"]
