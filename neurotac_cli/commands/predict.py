@@ -29,18 +29,25 @@ def command(paths, output, model_path, material_path, threads):
     """
     import itertools
 
-    from neurotac_cli import model as models
-    from neurotac_cli import tables
-    from neurotac_cli.model import session
-    from neurotac_cli.model.store import load_in_background, read_header
+    from neurotac_cli.held import HeldSignals
 
-    read_header(model_path)  # a wrong model file fails at once
-    if material_path:
-        read_header(material_path)
+    signals = HeldSignals()  # from here to the model's load: a Ctrl-C inside numpy's import was lost
+    try:
+        from neurotac_cli import model as models
+        from neurotac_cli import tables
+        from neurotac_cli.model import session
+        from neurotac_cli.model.store import load_in_background, read_header
+
+        read_header(model_path)  # a wrong model file fails at once
+        if material_path:
+            read_header(material_path)
+    except BaseException:
+        signals.release()
+        raise
     # torch takes seconds to import: torch and the model are loaded beside the wait for the first
     # frame (in a pipe, while the verbs upstream start), so that frame's force is not delayed by
     # them, and an empty input is refused without waiting for them
-    loaded = load_in_background(model_path, threads)
+    loaded = load_in_background(model_path, threads, signals)
     material = load_in_background(material_path, threads) if material_path else lambda: None
     source = tables.open_input(paths, kind="frames")
     frames = iter(source.batches)

@@ -7,6 +7,7 @@ import math
 import os
 
 from neurotac_cli.errors import ModelError, UsageError, empty_path
+from neurotac_cli.held import HeldSignals
 from neurotac_cli.schema import is_positive_count, is_sensor
 from neurotac_cli.model.names import FORMAT_VERSION
 from neurotac_cli.tables import atomic_file
@@ -232,13 +233,14 @@ def load(path: str):
     return Model(name, config, net, spec, header.get("classes"), header.get("training"))
 
 
-def load_in_background(path: str, threads: int = 1):
+def load_in_background(path: str, threads: int = 1, signals: "HeldSignals | None" = None):
     """Start loading a model file (torch's import included, which takes seconds) in a thread; the
     returned callable waits for the model, or raises the loader's error. A verb reading a pipe
     loads its model while the verbs upstream start, not after its first input arrives. The thread is
     not a daemon: a verb that fails on its input while torch is still being imported waits for the
     import before it exits (a process ending mid-import aborts in torch's C++ teardown). Ctrl-C and
-    SIGTERM wait until the model has loaded (`_HeldSignals`).
+    SIGTERM wait until the model has loaded (`HeldSignals`: `signals`, where the caller began holding
+    them before its own imports).
 
     Once loaded, the objects made so far (torch's modules, the model) are moved out of the cyclic
     garbage collector's reach (`gc.freeze`): a full collection scans every object and took 85-100 ms
@@ -248,8 +250,8 @@ def load_in_background(path: str, threads: int = 1):
     import gc
     import threading
 
-    outcome, done = {}, threading.Event()
-    signals = _HeldSignals(done)
+    signals = signals or HeldSignals()
+    outcome, done = {}, signals.done
 
     def run():
         try:
@@ -280,52 +282,3 @@ def load_in_background(path: str, threads: int = 1):
     return result
 
 
-class _HeldSignals:
-    """Ctrl-C and SIGTERM held back while a model loads beside the main thread, then acted on: raised
-    in the main thread while both threads import (torch, pandas), they left modules half made and
-    the loader waiting on an import lock for ever, or a traceback, or the signal lost (a run to the
-    end). `deliver` (the loader, once `done`) sends a held signal again, now to be acted on where the
-    main thread waits for input; `restore` (the caller, after the load) puts the handlers back and
-    acts on one still held. Signals are handled in the main thread only: elsewhere nothing is held."""
-
-    NUMBERS = ("SIGINT", "SIGTERM")
-
-    def __init__(self, done):
-        import signal
-        import threading
-
-        self.done, self.held, self.previous = done, [], {}
-        if threading.current_thread() is threading.main_thread():
-            for name in self.NUMBERS:
-                number = getattr(signal, name)
-                self.previous[number] = signal.signal(number, self._handler)
-
-    def _handler(self, number, frame):
-        import os
-        import signal
-
-        if not self.done.is_set():
-            self.held.append(number)
-            return None
-        action = self.previous[number]
-        if callable(action):
-            return action(number, frame)
-        if action != signal.SIG_IGN:  # the default: end as the signal ends a process
-            signal.signal(number, signal.SIG_DFL)
-            os.kill(os.getpid(), number)
-        return None
-
-    def deliver(self):
-        import os
-
-        if self.held:
-            os.kill(os.getpid(), self.held.pop())
-
-    def restore(self):
-        import signal
-
-        for number, action in self.previous.items():
-            if signal.getsignal(number) == self._handler:
-                signal.signal(number, action)
-        if self.held:
-            self._handler(self.held.pop(), None)
