@@ -151,8 +151,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     known = ~np.isnan(force)
     if not known.any():
         return phase, grasp
-    logged, (force, noise) = force, _calm(force, contact_share, block or REST_BLOCK)
-    rest = rest_levels(force, contact_share, block)
+    logged, (force, noise, rest) = force, _calm(force, contact_share, block or REST_BLOCK)
+    rest = rest_levels(force, contact_share, block) if rest is None else rest
     filled = np.where(known, force, rest)
     threshold = rest + _contact_bar(filled - rest, contact_share, noise)
     index, shortest = 0, int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
@@ -191,8 +191,9 @@ def _glitches(logged: np.ndarray, rest: np.ndarray, bar: np.ndarray, grasp: np.n
 CALM_US = (30_000, 50_000, 90_000)  # the centred medians `_calm` tries, shortest first: well inside our shortest grasp
 
 
-def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarray, float]:
-    """The log `label_session` reads and its noise σ: as logged where `contact_share` of its scale
+def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarray, float, np.ndarray | None]:
+    """The log `label_session` reads, its noise σ and its rest levels where they were read here (else
+    None): as logged where `contact_share` of its scale
     (the 95th percentile above its rest levels) stands above 5 noise σ, else the centred median of
     the fewest samples (CALM_US at the period `block` gives) whose noise does not (the longest
     where none), missing samples kept missing. A noisy load cell (0.2 N on grasps of 0.5-6 N) put
@@ -206,14 +207,14 @@ def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarr
     few samples' median, which only takes off the peaks that carried weak grasps over the bar. Nor
     is a log of under three blocks read so: its one or two rest levels cannot follow a drift, which
     the noise of the log as logged keeps under the bar."""
-    known = ~np.isnan(force)
-    filled = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+    known, filled = _bridged(force)
     steps = np.diff(force)
     noise = step_noise(steps[~np.isnan(steps)]) if len(force) > 2 else 0.0  # the steps the log has: none across a gap
     if len(force) < 3 * block or noise == 0:
-        return force, noise
-    scale = contact_share * float(np.percentile(filled - rest_levels(force, contact_share, block), 95))
-    calm = force, noise
+        return force, noise, None
+    rest = rest_levels(force, contact_share, block)
+    scale = contact_share * float(np.percentile(filled - rest, 95))
+    calm = force, noise, rest
     if 5 * noise <= scale:
         return calm
     period_us = REST_STRETCH_US / block
@@ -224,7 +225,7 @@ def _calm(force: np.ndarray, contact_share: float, block: int) -> tuple[np.ndarr
         sigma = max(_spread(median[k:] - median[:-k]), 1.2533 * noise / np.sqrt(k))
         if sigma > 0.8 * noise:
             continue
-        calm = np.where(known, median, np.nan), sigma
+        calm = np.where(known, median, np.nan), sigma, None
         if 5 * sigma <= scale:
             break
     return calm
@@ -263,14 +264,19 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     return _followed(np.arange(len(force), dtype=np.float64), x, y, block or REST_BLOCK)
 
 
+def _bridged(force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(which samples are known, the log with its missing samples bridged by lines between the known)."""
+    known = ~np.isnan(force)
+    return known, force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+
+
 def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """`rest_levels`' points (places, levels: a step is two points a sample apart) and the samples at
     which its steps begin, of a log with at least one known sample. The blocks are read once for
     the steps, then again on each side of them, so that no block mixes two zeros. Missing samples
     are left out of the levels and the steps (bridged from a grasp into a rest, they would read as
     either)."""
-    known = ~np.isnan(force)
-    filled = force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
+    known, filled = _bridged(force)
     block = block or REST_BLOCK
     bar = _contact_bar(filled - float(np.percentile(filled, 5)), contact_share, step_noise(np.diff(filled)))
     x, y = _block_rest(force, filled, 0, len(force), block, bar)
