@@ -12,8 +12,8 @@ class HeldSignals:
 
     A verb begins holding them before its own imports (numpy's and pyarrow's, 0.1 s and more), where
     a Ctrl-C could be lost inside an extension's import and the run went on to its end, and hands the
-    hold to `model.store.load_in_background`; `release` ends a hold that no load took over (the verb
-    failed first)."""
+    hold to `model.store.load_in_background` (`with HeldSignals() as signals:` around the imports:
+    a verb that fails there ends the hold, `release`, and acts on a signal held so far)."""
 
     NUMBERS = ("SIGINT", "SIGTERM")
 
@@ -56,6 +56,14 @@ class HeldSignals:
                 signal.signal(number, action)
         if self.held:
             self._handler(self.held.pop(), None)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, trace):
+        if kind is not None:  # the verb failed before a load took the hold over
+            self.release()
+        return False
 
     def release(self):
         """End the hold without a load: act on a signal held so far, as the handlers put back do."""

@@ -31,8 +31,7 @@ def command(paths, output, model_path, material_path, threads):
 
     from neurotac_cli.held import HeldSignals
 
-    signals = HeldSignals()  # from here to the model's load: a Ctrl-C inside numpy's import was lost
-    try:
+    with HeldSignals() as signals:  # from here to the model's load: a Ctrl-C inside numpy's import was lost
         from neurotac_cli import model as models
         from neurotac_cli import tables
         from neurotac_cli.model import session
@@ -41,9 +40,6 @@ def command(paths, output, model_path, material_path, threads):
         read_header(model_path)  # a wrong model file fails at once
         if material_path:
             read_header(material_path)
-    except BaseException:
-        signals.release()
-        raise
     # torch takes seconds to import: torch and the model are loaded beside the wait for the first
     # frame (in a pipe, while the verbs upstream start), so that frame's force is not delayed by
     # them, and an empty input is refused without waiting for them

@@ -40,24 +40,27 @@ def command(path, output, model_path, material_path, window, box, size, center, 
         neurotac sense --follow cam.raw --model m.model --size 115x115 --center 120,90 | controller
         neurotac sense --realtime session.aedat4 --model m.model --pool 6x6 > force.arrows
     """
-    from neurotac_cli import tables
-    from neurotac_cli.errors import InputError, NeurotacError, NoEventsError
-    from neurotac_cli.io import events, live
-    from neurotac_cli.io.camera import camera_file_stem
-    from neurotac_cli.model import sense
-    from neurotac_cli.model.store import load_in_background, read_header
-    from neurotac_cli.ops.crop import CropSpec
-    from neurotac_cli.ops.frame import Framing
+    from neurotac_cli.held import HeldSignals
 
-    pace = replay_speed(realtime, speed)
-    idle_timeout_needs_follow(follow)
-    if size is not None and center is None:  # the crop's own advice offers `auto`, which a stream cannot take
-        raise click.UsageError("--size needs --center X,Y (sense streams, so the centre cannot be found from the whole input)")
-    read_header(model_path)  # a wrong model file fails at once
-    if material_path:
-        read_header(material_path)
+    with HeldSignals() as signals:  # from here to the model's load, as `predict` (a Ctrl-C inside numpy's import was lost)
+        from neurotac_cli import tables
+        from neurotac_cli.errors import InputError, NeurotacError, NoEventsError
+        from neurotac_cli.io import events, live
+        from neurotac_cli.io.camera import camera_file_stem
+        from neurotac_cli.model import sense
+        from neurotac_cli.model.store import load_in_background, read_header
+        from neurotac_cli.ops.crop import CropSpec
+        from neurotac_cli.ops.frame import Framing
+
+        pace = replay_speed(realtime, speed)
+        idle_timeout_needs_follow(follow)
+        if size is not None and center is None:  # the crop's own advice offers `auto`, which a stream cannot take
+            raise click.UsageError("--size needs --center X,Y (sense streams, so the centre cannot be found from the whole input)")
+        read_header(model_path)  # a wrong model file fails at once
+        if material_path:
+            read_header(material_path)
     # torch and the models load while the camera's header is read
-    loaded = load_in_background(model_path, threads)
+    loaded = load_in_background(model_path, threads, signals)
     material = load_in_background(material_path, threads) if material_path else lambda: None
     stream = events.import_events([path], sensor=sensor, fmt=fmt, follow=follow, idle_timeout=idle_timeout / 1e6,
                                   speed=pace, stop=live.stop_on_signals())
