@@ -24,7 +24,7 @@ import types
 import numpy as np
 
 from neurotac_cli.errors import NeurotacError, UsageError
-from neurotac_cli.ops.phases import rest_block, rest_levels, step_noise
+from neurotac_cli.ops.phases import rest_block, rest_levels, slow_noise, step_noise
 
 PHASES = ("grasping", "holding", "releasing")
 
@@ -307,12 +307,14 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     figures = {"rest_frames": int(rest.sum())}
     # the force's rest level and noise as `ops.phases.label_session` reads them: a log need not read 0 N at rest
     steps = np.concatenate([np.diff(true[idx][known[idx]]) for idx in sessions]) if sessions else np.zeros(0)
-    noise = step_noise(steps)
+    steady = step_noise(steps)
+    noise = np.full(len(true), steady)
     above = np.zeros(len(true))
     for idx in sessions:  # each session's own rest level, which a drifting sensor moves, over its frames' period
         period = float(np.median(np.diff(t_us[idx]))) if len(idx) > 1 else None
         above[idx] = np.abs(np.nan_to_num(true[idx] - rest_levels(true[idx], block=rest_block(period))))
-    loaded = rest & known & (above > max(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
+        noise[idx] = slow_noise(true[idx], ~rest[idx], steady, rest_block(period)) or steady
+    loaded = rest & known & (above > np.maximum(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
     if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
         figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(above[loaded].max()))
     touching = ~rest & known

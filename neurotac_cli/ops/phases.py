@@ -145,24 +145,41 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     needs some tens of frames at rest to be read well.
     """
     force = np.asarray(force, dtype=np.float64)
-    n = len(force)
-    phase = np.full(n, NONE, dtype=object)
-    grasp = np.full(n, -1, dtype=np.int32)
     known = ~np.isnan(force)
     if not known.any():
-        return phase, grasp
+        return np.full(len(force), NONE, dtype=object), np.full(len(force), -1, dtype=np.int32)
     logged, (force, noise, rest) = force, _calm(force, contact_share, block or REST_BLOCK)
     rest = rest_levels(force, contact_share, block) if rest is None else rest
     filled = np.where(known, force, rest)
+    shortest = int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
+    short = []
+    phase, grasp, threshold = _grasps(filled, rest, noise, shortest, contact_share, move_share, slope_share, short)
+    slow = slow_noise(force, grasp >= 0, noise, block or REST_BLOCK)
+    if slow is not None:
+        short = []
+        phase, grasp, threshold = _grasps(filled, rest, slow, shortest, contact_share, move_share, slope_share, short)
+    if spikes is not None:
+        spikes += short
+        if force is not logged:  # the median took the glitches out before they were runs
+            spikes += _glitches(np.where(known, logged, rest), rest, threshold - rest, grasp, shortest)
+    return phase, grasp
+
+
+def _grasps(filled: np.ndarray, rest: np.ndarray, noise: float, shortest: int, contact_share: float, move_share: float,
+            slope_share: float, spikes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`label_session`'s (phase, grasp, contact threshold per sample) of a log with its missing
+    samples at rest, at this noise σ; runs too short for a grasp appended to `spikes`."""
+    n = len(filled)
+    phase = np.full(n, NONE, dtype=object)
+    grasp = np.full(n, -1, dtype=np.int32)
     threshold = rest + _contact_bar(filled - rest, contact_share, noise)
-    index, shortest = 0, int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
+    index = 0
     for first, last in _contact_runs(filled > threshold):
         peak = float((filled[first:last + 1] - rest[first:last + 1]).max())
         if peak < max(10 * noise, 1e-6):
             continue
         if int((filled[first:last + 1] > threshold[first:last + 1]).sum()) < shortest and first > 0 and last < n - 1:
-            if spikes is not None:
-                spikes.append((first, last - first + 1, peak))
+            spikes.append((first, last - first + 1, peak))
             continue
         end = min(last + 2, n)  # the first frame below contact is the grasp's last
         grasp[first:end] = index
@@ -170,9 +187,37 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
         phase[first:end] = _grasp_phases(filled[first:end], before, float(rest[first]), noise, move_share, slope_share,
                                          ends_in_contact=end == last + 1)
         index += 1
-    if spikes is not None and force is not logged:  # the median took the glitches out before they were runs
-        spikes += _glitches(np.where(known, logged, rest), rest, threshold - rest, grasp, shortest)
-    return phase, grasp
+    return phase, grasp, threshold
+
+
+SLOW_NOISE_US = 640_000  # the longest lag `slow_noise` reads a log's noise over
+SLOW_NOISE_RATIO = 2.5  # ... and how far above the sample-to-sample noise it must read to be used
+
+
+def slow_noise(force: np.ndarray, touching: np.ndarray, noise: float, block: int) -> float | None:
+    """The σ of a noise slower than the log's samples, where it reads more than SLOW_NOISE_RATIO times
+    `noise`, else None. A load cell low-passed well below its sample rate (a sensor's anti-alias
+    filter, a logger oversampling it) has sample-to-sample steps a fraction of its noise (a third
+    of it where each sample keeps 0.9 of the last), so a bar of 5 step σ sat inside the noise:
+    with 0.2 N of it, 14-39% of the rest frames were grasps, and up to 2.2 times as many grasps as
+    there were. Its σ is the largest spread of the differences of samples 1, 2, 4 ... samples apart,
+    up to SLOW_NOISE_US, between samples that lie as far from every sample `touching` (the grasps
+    found at `noise`) as they lie apart (a grasp's edges in a pair would read as noise), both known;
+    lags with under 200 such pairs are not read. A white noise reads about the same at every lag, so
+    its labels do not change."""
+    n = len(force)
+    busy = np.concatenate([[0], np.cumsum(touching)])
+    index = np.arange(n)
+    sigma, lag, longest = 0.0, 1, max(1, int(SLOW_NOISE_US * block / REST_STRETCH_US))
+    while lag <= longest and 2 * lag < n:
+        near = (busy[np.minimum(index + lag + 1, n)] - busy[np.maximum(index - lag, 0)]) > 0
+        steps = force[lag:] - force[:-lag]
+        steps = steps[~near[lag:] & ~near[:-lag] & ~np.isnan(steps)]
+        if len(steps) < 200:
+            break
+        sigma = max(sigma, _spread(steps[::max(1, len(steps) // 100_000)]))  # 100,000 pairs read a σ to 0.3%
+        lag *= 2
+    return sigma if sigma > SLOW_NOISE_RATIO * noise else None
 
 
 def _glitches(logged: np.ndarray, rest: np.ndarray, bar: np.ndarray, grasp: np.ndarray, shortest: int) -> list:
