@@ -321,9 +321,9 @@ def _force_labels(framing: Framing, doubts: "_LabelDoubts", trial: str, logged: 
     force = rest_zeroed(logged, n_real, line, trial) if line is not None else logged
     grasp = None
     if framing.phases == "session":
-        spikes = []
-        phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes)
-        doubts.look_at_spikes(trial, spikes)
+        spikes, slow = [], []
+        phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes, slow)
+        doubts.look_at_spikes(trial, spikes, slow)
         if has_log and framing.zero != "rest":
             line = ph.rest_line(logged[:n_real], block, grasp[:n_real])
     else:
@@ -341,12 +341,13 @@ UNFORCED_LEAST, UNFORCED_SHARE = 5, 0.01  # frames without force named where mor
 class _LabelDoubts:
     """Labels that are likely not what the user meant, gathered over the trials for one warning each:
     frames before a force log's first sample, a session framed as one grasp (`--phases auto`), true
-    slips at rest outside every grasp, a log whose zero drifts, and what `--zero rest` could not do."""
+    slips at rest outside every grasp, a log whose zero drifts or whose noise is slower than its
+    samples, and what `--zero rest` could not do."""
 
     def __init__(self, framing: Framing):
         self.framing = framing
         self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
-        self.spikes = {}
+        self.spikes, self.slow = {}, {}
 
     def look(self, trial: str, force, n_real: int, line=None) -> None:
         """The trial's frames' force as the log gives it (`force`; None where it has no force log), and
@@ -369,10 +370,13 @@ class _LabelDoubts:
         if held is not None:
             self.held[trial] = held
 
-    def look_at_spikes(self, trial: str, spikes: list) -> None:
-        """`spikes`: the trial's runs of contact too short for a grasp (`label_session`)."""
+    def look_at_spikes(self, trial: str, spikes: list, slow: list) -> None:
+        """`spikes`: the trial's runs of contact too short for a grasp; `slow`: its log's noise where
+        that is slower than its samples (`label_session`)."""
         if spikes:
             self.spikes[trial] = spikes
+        if slow:
+            self.slow[trial] = slow[0]
 
     def look_at_labels(self, trial: str, grasp, n_total: int) -> None:
         if self.framing.slips is not None and grasp is not None:
@@ -410,6 +414,12 @@ class _LabelDoubts:
                          f"({trial}: {len(spikes)}, the highest {peak:.3g} above rest at frame {first}): a force sensor's "
                          "glitches, or its noise where a slow press crosses the contact level, not grasps; those frames "
                          "are labelled at rest")
+        if self.slow:
+            trial, (sigma, steps) = max(self.slow.items(), key=lambda item: item[1][0])
+            notes.append(f"the force log's noise is slower than its samples in {counted(len(self.slow), 'session')} ({trial}: "
+                         f"σ {sigma:.3g} over lags of up to {ph.SLOW_NOISE_US / 1000:g} ms, its steps' {steps:.3g}): a filtered "
+                         f"load cell; grasps are found above 5 of that σ and peaking 10 above rest ({10 * sigma:.3g} there), "
+                         "weaker ones are labelled at rest")
         if self.logless:
             notes.append(f"--zero rest: {counted(len(self.logless), 'trial')} ({first_few(self.logless)}) {'has' if len(self.logless) == 1 else 'have'} "
                          "no force log, so no force to zero")

@@ -115,7 +115,7 @@ MERGE_FRAMES = 2  # contact dips of at most this many frames do not split a gras
 
 def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_share: float = MOVE_SHARE,
                   slope_share: float = SLOPE_SHARE, block: int | None = None,
-                  spikes: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  spikes: list | None = None, slow: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(phase per frame, grasp index per frame as int32, -1 for none) of a trial holding many grasps.
 
     A grasp is a run of frames in contact: force above the rest level (`rest_levels`: the 5th
@@ -138,7 +138,8 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     A run of contact with fewer frames in contact than MIN_GRASP_US holds (at the frames' period, which
     `block` gives), away from the log's ends, is a force sensor's glitch (or a burst of them), not a
     grasp: no gripper presses and lets go within it. Each is left at rest and, with `spikes`,
-    appended there as (first frame, frames, peak above rest).
+    appended there as (first frame, frames, peak above rest). A noise slower than the log's samples
+    is read over lags (`slow_noise`) and, with `slow`, appended there as (its σ, the steps' σ).
 
     Limits: a grasp weaker than `contact_share` of the session's force scale is not found (a 0.5 N
     touch among 20 N grasps: lower `contact_share`); the noise is read from the trace itself, so it
@@ -154,10 +155,12 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     shortest = int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
     short = []
     phase, grasp, threshold = _grasps(filled, rest, noise, shortest, contact_share, move_share, slope_share, short)
-    slow = slow_noise(force, grasp >= 0, noise, block or REST_BLOCK)
-    if slow is not None:
+    sigma = slow_noise(force, grasp >= 0, noise, block or REST_BLOCK)
+    if sigma is not None:
         short = []
-        phase, grasp, threshold = _grasps(filled, rest, slow, shortest, contact_share, move_share, slope_share, short)
+        phase, grasp, threshold = _grasps(filled, rest, sigma, shortest, contact_share, move_share, slope_share, short)
+        if slow is not None:
+            slow.append((sigma, noise))
     if spikes is not None:
         spikes += short
         if force is not logged:  # the median took the glitches out before they were runs
@@ -192,6 +195,7 @@ def _grasps(filled: np.ndarray, rest: np.ndarray, noise: float, shortest: int, c
 
 SLOW_NOISE_US = 640_000  # the longest lag `slow_noise` reads a log's noise over
 SLOW_NOISE_RATIO = 2.5  # ... and how far above the sample-to-sample noise it must read to be used
+SLOW_NOISE_MARGIN_US = 100_000  # ... between samples this far from a grasp found (its edges' frames under the bar)
 
 
 def slow_noise(force: np.ndarray, touching: np.ndarray, noise: float, block: int) -> float | None:
@@ -201,16 +205,17 @@ def slow_noise(force: np.ndarray, touching: np.ndarray, noise: float, block: int
     of it where each sample keeps 0.9 of the last), so a bar of 5 step σ sat inside the noise:
     with 0.2 N of it, 14-39% of the rest frames were grasps, and up to 2.2 times as many grasps as
     there were. Its σ is the largest spread of the differences of samples 1, 2, 4 ... samples apart,
-    up to SLOW_NOISE_US, between samples that lie as far from every sample `touching` (the grasps
-    found at `noise`) as they lie apart (a grasp's edges in a pair would read as noise), both known;
-    lags with under 200 such pairs are not read. A white noise reads about the same at every lag, so
+    up to SLOW_NOISE_US, between known samples that lie SLOW_NOISE_MARGIN_US or more from every sample
+    `touching` (the grasps found at `noise`; a grasp's edge under the bar would read as noise); lags
+    with under 200 such pairs are not read. A white noise reads about the same at every lag, so
     its labels do not change."""
     n = len(force)
     busy = np.concatenate([[0], np.cumsum(touching)])
     index = np.arange(n)
+    margin = max(1, int(SLOW_NOISE_MARGIN_US * block / REST_STRETCH_US))
+    near = (busy[np.minimum(index + margin + 1, n)] - busy[np.maximum(index - margin, 0)]) > 0
     sigma, lag, longest = 0.0, 1, max(1, int(SLOW_NOISE_US * block / REST_STRETCH_US))
     while lag <= longest and 2 * lag < n:
-        near = (busy[np.minimum(index + lag + 1, n)] - busy[np.maximum(index - lag, 0)]) > 0
         steps = force[lag:] - force[:-lag]
         steps = steps[~near[lag:] & ~near[:-lag] & ~np.isnan(steps)]
         if len(steps) < 200:
@@ -603,11 +608,11 @@ def _moves(change: np.ndarray, peak: float, move_share: float, slope_share: floa
 
 
 def session_columns(force: np.ndarray, n_real: int, n_total: int, window_us: int | None = None,
-                    spikes: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    spikes: list | None = None, slow: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """`frame --phases session`: phase and grasp index of the first n_real frames (of `window_us`),
-    padding frames none / -1; `spikes` as `label_session`'s."""
+    padding frames none / -1; `spikes` and `slow` as `label_session`'s."""
     phase = np.full(n_total, NONE, dtype=object)
     grasp = np.full(n_total, -1, dtype=np.int32)
     if n_real and not np.isnan(force[:n_real]).all():
-        phase[:n_real], grasp[:n_real] = label_session(force[:n_real], block=rest_block(window_us), spikes=spikes)
+        phase[:n_real], grasp[:n_real] = label_session(force[:n_real], block=rest_block(window_us), spikes=spikes, slow=slow)
     return phase, grasp

@@ -258,11 +258,19 @@ def test_a_load_cell_low_passed_below_its_sample_rate_keeps_its_rests_at_rest(ke
     white noise's labels are as before (its lags read what its steps read)."""
     from scipy.signal import lfilter
 
+    from neurotac_cli.ops.frame import Framing, _LabelDoubts
+
     rng = np.random.default_rng(11)
     force, truth = seventy_grasps(rng)
     slow = lfilter([1 - keep], [1, -keep], rng.normal(0, 0.2, force.size)) / np.sqrt((1 - keep) / (1 + keep))
-    grasp = label_session(force + slow)[1]
+    said = []
+    grasp = label_session(force + slow, slow=said)[1]
     assert np.mean(grasp[~truth] >= 0) < 0.01 and 55 <= grasp.max() + 1 <= 70
+    (sigma, steps), = said
+    assert 0.15 < sigma < 0.25 and steps < sigma / 2.5
+    doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
+    doubts.look_at_spikes("s", [], said)
+    assert any(f"noise is slower than its samples in 1 session (s: σ {sigma:.3g}" in n for n in doubts.notes()), doubts.notes()
     assert np.mean(grasp[truth & (force > 2.5)] >= 0) > 0.97
     # `eval`'s check that frames at rest carry no force reads the same noise: the rests are not "loaded"
     frame = np.arange(force.size)
@@ -376,7 +384,7 @@ def test_a_force_sensor_s_glitches_are_no_grasps_and_are_said():
     assert label_session(cut)[1][-2:].tolist() == [0, 0]
     assert label_session(glitched, block=200)[1].max() + 1 == 40 + len(places)  # 200 frames in 10 s: 50 ms frames
     doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
-    doubts.look_at_spikes("s", spikes)
+    doubts.look_at_spikes("s", spikes, [])
     assert any(f"into contact for under 40 ms {len(places)} times in 1 session (s: {len(places)}" in n for n in doubts.notes()), doubts.notes()
 
 
