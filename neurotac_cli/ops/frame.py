@@ -319,16 +319,16 @@ def _force_labels(framing: Framing, doubts: "_LabelDoubts", trial: str, logged: 
     block = ph.rest_block(framing.window_us)
     line = ph.rest_line(logged[:n_real], block) if has_log and framing.zero == "rest" else None
     force = rest_zeroed(logged, n_real, line, trial) if line is not None else logged
-    grasp = None
+    grasp, slow = None, []
     if framing.phases == "session":
-        spikes, slow = [], []
+        spikes = []
         phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes, slow)
         doubts.look_at_spikes(trial, spikes, slow)
         if has_log and framing.zero != "rest":
             line = ph.rest_line(logged[:n_real], block, grasp[:n_real])
     else:
         phase = _phases(force, n_real, n_total, framing.phases)
-    doubts.look(trial, logged if has_log else None, n_real, line)
+    doubts.look(trial, logged if has_log else None, n_real, line, slow[0][0] if slow else None)
     if line is not None and framing.zero == "rest":
         zeroed = grasp[:n_real] if grasp is not None else ph.label_session(force[:n_real], block=block)[1]
         doubts.look_at_zero(trial, held_level(logged, n_real, line, zeroed))
@@ -349,16 +349,17 @@ class _LabelDoubts:
         self.several, self.resting, self.unforced, self.drifting, self.held, self.logless = [], 0, {}, {}, {}, []
         self.spikes, self.slow = {}, {}
 
-    def look(self, trial: str, force, n_real: int, line=None) -> None:
-        """The trial's frames' force as the log gives it (`force`; None where it has no force log), and
-        its zero (`rest_line`) where framing reads it."""
+    def look(self, trial: str, force, n_real: int, line=None, noise: float | None = None) -> None:
+        """The trial's frames' force as the log gives it (`force`; None where it has no force log), its
+        zero (`rest_line`) where framing reads it, and its noise σ where that is slower than its
+        samples (`label_session`)."""
         unforced = 0 if force is None else int(np.isnan(force[:n_real]).sum())
         if unforced > max(UNFORCED_LEAST, UNFORCED_SHARE * n_real):  # a log that starts after the camera
             self.unforced[trial] = unforced
         if self.framing.phases == "auto" and force is not None and int(ph.session_columns(force, n_real, n_real, self.framing.window_us)[1].max()) >= 1:
             self.several.append(trial)
         if line is not None:
-            moved = ph.rest_drift(force[:n_real], line, block=ph.rest_block(self.framing.window_us))
+            moved = ph.rest_drift(force[:n_real], line, block=ph.rest_block(self.framing.window_us), noise=noise)
             if moved is not None:
                 self.drifting[trial] = moved
         if self.framing.zero == "rest" and force is None:

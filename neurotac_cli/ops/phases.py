@@ -156,8 +156,9 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     short = []
     phase, grasp, threshold = _grasps(filled, rest, noise, shortest, contact_share, move_share, slope_share, short)
     sigma = slow_noise(force, grasp >= 0, noise, block or REST_BLOCK)
-    if sigma is not None:
-        short = []
+    if sigma is not None:  # its wander moved the levels of a few blocks by more than a step noise's bar
+        short, rest = [], rest_levels(force, contact_share, block, sigma)
+        filled = np.where(known, force, rest)
         phase, grasp, threshold = _grasps(filled, rest, sigma, shortest, contact_share, move_share, slope_share, short)
         if slow is not None:
             slow.append((sigma, noise))
@@ -291,7 +292,8 @@ def rest_block(period_us: float | None) -> int:
     return REST_BLOCK if not period_us or period_us <= 0 else max(2, int(round(REST_STRETCH_US / period_us)))
 
 
-def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: int | None = None) -> np.ndarray:
+def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: int | None = None,
+                noise: float | None = None) -> np.ndarray:
     """The rest level of a log at each sample. Each `block` samples' 5th percentile (REST_BLOCK
     unless given: `rest_block`) is their rest, unless a grasp holds through the block: a block whose
     level stands above the line through its neighbours' (at an end, through the two nearest) by
@@ -306,11 +308,12 @@ def rest_levels(force: np.ndarray, contact_share: float = CONTACT_SHARE, block: 
     so they are kept, and between two kept blocks apart by more than the contact bar the rest steps
     where the samples cross from one level to the other (`_rest_step`), not along a line. Missing
     samples (NaN) are left out of the levels, which are interpolated across them. A log of under
-    two blocks has one level, its 5th percentile."""
+    two blocks has one level, its 5th percentile. `noise`: the log's noise σ where the caller read
+    it (`slow_noise`; else its sample-to-sample steps')."""
     force = np.asarray(force, dtype=np.float64)
     if np.isnan(force).all():
         return np.zeros(len(force))
-    x, y, _ = _rest_points(force, contact_share, block)
+    x, y, _ = _rest_points(force, contact_share, block, noise)
     return _followed(np.arange(len(force), dtype=np.float64), x, y, block or REST_BLOCK)
 
 
@@ -320,7 +323,8 @@ def _bridged(force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return known, force if known.all() else np.interp(np.arange(len(force)), np.flatnonzero(known), force[known])
 
 
-def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> tuple[np.ndarray, np.ndarray, list[int]]:
+def _rest_points(force: np.ndarray, contact_share: float, block: int | None,
+                 noise: float | None = None) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """`rest_levels`' points (places, levels: a step is two points a sample apart) and the samples at
     which its steps begin, of a log with at least one known sample. The blocks are read once for
     the steps, then again on each side of them, so that no block mixes two zeros. Missing samples
@@ -328,7 +332,8 @@ def _rest_points(force: np.ndarray, contact_share: float, block: int | None) -> 
     either)."""
     known, filled = _bridged(force)
     block = block or REST_BLOCK
-    bar = _contact_bar(filled - float(np.percentile(filled, 5)), contact_share, step_noise(np.diff(filled)))
+    noise = step_noise(np.diff(filled)) if noise is None else noise
+    bar = _contact_bar(filled - float(np.percentile(filled, 5)), contact_share, noise)
     x, y = _block_rest(force, filled, 0, len(force), block, bar)
     # a step, not a drift: one block-to-block change apart by half the contact bar from what its
     # neighbours' rates make of its span (a long hold between two kept blocks spans several blocks)
@@ -472,18 +477,28 @@ def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | N
     long grasp has no rest to say where it went). Where the rest levels step (`rest_levels`: a
     re-tared sensor), each side of the step has its own line. The rest levels that find the grasps
     are 5th percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block,
-    at its early part. Where no sample lies between grasps (a trial held from start to end), the
-    median of every sample per block; None where no sample is known. `grasp`: the log's grasp labels
-    (`label_session`'s), where the caller has them."""
+    at its early part. A sample between grasps above the contact bar of the log's sample-to-sample
+    noise is left out: under a noise slower than the samples (`slow_noise`), whose bar the grasps
+    are found at, a weak grasp lies between them (the zero 0.13-0.18 N r.m.s. off at 0.2 N of such
+    noise, 0.08-0.13 N without those samples); that slower noise's bar also places the steps, whose
+    wander moved a few blocks' levels by more than the other's. Where no sample lies between grasps
+    (a trial held from start to end), the median of every sample per block; None where no sample is
+    known. `grasp`: the log's grasp labels (`label_session`'s), where the caller has them."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
     if not known.any():
         return None
     block = block or REST_BLOCK
-    between = ((label_session(force, block=block)[1] if grasp is None else grasp) < 0) & known
+    grasp = label_session(force, block=block)[1] if grasp is None else grasp
+    steps = np.diff(force)
+    noise = step_noise(steps[~np.isnan(steps)])
+    x, y, tares = _rest_points(force, CONTACT_SHARE, block, slow_noise(force, grasp >= 0, noise, block))
+    rest = _followed(np.arange(len(force), dtype=np.float64), x, y, block)
+    # nor above the bar of the steps' noise: a grasp too weak for a slow noise's bar lies between grasps
+    between = (grasp < 0) & known & (np.nan_to_num(force - rest) <= _contact_bar(np.where(known, force, rest) - rest, CONTACT_SHARE, noise))
     if not between.any():
         between = known
-    bounds = [0, *_rest_points(force, CONTACT_SHARE, block)[2], len(force)]
+    bounds = [0, *tares, len(force)]
     line = np.empty(len(force))
     for first, end in zip(bounds[:-1], bounds[1:]):
         places = first + np.flatnonzero(between[first:end])
@@ -514,17 +529,18 @@ def _followed(at: np.ndarray, x: np.ndarray, y: np.ndarray, block: int) -> np.nd
 
 
 def rest_drift(force: np.ndarray, line: np.ndarray | None = None, contact_share: float = CONTACT_SHARE,
-               block: int | None = None) -> float | None:
+               block: int | None = None, noise: float | None = None) -> float | None:
     """How far a session log's zero (`rest_line`, or `line` where the caller has it) moves from its
-    start to its end, where that passes half the contact bar; else None (and for a log of under two
-    blocks)."""
+    start to its end, where that passes half the contact bar (of the log's step noise, or `noise`
+    where the caller read a slower one: `slow_noise`, whose wander moves the zero of a few blocks);
+    else None (and for a log of under two blocks)."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
     if known.sum() < 2 * (block or REST_BLOCK):
         return None
     line = rest_line(force, block) if line is None else line
     moved = float(line[-1] - line[0])
-    bar = _contact_bar(force[known] - line[known], contact_share, step_noise(np.diff(force[known])))
+    bar = _contact_bar(force[known] - line[known], contact_share, noise or step_noise(np.diff(force[known])))
     return moved if abs(moved) > 0.5 * bar else None
 
 

@@ -268,6 +268,10 @@ def test_a_load_cell_low_passed_below_its_sample_rate_keeps_its_rests_at_rest(ke
     assert np.mean(grasp[~truth] >= 0) < 0.01 and 55 <= grasp.max() + 1 <= 70
     (sigma, steps), = said
     assert 0.15 < sigma < 0.25 and steps < sigma / 2.5
+    # the zero `--zero rest` takes off: no step read in the noise's wander, within 0.15 N r.m.s.
+    line = rest_line(force + slow)
+    assert np.sqrt(np.mean(line ** 2)) < 0.15 and np.abs(line).max() < 0.4
+    assert rest_drift(force + slow, line, noise=sigma) is None
     doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
     doubts.look_at_spikes("s", [], said)
     assert any(f"noise is slower than its samples in 1 session (s: σ {sigma:.3g}" in n for n in doubts.notes()), doubts.notes()
