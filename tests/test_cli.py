@@ -36,6 +36,23 @@ def test_installed_console_script_runs():
     assert done.returncode == 0 and __version__ in done.stdout
 
 
+@pytest.mark.parametrize("number, code, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+def test_a_signal_while_the_command_starts_ends_it_with_one_line(number, code, said):
+    """A Ctrl-C while the command imported click (0.1 s after it began, on a busy machine) was raised
+    inside the import: Python's traceback. Held from the entry point's first line, the verb's line."""
+    code_text = (
+        "import os, signal, sys\n"
+        "class Finder:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        f"        if name == 'click': os.kill(os.getpid(), signal.{number})\n"
+        "sys.meta_path.insert(0, Finder())\n"
+        "sys.argv = ['neurotac', 'info', 'nothing.arrows']\n"
+        "from neurotac_cli.start import main\n"
+        "main()\n")
+    done = subprocess.run([sys.executable, "-c", code_text], capture_output=True, text=True, timeout=60)
+    assert done.returncode == code and done.stderr == f"neurotac info: {said}\n", done.stderr
+
+
 def test_shell_completion_completes_commands_and_options():
     import os
 
