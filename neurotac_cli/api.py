@@ -167,6 +167,8 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
         raise UsageError("give a file path: the library does not write binary tables to stdout")
     if not isinstance(table, pa.Table):
         raise UsageError(f"expected a pyarrow Table to write, got {type(table).__name__}")
+    if step is not None and not (isinstance(step, (tuple, list)) and len(step) == 2 and isinstance(step[0], str) and isinstance(step[1], dict)):
+        raise UsageError(f"step must be (command, args): a name and a dict of its arguments, got {step!r}"[:300])
     tables.write(_path(path), table, step=step)
 
 
@@ -219,6 +221,10 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
     if set(options) - known:
         raise UsageError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
     options = {name: _plain(value) for name, value in options.items()}
+    if options.get("start_us") is not None:
+        if not is_whole(options["start_us"]):
+            raise UsageError(f"start_us must be a whole number of µs, got {options['start_us']!r}")
+        options["start_us"] = int(options["start_us"])
     for name in ("accumulate", "sort"):
         if name in options:
             options[name] = _flag(options[name], name)
@@ -350,6 +356,8 @@ class Stepper:
     def step(self, counts: np.ndarray, t_us) -> np.ndarray:
         """Force (N) for one frame (2, H, W) or several in order (n, 2, H, W), at their start times in µs."""
         counts = np.asarray(counts)
+        if not np.issubdtype(counts.dtype, np.number) or counts.dtype == bool:
+            raise UsageError(f"counts must be numbers (event counts per pixel), got an array of {counts.dtype}")
         shape = (2, self.model.input_spec["height"], self.model.input_spec["width"])
         if counts.shape[-3:] != shape or counts.ndim not in (3, 4):
             raise UsageError(f"expected frames of shape {shape} (or (n, {', '.join(map(str, shape))})), got {counts.shape}")
@@ -388,10 +396,14 @@ def from_tonic(array: np.ndarray, sensor_size: tuple) -> pa.Table:
     if getattr(array, "dtype", None) is None or array.dtype.names is None or not {"t", "x", "y", "p"} <= set(array.dtype.names):
         raise UsageError("expected a tonic structured array with fields t, x, y, p")
     width, height = _sensor(sensor_size, "sensor_size", polarities=True)
-    x, y, p = np.asarray(array["x"]), np.asarray(array["y"]), np.asarray(array["p"])
+    x, y, p, t = (np.asarray(array[name]) for name in ("x", "y", "p", "t"))
+    for name, values in (("t", t), ("x", x), ("y", y)):  # a cast to whole numbers would drop fractions, NaN read as -2^63
+        if values.dtype.kind == "f" and len(values) and not (np.isfinite(values).all() and (values == np.round(values)).all()):
+            raise NeurotacError(f"field {name} holds values that are not whole numbers (NaN, infinite or fractional); "
+                                f"tonic's {name} is whole {'µs' if name == 't' else 'pixels'}")
     if len(x) and (x.min() < 0 or y.min() < 0 or x.max() >= width or y.max() >= height):
         raise NeurotacError(f"events lie outside the {width}x{height} sensor (x {x.min()}..{x.max()}, y {y.min()}..{y.max()})")
-    return sch.events_table(np.asarray(array["t"], np.int64), x.astype(np.uint16), y.astype(np.uint16),
+    return sch.events_table(t.astype(np.int64), x.astype(np.uint16), y.astype(np.uint16),
                             (p > 0).astype(np.uint8), width=width, height=height)
 
 

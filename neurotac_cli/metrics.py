@@ -35,6 +35,7 @@ def check_nonzero(nonzero: bool, classifier: bool) -> None:
     if nonzero and classifier:
         raise UsageError("--nonzero leaves out frames of no force from a force model's scores; a classifier is scored on whole trials")
 
+
 def regression(true, pred) -> dict:
     true, pred = np.asarray(true, dtype=np.float64), np.asarray(pred, dtype=np.float64)
     keep = ~(np.isnan(true) | np.isnan(pred))

@@ -406,6 +406,32 @@ def unlike_windows(first: pa.Schema, other: pa.Schema) -> tuple | None:
     return a, b
 
 
+def made_by(history: list) -> tuple:
+    """(pooling (along the width, along the height) multiplied over the crops, whether `frame --dtype
+    float32` scaled the counts) of frames made by these history steps; None where the history does
+    not say, or where tables read together (a `concat` step) disagree."""
+    pool, scaled = (1, 1), None
+    for step in history:
+        args = step.get("args") or {}
+        if step.get("command") == "concat" and isinstance(args.get("inputs"), list):
+            parts = {made_by(inner) if isinstance(inner, list) else (None, None) for inner in args["inputs"]}
+            pool, scaled = (parts.pop() if len(parts) == 1 else (None, None))
+            if pool is None:
+                return None, scaled
+            continue
+        if step.get("command") == "crop":
+            factor = args.get("pool")
+            if factor is None:
+                continue
+            if not (isinstance(factor, list) and len(factor) == 2 and all(isinstance(v, int) for v in factor)):
+                pool = None  # `--pool all` and older spellings: unknown here
+            elif pool is not None:
+                pool = (pool[0] * factor[0], pool[1] * factor[1])
+        elif step.get("command") == "frame" and "dtype" in args:
+            scaled = args["dtype"] == "float32"
+    return pool if history else None, scaled
+
+
 def _guess_kind(schema: pa.Schema) -> str | None:
     """Tables from other tools (DuckDB, Polars) lose our metadata: recognise them by their columns."""
     names = set(schema.names)

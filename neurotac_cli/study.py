@@ -250,24 +250,7 @@ def _run_dask(function, pending: dict, shared: dict, scheduler, retries: int, la
         ) from None
 
     own_client = not isinstance(scheduler, Client)
-    if own_client:
-        # A path is a scheduler file (`dask scheduler --scheduler-file PATH`), the usual hand-over on
-        # SLURM/PBS where the scheduler's address is not known before its job starts.
-        where = {"scheduler_file": str(scheduler)} if os.path.isfile(str(scheduler)) else {"address": scheduler}
-        if "address" in where and not re.match(r"^([a-z]+://)?[^\s/:]+(:\d+)$|^[a-z]+://", str(scheduler)):
-            raise UsageError(
-                f"--scheduler {scheduler!r} is neither an address like tcp://HOST:8786 nor a scheduler file "
-                "(give the address `dask scheduler` printed, or the path of its --scheduler-file)"
-            )
-        try:
-            client = Client(**where, timeout=CONNECT_TIMEOUT, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as error:
-            raise StudyError(
-                f"cannot reach the Dask scheduler at {scheduler} ({error}); start one with `dask scheduler` "
-                "and workers with `dask worker ADDRESS`, or drop --scheduler to run here"
-            ) from None
-    else:
-        client = scheduler
+    client = _client(Client, scheduler) if own_client else scheduler
     prefix = re.sub(r"[^A-Za-z0-9_.]+", "-", label).strip("-") or "tasks"
     futures = {}
     try:
@@ -294,6 +277,65 @@ def _run_dask(function, pending: dict, shared: dict, scheduler, retries: int, la
                 future.cancel()
         if own_client:
             client.close()
+
+
+def _client(Client, scheduler):
+    """A Dask client of the scheduler at this address or scheduler file. A path is a scheduler file
+    (`dask scheduler --scheduler-file PATH`), the usual hand-over on SLURM/PBS where the scheduler's
+    address is not known before its job starts."""
+    where = {"scheduler_file": str(scheduler)} if os.path.isfile(str(scheduler)) else {"address": scheduler}
+    if "address" in where and not re.match(r"^([a-z]+://)?[^\s/:]+(:\d+)$|^[a-z]+://", str(scheduler)):
+        raise UsageError(
+            f"--scheduler {scheduler!r} is neither an address like tcp://HOST:8786 nor a scheduler file "
+            "(give the address `dask scheduler` printed, or the path of its --scheduler-file)"
+        )
+    if "address" in where:
+        _check_speaks_dask(str(scheduler))
+    try:
+        return Client(**where, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except MemoryError:  # a reply read as a Dask message's length (exabytes)
+        raise StudyError(f"{scheduler} answered, but not as a Dask scheduler does; give the address `dask scheduler` "
+                         "printed (its port, 8786 unless set, not the dashboard's 8787)") from None
+    except (OSError, TimeoutError, ValueError) as error:
+        raise StudyError(
+            f"cannot reach the Dask scheduler at {scheduler} ({error}); start one with `dask scheduler` "
+            "and workers with `dask worker ADDRESS`, or drop --scheduler to run here"
+        ) from None
+
+
+def _check_speaks_dask(address: str) -> None:
+    """Refuse an address that is not a Dask scheduler's, in seconds: a scheduler sends its handshake
+    as a connection opens (a message whose first 8 bytes are a small frame count), while a web
+    server waits for a request or answers in text. Given such a server, Dask's client waited for
+    good (one that never answers) or read its reply as a message of exabytes and failed as out of
+    memory, with a traceback from its clean-up. TLS and other transports are left to Dask."""
+    import socket
+
+    match = re.match(r"^(?:tcp://)?\[?([^\s/\]]+?)\]?:(\d+)$", address)
+    if not match:
+        return
+    host, port = match.group(1), int(match.group(2))
+    try:
+        with socket.create_connection((host, port), timeout=PROBE_TIMEOUT) as connection:
+            connection.settimeout(PROBE_TIMEOUT)
+            first = b""
+            while len(first) < 8:
+                more = connection.recv(8 - len(first))
+                if not more:
+                    break
+                first += more
+    except socket.timeout:
+        first = None
+    except OSError:
+        return  # unreachable: Dask's own attempt says so, within its timeout
+    if first is None or len(first) < 8 or int.from_bytes(first, "little") > 1 << 20:
+        heard = ("sent nothing when connected" if first is None else "closed the connection" if not first
+                 else f"answered {first[:8]!r}")
+        raise StudyError(f"{address} is not a Dask scheduler: it {heard}; give the address `dask scheduler` printed "
+                         "(its port, 8786 unless set, not the dashboard's 8787)")
+
+
+PROBE_TIMEOUT = 5.0  # seconds a scheduler has to send its handshake once connected (a few ms on a LAN)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -1359,3 +1359,98 @@ def test_an_hdf5_export_of_events_a_clock_jump_apart_is_refused_and_a_long_span_
 def test_a_condition_that_cuts_its_query_names_the_mark_that_cuts_it(files, condition, mark):  # noqa: F811
     code, stderr, _ = invoke(["select", "--where", condition, f"{files}/f.arrows"])
     assert one_line(stderr, code, 1) and f"a condition cannot hold `{mark}`" in stderr and "not a condition on each row" not in stderr
+
+
+def test_a_condition_on_columns_sql_cannot_tell_apart_is_refused_and_the_row_index_never_clashes():
+    """DuckDB reads names blind to case and renamed a second `Material` (`Material_1`), so a condition
+    on it read `material` and kept every row; a user column named like the row index ordered the
+    answer by itself (frames 34-36 kept for 0-2)."""
+    from neurotac_cli.errors import NeurotacError
+    from neurotac_cli.ops.rows import ROW_INDEX, select
+    from tests.model.helpers import tiny_frames
+
+    frames = tiny_frames(trials=3)
+    cased = frames.append_column("Material", pa.array(["X"] * frames.num_rows))
+    with pytest.raises(NeurotacError, match="differ only in case"):
+        select(cased, "\"Material\" = 'steel'")
+    assert select(cased, "frame < 3")[1]["kept"] == 9  # a condition that names neither still runs
+    shadow = frames.append_column(ROW_INDEX, pa.array([f"{frames.num_rows - k:04d}" for k in range(frames.num_rows)]))
+    kept = select(shadow, "frame < 3")[0]
+    assert sorted(set(kept.column("frame").to_pylist())) == [0, 1, 2]
+
+
+def test_concat_rename_renames_the_sources_of_augmented_copies_and_split_per_needs_a_trial_label():
+    """`concat --rename` renamed a clashing trial but not the `source_trial` of its copies, which then
+    named the other table's grasp; `split --per force` stratified by each trial's last row."""
+    from neurotac_cli.errors import UsageError
+    from neurotac_cli.ops.rows import concat, split
+    from tests.model.helpers import tiny_frames
+
+    frames = tiny_frames(trials=2, augmented_copies=1)
+    table, _ = concat([("a", frames), ("b", frames)], rename=True)
+    pairs = set(zip(table.column("trial").to_pylist(), table.column("source_trial").to_pylist()))
+    later = {(trial, source) for trial, source in pairs if trial.endswith("~2")}
+    assert later and all(source.endswith("~2") for _, source in later), pairs
+    with pytest.raises(UsageError, match="force differs within trial"):
+        split(tiny_frames(trials=4), fraction=0.5, per="force")
+
+
+def test_concat_joins_metrics_tables(tmp_path):
+    metrics = pa.table({"scope": ["all"], "metric": ["rmse"], "value": [0.1]})
+    metrics = metrics.replace_schema_metadata(sch.set_meta(metrics.schema, kind="metrics").metadata)
+    for name in ("m1", "m2"):
+        tables.write(str(tmp_path / f"{name}.arrows"), metrics)
+    code, stderr, _ = invoke(["concat", str(tmp_path / "m1.arrows"), str(tmp_path / "m2.arrows"), "-o", str(tmp_path / "m.arrows")])
+    assert code == 0 and tables.read([str(tmp_path / "m.arrows")]).num_rows == 2, stderr
+
+
+def test_noise_of_counts_is_not_added_to_scaled_frames_nor_a_tes_that_moves_nothing_kept(tmp_path):
+    """`augment --noise` added raw counts to frames scaled by `frame --dtype float32` (their maximum 1.0
+    became 5.2) without a word; `--tes 1 1e-9` moved no event and wrote copies equal to their sources."""
+    counted = frames_table()
+    history = lambda dtype: sch.set_meta(counted.schema, history=[{"command": "frame", "args": {"dtype": dtype}}]).metadata  # noqa: E731
+    tables.write(str(tmp_path / "noise.arrows"), counted.replace_schema_metadata(history("uint16")))
+    tables.write(str(tmp_path / "scaled.arrows"), counted.replace_schema_metadata(history("float32")))
+    code, stderr, _ = invoke(["augment", "--noise", str(tmp_path / "noise.arrows"), str(tmp_path / "scaled.arrows")])
+    assert one_line(stderr, code, 1) and "frame both alike" in stderr
+    code, stderr, _ = invoke(["augment", "--tes", "1", "1e-9", str(tmp_path / "noise.arrows")])
+    assert one_line(stderr, code, 1) and "moved no event" in stderr
+
+
+def test_a_background_rate_no_camera_has_is_refused_before_it_fills_the_memory():
+    code, stderr, _ = invoke(["simulate", "--trials", "1", "--synced", "--background-rate", "2e4"])
+    assert one_line(stderr, code, 2) and "background_rate_hz must be in [0, 50]" in stderr
+
+
+def test_study_refuses_nonzero_for_a_classifier_as_eval_does(tmp_path):
+    tables.write(str(tmp_path / "f.arrows"), frames_table())
+    code, stderr, _ = invoke(["study", "--model-spec", "material-dnn", "--cv", "kfold:2", "--nonzero", str(tmp_path / "f.arrows")])
+    assert one_line(stderr, code, 2) and "a classifier is scored on whole trials" in stderr
+
+
+def test_info_on_a_file_of_no_known_format_names_the_verb_that_has_format(tmp_path):
+    (tmp_path / "zeros").write_bytes(bytes(4096))
+    code, stderr, _ = invoke(["info", str(tmp_path / "zeros")])
+    assert one_line(stderr, code, 1) and "`neurotac import --format`" in stderr
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda api, fr, ev: api.simulate("ch4", trials=1, on_threshold="0.3"), "on_threshold must be a number"),
+    (lambda api, fr, ev: api.simulate("ch4", trials=1, sensor_width=240.5), "sensor_width must be a whole number"),
+    (lambda api, fr, ev: api.simulate("ch4", trials=1, contact_delay_us=5), "contact_delay_us must be a tuple of 2 numbers"),
+    (lambda api, fr, ev: api.frame(ev, "10ms", start_us=0.5), "start_us must be a whole number"),
+    (lambda api, fr, ev: api.augment(fr, api.Noise("c.arrows")), "Noise takes a tuple"),
+    (lambda api, fr, ev: api.augment(fr, api.Noise((np.full((3, 2, 8, 8), -5),))), "finite and not negative"),
+    (lambda api, fr, ev: api.augment(fr, api.Noise((np.ones((3, 2, 4, 4), np.uint16),))), "noise frames are 4x4"),
+    (lambda api, fr, ev: api.write(fr, "w.arrows", step="x"), "step must be"),
+    (lambda api, fr, ev: api.from_tonic(np.array([(np.nan, 1, 1, 1)], dtype=[("t", "f8"), ("x", "i4"), ("y", "i4"), ("p", "i1")]),
+                                        (8, 8, 2)), "not whole numbers"),
+])
+def test_the_library_refuses_values_of_the_wrong_type_with_its_own_error(tmp_path, monkeypatch, call, words):
+    """Each raised TypeError or ValueError from deep inside, or changed a value without a word."""
+    import neurotac_cli.api as api
+
+    monkeypatch.chdir(tmp_path)
+    events = sch.events_table(np.arange(4), np.array([1, 2, 3, 4]), np.array([1, 1, 2, 2]), np.array([0, 1, 0, 1]), 8, 8)
+    with pytest.raises(api.NeurotacError, match=words):
+        call(api, frames_table(), events)

@@ -300,6 +300,31 @@ def test_jobs_and_scheduler_together_are_refused():
         run_tasks(square, [{"x": 1}], jobs=2, scheduler="tcp://127.0.0.1:1")
 
 
+@pytest.mark.parametrize("reply, words", [(b"HTTP/1.1 400 Bad Request\r\n\r\n", "answered b'HTTP/1.1'"), (None, "sent nothing")])
+def test_an_address_that_is_not_a_dask_scheduler_is_refused_in_seconds(monkeypatch, reply, words):
+    """A web server's port given as --scheduler: Dask's client waited for good on one that never
+    answers, or read an answer as a message of exabytes and failed as out of memory."""
+    import socket
+    import threading
+
+    from neurotac_cli import study
+
+    monkeypatch.setattr(study, "PROBE_TIMEOUT", 1.0)
+    server = socket.create_server(("127.0.0.1", 0))
+    held = []
+
+    def serve():
+        connection, _ = server.accept()
+        held.append(connection)
+        if reply:
+            connection.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    with pytest.raises(NeurotacError, match=re.escape(words) + ".*not the dashboard"):
+        run_tasks(square, [{"x": 1}], scheduler=f"tcp://127.0.0.1:{server.getsockname()[1]}")
+    server.close()
+
+
 def test_a_scheduler_file_works_as_an_address(cluster, tmp_path):
     import json
 

@@ -90,7 +90,7 @@ MAX_FORCE_N = 450  # sim.config.validate's bound on force_max_n: the largest ran
 @click.option("--hold", type=Duration(), default=None, help="Holding phase length, with its unit: 700ms.")
 @click.option("--force-sensor", type=click.Choice(["nano17", "flexiforce"]), default=None,
               help="Force sensor model: fast F/T cell or slow, hysteretic piezoresistive sensor.")
-@click.option("--background-rate", type=float, default=None, help="Background activity per pixel, in Hz (0.1).")
+@click.option("--background-rate", type=float, default=None, help="Background activity per pixel, in Hz (0.1; at most 50).")
 @click.option("--sensor", "sensor_size", type=Size(), default=None, help="Sensor size in pixels (240x180).")
 @click.option("--set", "settings", type=KeyValue(), multiple=True, callback=distinct_names,
               help="Any simulator parameter by name, e.g. --set on_threshold=0.3 --set creep_us=150ms "

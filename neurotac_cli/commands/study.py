@@ -48,7 +48,10 @@ def command(paths, output, model, grid, cv, repeats, val_fraction, val_per, labe
     from neurotac_cli import tables
     from neurotac_cli.model import evaluate
 
+    from neurotac_cli.metrics import check_nonzero
+
     refuse_label_for_force(model)
+    check_nonzero(nonzero, model in MATERIAL_MODELS)
     tables.check_folder(*(path for path in (output, metrics_path) if path not in (None, "-")))  # before hours of training
     tables.check_not_inputs(paths, metrics=metrics_path)
     table = tables.read(paths, kind="frames")

@@ -119,7 +119,7 @@ def detect_format(path, head: bytes) -> str:
             raise FormatError(f"{name}: Prophesee raw format {version!r} is not supported (EVT 2.0, 2.1 and 3.0 are)")
         if "version" in header or any("data file containing" in key for key in header) or name.lower().endswith(".dat"):
             return "dat"
-        raise FormatError(f"{name}: a Prophesee header without an `evt` line (pass --format evt2, evt21 or evt3)")
+        raise FormatError(f"{name}: a Prophesee header without an `evt` line (`neurotac import --format evt2`, evt21 or evt3 reads it)")
     if is_hdf5(head):
         return "hdf5"
     if head.startswith(b"\xff\xff\xff\xff") or head.startswith(b"ARROW1") or head.startswith(b"PAR1"):
@@ -132,7 +132,7 @@ def detect_format(path, head: bytes) -> str:
         return "csv" if "," in first else "text"
     raise FormatError(
         f"{name}: unknown camera format (known: AEDAT 2.0/3.1/4.0, Prophesee EVT 2.0/2.1/3.0 .raw and .dat, "
-        "Event Stream .es, HDF5 events, CSV t,x,y,p and text t x y p); pass --format if the file is one of them"
+        "Event Stream .es, HDF5 events, CSV t,x,y,p and text t x y p); `neurotac import --format` reads it as one of them, if it is"
     )
 
 

@@ -277,6 +277,11 @@ def noise_pool(noise: pa.Table, like: pa.Schema) -> list[np.ndarray]:
         )
     if noise.num_rows == 0:
         raise SchemaError("the noise table has no frames (frame a still recording with `neurotac frame`)")
+    # counts of events added to counts scaled by `frame --dtype` (or back) would swamp them or vanish
+    (_, scaled), (_, noise_scaled) = sch.made_by(sch.get_meta(like, sch.HISTORY, [])), sch.made_by(sch.get_meta(noise.schema, sch.HISTORY, []))
+    if None not in (scaled, noise_scaled) and scaled != noise_scaled:
+        raise SchemaError(f"the noise frames hold counts {'scaled' if noise_scaled else 'as counted'} and the frames to "
+                          f"augment {'scaled' if scaled else 'as counted'} (`frame --dtype`); frame both alike")
     counts = sch.counts_numpy(noise["counts"])
     trials, order = _trial_order(noise)
     return [counts[rows] for rows in np.split(order, np.flatnonzero(np.diff(trials[order])) + 1)]
@@ -296,6 +301,9 @@ def add_noise(counts: np.ndarray, pool: list[np.ndarray], rng: np.random.Generat
     source = pool[which]
     start = int(rng.integers(len(source)))
     noise = source[(start + np.arange(len(counts))) % len(source)]
+    if noise.shape[1:] != counts.shape[1:]:
+        raise SchemaError(f"noise frames are {noise.shape[3]}x{noise.shape[2]} but the frames to augment are "
+                          f"{counts.shape[3]}x{counts.shape[2]} (frame and crop the still recording exactly as the data)")
     if np.issubdtype(counts.dtype, np.integer):
         if not np.issubdtype(noise.dtype, np.integer) and not np.array_equal(noise, np.floor(noise)):
             raise SchemaError("noise counts are fractional but the frames hold whole counts; frame both alike")
@@ -417,6 +425,15 @@ class Noise:
     name = "noise"
 
     def __post_init__(self):
+        given = "a tuple of noise trials, each a (frames, 2, H, W) array of counts (`api.counts(still, trial)`)"
+        if not isinstance(self.pool, (tuple, list)):
+            raise UsageError(f"Noise takes {given}, got {type(self.pool).__name__}")
+        for trial in self.pool:
+            counts = np.asarray(trial)
+            if counts.ndim != 4 or counts.shape[1] != 2 or not np.issubdtype(counts.dtype, np.number):
+                raise UsageError(f"Noise takes {given}, got an array of shape {counts.shape} and type {counts.dtype}")
+            if counts.size and not (np.isfinite(counts).all() and counts.min() >= 0):  # a negative count wraps round in uint16
+                raise UsageError("Noise's counts must be finite and not negative")
         if not self.pool or any(len(trial) == 0 for trial in self.pool):
             raise NeurotacError("the noise table has no frames (frame a still recording with `neurotac frame`)")
 
@@ -683,7 +700,11 @@ def augment(frames: pa.Table, request: Augmentation, noise: pa.Table | None = No
     pool = tuple(noise_pool(noise, frames.schema)) if noise is not None else None
     table, counted = augment_frames(frames, request.methods(pool), copies=request.copies, combine=request.combine,
                                     keep_original=request.keep_original, seed=request.seed, where=list(request.where))
-    return table, counted, loss_warnings(counted)
+    idle = [name for name, entry in counted.items() if name == "tes" and entry["events_in"] and not entry.get("events_moved")]
+    said = [f"--tes {request.tes[0]} {request.tes[1]:g} moved no event: ZETA times each frame's count rounds to none" for _ in idle]
+    if said and request.combine != "hybrid":  # its copies would equal the trials they come from, as --tes J 0's
+        raise NeurotacError(f"{said[0]}, so its copies would equal the trials they come from; give a larger ZETA")
+    return table, counted, loss_warnings(counted) + [f"{line} (the other methods changed the copies)" for line in said]
 
 
 def loss_warnings(counted: dict) -> list[str]:

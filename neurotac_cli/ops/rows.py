@@ -37,9 +37,13 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     if not expression.strip():
         raise NeurotacError("the condition is empty (give one, e.g. frame < 30)")
     plain = table.select(plain_columns(table.schema)).replace_schema_metadata(None)
+    _refuse_names_sql_confuses(plain.column_names, expression)
     # DuckDB may return rows in another order (a window function sorts them): each row carries its
-    # index, and the answer is ordered by it
-    plain = plain.append_column(ROW_INDEX, pa.array(np.arange(table.num_rows, dtype=np.int64)))
+    # index, and the answer is ordered by it (a name no column has, SQL's names being blind to case)
+    index = ROW_INDEX
+    while index.lower() in {name.lower() for name in plain.column_names}:
+        index += "_"
+    plain = plain.append_column(index, pa.array(np.arange(table.num_rows, dtype=np.int64)))
     connection = duckdb.connect()
     try:
         connection.execute("SET enable_external_access = false")
@@ -50,12 +54,12 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
         if given and given[0][0] not in ("BOOLEAN", '"NULL"', "NULL"):
             raise NeurotacError(f"{expression!r} is not a condition (it gives {given[0][0]} values; compare, e.g. frame < 30)")
         keep = connection.execute(f"SELECT coalesce(({expression}), false) AS keep FROM input_rows "
-                                  f"ORDER BY {ROW_INDEX}").fetchnumpy()["keep"]
+                                  f'ORDER BY "{index}"').fetchnumpy()["keep"]
     except duckdb.Error as error:
         first = str(error).splitlines()[0]
         # the condition is set inside a query, so a comment or a `;` cuts the query, not the condition
         cut = next((f"; a condition cannot hold `{mark}`, which cuts the query it is set in" for mark in ("--", "/*", ";") if mark in expression), "")
-        if ROW_INDEX in first and ROW_INDEX not in expression and "Candidate bindings" not in first and not cut:
+        if index in first and index not in expression and "Candidate bindings" not in first and not cut:
             raise NeurotacError(f"{expression!r} is not a condition on each row ({PER_ROW})") from None
         raise NeurotacError(f"cannot evaluate {expression!r}: {first}{cut} (columns: {', '.join(plain.column_names[:-1])}; "
                             "write SQL, strings in single quotes, times in µs)") from None
@@ -65,6 +69,19 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     if len(keep) != table.num_rows:
         raise NeurotacError(f"{expression!r} is not a condition on each row ({len(keep):,} values for {table.num_rows:,} rows; {PER_ROW})")
     return keep
+
+
+def _refuse_names_sql_confuses(columns: list[str], expression: str) -> None:
+    """Columns whose names differ only in case are one name to SQL: DuckDB renamed the second
+    (`Material` -> `Material_1`), so a condition on it read the other column and kept the wrong rows
+    without a word. Refused where the condition names them."""
+    groups = {}
+    for name in columns:
+        groups.setdefault(name.lower(), []).append(name)
+    for lower, names in groups.items():
+        if len(names) > 1 and lower in expression.lower():
+            raise NeurotacError(f"the columns {', '.join(names)} differ only in case, which SQL does not tell apart, so "
+                                f"--where {expression!r} could read either; rename one (e.g. with DuckDB or Polars) first")
 
 
 def _refuse_changing_answers(connection, expression: str, columns: list[str]) -> None:
@@ -121,10 +138,11 @@ def trial_ids(table: pa.Table) -> list[str]:
 
 def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.Table, list[str]]:
     """One table of several (name, table) parts of one kind. Trials already seen in an earlier part
-    are refused, or with `rename` get `~2`, `~3`, ... (returned as notes for a warning)."""
+    are refused, or with `rename` get `~2`, `~3`, ... (returned as notes for a warning), and so do
+    the `source_trial`s that name them."""
     seen, notes, tables = {}, [], []
     check_alike(parts)
-    if len(parts) > 1 and "trial" not in parts[0][1].column_names:
+    if len(parts) > 1 and "trial" not in parts[0][1].column_names and sch.table_kind(parts[0][1].schema) != "metrics":
         raise SchemaError(f"{parts[0][0]} has no trial column: an events table is one recording on one clock, and "
                           "recordings joined end to end would read as one; give the camera files to `neurotac import` "
                           "together (one trial per file), or sync each and concatenate the recordings tables")
@@ -137,9 +155,11 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
         if clash:
             mapping = {trial: _free_name(trial, seen) for trial in clash}
             notes.append(f"{name}: renamed {len(clash)} trial(s), e.g. {clash[0]} -> {mapping[clash[0]]}")
-            renamed = [mapping.get(trial, trial) for trial in table.column("trial").to_pylist()]
-            index = table.schema.get_field_index("trial")
-            table = table.set_column(index, table.schema.field(index), pa.array(renamed, pa.string()))
+            # an augmented copy's source is renamed with it: it would name the other part's grasp
+            for column in [c for c in ("trial", "source_trial") if c in table.column_names]:
+                renamed = [mapping.get(trial, trial) for trial in table.column(column).to_pylist()]
+                index = table.schema.get_field_index(column)
+                table = table.set_column(index, table.schema.field(index), pa.array(renamed, pa.string()))
             ids = [mapping.get(trial, trial) for trial in ids]
         seen.update({trial: name for trial in ids})
         tables.append(table)
@@ -190,9 +210,7 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
 def _check_made_alike(first_name: str, first: pa.Schema, name: str, other: pa.Schema) -> None:
     """Frames pooled or scaled differently (known where both histories say): one count would mean
     another amount of the sensor in each, though their shapes agree."""
-    from neurotac_cli.model.core import made_by
-
-    (pool_a, scaled_a), (pool_b, scaled_b) = made_by(sch.get_meta(first, sch.HISTORY, [])), made_by(sch.get_meta(other, sch.HISTORY, []))
+    (pool_a, scaled_a), (pool_b, scaled_b) = sch.made_by(sch.get_meta(first, sch.HISTORY, [])), sch.made_by(sch.get_meta(other, sch.HISTORY, []))
     if None not in (pool_a, pool_b) and pool_a != pool_b:
         raise SchemaError(f"{name} was pooled {pool_b[0]}x{pool_b[1]}, {first_name} {pool_a[0]}x{pool_a[1]}: one count covers "
                           "another area of the sensor in each; concatenate tables made alike (crop and frame them the same way)")
@@ -261,7 +279,11 @@ def _strata(table: pa.Table, groups: np.ndarray, per: str | None) -> dict:
         return {"": unique}
     if per not in table.column_names:
         raise SchemaError(f"no label column {per!r} to split per (labels: {', '.join(sch.label_columns(table.schema))})")
-    labels = dict(zip(groups.tolist(), table.column(per).to_pylist()))
+    labels = {}
+    for group, value in zip(groups.tolist(), table.column(per).to_pylist()):
+        if labels.setdefault(group, value) != value:  # a per-row column (force, phase, frame) would keep its last row's
+            raise UsageError(f"--per {per}: {per} differs within trial {group!r}; split per a label each trial has "
+                             f"once (labels: {', '.join(sch.label_columns(table.schema))})")
     strata = {}
     for group in unique:
         strata.setdefault(labels[group], []).append(group)

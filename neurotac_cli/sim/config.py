@@ -278,17 +278,19 @@ BOUNDS = {
     **dict.fromkeys(("pixel_pitch_mm", "membrane_youngs_pa", "membrane_thickness_mm", "saturation_force_n",
                      "saturation_sharpness", "pressure_scale_pa", "membrane_confinement", "cutoff_hz", "gripper_speed_mm_s",
                      "step_us", "force_period_us", "grasp_us", "illumination_period_us"), _POSITIVE),
-    **dict.fromkeys(("background_rate_hz", "hot_rate_hz", "led_gain", "refractory_us", "hold_us", "release_us", "tail_us",
+    **dict.fromkeys(("hot_rate_hz", "led_gain", "refractory_us", "hold_us", "release_us", "tail_us",
                      "hot_pixels", "creep_us", "servo_settle_us", "settle_us", "still_us", "force_lag_us", "max_duration_us",
                      "duration_jitter", "texture", "dark_level", "position_jitter_px", "settle_px", "vibration_px",
                      "drift_px", "tilt_deg", "force_vibration", "edge_factor_max", "settle_hz", "vibration_hz"), _NOT_NEGATIVE),
     **dict.fromkeys(("regrasp_share", "change_share", "partial_share", "slip_share", "background_on_share", "bright_share"), _SHARE),
     **dict.fromkeys(("creep", "vignetting", "threshold_mismatch", "illumination_drift"), _BELOW_ONE),
     "on_threshold": (1e-3, 10.0, False, False), "off_threshold": (1e-3, 10.0, False, False),
+    "background_rate_hz": (0.0, 50.0, False, False),
     "force_drift_n_per_min": (-60.0, 60.0, False, False),
     "object_contrast": (-4.0, 1.0, False, True), "bright_contrast": (-4.0, 0.0, False, True), "membrane_poisson": (0.0, 0.5, False, False),
 }
-WHY = {"on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "
+WHY = {"background_rate_hz": "per pixel; DVS pixels leak at 0.01-10 Hz, and each Hz is 43,200 events a second on "
+       "a DAVIS240C, held in memory: 200 Hz took 1.4 GB for one grasp", "on_threshold": "a log-intensity contrast; DVS pixels have 0.1-0.5", "off_threshold": "a log-intensity contrast; DVS "
        "pixels have 0.1-0.5", "object_contrast": "at 0 the camera cannot see the object; below 0 the object is brighter than the membrane", "membrane_poisson": "0.5: incompressible"}
 RANGES = ("session_rest_us", "session_hold_us", "session_speed", "slip_speed_mm_s", "slip_us", "slip_force_drop",
           "contact_delay_us", "led_on_us", "preroll_us", "camera_offset_us")
@@ -331,8 +333,38 @@ def parse_groups(groups) -> list[tuple]:
     return parsed
 
 
+WHOLE = ("sensor_width", "sensor_height", "hot_pixels")  # counts of pixels: sizes of arrays
+
+
+def _type_problems(config: SimConfig) -> list[str]:
+    """Each setting of its default's type: the library passes Python values as given, and a string
+    threshold or a fractional sensor width failed deep in numpy with a TypeError."""
+    import numbers
+
+    default, problems = SimConfig(), []
+    number = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
+    for item in dataclasses.fields(config):
+        value, like = getattr(config, item.name), getattr(default, item.name)
+        if isinstance(like, str):
+            kind, fits = "a string", isinstance(value, str)
+        elif item.name == "groups":
+            kind, fits = "a tuple of object groups (strings)", isinstance(value, tuple) and all(isinstance(v, str) for v in value)
+        elif isinstance(like, tuple):
+            kind = f"a tuple of {len(like) or 4} numbers"
+            fits = isinstance(value, tuple) and len(value) in ({len(like)} if like else {0, 4}) and all(map(number, value))
+        elif item.name in WHOLE:
+            kind, fits = "a whole number", isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        else:  # durations in µs may fall between two (drawn physics scales them)
+            kind, fits = "a number", number(value)
+        if not fits:
+            problems.append(f"{item.name} must be {kind}, got {value!r}")
+    return problems
+
+
 def validate(config: SimConfig):
-    problems = []
+    problems = _type_problems(config)
+    if problems:
+        raise UsageError("bad simulator parameters: " + "; ".join(problems))
     for item in dataclasses.fields(config):  # NaN passes every comparison below unnoticed
         values = getattr(config, item.name)
         for value in values if isinstance(values, tuple) else (values,):
