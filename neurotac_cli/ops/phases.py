@@ -479,7 +479,7 @@ def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | N
     are 5th percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block,
     at its early part. A sample between grasps above the contact bar of the log's sample-to-sample
     noise is left out: under a noise slower than the samples (`slow_noise`), whose bar the grasps
-    are found at, a weak grasp lies between them (the zero 0.13-0.18 N r.m.s. off at 0.2 N of such
+    are found at, a weak grasp lies between them (the zero up to 0.18 N r.m.s. off at 0.2 N of such
     noise, 0.08-0.13 N without those samples); that slower noise's bar also places the steps, whose
     wander moved a few blocks' levels by more than the other's. Where no sample lies between grasps
     (a trial held from start to end), the median of every sample per block; None where no sample is
