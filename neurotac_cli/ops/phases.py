@@ -495,7 +495,8 @@ def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | N
     x, y, tares = _rest_points(force, CONTACT_SHARE, block, slow_noise(force, grasp >= 0, noise, block))
     rest = _followed(np.arange(len(force), dtype=np.float64), x, y, block)
     # nor above the bar of the steps' noise: a grasp too weak for a slow noise's bar lies between grasps
-    between = (grasp < 0) & known & (np.nan_to_num(force - rest) <= _contact_bar(np.where(known, force, rest) - rest, CONTACT_SHARE, noise))
+    bar = _contact_bar(np.where(known, force, rest) - rest, CONTACT_SHARE, noise)
+    between = (grasp < 0) & known & (np.nan_to_num(force - rest) <= bar)
     if not between.any():
         between = known
     bounds = [0, *tares, len(force)]
