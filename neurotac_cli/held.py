@@ -31,6 +31,8 @@ class HeldSignals:
         import os
         import signal
 
+        if self.previous.get(number) == signal.SIG_IGN:  # ignored before the hold (a shell's background job's Ctrl-C)
+            return None
         if not self.done.is_set():
             self.held.append(number)
             return None

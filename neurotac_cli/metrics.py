@@ -313,8 +313,11 @@ def session_rows(trial, frame, t_us, phase, true, pred, *, grasp=None, contact_p
     above = np.zeros(len(true))
     for idx in sessions:  # each session's own rest level, which a drifting sensor moves, over its frames' period
         period = float(np.median(np.diff(t_us[idx]))) if len(idx) > 1 else None
-        above[idx] = np.abs(np.nan_to_num(true[idx] - rest_levels(true[idx], block=rest_block(period))))
-        noise[idx] = slow_noise(true[idx], ~rest[idx], steady, rest_block(period)) or steady
+        level = np.nan_to_num(true[idx] - rest_levels(true[idx], block=rest_block(period)))
+        slow = slow_noise(true[idx], level, rest[idx], steady, rest_block(period))
+        if slow is not None:  # its rest levels, as the labels read them
+            noise[idx], level = slow, np.nan_to_num(true[idx] - rest_levels(true[idx], block=rest_block(period), noise=slow))
+        above[idx] = np.abs(level)
     loaded = rest & known & (above > np.maximum(REST_FORCE_SHARE * spread, REST_FORCE_NOISE * noise))
     if loaded.any():  # frames at rest by their phase that carry force: phases not a session's
         figures.update(rest_loaded_frames=int(loaded.sum()), rest_loaded_max=float(above[loaded].max()))

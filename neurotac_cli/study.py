@@ -316,18 +316,21 @@ def _check_speaks_dask(address: str) -> None:
         return
     host, port = match.group(1), int(match.group(2))
     try:
-        with socket.create_connection((host, port), timeout=PROBE_TIMEOUT) as connection:
-            connection.settimeout(PROBE_TIMEOUT)
-            first = b""
+        connection = socket.create_connection((host, port), timeout=PROBE_TIMEOUT)
+    except OSError:
+        return  # unreachable (or slow to answer): Dask's own attempt says so, within its timeout
+    first = b""
+    with connection:
+        try:
             while len(first) < 8:
                 more = connection.recv(8 - len(first))
                 if not more:
                     break
                 first += more
-    except socket.timeout:
-        first = None
-    except OSError:
-        return  # unreachable: Dask's own attempt says so, within its timeout
+        except socket.timeout:
+            first = None
+        except OSError:
+            return
     if first is None or len(first) < 8 or int.from_bytes(first, "little") > 1 << 20:
         heard = ("sent nothing when connected" if first is None else "closed the connection" if not first
                  else f"answered {first[:8]!r}")

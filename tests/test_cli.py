@@ -51,6 +51,11 @@ def test_a_signal_while_the_command_starts_ends_it_with_one_line(number, code, s
         "main()\n")
     done = subprocess.run([sys.executable, "-c", code_text], capture_output=True, text=True, timeout=60)
     assert done.returncode == code and done.stderr == f"neurotac info: {said}\n", done.stderr
+    # a signal the process ignores (a shell's background job ignores Ctrl-C) is ignored while held too
+    ignored = code_text.replace("import os, signal, sys\n", f"import os, signal, sys\nsignal.signal(signal.{number}, signal.SIG_IGN)\n")
+    done = subprocess.run([sys.executable, "-c", ignored.replace("'info', 'nothing.arrows'", "'--version'")], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 0 and "neurotac, version" in done.stdout, done.stderr
 
 
 def test_shell_completion_completes_commands_and_options():

@@ -1374,6 +1374,8 @@ def test_a_condition_on_columns_sql_cannot_tell_apart_is_refused_and_the_row_ind
     with pytest.raises(NeurotacError, match="differ only in case"):
         select(cased, "\"Material\" = 'steel'")
     assert select(cased, "frame < 3")[1]["kept"] == 9  # a condition that names neither still runs
+    both_t = frames.append_column("T", pa.array(["warm"] * frames.num_rows))  # `t` and `T`; "material" holds a t
+    assert select(both_t, "material = 'steel' OR frame < 3")[1]["kept"] > 0
     shadow = frames.append_column(ROW_INDEX, pa.array([f"{frames.num_rows - k:04d}" for k in range(frames.num_rows)]))
     kept = select(shadow, "frame < 3")[0]
     assert sorted(set(kept.column("frame").to_pylist())) == [0, 1, 2]
@@ -1382,7 +1384,9 @@ def test_a_condition_on_columns_sql_cannot_tell_apart_is_refused_and_the_row_ind
 def test_concat_rename_renames_the_sources_of_augmented_copies_and_split_per_needs_a_trial_label():
     """`concat --rename` renamed a clashing trial but not the `source_trial` of its copies, which then
     named the other table's grasp; `split --per force` stratified by each trial's last row."""
-    from neurotac_cli.errors import UsageError
+    import pyarrow.compute as pc
+
+    from neurotac_cli.errors import SchemaError, UsageError
     from neurotac_cli.ops.rows import concat, split
     from tests.model.helpers import tiny_frames
 
@@ -1391,6 +1395,10 @@ def test_concat_rename_renames_the_sources_of_augmented_copies_and_split_per_nee
     pairs = set(zip(table.column("trial").to_pylist(), table.column("source_trial").to_pylist()))
     later = {(trial, source) for trial, source in pairs if trial.endswith("~2")}
     assert later and all(source.endswith("~2") for _, source in later), pairs
+    copies = tiny_frames(trials=2, augmented_copies=1)
+    only = copies.filter(pc.not_equal(copies.column("trial"), copies.column("source_trial")))
+    with pytest.raises(SchemaError, match="its source 't0' is not in b"):  # whose grasp: a's t0, or another's?
+        concat([("a", copies), ("b", only)], rename=True)
     with pytest.raises(UsageError, match="force differs within trial"):
         split(tiny_frames(trials=4), fraction=0.5, per="force")
 

@@ -698,11 +698,12 @@ def augment(frames: pa.Table, request: Augmentation, noise: pa.Table | None = No
     """`neurotac augment`: (augmented frames, what each method counted, warnings for stderr).
     `noise`: a frames table of a still recording, framed and cropped like `frames`."""
     pool = tuple(noise_pool(noise, frames.schema)) if noise is not None else None
-    table, counted = augment_frames(frames, request.methods(pool), copies=request.copies, combine=request.combine,
+    methods = request.methods(pool)
+    table, counted = augment_frames(frames, methods, copies=request.copies, combine=request.combine,
                                     keep_original=request.keep_original, seed=request.seed, where=list(request.where))
     idle = [name for name, entry in counted.items() if name == "tes" and entry["events_in"] and not entry.get("events_moved")]
     said = [f"--tes {request.tes[0]} {request.tes[1]:g} moved no event: ZETA times each frame's count rounds to none" for _ in idle]
-    if said and request.combine != "hybrid":  # its copies would equal the trials they come from, as --tes J 0's
+    if said and (request.combine != "hybrid" or len(methods) == 1):  # copies equal to their trials, as --tes J 0's
         raise NeurotacError(f"{said[0]}, so its copies would equal the trials they come from; give a larger ZETA")
     return table, counted, loss_warnings(counted) + [f"{line} (the other methods changed the copies)" for line in said]
 

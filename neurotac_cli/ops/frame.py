@@ -325,7 +325,7 @@ def _force_labels(framing: Framing, doubts: "_LabelDoubts", trial: str, logged: 
         phase, grasp = ph.session_columns(force, n_real, n_total, framing.window_us, spikes, slow)
         doubts.look_at_spikes(trial, spikes, slow)
         if has_log and framing.zero != "rest":
-            line = ph.rest_line(logged[:n_real], block, grasp[:n_real])
+            line = ph.rest_line(logged[:n_real], block, grasp[:n_real], slow[0][0] if slow else None)
     else:
         phase = _phases(force, n_real, n_total, framing.phases)
     doubts.look(trial, logged if has_log else None, n_real, line, slow[0][0] if slow else None)
@@ -419,7 +419,7 @@ class _LabelDoubts:
             trial, (sigma, steps) = max(self.slow.items(), key=lambda item: item[1][0])
             notes.append(f"the force log's noise is slower than its samples in {counted(len(self.slow), 'session')} ({trial}: "
                          f"σ {sigma:.3g} over lags of up to {ph.SLOW_NOISE_US / 1000:g} ms, its steps' {steps:.3g}): a filtered "
-                         f"load cell; grasps are found above 5 of that σ and peaking 10 above rest ({10 * sigma:.3g} there), "
+                         f"load cell; grasps are found above at least 5 of that σ and peaking 10 above rest ({10 * sigma:.3g} there), "
                          "weaker ones are labelled at rest")
         if self.logless:
             notes.append(f"--zero rest: {counted(len(self.logless), 'trial')} ({first_few(self.logless)}) {'has' if len(self.logless) == 1 else 'have'} "

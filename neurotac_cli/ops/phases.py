@@ -155,7 +155,7 @@ def label_session(force: np.ndarray, contact_share: float = CONTACT_SHARE, move_
     shortest = int(np.ceil(MIN_GRASP_US * (block or REST_BLOCK) / REST_STRETCH_US))
     short = []
     phase, grasp, threshold = _grasps(filled, rest, noise, shortest, contact_share, move_share, slope_share, short)
-    sigma = slow_noise(force, grasp >= 0, noise, block or REST_BLOCK)
+    sigma = slow_noise(force, filled - rest, grasp < 0, noise, block or REST_BLOCK, contact_share)
     if sigma is not None:  # its wander moved the levels of a few blocks by more than a step noise's bar
         short, rest = [], rest_levels(force, contact_share, block, sigma)
         filled = np.where(known, force, rest)
@@ -197,33 +197,45 @@ def _grasps(filled: np.ndarray, rest: np.ndarray, noise: float, shortest: int, c
 SLOW_NOISE_US = 640_000  # the longest lag `slow_noise` reads a log's noise over
 SLOW_NOISE_RATIO = 2.5  # ... and how far above the sample-to-sample noise it must read to be used
 SLOW_NOISE_MARGIN_US = 100_000  # ... between samples this far from a grasp found (its edges' frames under the bar)
+SLOW_FIRST_RATIO = 1.5  # a first reading this far above the step noise is read again under a bar of its own
 
 
-def slow_noise(force: np.ndarray, touching: np.ndarray, noise: float, block: int) -> float | None:
+def slow_noise(force: np.ndarray, above: np.ndarray, resting: np.ndarray, noise: float, block: int,
+               contact_share: float = CONTACT_SHARE) -> float | None:
     """The σ of a noise slower than the log's samples, where it reads more than SLOW_NOISE_RATIO times
-    `noise`, else None. A load cell low-passed well below its sample rate (a sensor's anti-alias
-    filter, a logger oversampling it) has sample-to-sample steps a fraction of its noise (a third
-    of it where each sample keeps 0.9 of the last), so a bar of 5 step σ sat inside the noise:
+    `noise` (the sample-to-sample one), else None. A load cell low-passed well below its sample rate
+    (a sensor's anti-alias filter, a logger oversampling it) has steps a fraction of its noise (a
+    third of it where each sample keeps 0.9 of the last), so a bar of 5 step σ sat inside the noise:
     with 0.2 N of it, 14-39% of the rest frames were grasps, and up to 2.2 times as many grasps as
-    there were. Its σ is the largest spread of the differences of samples 1, 2, 4 ... samples apart,
-    up to SLOW_NOISE_US, between known samples that lie SLOW_NOISE_MARGIN_US or more from every sample
-    `touching` (the grasps found at `noise`; a grasp's edge under the bar would read as noise); lags
-    with under 200 such pairs are not read. A white noise reads about the same at every lag, so
-    its labels do not change."""
+    there were. It is read over lags (`_lagged_noise`) between samples `resting` and under the contact
+    bar `above` their rest level; that bar, of the step noise, cuts such a noise's peaks off, so
+    where the first reading passes SLOW_FIRST_RATIO times `noise` it is read again under a bar of
+    its own. A white noise reads about the same at every lag, so its labels do not change."""
+    sigma = _lagged_noise(force, resting & (above <= _contact_bar(above, contact_share, noise)), block)
+    if sigma > SLOW_FIRST_RATIO * noise:
+        sigma = _lagged_noise(force, resting & (above <= _contact_bar(above, contact_share, sigma)), block)
+    return sigma if sigma > SLOW_NOISE_RATIO * noise else None
+
+
+def _lagged_noise(force: np.ndarray, quiet: np.ndarray, block: int) -> float:
+    """The largest spread of the differences of samples 1, 2, 4 ... samples apart, up to
+    SLOW_NOISE_US, between known samples that lie SLOW_NOISE_MARGIN_US or more from any sample not
+    `quiet`: a sample on a grasp, or on a weak one's edge, would read its force as noise (between
+    grasps 0.2-0.6 s apart, a white noise read 2.5-5 times its σ where only the grasps were left
+    out, and its grasps were lost); lags with under 200 such pairs are not read (0 where none is)."""
     n = len(force)
-    busy = np.concatenate([[0], np.cumsum(touching)])
+    loud = np.concatenate([[0], np.cumsum(~quiet | np.isnan(force))])
     index = np.arange(n)
     margin = max(1, int(SLOW_NOISE_MARGIN_US * block / REST_STRETCH_US))
-    near = (busy[np.minimum(index + margin + 1, n)] - busy[np.maximum(index - margin, 0)]) > 0
+    near = (loud[np.minimum(index + margin + 1, n)] - loud[np.maximum(index - margin, 0)]) > 0
     sigma, lag, longest = 0.0, 1, max(1, int(SLOW_NOISE_US * block / REST_STRETCH_US))
     while lag <= longest and 2 * lag < n:
-        steps = force[lag:] - force[:-lag]
-        steps = steps[~near[lag:] & ~near[:-lag] & ~np.isnan(steps)]
+        steps = (force[lag:] - force[:-lag])[~near[lag:] & ~near[:-lag]]
         if len(steps) < 200:
             break
         sigma = max(sigma, _spread(steps[::max(1, len(steps) // 100_000)]))  # 100,000 pairs read a σ to 0.3%
         lag *= 2
-    return sigma if sigma > SLOW_NOISE_RATIO * noise else None
+    return sigma
 
 
 def _glitches(logged: np.ndarray, rest: np.ndarray, bar: np.ndarray, grasp: np.ndarray, shortest: int) -> list:
@@ -470,33 +482,38 @@ def _contact_bar(above_rest: np.ndarray, contact_share: float, noise: float) -> 
     return max(contact_share * float(np.percentile(above_rest, 95)), 5 * noise, 1e-6)
 
 
-def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | None = None) -> np.ndarray | None:
+def rest_line(force: np.ndarray, block: int | None = None, grasp: np.ndarray | None = None,
+              slow: float | None = None) -> np.ndarray | None:
     """A log's zero at each sample: the median of the samples between grasps (`label_session`) in each
     `block` samples (REST_BLOCK unless given), placed at their mean place, joined by lines and followed
     for half a block past the first and last (a drift goes on to the log's ends; a log that ends in a
     long grasp has no rest to say where it went). Where the rest levels step (`rest_levels`: a
     re-tared sensor), each side of the step has its own line. The rest levels that find the grasps
     are 5th percentiles, which sit about 1.6 noise σ under the rest's mean and, in a drifting block,
-    at its early part. A sample between grasps above the contact bar of the log's sample-to-sample
-    noise is left out: under a noise slower than the samples (`slow_noise`), whose bar the grasps
-    are found at, a weak grasp lies between them (the zero up to 0.18 N r.m.s. off at 0.2 N of such
+    at its early part. Under a noise slower than the samples (`slow_noise`), whose bar the grasps
+    are found at, a weak grasp lies between them, and a sample between grasps above the contact bar
+    of the log's sample-to-sample noise is left out (the zero up to 0.18 N r.m.s. off at 0.2 N of such
     noise, 0.08-0.13 N without those samples); that slower noise's bar also places the steps, whose
     wander moved a few blocks' levels by more than the other's. Where no sample lies between grasps
     (a trial held from start to end), the median of every sample per block; None where no sample is
-    known. `grasp`: the log's grasp labels (`label_session`'s), where the caller has them."""
+    known. `grasp`: the log's grasp labels (`label_session`'s), where the caller has them, and
+    `slow` the slower noise's σ it read for them (its `slow`), if any."""
     force = np.asarray(force, dtype=np.float64)
     known = ~np.isnan(force)
     if not known.any():
         return None
     block = block or REST_BLOCK
-    grasp = label_session(force, block=block)[1] if grasp is None else grasp
-    steps = np.diff(force)
-    noise = step_noise(steps[~np.isnan(steps)])
-    x, y, tares = _rest_points(force, CONTACT_SHARE, block, slow_noise(force, grasp >= 0, noise, block))
-    rest = _followed(np.arange(len(force), dtype=np.float64), x, y, block)
-    # nor above the bar of the steps' noise: a grasp too weak for a slow noise's bar lies between grasps
-    bar = _contact_bar(np.where(known, force, rest) - rest, CONTACT_SHARE, noise)
-    between = (grasp < 0) & known & (np.nan_to_num(force - rest) <= bar)
+    if grasp is None:
+        said = []
+        grasp = label_session(force, block=block, slow=said)[1]
+        slow = said[0][0] if said else None
+    between = (grasp < 0) & known
+    x, y, tares = _rest_points(force, CONTACT_SHARE, block, slow)
+    if slow is not None:  # nor above the steps' noise's bar: a grasp too weak for the slower bar lies between grasps
+        rest = _followed(np.arange(len(force), dtype=np.float64), x, y, block)
+        steps = np.diff(force)
+        bar = _contact_bar(np.where(known, force, rest) - rest, CONTACT_SHARE, step_noise(steps[~np.isnan(steps)]))
+        between &= np.nan_to_num(force - rest) <= bar
     if not between.any():
         between = known
     bounds = [0, *tares, len(force)]

@@ -37,7 +37,6 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     if not expression.strip():
         raise NeurotacError("the condition is empty (give one, e.g. frame < 30)")
     plain = table.select(plain_columns(table.schema)).replace_schema_metadata(None)
-    _refuse_names_sql_confuses(plain.column_names, expression)
     # DuckDB may return rows in another order (a window function sorts them): each row carries its
     # index, and the answer is ordered by it (a name no column has, SQL's names being blind to case)
     index = ROW_INDEX
@@ -48,6 +47,7 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     try:
         connection.execute("SET enable_external_access = false")
         _refuse_changing_answers(connection, expression, plain.column_names)
+        _refuse_names_sql_confuses(connection, expression, plain.column_names)
         connection.register("input_rows", plain)
         # DuckDB casts a string to a truth value ('yes', 't', '1'), so `--where "'yes'"` would keep every row
         given = connection.execute(f"SELECT typeof(({expression})) FROM input_rows LIMIT 1").fetchall()
@@ -71,15 +71,17 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     return keep
 
 
-def _refuse_names_sql_confuses(columns: list[str], expression: str) -> None:
+def _refuse_names_sql_confuses(connection, expression: str, columns: list[str]) -> None:
     """Columns whose names differ only in case are one name to SQL: DuckDB renamed the second
     (`Material` -> `Material_1`), so a condition on it read the other column and kept the wrong rows
-    without a word. Refused where the condition names them."""
+    without a word. Refused where the condition names them (in DuckDB's own parse of it)."""
     groups = {}
     for name in columns:
         groups.setdefault(name.lower(), []).append(name)
+    named = {node["column_names"][-1].lower() for node in _parsed_nodes(connection, expression)
+             if node.get("class") == "COLUMN_REF" and node.get("column_names")}
     for lower, names in groups.items():
-        if len(names) > 1 and lower in expression.lower():
+        if len(names) > 1 and lower in named:
             raise NeurotacError(f"the columns {', '.join(names)} differ only in case, which SQL does not tell apart, so "
                                 f"--where {expression!r} could read either; rename one (e.g. with DuckDB or Polars) first")
 
@@ -88,21 +90,9 @@ def _refuse_changing_answers(connection, expression: str, columns: list[str]) ->
     """A condition that draws random numbers or reads the clock keeps other rows on each run, so the
     same command would not write the same bytes. Found in DuckDB's own parse of the expression, so a
     string such as 'random()' is not mistaken for a call."""
-    import json
-
-    parsed = json.loads(connection.execute("SELECT json_serialize_sql(?)", [f"SELECT ({expression})"]).fetchall()[0][0])
-    if parsed.get("error"):
-        return  # evaluating it says what is wrong
     volatile = {name for (name,) in connection.execute(
         "SELECT DISTINCT function_name FROM duckdb_functions() WHERE stability = 'VOLATILE'").fetchall()} | CLOCK_FUNCTIONS
-    nodes = [parsed]
-    while nodes:
-        node = nodes.pop()
-        if isinstance(node, list):
-            nodes.extend(node)
-            continue
-        if not isinstance(node, dict):
-            continue
+    for node in _parsed_nodes(connection, expression):
         called, shown = None, None
         if node.get("class") == "FUNCTION":
             called = node.get("function_name")
@@ -116,7 +106,24 @@ def _refuse_changing_answers(connection, expression: str, columns: list[str]) ->
         if node.get("sample"):
             raise UsageError(f"--where {expression!r} samples rows, which keeps other rows on each run; "
                              "for a random share of the trials, `neurotac split --fraction F --seed N`")
-        nodes.extend(node.values())
+
+
+def _parsed_nodes(connection, expression: str):
+    """Every node (a dict) of DuckDB's own parse of the condition; none where it does not parse
+    (evaluating it says what is wrong)."""
+    import json
+
+    parsed = json.loads(connection.execute("SELECT json_serialize_sql(?)", [f"SELECT ({expression})"]).fetchall()[0][0])
+    if parsed.get("error"):
+        return
+    nodes = [parsed]
+    while nodes:
+        node = nodes.pop()
+        if isinstance(node, list):
+            nodes.extend(node)
+        elif isinstance(node, dict):
+            yield node
+            nodes.extend(node.values())
 
 
 def select(table: pa.Table, expression: str) -> tuple[pa.Table, dict]:
@@ -153,6 +160,7 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
             raise SchemaError(f"trial {clash[0]!r} is in both {seen[clash[0]]} and {name} ({len(clash)} trial(s) in both); "
                               "a trial twice would be trained on twice: drop one, or give --rename to suffix the later ones")
         if clash:
+            _refuse_orphan_copies(name, table, clash, seen)
             mapping = {trial: _free_name(trial, seen) for trial in clash}
             notes.append(f"{name}: renamed {len(clash)} trial(s), e.g. {clash[0]} -> {mapping[clash[0]]}")
             # an augmented copy's source is renamed with it: it would name the other part's grasp
@@ -172,6 +180,22 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
         raise SchemaError(f"the tables have different columns or types ({detail}); "
                           "make them with the same steps and labels (DuckDB or Polars can drop or add a column)") from None
     return combined, notes
+
+
+def _refuse_orphan_copies(name: str, table: pa.Table, clash: list, seen: dict) -> None:
+    """An augmented copy renamed for a clash whose source is not in its own part (`augment
+    --only-augmented`) names a trial of an earlier part, which may or may not be the grasp it was
+    made from: renamed, it would point at the wrong one, or lose its source."""
+    if "source_trial" not in table.column_names:
+        return
+    own = set(trial_ids(table))
+    pairs = set(zip(table.column("trial").to_pylist(), table.column("source_trial").to_pylist()))
+    orphans = [(trial, source) for trial, source in pairs if trial in clash and source and source != trial and source not in own]
+    if orphans:
+        trial, source = sorted(orphans)[0]
+        raise SchemaError(f"{name}'s augmented copy {trial!r} clashes with a trial of {seen[trial]}, and its source {source!r} "
+                          f"is not in {name}: renamed, it would name {seen.get(source, 'no')} trial's grasp, which may not be "
+                          "its own; concatenate the copies with their originals first (or augment after concatenating)")
 
 
 def _difference(first: pa.Schema, other: pa.Schema, name: str) -> str:
