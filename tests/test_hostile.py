@@ -1395,6 +1395,10 @@ def test_concat_rename_renames_the_sources_of_augmented_copies_and_split_per_nee
     pairs = set(zip(table.column("trial").to_pylist(), table.column("source_trial").to_pylist()))
     later = {(trial, source) for trial, source in pairs if trial.endswith("~2")}
     assert later and all(source.endswith("~2") for _, source in later), pairs
+    plain = tiny_frames(trials=1)
+    both = concat([("x", plain), ("y", plain)], rename=True)[0]  # t0 and t0~2
+    joined = concat([("a", plain), ("b", both)], rename=True)[0]  # b's t0 may not become the t0~2 b holds
+    assert len(set(joined.column("trial").to_pylist())) == 3
     copies = tiny_frames(trials=2, augmented_copies=1)
     only = copies.filter(pc.not_equal(copies.column("trial"), copies.column("source_trial")))
     with pytest.raises(SchemaError, match="its source 't0' is not in b"):  # whose grasp: a's t0, or another's?

@@ -161,7 +161,11 @@ def concat(parts: list[tuple[str, pa.Table]], rename: bool = False) -> tuple[pa.
                               "a trial twice would be trained on twice: drop one, or give --rename to suffix the later ones")
         if clash:
             _refuse_orphan_copies(name, table, clash, seen)
-            mapping = {trial: _free_name(trial, seen) for trial in clash}
+            taken = set(seen) | set(ids)  # nor a name the part itself holds (`a` beside `a~2`)
+            mapping = {}
+            for trial in clash:
+                mapping[trial] = _free_name(trial, taken)
+                taken.add(mapping[trial])
             notes.append(f"{name}: renamed {len(clash)} trial(s), e.g. {clash[0]} -> {mapping[clash[0]]}")
             # an augmented copy's source is renamed with it: it would name the other part's grasp
             for column in [c for c in ("trial", "source_trial") if c in table.column_names]:
@@ -247,7 +251,7 @@ def _show(value) -> str:
     return f"{value[0]}x{value[1]}" if isinstance(value, tuple) else str(value)
 
 
-def _free_name(trial: str, seen: dict) -> str:
+def _free_name(trial: str, seen) -> str:
     number = 2
     while f"{trial}~{number}" in seen:
         number += 1
