@@ -282,9 +282,12 @@ def format_text(info: dict, everything: bool = False) -> str:
         pairs = [("file", f"{info['file']} (CSV text)"), ("rows", f"{info['rows']:,}"), ("columns", ", ".join(info["columns"]))]
         log = info.get("force_log")
         if log:
+            from neurotac_cli.ops.forcelog import dated_note
+
             pairs.append(("force log", f"{counted(log['samples'], 'sample')} in {counted(log['trials'], 'trial')}, every "
                                        f"{log['period_ms']:g} ms over {log['span_s']:.3f} s; {log['force_n'][0]:.3g} .. "
-                                       f"{log['force_n'][1]:.3g} N (as `sync --force` reads it)"))
+                                       f"{log['force_n'][1]:.3g} N (as `sync --force` reads it)"
+                                       + (dated_note(log["first_us"]) or "")))
         return _aligned(pairs)
     sync = info.get("sync") if isinstance(info.get("sync"), dict) else {}
     lines = _identity_pairs(info) + _content_pairs(info, sync)  # (name, value) pairs, aligned at the end
@@ -526,6 +529,7 @@ def describe_csv(path: str) -> dict | None:
             "period_ms": float(np.median([log.period_us for log in samples])) / 1000,
             "span_s": float(max(log.t[-1] - log.t[0] for log in samples)) / 1e6,
             "force_n": [float(values.min()), float(values.max())],
+            "first_us": int(min(log.t[0] for log in samples)),
         }
     return info
 
@@ -533,12 +537,15 @@ def describe_csv(path: str) -> dict | None:
 def _is_model(path: str) -> bool:
     """A safetensors file (8 bytes of header length, then its JSON header): what `neurotac train` writes.
     A `.model` file is taken for one whatever it holds, so a damaged one is named as a damaged model,
-    not as an unknown camera format."""
+    not as an unknown camera format, unless it begins as a table does (Arrow or Parquet: described
+    as the table it is)."""
     try:
         with open(path, "rb") as handle:
             head = handle.read(10)
     except OSError as error:  # unreadable (permissions): said as every verb says it of an input
         raise cannot_open(path, error) from None
+    if head.startswith((b"\xff\xff\xff\xff", b"ARROW1", b"PAR1")):
+        return False
     return (len(head) == 10 and head[8:10] == b'{"') or str(path).endswith(".model")
 
 

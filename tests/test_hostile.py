@@ -1466,3 +1466,33 @@ def test_the_library_refuses_values_of_the_wrong_type_with_its_own_error(tmp_pat
     events = sch.events_table(np.arange(4), np.array([1, 2, 3, 4]), np.array([1, 1, 2, 2]), np.array([0, 1, 0, 1]), 8, 8)
     with pytest.raises(api.NeurotacError, match=words):
         call(api, frames_table(), events)
+
+
+def test_a_session_held_from_start_to_end_is_said_and_a_table_named_model_is_described(tmp_path):
+    """`frame --phases session` labelled a log held at 2.5 N throughout as rest without a word (with
+    `--zero rest` it warned); `info` refused an Arrow table named `t.model` as a broken model."""
+    from neurotac_cli.ops.frame import Framing, _force_labels, _LabelDoubts
+
+    doubts = _LabelDoubts(Framing(window_us=10_000, phases="session"))
+    held = (2.5 + np.random.default_rng(1).normal(0, 0.02, 3000)).astype(np.float32)
+    _force_labels(Framing(window_us=10_000, phases="session"), doubts, "s", held, True, held.size, held.size)
+    assert any("found no grasp in 1 trial whose force rests far from the log's zero (s: +2.5" in n for n in doubts.notes())
+    tables.write(str(tmp_path / "t.arrows"), frames_table())
+    (tmp_path / "t.model").write_bytes((tmp_path / "t.arrows").read_bytes())
+    code, stderr, output = invoke(["info", str(tmp_path / "t.model")])
+    assert code == 0 and "frames" in output, stderr
+
+
+def test_a_force_log_of_dates_is_named_so_by_info_and_sync(tmp_path):
+    """A log of ISO timestamps: `info` said it read fine "as `sync --force` reads it", and `sync`
+    refused it as not overlapping at 1.70411e+09 s."""
+    rows = [f"2024-01-01T12:00:{k * 2 // 1000:02d}.{k * 2 % 1000:03d}000,{0.1 + 0.01 * (k % 3)}" for k in range(200)]
+    (tmp_path / "iso.csv").write_text("time,force_N\n" + "\n".join(rows) + "\n")
+    code, stderr, output = invoke(["info", str(tmp_path / "iso.csv")])
+    assert code == 0 and "its times are dates (from 2024-01-01 12:00:00 UTC)" in output, stderr
+    events = sch.events_table(np.arange(0, 400_000, 100), np.zeros(4000, np.uint16), np.zeros(4000, np.uint16),
+                              np.ones(4000, np.uint8), 8, 8)
+    tables.write(str(tmp_path / "e.arrows"), events)
+    code, stderr, _ = invoke(["sync", str(tmp_path / "e.arrows"), "--force", str(tmp_path / "iso.csv"), "--method", "offset",
+                              "--offset", "0us"])
+    assert one_line(stderr, code, 1) and "its times are dates" in stderr, stderr

@@ -73,6 +73,20 @@ def inside(t0: int, log: ForceLog, first_us: int, last_us: int) -> tuple[int, in
     return min(end, last_us) - max(start, first_us), max(end - start, 1)
 
 
+DATED_US = 10**14  # a log's first time this late (3 years) is a date on a wall clock, not a time from the sync instant
+
+
+def dated_note(first_us: int) -> str | None:
+    """What to do with a log whose times are dates (ISO timestamps, or seconds since 1970), else None."""
+    if first_us < DATED_US:
+        return None
+    import datetime
+
+    date = datetime.datetime.fromtimestamp(first_us / 1e6, datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return (f"; its times are dates (from {date}), and `sync` reads a log's times from the sync instant: give them "
+            "from the log's start (its first time subtracted)")
+
+
 def overlap_warnings(t0: int, log: ForceLog, first_us: int, last_us: int, where: str) -> list[str]:
     """Refuse a log that does not overlap the recording [first_us, last_us] once placed at t0; warn
     when less than SHORT_OVERLAP of it does."""
@@ -80,6 +94,7 @@ def overlap_warnings(t0: int, log: ForceLog, first_us: int, last_us: int, where:
     inside_us, span = inside(t0, log, first_us, last_us)
     if inside_us <= 0:
         late = f"; its time must start at the sync instant, not at {log.t[0] / 1e6:g} s" if abs(log.t[0]) > last_us - first_us else ""
+        late = dated_note(int(log.t[0])) or late
         raise SyncError(
             f"{where}: the force log ({_seconds(start)}..{_seconds(end)} on the camera clock) does not overlap the "
             f"recording ({_seconds(first_us)}..{_seconds(last_us)}){late}; check --offset and that the log belongs to this recording"

@@ -332,6 +332,8 @@ def _force_labels(framing: Framing, doubts: "_LabelDoubts", trial: str, logged: 
     if line is not None and framing.zero == "rest":
         zeroed = grasp[:n_real] if grasp is not None else ph.label_session(force[:n_real], block=block)[1]
         doubts.look_at_zero(trial, held_level(logged, n_real, line, zeroed))
+    elif line is not None and grasp is not None:  # the log's own zero: a session at rest far from it is one long hold
+        doubts.look_at_zero(trial, held_level(logged, n_real, line, grasp[:n_real]))
     return force, phase, grasp
 
 
@@ -366,8 +368,9 @@ class _LabelDoubts:
             self.logless.append(trial)
 
     def look_at_zero(self, trial: str, held: float | None) -> None:
-        """`held`: the level `rest_zeroed` took off a trial in which it found no grasp, where that lies
-        far from the log's zero (a trial held from start to end reads as rest)."""
+        """`held`: the rest level of a session in which no grasp was found, where that lies far from the
+        log's zero (`held_level`; with `--zero rest`, the level taken off): a trial held from start to
+        end reads as rest."""
         if held is not None:
             self.held[trial] = held
 
@@ -402,11 +405,16 @@ class _LabelDoubts:
                     else "the frames' force keeps the drift (--zero rest takes it out)")
             notes.append(f"the force log's rest level moves over {counted(len(self.drifting), 'session')} ({trial}: by {moved:+.3g}, "
                          f"from its start to its end): a force sensor whose zero drifts or was re-tared; {found}{kept}")
-        if self.held:
+        if self.held and self.framing.zero == "rest":
             trial, level = max(self.held.items(), key=lambda item: abs(item[1]))
             notes.append(f"--zero rest found no grasp in {counted(len(self.held), 'trial')} whose rest level lies far from the log's "
                          f"zero ({trial}: {level:+.3g}): a trial held from start to end reads as rest there, its force taken off; "
                          "frame such trials without --zero rest")
+        elif self.held:
+            trial, level = max(self.held.items(), key=lambda item: abs(item[1]))
+            notes.append(f"--phases session found no grasp in {counted(len(self.held), 'trial')} whose force rests far from the "
+                         f"log's zero ({trial}: {level:+.3g}), labelled at rest: a trial held from start to end, or a log whose zero "
+                         "is off; frame a held trial with --phases auto (one grasp), an offset log with --zero rest")
         if self.spikes:
             trial, spikes = max(self.spikes.items(), key=lambda item: len(item[1]))
             first, frames, peak = max(spikes, key=lambda spike: spike[2])
