@@ -139,8 +139,13 @@ def _option_name(param) -> str:
 
 def _who(ctx) -> str:
     """`neurotac CMD` for messages; the subcommand is not known to click yet while its module loads."""
-    name = ctx.invoked_subcommand or next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
+    name = ctx.invoked_subcommand or named_verb()
     return f"neurotac {name}" if name else "neurotac"
+
+
+def named_verb() -> str | None:
+    """The subcommand the command line names, before click has parsed it (None where it names none)."""
+    return next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
 
 
 def _fail_usage(who: str, message: str):
@@ -247,14 +252,19 @@ def _send_dropped():
 
 def _end_if_dropped():
     """A run that ended before the signal Python dropped was sent again ends as that signal's."""
-    import signal
-
     try:
         number = _DROPPED.pop()
     except IndexError:
         return
+    end_as_signal(number)
+
+
+def end_as_signal(number: int, who: str = "neurotac"):
+    """End the run as Ctrl-C's (130, "interrupted") or SIGTERM's (143, "terminated") one line says."""
+    import signal
+
     terminated = number == signal.SIGTERM
-    _fail(f"neurotac: {'terminated' if terminated else 'interrupted'}", code=143 if terminated else 130)
+    _fail(f"{who}: {'terminated' if terminated else 'interrupted'}", code=143 if terminated else 130)
 
 
 def _check_working_folder():
@@ -263,7 +273,7 @@ def _check_working_folder():
     try:
         os.getcwd()
     except FileNotFoundError:
-        name = next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
+        name = named_verb()
         _fail(f"neurotac{' ' + name if name else ''}: error: the working folder no longer exists (it was deleted or "
               "moved); cd into a folder that exists and run it again")
 

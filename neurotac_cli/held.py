@@ -39,9 +39,8 @@ class HeldSignals:
         action = self.previous[number]
         if callable(action):
             return action(number, frame)
-        if action != signal.SIG_IGN:  # the default: end as the signal ends a process
-            signal.signal(number, signal.SIG_DFL)
-            os.kill(os.getpid(), number)
+        signal.signal(number, signal.SIG_DFL)  # the default (SIG_IGN never gets here): end as the signal ends a process
+        os.kill(os.getpid(), number)
         return None
 
     def deliver(self):
@@ -66,6 +65,14 @@ class HeldSignals:
         if kind is not None:  # the verb failed before a load took the hold over
             self.release()
         return False
+
+    def end(self) -> int | None:
+        """End the hold without acting: the handlers put back, and the signal held first (None where
+        none came), for the caller to end on as it would have."""
+        number = self.held[0] if self.held else None
+        self.held.clear()
+        self.release()
+        return number
 
     def release(self):
         """End the hold without a load: act on a signal held so far, as the handlers put back do."""

@@ -12,16 +12,10 @@ def main():
     Python's traceback; held, it ends the run with the verb's one line (exit 130 or 143), as one
     that comes later does."""
     held = HeldSignals()
-    from neurotac_cli.cli import COMMANDS, cli
+    from neurotac_cli.cli import cli, end_as_signal, named_verb
 
-    number = held.held[0] if held.held else None
-    held.held.clear()
-    held.release()
+    number = held.end()
     if number is not None:
-        import signal
-
-        verb = next((arg for arg in sys.argv[1:] if arg in COMMANDS), None)
-        terminated = number == signal.SIGTERM
-        sys.stderr.write(f"neurotac{' ' + verb if verb else ''}: {'terminated' if terminated else 'interrupted'}\n")
-        sys.exit(143 if terminated else 130)
+        verb = named_verb()
+        end_as_signal(number, f"neurotac{' ' + verb if verb else ''}")
     sys.exit(cli(prog_name="neurotac"))
