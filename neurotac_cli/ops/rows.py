@@ -46,8 +46,9 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     connection = duckdb.connect()
     try:
         connection.execute("SET enable_external_access = false")
-        _refuse_changing_answers(connection, expression, plain.column_names)
-        _refuse_names_sql_confuses(connection, expression, plain.column_names)
+        nodes = _parsed_nodes(connection, expression)
+        _refuse_changing_answers(connection, expression, nodes, plain.column_names)
+        _refuse_names_sql_confuses(expression, nodes, plain.column_names)
         connection.register("input_rows", plain)
         # DuckDB casts a string to a truth value ('yes', 't', '1'), so `--where "'yes'"` would keep every row
         given = connection.execute(f"SELECT typeof(({expression})) FROM input_rows LIMIT 1").fetchall()
@@ -71,28 +72,27 @@ def where_mask(table: pa.Table, expression: str) -> np.ndarray:
     return keep
 
 
-def _refuse_names_sql_confuses(connection, expression: str, columns: list[str]) -> None:
+def _refuse_names_sql_confuses(expression: str, nodes: list[dict], columns: list[str]) -> None:
     """Columns whose names differ only in case are one name to SQL: DuckDB renamed the second
     (`Material` -> `Material_1`), so a condition on it read the other column and kept the wrong rows
     without a word. Refused where the condition names them (in DuckDB's own parse of it)."""
     groups = {}
     for name in columns:
         groups.setdefault(name.lower(), []).append(name)
-    named = {node["column_names"][-1].lower() for node in _parsed_nodes(connection, expression)
-             if node.get("class") == "COLUMN_REF" and node.get("column_names")}
+    named = {node["column_names"][-1].lower() for node in nodes if node.get("class") == "COLUMN_REF" and node.get("column_names")}
     for lower, names in groups.items():
         if len(names) > 1 and lower in named:
             raise NeurotacError(f"the columns {', '.join(names)} differ only in case, which SQL does not tell apart, so "
                                 f"--where {expression!r} could read either; rename one (e.g. with DuckDB or Polars) first")
 
 
-def _refuse_changing_answers(connection, expression: str, columns: list[str]) -> None:
+def _refuse_changing_answers(connection, expression: str, nodes: list[dict], columns: list[str]) -> None:
     """A condition that draws random numbers or reads the clock keeps other rows on each run, so the
     same command would not write the same bytes. Found in DuckDB's own parse of the expression, so a
     string such as 'random()' is not mistaken for a call."""
     volatile = {name for (name,) in connection.execute(
         "SELECT DISTINCT function_name FROM duckdb_functions() WHERE stability = 'VOLATILE'").fetchall()} | CLOCK_FUNCTIONS
-    for node in _parsed_nodes(connection, expression):
+    for node in nodes:
         called, shown = None, None
         if node.get("class") == "FUNCTION":
             called = node.get("function_name")
@@ -108,22 +108,21 @@ def _refuse_changing_answers(connection, expression: str, columns: list[str]) ->
                              "for a random share of the trials, `neurotac split --fraction F --seed N`")
 
 
-def _parsed_nodes(connection, expression: str):
+def _parsed_nodes(connection, expression: str) -> list[dict]:
     """Every node (a dict) of DuckDB's own parse of the condition; none where it does not parse
     (evaluating it says what is wrong)."""
     import json
 
     parsed = json.loads(connection.execute("SELECT json_serialize_sql(?)", [f"SELECT ({expression})"]).fetchall()[0][0])
-    if parsed.get("error"):
-        return
-    nodes = [parsed]
+    found, nodes = [], [] if parsed.get("error") else [parsed]
     while nodes:
         node = nodes.pop()
         if isinstance(node, list):
             nodes.extend(node)
         elif isinstance(node, dict):
-            yield node
+            found.append(node)
             nodes.extend(node.values())
+    return found
 
 
 def select(table: pa.Table, expression: str) -> tuple[pa.Table, dict]:
@@ -307,11 +306,13 @@ def _strata(table: pa.Table, groups: np.ndarray, per: str | None) -> dict:
         return {"": unique}
     if per not in table.column_names:
         raise SchemaError(f"no label column {per!r} to split per (labels: {', '.join(sch.label_columns(table.schema))})")
-    labels = {}
-    for group, value in zip(groups.tolist(), table.column(per).to_pylist()):
-        if labels.setdefault(group, value) != value:  # a per-row column (force, phase, frame) would keep its last row's
-            raise UsageError(f"--per {per}: {per} differs within trial {group!r}; split per a label each trial has "
-                             f"once (labels: {', '.join(sch.label_columns(table.schema))})")
+    values = pa.table({"group": pa.array(groups.tolist(), pa.string()), "value": table.column(per)})
+    counts = values.group_by("group").aggregate([("value", "count_distinct", pc.CountOptions(mode="all"))])
+    mixed = pc.filter(counts.column("group"), pc.greater(counts.column("value_count_distinct"), 1))
+    if len(mixed):  # a per-row column (force, phase, frame) would be read at each trial's last row
+        raise UsageError(f"--per {per}: {per} differs within trial {mixed[0].as_py()!r}; split per a label each trial has "
+                         f"once (labels: {', '.join(sch.label_columns(table.schema))})")
+    labels = dict(zip(groups.tolist(), table.column(per).to_pylist()))
     strata = {}
     for group in unique:
         strata.setdefault(labels[group], []).append(group)
