@@ -432,6 +432,19 @@ def made_by(history: list) -> tuple:
     return pool if history else None, scaled
 
 
+def made_unlike(name: str, schema: pa.Schema, other_name: str, other: pa.Schema) -> str | None:
+    """How two frames tables were made unlike (pooled or scaled differently, where both histories
+    say: one count would mean another amount of the sensor in each, though their shapes agree), or None."""
+    (pool_a, scaled_a), (pool_b, scaled_b) = made_by(get_meta(schema, HISTORY, [])), made_by(get_meta(other, HISTORY, []))
+    if None not in (pool_a, pool_b) and pool_a != pool_b:
+        return (f"{other_name} was pooled {pool_b[0]}x{pool_b[1]}, {name} {pool_a[0]}x{pool_a[1]}: one count covers "
+                "another area of the sensor in each")
+    if None not in (scaled_a, scaled_b) and scaled_a != scaled_b:
+        return (f"{other_name} holds counts {'scaled' if scaled_b else 'as counted'}, "
+                f"{name} {'scaled' if scaled_a else 'as counted'} (`frame --dtype`)")
+    return None
+
+
 def _guess_kind(schema: pa.Schema) -> str | None:
     """Tables from other tools (DuckDB, Polars) lose our metadata: recognise them by their columns."""
     names = set(schema.names)

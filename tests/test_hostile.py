@@ -1425,6 +1425,10 @@ def test_noise_of_counts_is_not_added_to_scaled_frames_nor_a_tes_that_moves_noth
     tables.write(str(tmp_path / "scaled.arrows"), counted.replace_schema_metadata(history("float32")))
     code, stderr, _ = invoke(["augment", "--noise", str(tmp_path / "noise.arrows"), str(tmp_path / "scaled.arrows")])
     assert one_line(stderr, code, 1) and "frame both alike" in stderr
+    pooled = sch.set_meta(counted.schema, history=[{"command": "crop", "args": {"pool": [2, 2]}}]).metadata
+    tables.write(str(tmp_path / "pooled.arrows"), counted.replace_schema_metadata(pooled))  # the same frame size, pooled
+    code, stderr, _ = invoke(["augment", "--noise", str(tmp_path / "pooled.arrows"), str(tmp_path / "noise.arrows")])
+    assert one_line(stderr, code, 1) and "the noise table was pooled 2x2" in stderr
     code, stderr, _ = invoke(["augment", "--tes", "1", "1e-9", str(tmp_path / "noise.arrows")])
     assert one_line(stderr, code, 1) and "moved no event" in stderr
 

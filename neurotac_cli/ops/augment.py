@@ -277,11 +277,10 @@ def noise_pool(noise: pa.Table, like: pa.Schema) -> list[np.ndarray]:
         )
     if noise.num_rows == 0:
         raise SchemaError("the noise table has no frames (frame a still recording with `neurotac frame`)")
-    # counts of events added to counts scaled by `frame --dtype` (or back) would swamp them or vanish
-    (_, scaled), (_, noise_scaled) = sch.made_by(sch.get_meta(like, sch.HISTORY, [])), sch.made_by(sch.get_meta(noise.schema, sch.HISTORY, []))
-    if None not in (scaled, noise_scaled) and scaled != noise_scaled:
-        raise SchemaError(f"the noise frames hold counts {'scaled' if noise_scaled else 'as counted'} and the frames to "
-                          f"augment {'scaled' if scaled else 'as counted'} (`frame --dtype`); frame both alike")
+    # counts added to counts pooled or scaled otherwise (`frame --dtype`) would swamp them or vanish
+    unlike = sch.made_unlike("the table to augment", like, "the noise table", noise.schema)
+    if unlike:
+        raise SchemaError(f"{unlike}; frame both alike (frame and crop the still recording exactly as the data)")
     counts = sch.counts_numpy(noise["counts"])
     trials, order = _trial_order(noise)
     return [counts[rows] for rows in np.split(order, np.flatnonzero(np.diff(trials[order])) + 1)]

@@ -235,15 +235,10 @@ def check_alike(parts: list[tuple[str, pa.Table]]) -> None:
 
 
 def _check_made_alike(first_name: str, first: pa.Schema, name: str, other: pa.Schema) -> None:
-    """Frames pooled or scaled differently (known where both histories say): one count would mean
-    another amount of the sensor in each, though their shapes agree."""
-    (pool_a, scaled_a), (pool_b, scaled_b) = sch.made_by(sch.get_meta(first, sch.HISTORY, [])), sch.made_by(sch.get_meta(other, sch.HISTORY, []))
-    if None not in (pool_a, pool_b) and pool_a != pool_b:
-        raise SchemaError(f"{name} was pooled {pool_b[0]}x{pool_b[1]}, {first_name} {pool_a[0]}x{pool_a[1]}: one count covers "
-                          "another area of the sensor in each; concatenate tables made alike (crop and frame them the same way)")
-    if None not in (scaled_a, scaled_b) and scaled_a != scaled_b:
-        raise SchemaError(f"{name} holds counts {'scaled' if scaled_b else 'as counted'}, {first_name} "
-                          f"{'scaled' if scaled_a else 'as counted'} (`frame --dtype`); concatenate tables made alike")
+    """Frames pooled or scaled differently (`schema.made_unlike`) are not one table's."""
+    unlike = sch.made_unlike(first_name, first, name, other)
+    if unlike:
+        raise SchemaError(f"{unlike}; concatenate tables made alike (crop and frame them the same way)")
 
 
 def _show(value) -> str:
