@@ -64,10 +64,12 @@ def _model(model):
     return model
 
 
-def _whole(value, what: str, least: int = 0, most: int = 2**63 - 1) -> int:
-    """`value` checked as a whole number from `least` to `most` (the command line's types check theirs)."""
-    if not is_whole(value) or not least <= value <= most:
-        raise UsageError(f"{what} must be a whole number {f'>= {least}' if most == 2**63 - 1 else f'from {least} to {most}'}, got {value!r}")
+def _whole(value, what: str, least: int | None = 0, most: int = 2**63 - 1) -> int:
+    """`value` checked as a whole number from `least` (None: no bound) to `most` (the command line's
+    types check theirs)."""
+    if not is_whole(value) or not (least is None or least <= value) or not value <= most:
+        bound = "" if least is None else f" >= {least}" if most == 2**63 - 1 else f" from {least} to {most}"
+        raise UsageError(f"{what} must be a whole number{bound}, got {value!r}")
     return int(value)
 
 
@@ -167,7 +169,8 @@ def write(table: pa.Table, path: str, step: tuple | None = None) -> None:
         raise UsageError("give a file path: the library does not write binary tables to stdout")
     if not isinstance(table, pa.Table):
         raise UsageError(f"expected a pyarrow Table to write, got {type(table).__name__}")
-    if step is not None and not (isinstance(step, (tuple, list)) and len(step) == 2 and isinstance(step[0], str) and isinstance(step[1], dict)):
+    if step is not None and not (isinstance(step, (tuple, list)) and len(step) == 2
+                                 and isinstance(step[0], str) and isinstance(step[1], dict)):
         raise UsageError(f"step must be (command, args): a name and a dict of its arguments, got {step!r}"[:300])
     tables.write(_path(path), table, step=step)
 
@@ -222,9 +225,7 @@ def frame(table: pa.Table, window="10ms", **options) -> pa.Table:
         raise UsageError(f"frame() has no option {sorted(set(options) - known)[0]!r} (options: {', '.join(sorted(known))})")
     options = {name: _plain(value) for name, value in options.items()}
     if options.get("start_us") is not None:
-        if not is_whole(options["start_us"]):
-            raise UsageError(f"start_us must be a whole number of µs, got {options['start_us']!r}")
-        options["start_us"] = int(options["start_us"])
+        options["start_us"] = _whole(options["start_us"], "start_us", least=None)
     for name in ("accumulate", "sort"):
         if name in options:
             options[name] = _flag(options[name], name)

@@ -341,10 +341,11 @@ def _type_problems(config: SimConfig) -> list[str]:
     threshold or a fractional sensor width failed deep in numpy with a TypeError."""
     import numbers
 
-    default, problems = SimConfig(), []
+    problems = []
     number = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
     for item in dataclasses.fields(config):
-        value, like = getattr(config, item.name), getattr(default, item.name)
+        value = getattr(config, item.name)
+        like = item.default if item.default is not dataclasses.MISSING else item.default_factory()
         if isinstance(like, str):
             kind, fits = "a string", isinstance(value, str)
         elif item.name == "groups":
